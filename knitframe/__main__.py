@@ -1,0 +1,5 @@
+import sys
+
+from knitframe.cli import main
+
+sys.exit(main())

@@ -1,0 +1,53 @@
+"""The ``knitframe`` command. Each subcommand lives in :mod:`knitframe.commands`.
+
+Errors caused by input print one line, ``knitframe: error: <what>``, and exit with code 2
+(3 for a numerical failure); there is never a traceback for them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import warnings
+
+from knitframe import __version__
+from knitframe.errors import KnitframeError
+
+__all__ = ["main", "COMMANDS"]
+
+#: Subcommand modules; each defines ``add_parser(subparsers)`` which sets ``func`` on its parser.
+COMMANDS = ("run", "plugins")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="knitframe", description="Mechanics of weft-knitted fabrics: simulate, fit and design."
+    )
+    parser.add_argument("--version", action="version", version=f"knitframe {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMANDS:
+        importlib.import_module(f"knitframe.commands.{name}").add_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")
+        try:
+            return int(args.func(args) or 0)
+        except KnitframeError as e:
+            print(f"knitframe: error: {e}", file=sys.stderr)
+            return e.exit_code
+        except KeyboardInterrupt:
+            print("knitframe: interrupted", file=sys.stderr)
+            return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Subcommands of the ``knitframe`` CLI, one module each."""

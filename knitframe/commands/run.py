@@ -1,0 +1,36 @@
+"""``knitframe run CONFIG [--out DIR] [--resume]``: run a config-selected pipeline."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from knitframe.errors import ConfigError
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("run", help="run a pipeline config", description=__doc__)
+    p.add_argument("config", nargs="?", help="TOML config file")
+    p.add_argument("--example", action="store_true", help="run the built-in example config")
+    p.add_argument("--out", type=Path, default=None, help="output directory (default: <config name>-out)")
+    p.add_argument("--resume", action="store_true", help="continue a killed run from its checkpoints")
+    p.add_argument("--quiet", action="store_true", help="no progress output")
+    p.set_defaults(func=main)
+
+
+def main(args) -> int:
+    from knitframe.examples import example_config
+    from knitframe.pipeline import run
+
+    if args.example == bool(args.config):
+        raise ConfigError("", "give a CONFIG file or --example (not both)")
+    config = example_config() if args.example else Path(args.config)
+    out = args.out or Path(f"{Path(config).stem}-out")
+    result = run(config, out, resume=args.resume, quiet=args.quiet)
+    if not args.quiet:
+        for stage in result.summary["stages"]:
+            print(f"  {stage['stage']:<12s} {stage['seconds']:9.3f} s")
+        print(f"wrote {len(result.summary['outputs']) + 1} files to {result.out}")
+        for name, res in result.results.items():
+            if isinstance(res, dict) and res.get("headline"):
+                print(f"  {name}: {res['headline']}")
+    return 0

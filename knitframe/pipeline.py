@@ -1,0 +1,234 @@
+"""Config-selected pipelines.
+
+A config's top-level tables select stages: each registered :class:`~knitframe.interfaces.Stage`
+owns the table named after it (``[data]``, ``[solver]``, ``[fit]`` …) and may read others it
+``uses`` (``[fabric]``, ``[scene]``). The pipeline
+
+1. validates the whole config — unknown tables, every stage's options, plugin names, files,
+   effects — before any work, so bad input leaves nothing behind;
+2. runs the present stages in ``order`` inside ``<out>.partial/``;
+3. writes ``summary.json`` (stages, plugins with versions, timings) and renames the directory to
+   ``<out>`` only when everything succeeded.
+
+New stages arrive as plugins; nothing here changes when they do.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import shutil
+import sys
+import time
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import attrs
+
+from knitframe import __version__
+from knitframe.config import load_toml
+from knitframe.errors import ConfigError
+from knitframe.plugins import Registry, get_registry
+from knitframe.records import Response
+
+__all__ = ["BuildContext", "RunContext", "Pipeline", "PipelineResult", "run", "RESERVED_TABLES"]
+
+#: Top-level tables that belong to the pipeline itself rather than to a stage.
+RESERVED_TABLES = ("pipeline",)
+
+
+@attrs.define
+class BuildContext:
+    """What a stage needs while validating its config."""
+
+    registry: Registry
+    base_dir: Path  #: relative paths in the config are resolved against this directory
+    source: str | None = None  #: config file name, shown in error messages
+    tables: frozenset[str] = frozenset()  #: top-level tables present in the config
+
+    def path(self, value: str | Path, key: str, *, must_exist: bool = True) -> Path:
+        """Resolve a config path; a missing file is a ConfigError at ``key``."""
+        p = Path(value).expanduser()
+        if not p.is_absolute():
+            p = (self.base_dir / p).resolve()
+        if must_exist and not p.exists():
+            raise ConfigError(key, f"file not found: {value}", source=self.source)
+        return p
+
+
+@attrs.define
+class RunContext:
+    """Shared state of a running pipeline; stages read from and add to it."""
+
+    registry: Registry
+    out: Path  #: directory the stage writes into (the ``.partial`` directory while running)
+    responses: list[Response] = attrs.Factory(list)  #: measured or simulated curves
+    models: list[Any] = attrs.Factory(list)  #: fitted reduced models
+    results: dict[str, Any] = attrs.Factory(dict)  #: per-stage results, by stage name
+    outputs: list[str] = attrs.Factory(list)  #: files written, relative to ``out``
+    plugins: dict[str, dict[str, str]] = attrs.Factory(dict)  #: "kind:name" → {package, version}
+    resume: bool = False  #: continue from checkpoints left by a killed run
+    quiet: bool = False
+
+    def output(self, name: str) -> Path:
+        """Path of an output file; records it for the summary."""
+        self.outputs.append(name)
+        p = self.out / name
+        p.parent.mkdir(parents=True, exist_ok=True)
+        return p
+
+    def checkpoint_dir(self, stage: str) -> Path:
+        """Directory for a stage's checkpoints; it survives a killed run for ``--resume``."""
+        p = self.out / "checkpoints" / stage
+        p.mkdir(parents=True, exist_ok=True)
+        return p
+
+    def used(self, kind: str, name: str) -> None:
+        """Record that a plugin took part in the run (for provenance in summary.json)."""
+        entry = self.registry[kind].entry(name)
+        self.plugins[f"{kind}:{name}"] = {"package": entry.package, "version": entry.version}
+
+
+@attrs.frozen
+class PipelineResult:
+    """What :func:`run` returns."""
+
+    out: Path | None
+    responses: list[Response]
+    models: list[Any]
+    results: dict[str, Any]
+    summary: dict[str, Any]
+
+
+class Pipeline:
+    """Validated stages of one config, ready to run."""
+
+    def __init__(self, config: Mapping[str, Any], *, base_dir: Path, source: str | None = None,
+                 registry: Registry | None = None):
+        self.registry = registry or get_registry()
+        self.config = dict(config)
+        self.source = source
+        stage_kind = self.registry["stage"]
+        owners: dict[str, str] = {}
+        for name in stage_kind:
+            owners[name] = name
+            for t in stage_kind[name].uses:
+                owners.setdefault(t, name)
+        for key, value in self.config.items():
+            if key in RESERVED_TABLES:
+                continue
+            if key not in owners:
+                known = sorted(set(owners) | set(RESERVED_TABLES))
+                raise ConfigError(key, f"unknown table; expected one of {', '.join(known)}", source=source)
+            if not isinstance(value, dict):
+                raise ConfigError(key, f"expected a table, got {value!r}", source=source)
+        self._check_pipeline_table()
+        ctx = BuildContext(self.registry, base_dir, source, frozenset(self.config))
+        present = [stage_kind[n] for n in stage_kind if n in self.config]
+        if not present:
+            stages = ", ".join(f"[{n}]" for n in stage_kind)
+            raise ConfigError("", f"nothing to do: the config has none of the stage tables {stages}", source=source)
+        self.stages = [cls.from_config(self.config, ctx) for cls in sorted(present, key=lambda c: c.order)]
+
+    def _check_pipeline_table(self) -> None:
+        table = self.config.get("pipeline", {})
+        allowed = {"name", "description"}
+        for k, v in table.items():
+            if k not in allowed:
+                raise ConfigError(f"pipeline.{k}", f"unknown key; expected one of {', '.join(sorted(allowed))}",
+                                  source=self.source)
+            if not isinstance(v, str):
+                raise ConfigError(f"pipeline.{k}", f"expected a string, got {v!r}", source=self.source)
+
+    @property
+    def name(self) -> str:
+        return self.config.get("pipeline", {}).get("name", Path(self.source or "pipeline").stem)
+
+    def run(self, out: Path | None, *, resume: bool = False, quiet: bool = False) -> PipelineResult:
+        """Run every stage; outputs appear in ``out`` only if all succeed (None: no files)."""
+        if out is None:
+            import tempfile
+
+            with tempfile.TemporaryDirectory(prefix="knitframe-") as tmp:
+                res = self._run_in(Path(tmp) / "run", resume=False, quiet=quiet)
+                return attrs.evolve(res, out=None)
+        return self._run_in(Path(out), resume=resume, quiet=quiet)
+
+    def _run_in(self, out: Path, *, resume: bool, quiet: bool) -> PipelineResult:
+        partial = out.with_name(out.name + ".partial")
+        if partial.exists() and not resume:
+            shutil.rmtree(partial)
+        partial.mkdir(parents=True, exist_ok=True)
+        ctx = RunContext(self.registry, partial, resume=resume, quiet=quiet)
+        t_start = time.perf_counter()
+        timings = []
+        try:
+            for stage in self.stages:
+                t0 = time.perf_counter()
+                stage.run(ctx)
+                timings.append({"stage": stage.name, "seconds": round(time.perf_counter() - t0, 6)})
+        except BaseException:
+            # keep the partial directory only if it holds checkpoints worth resuming from
+            ckpt = partial / "checkpoints"
+            if not (ckpt.exists() and any(ckpt.rglob("*"))):
+                shutil.rmtree(partial, ignore_errors=True)
+            raise
+        summary = {
+            "knitframe": __version__,
+            "pipeline": self.name,
+            "config": self.source,
+            "stages": timings,
+            "plugins": dict(sorted(ctx.plugins.items())),
+            "outputs": sorted(set(ctx.outputs)),
+            "results": _jsonable(ctx.results),
+            "wall_time_s": round(time.perf_counter() - t_start, 6),
+            "python": sys.version.split()[0],
+            "platform": platform.platform(),
+        }
+        (partial / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+        shutil.rmtree(partial / "checkpoints", ignore_errors=True)
+        if out.exists():
+            shutil.rmtree(out)
+        os.replace(partial, out)
+        return PipelineResult(out, ctx.responses, ctx.models, ctx.results, summary)
+
+
+def _jsonable(obj: Any) -> Any:
+    """Best-effort conversion of stage results to JSON-compatible data."""
+    import numpy as np
+
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, (np.floating, np.integer)):
+        return obj.item()
+    if attrs.has(type(obj)):
+        return _jsonable(attrs.asdict(obj, recurse=False))
+    if isinstance(obj, (str, int, float, bool)) or obj is None:
+        return obj
+    return str(obj)
+
+
+def run(config: str | Path | Mapping[str, Any], out: str | Path | None = None, *, resume: bool = False,
+        quiet: bool = True, registry: Registry | None = None) -> PipelineResult:
+    """Run a pipeline from a TOML path or a config dict; the Python twin of ``knitframe run``.
+
+    Parameters
+    ----------
+    config : path or mapping
+        TOML file, or an already-parsed dict (relative paths then resolve against the cwd).
+    out : path, optional
+        Output directory. None runs without keeping files.
+    """
+    if isinstance(config, Mapping):
+        pipeline = Pipeline(config, base_dir=Path.cwd(), registry=registry)
+    else:
+        path = Path(config)
+        pipeline = Pipeline(load_toml(path), base_dir=path.resolve().parent, source=str(path), registry=registry)
+    return pipeline.run(Path(out) if out is not None else None, resume=resume, quiet=quiet)
+

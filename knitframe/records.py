@@ -1,0 +1,266 @@
+"""The project's vocabulary: frozen, validated records that every stage passes along.
+
+Units: lengths in mm, stresses and moduli in MPa, forces in N, fabric tension per unit width in
+N/mm, stretches dimensionless, angles in radians inside records (degrees only in configs).
+Direction 1 is the course (along a row of stitches), direction 2 the wale.
+
+Every record round-trips through plain dicts and TOML::
+
+    Response.from_dict(r.to_dict())      # equal arrays and metadata
+    Yarn.from_toml(y.to_toml())
+"""
+
+from __future__ import annotations
+
+import tomllib
+from typing import Any, ClassVar, Literal
+
+import attrs
+import numpy as np
+import tomli_w
+
+from knitframe import validators as v
+from knitframe.errors import FieldError
+from knitframe.schema import build, to_dict
+
+__all__ = ["EFFECTS", "Yarn", "Fabric", "LoadPath", "Scene", "Provenance", "Response", "Record"]
+
+#: Physical effects a scene may ask for. Solvers declare the subset they can model, and build
+#: their residual only from the terms of the effects a scene asks for.
+EFFECTS: dict[str, str] = {
+    "large_deformation": "geometrically nonlinear kinematics (finite rotations and stretches)",
+    "bending": "yarn bending stiffness",
+    "contact": "yarn-yarn contact, including contact with periodic images",
+    "self_contact": "contact of a yarn with itself",
+    "friction": "regularised Coulomb friction at contacts (needs contact)",
+    "prestress": "pre-stress step growing the yarn from an undersized radius to dk",
+    "anisotropy": "transversely isotropic yarn law / anisotropic fabric response",
+}
+
+
+class Record:
+    """Mixin: dict and TOML round trip for attrs records."""
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data dict (arrays as lists, None fields omitted)."""
+        return to_dict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any], path: str = ""):
+        """Validated record from a plain dict; errors name ``path.<field>``."""
+        return build(cls, data, path)
+
+    def to_toml(self) -> str:
+        """TOML text of :meth:`to_dict`."""
+        return tomli_w.dumps(self.to_dict())
+
+    @classmethod
+    def from_toml(cls, text: str, path: str = ""):
+        """Validated record from TOML text."""
+        return cls.from_dict(tomllib.loads(text), path)
+
+
+def _f64(value: Any) -> np.ndarray:
+    """Read-only 1-D float64 copy."""
+    arr = np.array(value, dtype=np.float64, copy=True).reshape(-1)
+    arr.setflags(write=False)
+    return arr
+
+
+def _f64_opt(value: Any) -> np.ndarray | None:
+    return None if value is None else _f64(value)
+
+
+@attrs.frozen
+class Yarn(Record):
+    """A yarn: geometry in the free and the knitted state, and its stiffness.
+
+    Cotton and nylon are transversely isotropic (transverse stiffness ≈ 1e-4 of axial); PET
+    monofilament is isotropic (``E_transverse == E_axial``).
+    """
+
+    name: str
+    d0: float = attrs.field(validator=v.positive)  #: free (relaxed) diameter, mm
+    dk: float = attrs.field(validator=v.positive)  #: knitted (compressed) diameter, mm
+    E_axial: float = attrs.field(validator=v.positive)  #: axial Young's modulus, MPa
+    E_transverse: float = attrs.field(validator=v.positive)  #: transverse Young's modulus, MPa
+    G_axial: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: axial shear modulus, MPa
+    nu: float = attrs.field(default=0.3, validator=v.in_range(-1.0, 0.5, lo_open=True, hi_open=True))  #: Poisson ratio, -
+    failure_strain: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: axial strain at failure, -
+    model: str = "transverse_isotropic"  #: yarn-model plugin name
+    source: str = ""  #: where the numbers come from
+
+    def __attrs_post_init__(self) -> None:
+        if self.dk > self.d0 * (1 + 1e-12):
+            raise FieldError("dk", f"must be <= d0 = {self.d0}, got {self.dk}")
+
+    @property
+    def rk(self) -> float:
+        """Knitted radius dk/2, mm."""
+        return 0.5 * self.dk
+
+    @property
+    def isotropic(self) -> bool:
+        """True when the transverse modulus equals the axial one."""
+        return bool(np.isclose(self.E_axial, self.E_transverse))
+
+
+@attrs.frozen
+class Fabric(Record):
+    """A knitted fabric: pattern, stitch length and yarn.
+
+    Give the stitch length as a machine setting (``stitch_length``, e.g. 10, 11, 12) and/or as
+    the arc length of yarn per stitch (``arc_length`` in mm); pattern plugins map one to the other.
+    """
+
+    pattern: str
+    yarn: Yarn
+    stitch_length: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: machine setting, -
+    arc_length: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: yarn per stitch, mm
+    course_pitch: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: stitch width, mm
+    wale_pitch: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: stitch height, mm
+
+    def __attrs_post_init__(self) -> None:
+        if self.stitch_length is None and self.arc_length is None:
+            raise FieldError("stitch_length", "give stitch_length (machine setting) or arc_length (mm)")
+
+
+@attrs.frozen
+class LoadPath(Record):
+    """Macroscopic load path of the unit cell.
+
+    ``equibiaxial``: λ1 = λ2 = 1 + ε. ``uniaxial``: λ along ``direction`` = 1 + ε, the other
+    side free (its tension is zero). ``general``: λ1(t), λ2(t) given point by point.
+    """
+
+    kind: Literal["equibiaxial", "uniaxial", "general"] = "equibiaxial"
+    max_strain: float = attrs.field(default=0.3, validator=v.in_range(0.0, 5.0, lo_open=True))  #: engineering strain, -
+    steps: int = attrs.field(default=10, validator=v.in_range(1, 100000))  #: load increments, -
+    direction: Literal["course", "wale"] = "course"  #: loaded direction for ``uniaxial``
+    lambda1: tuple[float, ...] = ()  #: course stretch path for ``general``, -
+    lambda2: tuple[float, ...] = ()  #: wale stretch path for ``general``, -
+
+    def __attrs_post_init__(self) -> None:
+        if self.kind == "general":
+            if not self.lambda1 or len(self.lambda1) != len(self.lambda2):
+                raise FieldError("lambda1", "general load path needs lambda1 and lambda2 of equal, non-zero length")
+            if min(self.lambda1 + self.lambda2) <= 0:
+                raise FieldError("lambda1", "stretches must be > 0")
+
+    def stretches(self) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """Prescribed stretches per step, excluding the undeformed state.
+
+        Returns ``(t, lam1, lam2)`` with pseudo-time ``t`` in (0, 1]; a free direction is None.
+        """
+        if self.kind == "general":
+            n = len(self.lambda1)
+            return np.arange(1, n + 1) / n, np.asarray(self.lambda1), np.asarray(self.lambda2)
+        t = np.arange(1, self.steps + 1) / self.steps
+        lam = 1.0 + self.max_strain * t
+        if self.kind == "equibiaxial":
+            return t, lam, lam.copy()
+        return (t, lam, None) if self.direction == "course" else (t, None, lam)
+
+
+@attrs.frozen
+class Scene(Record):
+    """What to simulate: a load path, the effects to include, and the outputs wanted."""
+
+    load: LoadPath = attrs.Factory(LoadPath)
+    effects: frozenset[str] = attrs.field(
+        default=frozenset({"large_deformation", "bending", "contact"}),
+        converter=frozenset,
+        validator=v.subset_of(EFFECTS),
+    )  #: names from :data:`EFFECTS`
+    outputs: frozenset[str] = attrs.field(
+        default=frozenset({"response"}), converter=frozenset, validator=v.subset_of(("response", "vtu", "checkpoints"))
+    )  #: what to write besides the Response
+
+    def __attrs_post_init__(self) -> None:
+        if "friction" in self.effects and "contact" not in self.effects:
+            raise FieldError("effects", "'friction' needs 'contact'")
+
+
+@attrs.frozen
+class Provenance(Record):
+    """Where a Response came from."""
+
+    kind: Literal["experiment", "simulation", "model"] = "experiment"
+    source: str = ""  #: file name, solver name or model description
+    solver: str | None = None  #: solver plugin name, for simulations
+    mesh: str | None = None  #: mesh summary, for simulations
+    wall_time: float | None = None  #: seconds
+    converged: bool = True
+    notes: str = ""
+    extra: dict[str, Any] = attrs.Factory(dict)  #: plugin versions, options …
+
+
+LoadKind = Literal["equibiaxial", "uniaxial-course", "uniaxial-wale", "general"]
+
+
+@attrs.frozen(eq=False)
+class Response(Record):
+    """A fabric's tension-stretch response, measured or simulated.
+
+    ``T1``, ``T2`` are tensions per unit width (N/mm) along the course and the wale; ``lambda1``,
+    ``lambda2`` are the stretches. For ``uniaxial-course`` the wale side is free (T2 = 0) and
+    ``lambda2`` is the measured lateral stretch; ``uniaxial-wale`` likewise. The ``*_sd`` arrays
+    are one standard deviation over ``n_samples`` repeats. All arrays have shape (n,).
+    """
+
+    lambda1: np.ndarray = attrs.field(converter=_f64, validator=v.finite_array)  #: course stretch, -
+    lambda2: np.ndarray = attrs.field(converter=_f64, validator=v.finite_array)  #: wale stretch, -
+    T1: np.ndarray = attrs.field(converter=_f64, validator=v.finite_array)  #: course tension, N/mm
+    T2: np.ndarray = attrs.field(converter=_f64, validator=v.finite_array)  #: wale tension, N/mm
+    load: LoadKind = "equibiaxial"
+    label: str = ""
+    n_samples: int = attrs.field(default=1, validator=v.in_range(1, 10**9))
+    T1_sd: np.ndarray | None = attrs.field(default=None, converter=_f64_opt, validator=v.finite_array)  #: N/mm
+    T2_sd: np.ndarray | None = attrs.field(default=None, converter=_f64_opt, validator=v.finite_array)  #: N/mm
+    lambda1_sd: np.ndarray | None = attrs.field(default=None, converter=_f64_opt, validator=v.finite_array)  #: -
+    lambda2_sd: np.ndarray | None = attrs.field(default=None, converter=_f64_opt, validator=v.finite_array)  #: -
+    provenance: Provenance = attrs.Factory(Provenance)
+
+    _ARRAYS: ClassVar[tuple[str, ...]] = ("lambda1", "lambda2", "T1", "T2", "T1_sd", "T2_sd", "lambda1_sd", "lambda2_sd")
+
+    def __attrs_post_init__(self) -> None:
+        n = self.lambda1.shape[0]
+        if n == 0:
+            raise FieldError("lambda1", "must hold at least one point")
+        for name in self._ARRAYS:
+            arr = getattr(self, name)
+            if arr is not None and arr.shape[0] != n:
+                raise FieldError(name, f"must have the same length as lambda1 ({n}), got {arr.shape[0]}")
+        for name in ("lambda1", "lambda2"):
+            arr = getattr(self, name)
+            if np.any(arr <= 0):
+                i = int(np.flatnonzero(arr <= 0)[0])
+                raise FieldError(name, f"stretch must be > 0, got {arr[i]} at index {i}")
+
+    def __len__(self) -> int:
+        return int(self.lambda1.shape[0])
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Response):
+            return NotImplemented
+        for name in self._ARRAYS:
+            a, b = getattr(self, name), getattr(other, name)
+            if (a is None) != (b is None) or (a is not None and not np.array_equal(a, b)):
+                return False
+        return (self.load, self.label, self.n_samples, self.provenance) == (
+            other.load,
+            other.label,
+            other.n_samples,
+            other.provenance,
+        )
+
+    __hash__ = None  # type: ignore[assignment]
+
+    @property
+    def loaded_direction(self) -> int | None:
+        """0 for a uniaxial-course test, 1 for uniaxial-wale, None otherwise."""
+        return {"uniaxial-course": 0, "uniaxial-wale": 1}.get(self.load)
+
+    def evolve(self, **changes: Any) -> "Response":
+        """Copy with some fields replaced."""
+        return attrs.evolve(self, **changes)

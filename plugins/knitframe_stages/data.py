@@ -1,0 +1,76 @@
+"""Stage ``[data]``: import test files as Responses through a reader plugin.
+
+::
+
+    [data]
+    reader = "singal2024"            # or { kind = "singal2024", average = false }
+    files = ["cotton-stockinette-x.csv"]
+
+Writes ``responses.csv`` and ``responses.png``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import attrs
+
+from knitframe import hookimpl
+from knitframe.config import PluginSpec, instantiate
+from knitframe.errors import ConfigError, FieldError
+from knitframe.records import Response
+from knitframe.report import plot_responses, write_responses_csv
+from knitframe.schema import build
+
+
+@attrs.frozen
+class DataTable:
+    """Schema of the ``[data]`` table."""
+
+    files: list[str]  #: data files, relative to the config file
+    reader: str | dict[str, Any] = "singal2024"  #: reader plugin name, or a table with ``kind`` and options
+
+    def __attrs_post_init__(self) -> None:
+        if not self.files:
+            raise FieldError("files", "must list at least one file")
+
+
+@attrs.frozen
+class DataStage:
+    """Import measured curves as Responses."""
+
+    name: ClassVar[str] = "data"
+    description: ClassVar[str] = "import test files as Responses through a reader plugin"
+    order: ClassVar[int] = 10
+    uses: ClassVar[tuple[str, ...]] = ()
+
+    reader_name: str
+    responses: tuple[Response, ...]
+
+    @classmethod
+    def from_config(cls, config, ctx) -> "DataStage":
+        table = build(DataTable, config["data"], "data", source=ctx.source)
+        reader = instantiate(ctx.registry, "reader", table.reader, "data.reader", source=ctx.source)
+        responses: list[Response] = []
+        for i, f in enumerate(table.files):
+            path = ctx.path(f, f"data.files[{i}]")
+            responses.extend(reader.read(path))  # DataError names the file, line and column
+        if not responses:
+            raise ConfigError("data.files", "the files hold no curves", source=ctx.source)
+        return cls(PluginSpec.parse(table.reader, "data.reader").kind, tuple(responses))
+
+    def run(self, ctx) -> None:
+        ctx.used("reader", self.reader_name)
+        ctx.used("stage", self.name)
+        ctx.responses.extend(self.responses)
+        write_responses_csv(ctx.output("responses.csv"), self.responses)
+        plot_responses(ctx.output("responses.png"), self.responses, title="imported responses")
+        ctx.results[self.name] = {
+            "curves": [{"label": r.label, "load": r.load, "points": len(r), "samples": r.n_samples} for r in self.responses],
+            "headline": f"{len(self.responses)} curves imported",
+        }
+
+
+@hookimpl
+def register_stages(register):
+    register(DataStage)
