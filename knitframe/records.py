@@ -79,7 +79,7 @@ class Yarn(Record):
     monofilament is isotropic (``E_transverse == E_axial``).
     """
 
-    name: str
+    name: str  #: library key, e.g. "cotton"
     d0: float = attrs.field(validator=v.positive)  #: free (relaxed) diameter, mm
     dk: float = attrs.field(validator=v.positive)  #: knitted (compressed) diameter, mm
     E_axial: float = attrs.field(validator=v.positive)  #: axial Young's modulus, MPa
@@ -113,8 +113,8 @@ class Fabric(Record):
     the arc length of yarn per stitch (``arc_length`` in mm); pattern plugins map one to the other.
     """
 
-    pattern: str
-    yarn: Yarn
+    pattern: str  #: pattern plugin name, e.g. "jersey"
+    yarn: Yarn  #: yarn record, or in a config a yarn-library name
     stitch_length: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: machine setting, -
     arc_length: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: yarn per stitch, mm
     course_pitch: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: stitch width, mm
@@ -133,7 +133,7 @@ class LoadPath(Record):
     side free (its tension is zero). ``general``: λ1(t), λ2(t) given point by point.
     """
 
-    kind: Literal["equibiaxial", "uniaxial", "general"] = "equibiaxial"
+    kind: Literal["equibiaxial", "uniaxial", "general"] = "equibiaxial"  #: load-path type
     max_strain: float = attrs.field(default=0.3, validator=v.in_range(0.0, 5.0, lo_open=True))  #: engineering strain, -
     steps: int = attrs.field(default=10, validator=v.in_range(1, 100000))  #: load increments, -
     direction: Literal["course", "wale"] = "course"  #: loaded direction for ``uniaxial``
@@ -166,7 +166,7 @@ class LoadPath(Record):
 class Scene(Record):
     """What to simulate: a load path, the effects to include, and the outputs wanted."""
 
-    load: LoadPath = attrs.Factory(LoadPath)
+    load: LoadPath = attrs.Factory(LoadPath)  #: macroscopic load path
     effects: frozenset[str] = attrs.field(
         default=frozenset({"large_deformation", "bending", "contact"}),
         converter=frozenset,
@@ -185,13 +185,13 @@ class Scene(Record):
 class Provenance(Record):
     """Where a Response came from."""
 
-    kind: Literal["experiment", "simulation", "model"] = "experiment"
+    kind: Literal["experiment", "simulation", "model"] = "experiment"  #: what produced the curve
     source: str = ""  #: file name, solver name or model description
     solver: str | None = None  #: solver plugin name, for simulations
     mesh: str | None = None  #: mesh summary, for simulations
     wall_time: float | None = None  #: seconds
-    converged: bool = True
-    notes: str = ""
+    converged: bool = True  #: false if a solver stopped early
+    notes: str = ""  #: free text
     extra: dict[str, Any] = attrs.Factory(dict)  #: plugin versions, options …
 
 
@@ -212,14 +212,14 @@ class Response(Record):
     lambda2: np.ndarray = attrs.field(converter=_f64, validator=v.finite_array)  #: wale stretch, -
     T1: np.ndarray = attrs.field(converter=_f64, validator=v.finite_array)  #: course tension, N/mm
     T2: np.ndarray = attrs.field(converter=_f64, validator=v.finite_array)  #: wale tension, N/mm
-    load: LoadKind = "equibiaxial"
-    label: str = ""
-    n_samples: int = attrs.field(default=1, validator=v.in_range(1, 10**9))
+    load: LoadKind = "equibiaxial"  #: which sides are loaded and which are free
+    label: str = ""  #: curve name
+    n_samples: int = attrs.field(default=1, validator=v.in_range(1, 10**9))  #: repeats behind the mean
     T1_sd: np.ndarray | None = attrs.field(default=None, converter=_f64_opt, validator=v.finite_array)  #: N/mm
     T2_sd: np.ndarray | None = attrs.field(default=None, converter=_f64_opt, validator=v.finite_array)  #: N/mm
     lambda1_sd: np.ndarray | None = attrs.field(default=None, converter=_f64_opt, validator=v.finite_array)  #: -
     lambda2_sd: np.ndarray | None = attrs.field(default=None, converter=_f64_opt, validator=v.finite_array)  #: -
-    provenance: Provenance = attrs.Factory(Provenance)
+    provenance: Provenance = attrs.Factory(Provenance)  #: origin of the curve
 
     _ARRAYS: ClassVar[tuple[str, ...]] = ("lambda1", "lambda2", "T1", "T2", "T1_sd", "T2_sd", "lambda1_sd", "lambda2_sd")
 

@@ -41,17 +41,22 @@ def type_name(tp: Any) -> str:
     if tp is _NoneType:
         return "none"
     if origin in (typing.Union, types.UnionType):
-        return " or ".join(type_name(a) for a in get_args(tp))
+        args = [a for a in get_args(tp) if a is not _NoneType]
+        text = " or ".join(type_name(a) for a in args)
+        return text + (" (optional)" if len(args) < len(get_args(tp)) else "")
     if origin is Literal:
         return " | ".join(repr(a) for a in get_args(tp))
     if origin in (list, tuple, frozenset, set):
         return f"array of {type_name(get_args(tp)[0])}"
     if origin is dict:
-        return f"table of {type_name(get_args(tp)[1])}"
+        val = get_args(tp)[1] if get_args(tp) else Any
+        return "table" if val is Any else f"table of {type_name(val)}"
     if tp is np.ndarray:
         return "array of float"
     if tp is float:
         return "float"
+    if tp is str:
+        return "string"
     if attrs.has(tp):
         return "table"
     return getattr(tp, "__name__", str(tp))

@@ -18,6 +18,13 @@ __all__ = ["positive", "non_negative", "in_range", "one_of", "finite", "optional
 Validator = Callable[[Any, Any, Any], None]
 
 
+def _fmt(value: Any) -> str:
+    """Numbers as the user would write them: -1 rather than -1.0."""
+    if isinstance(value, (float, np.floating)) and math.isfinite(value) and float(value).is_integer() and abs(value) < 1e15:
+        return str(int(value))
+    return repr(value.item() if isinstance(value, np.generic) else value)
+
+
 def _num(attribute, value) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
         raise FieldError(attribute.name, f"must be a number, got {value!r}")
@@ -29,13 +36,13 @@ def _num(attribute, value) -> float:
 def positive(instance, attribute, value) -> None:
     """Value is a finite number > 0."""
     if _num(attribute, value) <= 0:
-        raise FieldError(attribute.name, f"must be > 0, got {value!r}")
+        raise FieldError(attribute.name, f"must be > 0, got {_fmt(value)}")
 
 
 def non_negative(instance, attribute, value) -> None:
     """Value is a finite number >= 0."""
     if _num(attribute, value) < 0:
-        raise FieldError(attribute.name, f"must be >= 0, got {value!r}")
+        raise FieldError(attribute.name, f"must be >= 0, got {_fmt(value)}")
 
 
 def finite(instance, attribute, value) -> None:
@@ -51,7 +58,7 @@ def in_range(lo: float, hi: float, *, lo_open: bool = False, hi_open: bool = Fal
         bad = (v <= lo if lo_open else v < lo) or (v >= hi if hi_open else v > hi)
         if bad:
             lb, rb = ("(" if lo_open else "["), (")" if hi_open else "]")
-            raise FieldError(attribute.name, f"must be in {lb}{lo}, {hi}{rb}, got {value!r}")
+            raise FieldError(attribute.name, f"must be in {lb}{lo}, {hi}{rb}, got {_fmt(value)}")
 
     return check
 

@@ -43,6 +43,7 @@ class DataStage:
     description: ClassVar[str] = "import test files as Responses through a reader plugin"
     order: ClassVar[int] = 10
     uses: ClassVar[tuple[str, ...]] = ()
+    schema: ClassVar[type] = DataTable
 
     reader_name: str
     responses: tuple[Response, ...]

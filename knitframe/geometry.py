@@ -1,0 +1,650 @@
+"""Unit-cell yarn geometry shared by the pattern plugins and the unit-cell solvers.
+
+A pattern plugin's ``cell(fabric)`` returns a :class:`UnitCell`: the yarn centerlines of a 2x2
+stitch cell as smooth parametric curves :class:`Centerline` with exact tangents, the lattice
+vectors, the pairing of yarn ends across the course boundary and the knit/purl layout.
+
+Axes: x is the course, y the wale, z out of the fabric plane; lengths in mm.
+
+Periodicity. Along the course a yarn is cut at the cell boundary: the end of yarn ``i`` at ``t1``
+continues as the start of yarn ``j`` shifted by ``L1`` for every ``(i, j)`` in ``end_pairs``.
+Following the pairs from a yarn back to itself gives a *strand*: one infinite yarn of the fabric.
+Along the wale the rows hold together only through contact with periodic images (``±L2``,
+``±L1 ± L2``); :func:`image_shifts` lists them.
+
+Besides the records this module holds the geometry every consumer needs: arc length,
+rotation-minimising frames closed over each strand (:func:`frames`), the minimum
+centerline-to-centerline clearance with periodic images and self-contact (:func:`clearance`),
+and writers for VTU (:func:`write_vtu`) and a three-view PNG (:func:`plot_views`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Callable
+
+import attrs
+import numpy as np
+
+from knitframe.errors import GeometryError, NumericalError
+
+__all__ = [
+    "Centerline",
+    "UnitCell",
+    "Frames",
+    "Contact",
+    "Clearance",
+    "strands",
+    "image_shifts",
+    "arc_length",
+    "frames",
+    "clearance",
+    "tube_surface",
+    "write_vtu",
+    "plot_views",
+]
+
+
+def _vec3(value: Any) -> np.ndarray:
+    arr = np.array(value, dtype=np.float64, copy=True).reshape(3)
+    arr.setflags(write=False)
+    return arr
+
+
+# Composite Gauss-Legendre nodes on [0, 1]: 8 per panel is exact for degree-15 polynomials.
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
+_GL_X, _GL_W = 0.5 * (_GL_X + 1.0), 0.5 * _GL_W
+
+
+def _integrate_speed(derivative: Callable, a: float, b: float, panels: int) -> float:
+    edges = np.linspace(a, b, panels + 1)
+    h = np.diff(edges)
+    t = (edges[:-1, None] + h[:, None] * _GL_X[None, :]).reshape(-1)
+    speed = np.linalg.norm(np.asarray(derivative(t), dtype=np.float64), axis=1)
+    return float(np.sum((h[:, None] * _GL_W[None, :]).reshape(-1) * speed))
+
+
+def arc_length(derivative: Callable, a: float, b: float, *, rtol: float = 1e-12) -> float:
+    """Arc length ∫_a^b |r'(t)| dt by composite Gauss-Legendre quadrature, doubling the panels.
+
+    Parameters
+    ----------
+    derivative : callable
+        ``t (n,) -> (n, 3)`` exact derivative dr/dt, mm per unit t.
+    a, b : float
+        Parameter interval.
+    rtol : float
+        Relative change between two successive doublings at which the result is accepted.
+
+    Returns
+    -------
+    float
+        Length in mm. Raises NumericalError when the quadrature does not settle (a cusp).
+    """
+    prev = _integrate_speed(derivative, a, b, 32)
+    for panels in (64, 128, 256, 512, 1024, 2048, 4096):
+        cur = _integrate_speed(derivative, a, b, panels)
+        if not np.isfinite(cur):
+            raise NumericalError(f"arc length is not finite on [{a}, {b}]")
+        if abs(cur - prev) <= rtol * abs(cur):
+            return cur
+        prev = cur
+    raise NumericalError(f"arc length on [{a}, {b}] did not converge (last change {abs(cur - prev):.3g} mm)")
+
+
+@attrs.frozen(eq=False)
+class Centerline:
+    """One yarn of the cell as a smooth parametric curve r(t), t in [t0, t1].
+
+    ``position`` and ``derivative`` accept any real t (not only [t0, t1]) and are vectorised:
+    ``t (n,) -> (n, 3)`` in mm and mm per unit t. ``period`` is r(t1) - r(t0).
+    """
+
+    name: str  #: e.g. "row0"
+    position: Callable[[np.ndarray], np.ndarray]  #: t (n,) -> (n, 3), mm
+    derivative: Callable[[np.ndarray], np.ndarray]  #: t (n,) -> (n, 3) exact dr/dt, mm
+    t0: float
+    t1: float
+    period: np.ndarray = attrs.field(converter=_vec3)  #: (3,) r(t1) - r(t0), mm
+
+    def sample(self, n: int, *, endpoint: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``n`` uniformly spaced parameters with positions and unit tangents.
+
+        Returns ``t`` (n,), ``x`` (n, 3) mm and unit tangents (n, 3). ``endpoint=False`` drops t1
+        (whose point is the paired yarn's start shifted by L1), for periodic discretisations.
+        """
+        t = np.linspace(self.t0, self.t1, n, endpoint=endpoint)
+        x = np.asarray(self.position(t), dtype=np.float64)
+        d = np.asarray(self.derivative(t), dtype=np.float64)
+        speed = np.linalg.norm(d, axis=1)
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(d))) or np.any(speed <= 1e-12 * (1.0 + speed.max())):
+            bad = int(np.flatnonzero(~np.isfinite(speed) | (speed <= 1e-12 * (1.0 + speed.max())))[0]) if np.any(
+                ~np.isfinite(speed) | (speed <= 1e-12 * (1.0 + speed.max()))
+            ) else int(np.flatnonzero(~np.all(np.isfinite(x), axis=1))[0])
+            raise NumericalError(f"yarn '{self.name}': no tangent at t = {t[bad]:.6g} (speed {speed[bad]:.3g})")
+        return t, x, d / speed[:, None]
+
+    def arc_length(self) -> float:
+        """Length of the curve between t0 and t1, mm (relative accuracy about 1e-12)."""
+        return arc_length(self.derivative, self.t0, self.t1)
+
+    def arc_coordinate(self, t: np.ndarray, *, n: int = 2048) -> np.ndarray:
+        """Arc length s(t) from t0, mm, for t in [t0, t1] (trapezoid on ``n`` intervals, interpolated)."""
+        grid = np.linspace(self.t0, self.t1, n + 1)
+        gx, gw = np.polynomial.legendre.leggauss(4)
+        h = grid[1] - grid[0]
+        tq = (grid[:-1, None] + 0.5 * h * (gx[None, :] + 1.0)).reshape(-1)
+        seg = (0.5 * h * gw[None, :] * np.linalg.norm(self.derivative(tq), axis=1).reshape(n, 4)).sum(axis=1)
+        s = np.concatenate([[0.0], np.cumsum(seg)])
+        return np.interp(t, grid, s)
+
+
+@attrs.frozen(eq=False)
+class UnitCell:
+    """The 2x2 stitch cell of a pattern: centerlines, lattice, end pairing and knit/purl layout."""
+
+    pattern: str
+    yarns: tuple[Centerline, ...]  #: one yarn per course row, each spanning the two stitches of the row
+    L1: np.ndarray = attrs.field(converter=_vec3)  #: (3,) course lattice vector (2 x course pitch), mm
+    L2: np.ndarray = attrs.field(converter=_vec3)  #: (3,) wale lattice vector (2 x wale pitch), mm
+    radius: float  #: knitted yarn radius dk/2, mm
+    end_pairs: tuple[tuple[int, int], ...]  #: (i, j): end of yarn i at t1 continues as start of yarn j + L1
+    layout: tuple[tuple[str, ...], ...]  #: rows x columns of "k" / "p"
+    arc_length_per_stitch: float  #: mm
+    course_pitch: float  #: mm
+    wale_pitch: float  #: mm
+    info: dict[str, Any] = attrs.Factory(dict)  #: pattern-specific shape parameters, for reports
+
+    def __attrs_post_init__(self) -> None:
+        n = len(self.yarns)
+        targets = sorted(j for _, j in self.end_pairs)
+        if sorted(i for i, _ in self.end_pairs) != list(range(n)) or targets != list(range(n)):
+            raise GeometryError(f"end_pairs {self.end_pairs} must pair each of the {n} yarns' ends exactly once")
+
+    @property
+    def dk(self) -> float:
+        """Knitted yarn diameter, mm."""
+        return 2.0 * self.radius
+
+    def pair_of(self, i: int) -> int:
+        """The yarn whose start continues the end of yarn ``i`` (shifted by L1)."""
+        return dict(self.end_pairs)[i]
+
+
+def strands(cell: UnitCell) -> list[list[int]]:
+    """Yarn indices grouped into strands (cycles of ``end_pairs``), each in continuation order."""
+    nxt = dict(cell.end_pairs)
+    seen: set[int] = set()
+    out = []
+    for i in range(len(cell.yarns)):
+        if i in seen:
+            continue
+        cyc = [i]
+        seen.add(i)
+        while nxt[cyc[-1]] != i:
+            cyc.append(nxt[cyc[-1]])
+            seen.add(cyc[-1])
+        out.append(cyc)
+    return out
+
+
+def image_shifts(cell: UnitCell, reach: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """Periodic image offsets ``k1 L1 + k2 L2`` for k1, k2 in [-reach, reach].
+
+    Returns ``(k, shift)``: integer pairs (m, 2) with (0, 0) first, and shifts (m, 3) in mm.
+    """
+    r = np.arange(-reach, reach + 1)
+    k = np.array([(a, b) for a in r for b in r], dtype=int)
+    k = k[np.argsort(np.abs(k).sum(axis=1), kind="stable")]
+    return k, k[:, :1] * cell.L1[None, :] + k[:, 1:] * cell.L2[None, :]
+
+
+# ----------------------------------------------------------------------------------------- frames
+@attrs.frozen(eq=False)
+class Frames:
+    """Rotation-minimising frame along one yarn at ``n + 1`` parameters from t0 to t1 inclusive."""
+
+    t: np.ndarray  #: (n+1,)
+    x: np.ndarray  #: (n+1, 3) positions, mm
+    tangent: np.ndarray  #: (n+1, 3) unit tangents
+    normal: np.ndarray  #: (n+1, 3) unit normals, ⟂ tangent
+    binormal: np.ndarray  #: (n+1, 3) tangent x normal
+
+
+def _householder(v: np.ndarray) -> np.ndarray:
+    """(m, 3, 3) reflections I - 2 v vᵀ / (v·v); identity where v = 0."""
+    c = np.einsum("ij,ij->i", v, v)
+    safe = np.where(c > 0, c, 1.0)
+    h = np.eye(3)[None] - 2.0 * v[:, :, None] * v[:, None, :] / safe[:, None, None]
+    h[c <= 1e-300] = np.eye(3)
+    return h
+
+
+def _prefix_products(m: np.ndarray) -> np.ndarray:
+    """Cumulative products P_k = M_k ... M_1 M_0 of (n, 3, 3) matrices by a log-depth scan."""
+    p = m.copy()
+    k = 1
+    while k < len(p):
+        p[k:] = p[k:] @ p[:-k]
+        k *= 2
+    return p
+
+
+def frames(cell: UnitCell, n: int = 256) -> list[Frames]:
+    """Rotation-minimising frames of every yarn, closed periodically over each strand.
+
+    The double-reflection method (Wang, Jüttler, Zheng & Liu 2008, ACM TOG 27(1)) propagates a
+    normal from sample to sample: with v1 = x_{i+1} - x_i, reflect r_i and T_i in the plane
+    ⟂ v1 to get r_L, T_L; with v2 = T_{i+1} - T_L, reflect r_L in the plane ⟂ v2. After one trip
+    round a strand the frame comes back turned by the strand's holonomy angle φ about the
+    tangent; the frame is then untwisted by -φ s/Λ (s the arc coordinate along the strand of
+    length Λ), so it is continuous across every cell boundary. Each yarn gets ``n`` intervals.
+
+    Returns
+    -------
+    list of Frames
+        One per yarn, in the order of ``cell.yarns``; frame ``[-1]`` of yarn ``i`` equals frame
+        ``[0]`` of its paired yarn.
+    """
+    out: list[Frames | None] = [None] * len(cell.yarns)
+    for strand in strands(cell):
+        ts, xs, tans, lens = [], [], [], []
+        shift = np.zeros(3)
+        for k, i in enumerate(strand):
+            t, x, tan = cell.yarns[i].sample(n + 1)
+            ts.append(t)
+            xs.append(x[:-1] + shift if k < len(strand) - 1 or True else x)
+            tans.append(tan[:-1])
+            lens.append(n)
+            shift = shift + cell.L1
+        # closing sample: the strand's start one full strand further on
+        t_first, x_first, tan_first = cell.yarns[strand[0]].sample(2)
+        x = np.vstack(xs + [x_first[:1] + shift])
+        tan = np.vstack(tans + [tan_first[:1]])
+        m = len(x) - 1
+        v1 = x[1:] - x[:-1]
+        h1 = _householder(v1)
+        t_left = np.einsum("mij,mj->mi", h1, tan[:-1])
+        h2 = _householder(tan[1:] - t_left)
+        step = h2 @ h1  # rotation taking frame i to frame i+1
+        r0 = _perpendicular(tan[0])
+        rot = _prefix_products(step)
+        r = np.vstack([r0, np.einsum("mij,j->mi", rot, r0)])
+        # holonomy: angle from the propagated end normal back to r0 about the (common) tangent
+        b0 = np.cross(tan[0], r0)
+        phi = np.arctan2(r[-1] @ b0, r[-1] @ r0)
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(v1, axis=1))])
+        ang = -phi * s / s[-1]
+        b = np.cross(tan, r)
+        normal = np.cos(ang)[:, None] * r + np.sin(ang)[:, None] * b
+        normal /= np.linalg.norm(normal, axis=1)[:, None]
+        binormal = np.cross(tan, normal)
+        if not (np.all(np.isfinite(normal)) and np.all(np.isfinite(binormal))):
+            raise NumericalError(f"frame of strand {strand} is not finite (degenerate tangent?)")
+        for k, i in enumerate(strand):
+            sl = slice(k * n, k * n + n + 1)
+            back = k * cell.L1
+            out[i] = Frames(ts[k], x[sl] - back, tan[sl], normal[sl], binormal[sl])
+        assert m == n * len(strand)
+    return out  # type: ignore[return-value]
+
+
+def _perpendicular(t: np.ndarray) -> np.ndarray:
+    """A unit vector ⟂ t, chosen from the coordinate axis least aligned with t."""
+    e = np.zeros(3)
+    e[int(np.argmin(np.abs(t)))] = 1.0
+    r = e - (e @ t) * t
+    return r / np.linalg.norm(r)
+
+
+# -------------------------------------------------------------------------------------- clearance
+@attrs.frozen
+class Contact:
+    """A local minimum of the distance between two centerlines (a yarn and an image of one)."""
+
+    yarns: tuple[int, int]  #: yarn indices (a, b)
+    image: tuple[int, int]  #: (k1, k2): b is shifted by k1 L1 + k2 L2
+    t: tuple[float, float]  #: parameters on a and b
+    point: tuple[float, float, float]  #: midpoint of the closest pair, mm
+    distance: float  #: centerline-to-centerline distance, mm
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data dict for JSON."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in attrs.asdict(self).items()}
+
+
+@attrs.frozen
+class Clearance:
+    """Minimum centerline-to-centerline distance of a cell and the places closer than dk."""
+
+    minimum: float  #: mm
+    closest: Contact
+    overlaps: tuple[Contact, ...]  #: local minima with distance < dk, closest first
+    dk: float  #: knitted diameter used as the overlap threshold, mm
+    self_exclusion: float  #: pairs on one strand closer than this along it are ignored, mm
+    spacing: float  #: sampling spacing along the yarn before refinement, mm
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data dict for JSON."""
+        return {
+            "minimum": self.minimum,
+            "minimum_over_dk": self.minimum / self.dk,
+            "closest": self.closest.to_dict(),
+            "overlaps": [c.to_dict() for c in self.overlaps],
+            "dk": self.dk,
+            "self_exclusion": self.self_exclusion,
+            "spacing": self.spacing,
+        }
+
+
+@attrs.frozen(eq=False)
+class _Samples:
+    """Dense samples of every yarn with strand bookkeeping for the exclusion rule."""
+
+    yarn: np.ndarray  #: (m,) yarn index
+    index: np.ndarray  #: (m,) sample index within the yarn
+    t: np.ndarray  #: (m,)
+    x: np.ndarray  #: (m, 3)
+    strand: np.ndarray  #: (m,) strand number
+    S: np.ndarray  #: (m,) arc coordinate unrolled along the strand, mm
+    length: np.ndarray  #: (n_strands,) strand length Λ per cell crossing, mm
+    cycle: np.ndarray  #: (n_strands,) yarns per strand
+    pos: np.ndarray  #: (n_yarns,) position of each yarn in its strand
+
+
+def _samples(cell: UnitCell, spacing: float) -> _Samples:
+    st = strands(cell)
+    n_y = len(cell.yarns)
+    strand_of, pos, offset = np.zeros(n_y, int), np.zeros(n_y, int), np.zeros(n_y)
+    length, cycle = np.zeros(len(st)), np.zeros(len(st), int)
+    yl = [c.arc_length() for c in cell.yarns]
+    for k, cyc in enumerate(st):
+        acc = 0.0
+        for p, i in enumerate(cyc):
+            strand_of[i], pos[i], offset[i] = k, p, acc
+            acc += yl[i]
+        length[k], cycle[k] = acc, len(cyc)
+    parts = []
+    for i, c in enumerate(cell.yarns):
+        n = max(16, int(np.ceil(yl[i] / spacing)))
+        t, x, _ = c.sample(n, endpoint=False)
+        s = c.arc_coordinate(t)
+        parts.append((np.full(n, i), np.arange(n), t, x, offset[i] + s))
+    yarn, index, t, x, S = (np.concatenate(a) for a in zip(*parts))
+    return _Samples(yarn, index, t, x, strand_of[yarn], S, length, cycle, pos)
+
+
+def _unrolled(sm: _Samples, rows: np.ndarray, k1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(strand key, unrolled arc coordinate) of samples ``rows`` on the image shifted by k1 L1.
+
+    Yarn i_p of a strand with m yarns, shifted by k1 L1, lies on the copy of the strand that
+    starts with i_0 at image (k1 - p) mod m, one strand-length Λ further for every m images.
+    """
+    st = sm.strand[rows]
+    m = sm.cycle[st]
+    rel = k1 - sm.pos[sm.yarn[rows]]
+    base = np.mod(rel, m)
+    return base, (rel - base) // m * sm.length[st] + sm.S[rows]
+
+
+def _excluded(sm: _Samples, a: np.ndarray, b: np.ndarray, k: np.ndarray, excl: float) -> np.ndarray:
+    """True where samples a (image 0) and b (image k) lie on one strand closer than ``excl`` along it."""
+    ka, Sa = _unrolled(sm, a, np.zeros(len(a), int))
+    kb, Sb = _unrolled(sm, b, k[:, 0])
+    same = (sm.strand[a] == sm.strand[b]) & (k[:, 1] == 0) & (ka == kb)
+    return same & (np.abs(Sa - Sb) < excl)
+
+
+def clearance(
+    cell: UnitCell, *, spacing: float | None = None, self_exclusion: float | None = None, threshold: float | None = None
+) -> Clearance:
+    """Minimum centerline-to-centerline distance, with periodic images and self-contact.
+
+    Candidates come from a KD-tree (:class:`scipy.spatial.cKDTree`) on samples every
+    ``spacing`` mm (default dk/10) of every yarn against the yarns and their images shifted by
+    k1 L1 + k2 L2, k1, k2 ∈ {-1, 0, 1}. Pairs on the same strand less than ``self_exclusion``
+    (default π·dk) apart along it are ignored: they are neighbours, not contacts (their chord
+    is at most their arc distance). Discrete local minima of the distance over the remaining
+    pairs are refined by bounded L-BFGS-B on (t_a, t_b) with the exact derivatives; a refined
+    pair that slides into the excluded band keeps its sampled value.
+
+    Parameters
+    ----------
+    cell : UnitCell
+    spacing : float, optional
+        Sampling step along the yarn, mm.
+    self_exclusion : float, optional
+        Arc distance along one strand under which pairs are ignored, mm.
+    threshold : float, optional
+        Distance under which a contact is listed in ``overlaps``; default dk.
+
+    Returns
+    -------
+    Clearance
+        ``minimum`` (mm), the ``closest`` contact and every local minimum below ``threshold``.
+    """
+    from scipy.optimize import minimize
+    from scipy.spatial import cKDTree
+
+    dk = cell.dk
+    h = spacing or dk / 10.0
+    excl = np.pi * dk if self_exclusion is None else float(self_exclusion)
+    thr = dk if threshold is None else float(threshold)
+    sm = _samples(cell, h)
+    kk, shifts = image_shifts(cell)
+    n = len(sm.t)
+    img_x = (sm.x[None, :, :] + shifts[:, None, :]).reshape(-1, 3)
+    base_tree = cKDTree(sm.x)
+    img_tree = cKDTree(img_x)
+    extent = float(np.linalg.norm(cell.L1) + np.linalg.norm(cell.L2))
+    radius = max(1.5 * thr, 2.0 * h)
+    while True:
+        pairs = base_tree.sparse_distance_matrix(img_tree, radius, output_type="ndarray")
+        a = pairs["i"].astype(int)
+        b = pairs["j"].astype(int) % n
+        k = kk[pairs["j"].astype(int) // n]
+        keep = ~_excluded(sm, a, b, k, excl)
+        if np.any(keep) or radius > 2 * extent:
+            break
+        radius *= 2.0
+    if not np.any(keep):
+        raise NumericalError("clearance: found no pair of yarn points within the cell's reach")
+    a, b, k, dist = a[keep], b[keep], k[keep], pairs["v"][keep]
+    cand = _local_minima(cell, sm, a, b, k, dist, shifts, kk, excl)
+    contacts = []
+    for ia, ib, kb, d in cand:
+        contacts.append(_refine(cell, sm, ia, ib, kb, d, kk, shifts, excl, h, minimize))
+    contacts = _dedupe(contacts)
+    contacts.sort(key=lambda c: c.distance)
+    return Clearance(
+        minimum=contacts[0].distance,
+        closest=contacts[0],
+        overlaps=tuple(c for c in contacts if c.distance < thr),
+        dk=dk,
+        self_exclusion=excl,
+        spacing=h,
+    )
+
+
+def _local_minima(cell, sm, a, b, k, dist, shifts, kk, excl):
+    """Sampled pairs whose distance is not above any non-excluded neighbour pair (a±1, b) or (a, b±1)."""
+    n = len(sm.t)
+    # one of the twin pairs (a, b, k) ~ (b, a, -k) only
+    kid = k[:, 0] * 3 + k[:, 1]
+    canon = (sm.yarn[a] < sm.yarn[b]) | ((sm.yarn[a] == sm.yarn[b]) & ((kid > 0) | ((kid == 0) & (a < b))))
+    a, b, k, dist = a[canon], b[canon], k[canon], dist[canon]
+    shift = k[:, :1] * cell.L1 + k[:, 1:] * cell.L2
+    is_min = np.ones(len(a), bool)
+    starts = np.searchsorted(sm.yarn, np.arange(len(cell.yarns)))
+    counts = np.bincount(sm.yarn, minlength=len(cell.yarns))
+    for which in (0, 1):
+        for step in (-1, 1):
+            idx = a if which == 0 else b
+            y = sm.yarn[idx]
+            loc = sm.index[idx] + step
+            inside = (loc >= 0) & (loc < counts[y])
+            nb = np.where(inside, starts[y] + np.clip(loc, 0, counts[y] - 1), idx)
+            na, nb_ = (nb, b) if which == 0 else (a, nb)
+            dn = np.linalg.norm(sm.x[na] - sm.x[nb_] - shift, axis=1)
+            ex = _excluded(sm, na, nb_, k, excl)
+            is_min &= ~inside | ex | (dist <= dn)
+    sel = np.flatnonzero(is_min)
+    return [(int(a[i]), int(b[i]), (int(k[i, 0]), int(k[i, 1])), float(dist[i])) for i in sel]
+
+
+def _refine(cell, sm, ia, ib, kb, d0, kk, shifts, excl, h, minimize) -> Contact:
+    ya, yb = int(sm.yarn[ia]), int(sm.yarn[ib])
+    ca, cb = cell.yarns[ya], cell.yarns[yb]
+    shift = kb[0] * cell.L1 + kb[1] * cell.L2
+    ta0, tb0 = float(sm.t[ia]), float(sm.t[ib])
+    dta = 3.0 * (ca.t1 - ca.t0) / max(1, np.count_nonzero(sm.yarn == ya))
+    dtb = 3.0 * (cb.t1 - cb.t0) / max(1, np.count_nonzero(sm.yarn == yb))
+
+    def f(p):
+        ra = ca.position(p[:1])[0]
+        rb = cb.position(p[1:])[0] + shift
+        diff = ra - rb
+        g = np.array([2.0 * diff @ ca.derivative(p[:1])[0], -2.0 * diff @ cb.derivative(p[1:])[0]])
+        return float(diff @ diff), g
+
+    bounds = [(max(ca.t0, ta0 - dta), min(ca.t1, ta0 + dta)), (max(cb.t0, tb0 - dtb), min(cb.t1, tb0 + dtb))]
+    res = minimize(f, np.array([ta0, tb0]), jac=True, method="L-BFGS-B", bounds=bounds, options={"ftol": 1e-15, "gtol": 1e-12})
+    ta, tb = float(res.x[0]), float(res.x[1])
+    d = float(np.sqrt(max(res.fun, 0.0)))
+    if not np.isfinite(d) or d > d0:
+        ta, tb, d = ta0, tb0, d0
+    elif ya == yb or sm.strand[ia] == sm.strand[ib]:
+        # still a contact, not a neighbour, after refinement?
+        sa = ca.arc_coordinate(np.array([ta]))[0] + (sm.S[ia] - ca.arc_coordinate(np.array([ta0]))[0])
+        sb = cb.arc_coordinate(np.array([tb]))[0] + (sm.S[ib] - cb.arc_coordinate(np.array([tb0]))[0])
+        sm2 = attrs.evolve(sm, S=np.array([sa, sb]), yarn=np.array([ya, yb]), strand=sm.strand[[ia, ib]])
+        if _excluded(sm2, np.array([0]), np.array([1]), np.array([kb]), excl)[0]:
+            ta, tb, d = ta0, tb0, d0
+    pa = ca.position(np.array([ta]))[0]
+    pb = cb.position(np.array([tb]))[0] + shift
+    mid = 0.5 * (pa + pb)
+    return Contact((ya, yb), (kb[0], kb[1]), (ta, tb), (float(mid[0]), float(mid[1]), float(mid[2])), d)
+
+
+def _dedupe(contacts: list[Contact]) -> list[Contact]:
+    """Drop local minima that refined onto the same pair of points."""
+    out: dict[tuple, Contact] = {}
+    for c in contacts:
+        key = (c.yarns, c.image, round(c.t[0], 6), round(c.t[1], 6))
+        if key not in out or c.distance < out[key].distance:
+            out[key] = c
+    return list(out.values())
+
+
+# ---------------------------------------------------------------------------------------- output
+def tube_surface(fr: Frames, radius: float, sides: int = 12) -> tuple[np.ndarray, np.ndarray]:
+    """Points and quads of the tube of ``radius`` swept along one yarn's frames.
+
+    Returns points ((n+1)·sides, 3) mm and quad cells (n·sides, 4), ring by ring.
+    """
+    phi = 2.0 * np.pi * np.arange(sides) / sides
+    ring = np.cos(phi)[None, :, None] * fr.normal[:, None, :] + np.sin(phi)[None, :, None] * fr.binormal[:, None, :]
+    pts = (fr.x[:, None, :] + radius * ring).reshape(-1, 3)
+    i = np.arange(len(fr.t) - 1)[:, None]
+    j = np.arange(sides)[None, :]
+    jn = (j + 1) % sides
+    quads = np.stack([i * sides + j, i * sides + jn, (i + 1) * sides + jn, (i + 1) * sides + j], axis=-1)
+    return pts, quads.reshape(-1, 4)
+
+
+def write_vtu(cell: UnitCell, out: str | Path, *, n: int = 256, sides: int = 16) -> list[Path]:
+    """Write ``centerlines.vtu`` (polylines with tangents) and ``tubes.vtu`` (swept surfaces) to ``out``.
+
+    Each yarn gets ``n`` segments; ``yarn`` point data numbers the yarns. Returns the paths.
+    """
+    import meshio
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    fr = frames(cell, n)
+    pts, lines, yid, tan, nrm = [], [], [], [], []
+    tpts, tquads, tyid = [], [], []
+    off = toff = 0
+    for i, f in enumerate(fr):
+        m = len(f.t)
+        pts.append(f.x)
+        lines.append(off + np.stack([np.arange(m - 1), np.arange(1, m)], axis=1))
+        yid.append(np.full(m, i))
+        tan.append(f.tangent)
+        nrm.append(f.normal)
+        off += m
+        p, q = tube_surface(f, cell.radius, sides)
+        tpts.append(p)
+        tquads.append(q + toff)
+        tyid.append(np.full(len(p), i))
+        toff += len(p)
+    paths = [out / "centerlines.vtu", out / "tubes.vtu"]
+    meshio.write(
+        paths[0],
+        meshio.Mesh(
+            np.vstack(pts),
+            [("line", np.vstack(lines))],
+            point_data={"yarn": np.concatenate(yid), "tangent": np.vstack(tan), "normal": np.vstack(nrm)},
+        ),
+    )
+    meshio.write(paths[1], meshio.Mesh(np.vstack(tpts), [("quad", np.vstack(tquads))], point_data={"yarn": np.concatenate(tyid)}))
+    return paths
+
+
+def plot_views(cell: UnitCell, path: str | Path, *, tiles: int = 2, n: int = 400) -> Path:
+    """Three-view PNG (front x-y, top x-z, side y-z) of ``tiles`` x ``tiles`` copies of the cell.
+
+    Yarns are drawn as segments of the knitted diameter's width, painted back to front, so the
+    front view shows which loop passes over which. Rows have their own colours.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import LineCollection
+
+    colors = plt.get_cmap("tab10").colors
+    segs, depth, col = {v: [] for v in range(3)}, {v: [] for v in range(3)}, []
+    views = ((0, 1, 2), (0, 2, 1), (1, 2, 0))  # (horizontal, vertical, depth axis)
+    for i, c in enumerate(cell.yarns):
+        _, x, _ = c.sample(n)
+        for k1 in range(tiles):
+            for k2 in range(tiles):
+                xs = x + k1 * cell.L1 + k2 * cell.L2
+                for v, (hx, vy, dz) in enumerate(views):
+                    p = xs[:, [hx, vy]]
+                    segs[v].append(np.stack([p[:-1], p[1:]], axis=1))
+                    depth[v].append(0.5 * (xs[:-1, dz] + xs[1:, dz]) * (1 if v != 1 else -1))
+                col.append(np.repeat([colors[i % 10]], n - 1, axis=0))
+    fig, axes = plt.subplots(1, 3, figsize=(15, 5.2))
+    labels = ("x (course), mm", "y (wale), mm", "z (thickness), mm")
+    names = ("front (x-y)", "top (x-z)", "side (y-z)")
+    allc = np.vstack(col)
+    for v, ax in enumerate(axes):
+        s = np.vstack(segs[v])
+        order = np.argsort(np.concatenate(depth[v]), kind="stable")
+        ax.set_aspect("equal")
+        lo, hi = s.reshape(-1, 2).min(0) - cell.radius, s.reshape(-1, 2).max(0) + cell.radius
+        ax.set_xlim(lo[0], hi[0])
+        ax.set_ylim(lo[1], hi[1])
+        fig.canvas.draw()
+        bbox = ax.get_window_extent()
+        pts_per_mm = min(bbox.width / (hi[0] - lo[0]), bbox.height / (hi[1] - lo[1])) * 72.0 / fig.dpi
+        shade = np.clip(0.55 + 0.45 * (np.arange(len(order)) / max(1, len(order) - 1)), 0, 1)[:, None]
+        ax.add_collection(LineCollection(s[order], colors="k", linewidths=cell.dk * pts_per_mm + 1.0, capstyle="round"))
+        ax.add_collection(
+            LineCollection(s[order], colors=allc[order] * shade, linewidths=cell.dk * pts_per_mm, capstyle="round")
+        )
+        ax.set_xlabel(labels[views[v][0]])
+        ax.set_ylabel(labels[views[v][1]])
+        ax.set_title(names[v])
+    fig.suptitle(
+        f"{cell.pattern}: {cell.arc_length_per_stitch:.3g} mm/stitch, pitches {cell.course_pitch:.3g} x "
+        f"{cell.wale_pitch:.3g} mm, dk {cell.dk:.3g} mm ({tiles}x{tiles} cells)"
+    )
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,0 +1,52 @@
+"""Shared fixtures. External plugins are blocked unless a test opts in, so runs are hermetic."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+os.environ.setdefault("KNITFRAME_DISABLE_EXTERNAL_PLUGINS", "1")
+os.environ.setdefault("MPLBACKEND", "Agg")
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED_DATA = ROOT.parent / "shared" / "data" / "knit-uniaxial-singal2024"
+EXAMPLE_DATA = ROOT / "knitframe" / "examples" / "data"
+
+
+@pytest.fixture(autouse=True)
+def _fresh_registry():
+    """Each test sees a registry loaded from the entry points as they are now."""
+    from knitframe.plugins import reset_registry
+
+    reset_registry()
+    yield
+    reset_registry()
+
+
+@pytest.fixture
+def cli(tmp_path):
+    """Run the ``knitframe`` CLI in a subprocess; returns CompletedProcess with text output."""
+
+    def run(*args: str, env: dict | None = None, cwd: Path | None = None) -> subprocess.CompletedProcess:
+        full_env = {**os.environ, **(env or {})}
+        return subprocess.run(
+            [sys.executable, "-m", "knitframe", *args],
+            capture_output=True, text=True, cwd=cwd or tmp_path, env=full_env, timeout=600,
+        )
+
+    return run
+
+
+@pytest.fixture
+def singal_file():
+    """Path of a real Singal et al. 2024 test file (shared data if present, else the packaged copy)."""
+
+    def get(name: str) -> Path:
+        p = SHARED_DATA / name
+        return p if p.exists() else EXAMPLE_DATA / name
+
+    return get

@@ -1,0 +1,32 @@
+"""Docs stay true: generated config reference, README commands, CI script."""
+
+from __future__ import annotations
+
+import re
+
+from knitframe.docgen import configuration_md
+
+from conftest import ROOT
+
+
+def test_configuration_md_is_up_to_date():
+    """docs/configuration.md equals what the schemas generate (regenerate with python -m knitframe.docgen)."""
+    assert (ROOT / "docs" / "configuration.md").read_text() == configuration_md()
+
+
+def test_readme_has_the_two_setup_commands_and_ci_runs_the_test_one():
+    """The README's two bash blocks install+run the example and install+run the tests; .ci/run calls the latter."""
+    blocks = re.findall(r"```bash\n(.*?)\n```", (ROOT / "README.md").read_text(), re.S)
+    setup = [b for b in blocks if b.startswith("python3 -m venv")]
+    assert len(setup) == 2
+    assert "knitframe run --example" in setup[0]
+    assert "pytest" in setup[1]
+    assert setup[1] in (ROOT / ".ci" / "run").read_text()
+
+
+def test_architecture_doc_lists_every_kind():
+    """docs/architecture.md names every plugin kind's hook."""
+    from knitframe.plugins import KINDS
+
+    text = (ROOT / "docs" / "architecture.md").read_text()
+    assert all(f"`{hook}`" in text for hook in KINDS.values())
