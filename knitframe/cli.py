@@ -17,7 +17,7 @@ from knitframe.errors import KnitframeError
 __all__ = ["main", "COMMANDS"]
 
 #: Subcommand modules; each defines ``add_parser(subparsers)`` which sets ``func`` on its parser.
-COMMANDS = ("run", "plugins")
+COMMANDS = ("run", "plugins", "geometry", "fit")
 
 
 def build_parser() -> argparse.ArgumentParser:

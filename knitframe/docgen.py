@@ -107,7 +107,7 @@ def configuration_md(registry: Registry | None = None) -> str:
     for name in sorted(stages, key=lambda n: stages[n].order):
         st = stages[name]
         schema = getattr(st, "schema", None)
-        out += [f"## `[{name}]` stage", "", _doc(st) + ".", ""]
+        out += [f"## `[{getattr(st, 'table', None) or name}]` stage", "", _doc(st) + ".", ""]
         if st.uses:
             out += [f"Also reads: {', '.join(f'`[{t}]`' for t in st.uses)}.", ""]
         if schema is not None and attrs.has(schema):

@@ -39,9 +39,11 @@ __all__ = [
     "arc_length",
     "frames",
     "clearance",
+    "crossings",
     "tube_surface",
     "write_vtu",
     "plot_views",
+    "summary",
 ]
 
 
@@ -117,10 +119,10 @@ class Centerline:
         x = np.asarray(self.position(t), dtype=np.float64)
         d = np.asarray(self.derivative(t), dtype=np.float64)
         speed = np.linalg.norm(d, axis=1)
-        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(d))) or np.any(speed <= 1e-12 * (1.0 + speed.max())):
-            bad = int(np.flatnonzero(~np.isfinite(speed) | (speed <= 1e-12 * (1.0 + speed.max())))[0]) if np.any(
-                ~np.isfinite(speed) | (speed <= 1e-12 * (1.0 + speed.max()))
-            ) else int(np.flatnonzero(~np.all(np.isfinite(x), axis=1))[0])
+        ok = np.isfinite(speed) & np.all(np.isfinite(x), axis=1)
+        ok[ok] = speed[ok] > 1e-12 * (1.0 + speed[ok].max(initial=0.0))
+        if not np.all(ok):
+            bad = int(np.flatnonzero(~ok)[0])
             raise NumericalError(f"yarn '{self.name}': no tangent at t = {t[bad]:.6g} (speed {speed[bad]:.3g})")
         return t, x, d / speed[:, None]
 
@@ -128,15 +130,18 @@ class Centerline:
         """Length of the curve between t0 and t1, mm (relative accuracy about 1e-12)."""
         return arc_length(self.derivative, self.t0, self.t1)
 
-    def arc_coordinate(self, t: np.ndarray, *, n: int = 2048) -> np.ndarray:
-        """Arc length s(t) from t0, mm, for t in [t0, t1] (trapezoid on ``n`` intervals, interpolated)."""
+    def arc_table(self, n: int = 2048) -> tuple[np.ndarray, np.ndarray]:
+        """``n + 1`` parameters from t0 to t1 and the arc length s(t) from t0 at each, mm (4-point Gauss per interval)."""
         grid = np.linspace(self.t0, self.t1, n + 1)
         gx, gw = np.polynomial.legendre.leggauss(4)
         h = grid[1] - grid[0]
         tq = (grid[:-1, None] + 0.5 * h * (gx[None, :] + 1.0)).reshape(-1)
         seg = (0.5 * h * gw[None, :] * np.linalg.norm(self.derivative(tq), axis=1).reshape(n, 4)).sum(axis=1)
-        s = np.concatenate([[0.0], np.cumsum(seg)])
-        return np.interp(t, grid, s)
+        return grid, np.concatenate([[0.0], np.cumsum(seg)])
+
+    def arc_coordinate(self, t: np.ndarray, *, n: int = 2048) -> np.ndarray:
+        """Arc length s(t) from t0, mm, for t in [t0, t1] (interpolated in :meth:`arc_table`)."""
+        return np.interp(t, *self.arc_table(n))
 
 
 @attrs.frozen(eq=False)
@@ -248,20 +253,18 @@ def frames(cell: UnitCell, n: int = 256) -> list[Frames]:
     """
     out: list[Frames | None] = [None] * len(cell.yarns)
     for strand in strands(cell):
-        ts, xs, tans, lens = [], [], [], []
+        ts, xs, tans = [], [], []
         shift = np.zeros(3)
         for k, i in enumerate(strand):
             t, x, tan = cell.yarns[i].sample(n + 1)
             ts.append(t)
-            xs.append(x[:-1] + shift if k < len(strand) - 1 or True else x)
+            xs.append(x[:-1] + shift)
             tans.append(tan[:-1])
-            lens.append(n)
             shift = shift + cell.L1
         # closing sample: the strand's start one full strand further on
-        t_first, x_first, tan_first = cell.yarns[strand[0]].sample(2)
+        _, x_first, tan_first = cell.yarns[strand[0]].sample(2)
         x = np.vstack(xs + [x_first[:1] + shift])
         tan = np.vstack(tans + [tan_first[:1]])
-        m = len(x) - 1
         v1 = x[1:] - x[:-1]
         h1 = _householder(v1)
         t_left = np.einsum("mij,mj->mi", h1, tan[:-1])
@@ -285,7 +288,6 @@ def frames(cell: UnitCell, n: int = 256) -> list[Frames]:
             sl = slice(k * n, k * n + n + 1)
             back = k * cell.L1
             out[i] = Frames(ts[k], x[sl] - back, tan[sl], normal[sl], binormal[sl])
-        assert m == n * len(strand)
     return out  # type: ignore[return-value]
 
 
@@ -350,6 +352,7 @@ class _Samples:
     length: np.ndarray  #: (n_strands,) strand length Λ per cell crossing, mm
     cycle: np.ndarray  #: (n_strands,) yarns per strand
     pos: np.ndarray  #: (n_yarns,) position of each yarn in its strand
+    tables: list = attrs.Factory(list)  #: per yarn (t grid, s) arc tables
 
 
 def _samples(cell: UnitCell, spacing: float) -> _Samples:
@@ -364,14 +367,14 @@ def _samples(cell: UnitCell, spacing: float) -> _Samples:
             strand_of[i], pos[i], offset[i] = k, p, acc
             acc += yl[i]
         length[k], cycle[k] = acc, len(cyc)
-    parts = []
+    parts, tables = [], []
     for i, c in enumerate(cell.yarns):
         n = max(16, int(np.ceil(yl[i] / spacing)))
         t, x, _ = c.sample(n, endpoint=False)
-        s = c.arc_coordinate(t)
-        parts.append((np.full(n, i), np.arange(n), t, x, offset[i] + s))
+        tables.append(c.arc_table())
+        parts.append((np.full(n, i), np.arange(n), t, x, offset[i] + np.interp(t, *tables[-1])))
     yarn, index, t, x, S = (np.concatenate(a) for a in zip(*parts))
-    return _Samples(yarn, index, t, x, strand_of[yarn], S, length, cycle, pos)
+    return _Samples(yarn, index, t, x, strand_of[yarn], S, length, cycle, pos, tables)
 
 
 def _unrolled(sm: _Samples, rows: np.ndarray, k1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -405,8 +408,10 @@ def clearance(
     k1 L1 + k2 L2, k1, k2 ∈ {-1, 0, 1}. Pairs on the same strand less than ``self_exclusion``
     (default π·dk) apart along it are ignored: they are neighbours, not contacts (their chord
     is at most their arc distance). Discrete local minima of the distance over the remaining
-    pairs are refined by bounded L-BFGS-B on (t_a, t_b) with the exact derivatives; a refined
-    pair that slides into the excluded band keeps its sampled value.
+    pairs are refined together by a bounded Newton iteration on (t_a, t_b) with the exact
+    derivatives (:func:`_refine`). Pairs that are minima only because their closer neighbours
+    are excluded, and refined pairs that slide among excluded neighbours, keep their sampled
+    values.
 
     Parameters
     ----------
@@ -423,7 +428,6 @@ def clearance(
     Clearance
         ``minimum`` (mm), the ``closest`` contact and every local minimum below ``threshold``.
     """
-    from scipy.optimize import minimize
     from scipy.spatial import cKDTree
 
     dk = cell.dk
@@ -450,10 +454,17 @@ def clearance(
     if not np.any(keep):
         raise NumericalError("clearance: found no pair of yarn points within the cell's reach")
     a, b, k, dist = a[keep], b[keep], k[keep], pairs["v"][keep]
-    cand = _local_minima(cell, sm, a, b, k, dist, shifts, kk, excl)
-    contacts = []
-    for ia, ib, kb, d in cand:
-        contacts.append(_refine(cell, sm, ia, ib, kb, d, kk, shifts, excl, h, minimize))
+    cand = _local_minima(cell, sm, a, b, k, dist, excl)
+    ia = np.array([c[0] for c in cand], int)
+    ib = np.array([c[1] for c in cand], int)
+    kc = np.array([c[2] for c in cand], int).reshape(-1, 2)
+    d0 = np.array([c[3] for c in cand])
+    # minima only because their closer neighbours are excluded stay as sampled
+    free = ~np.array([c[4] for c in cand], bool)
+    ta, tb, d = sm.t[ia].copy(), sm.t[ib].copy(), d0.copy()
+    if np.any(free):
+        ta[free], tb[free], d[free] = _refine(cell, sm, ia[free], ib[free], kc[free], d0[free], excl)
+    contacts = [_contact(cell, ia[i], ib[i], tuple(kc[i]), ta[i], tb[i], d[i], sm) for i in range(len(ia))]
     contacts = _dedupe(contacts)
     contacts.sort(key=lambda c: c.distance)
     return Clearance(
@@ -466,7 +477,7 @@ def clearance(
     )
 
 
-def _local_minima(cell, sm, a, b, k, dist, shifts, kk, excl):
+def _local_minima(cell, sm, a, b, k, dist, excl):
     """Sampled pairs whose distance is not above any non-excluded neighbour pair (a±1, b) or (a, b±1)."""
     n = len(sm.t)
     # one of the twin pairs (a, b, k) ~ (b, a, -k) only
@@ -475,6 +486,7 @@ def _local_minima(cell, sm, a, b, k, dist, shifts, kk, excl):
     a, b, k, dist = a[canon], b[canon], k[canon], dist[canon]
     shift = k[:, :1] * cell.L1 + k[:, 1:] * cell.L2
     is_min = np.ones(len(a), bool)
+    boundary = np.zeros(len(a), bool)
     starts = np.searchsorted(sm.yarn, np.arange(len(cell.yarns)))
     counts = np.bincount(sm.yarn, minlength=len(cell.yarns))
     for which in (0, 1):
@@ -488,42 +500,101 @@ def _local_minima(cell, sm, a, b, k, dist, shifts, kk, excl):
             dn = np.linalg.norm(sm.x[na] - sm.x[nb_] - shift, axis=1)
             ex = _excluded(sm, na, nb_, k, excl)
             is_min &= ~inside | ex | (dist <= dn)
+            boundary |= inside & ex
     sel = np.flatnonzero(is_min)
-    return [(int(a[i]), int(b[i]), (int(k[i, 0]), int(k[i, 1])), float(dist[i])) for i in sel]
+    return [(int(a[i]), int(b[i]), (int(k[i, 0]), int(k[i, 1])), float(dist[i]), bool(boundary[i])) for i in sel]
 
 
-def _refine(cell, sm, ia, ib, kb, d0, kk, shifts, excl, h, minimize) -> Contact:
+def _eval(cell: UnitCell, yarn: np.ndarray, t: np.ndarray, which: str) -> np.ndarray:
+    """``position`` or ``derivative`` of yarn[i] at t[i] for mixed yarns, (m, 3)."""
+    out = np.empty((len(t), 3))
+    for y in np.unique(yarn):
+        sel = yarn == y
+        out[sel] = getattr(cell.yarns[y], which)(t[sel])
+    return out
+
+
+def _refine(cell: UnitCell, sm: _Samples, ia: np.ndarray, ib: np.ndarray, k: np.ndarray, d0: np.ndarray, excl: float):
+    """Closest pairs near the sampled pairs (ia, ib + image k): vectorised bounded Newton on (t_a, t_b).
+
+    f = |r_a(t_a) - r_b(t_b) - s|² / 2 has the exact gradient (diff·r_a', -diff·r_b') and the
+    Hessian [[r_a'·r_a' + diff·r_a'', -r_a'·r_b'], [., r_b'·r_b' - diff·r_b'']] with r'' from
+    central differences of the exact r'. Each parameter stays within 3 sample steps of its start;
+    steps that do not lower f are halved. Returns (t_a, t_b, distance), falling back to the
+    sampled pair where refinement fails or lands among excluded neighbours.
+    """
+    ya, yb = sm.yarn[ia], sm.yarn[ib]
+    shift = k[:, :1] * cell.L1 + k[:, 1:] * cell.L2
+    span = np.array([c.t1 - c.t0 for c in cell.yarns])
+    counts = np.bincount(sm.yarn, minlength=len(cell.yarns))
+    t0s, t1s = np.array([c.t0 for c in cell.yarns]), np.array([c.t1 for c in cell.yarns])
+    ta0, tb0 = sm.t[ia].copy(), sm.t[ib].copy()
+    lo = np.stack([np.maximum(t0s[ya], ta0 - 3 * span[ya] / counts[ya]), np.maximum(t0s[yb], tb0 - 3 * span[yb] / counts[yb])], 1)
+    hi = np.stack([np.minimum(t1s[ya], ta0 + 3 * span[ya] / counts[ya]), np.minimum(t1s[yb], tb0 + 3 * span[yb] / counts[yb])], 1)
+    eps = 1e-6 * span
+
+    def fval(t):
+        diff = _eval(cell, ya, t[:, 0], "position") - _eval(cell, yb, t[:, 1], "position") - shift
+        return 0.5 * np.einsum("ij,ij->i", diff, diff), diff
+
+    t = np.stack([ta0, tb0], 1)
+    f, diff = fval(t)
+    for _ in range(40):
+        da, db = _eval(cell, ya, t[:, 0], "derivative"), _eval(cell, yb, t[:, 1], "derivative")
+        dda = (_eval(cell, ya, t[:, 0] + eps[ya], "derivative") - _eval(cell, ya, t[:, 0] - eps[ya], "derivative")) / (2 * eps[ya])[:, None]
+        ddb = (_eval(cell, yb, t[:, 1] + eps[yb], "derivative") - _eval(cell, yb, t[:, 1] - eps[yb], "derivative")) / (2 * eps[yb])[:, None]
+        g = np.stack([np.einsum("ij,ij->i", diff, da), -np.einsum("ij,ij->i", diff, db)], 1)
+        h11 = np.einsum("ij,ij->i", da, da) + np.einsum("ij,ij->i", diff, dda)
+        h22 = np.einsum("ij,ij->i", db, db) - np.einsum("ij,ij->i", diff, ddb)
+        h12 = -np.einsum("ij,ij->i", da, db)
+        det = h11 * h22 - h12 * h12
+        newton = (det > 1e-14 * (h11 * h22 + 1e-300)) & (h11 > 0)
+        safe = np.where(newton, det, 1.0)
+        step = np.where(
+            newton[:, None],
+            -np.stack([h22 * g[:, 0] - h12 * g[:, 1], h11 * g[:, 1] - h12 * g[:, 0]], 1) / safe[:, None],
+            -g / (np.einsum("ij,ij->i", da, da) + np.einsum("ij,ij->i", db, db))[:, None],
+        )
+        moved = np.zeros(len(t), bool)
+        for _ in range(30):
+            trial = np.clip(t + step, lo, hi)
+            ft, dt = fval(trial)
+            ok = (ft <= f) & ~moved
+            t[ok], f[ok], diff[ok] = trial[ok], ft[ok], dt[ok]
+            moved |= ok
+            if moved.all():
+                break
+            step = np.where(moved[:, None], step, 0.5 * step)
+        if np.max(np.abs(step)) < 1e-13 * span.max():
+            break
+    d = np.sqrt(2.0 * f)
+    bad = ~np.isfinite(d) | (d > d0)
+    same = sm.strand[ia] == sm.strand[ib]
+    if np.any(same):
+        Sa = sm.S[ia] + _interp_yarn(sm, ya, t[:, 0]) - _interp_yarn(sm, ya, ta0)
+        Sb = sm.S[ib] + _interp_yarn(sm, yb, t[:, 1]) - _interp_yarn(sm, yb, tb0)
+        sm2 = attrs.evolve(sm, S=np.concatenate([Sa, Sb]), yarn=np.concatenate([ya, yb]), strand=np.concatenate([sm.strand[ia], sm.strand[ib]]))
+        m = len(ia)
+        bad |= same & _excluded(sm2, np.arange(m), np.arange(m, 2 * m), k, excl)
+    t[bad] = np.stack([ta0, tb0], 1)[bad]
+    d[bad] = d0[bad]
+    return t[:, 0], t[:, 1], d
+
+
+def _interp_yarn(sm: _Samples, yarn: np.ndarray, t: np.ndarray) -> np.ndarray:
+    out = np.empty(len(t))
+    for y in np.unique(yarn):
+        sel = yarn == y
+        out[sel] = np.interp(t[sel], *sm.tables[y])
+    return out
+
+
+def _contact(cell, ia, ib, kb, ta, tb, d, sm) -> Contact:
     ya, yb = int(sm.yarn[ia]), int(sm.yarn[ib])
-    ca, cb = cell.yarns[ya], cell.yarns[yb]
-    shift = kb[0] * cell.L1 + kb[1] * cell.L2
-    ta0, tb0 = float(sm.t[ia]), float(sm.t[ib])
-    dta = 3.0 * (ca.t1 - ca.t0) / max(1, np.count_nonzero(sm.yarn == ya))
-    dtb = 3.0 * (cb.t1 - cb.t0) / max(1, np.count_nonzero(sm.yarn == yb))
-
-    def f(p):
-        ra = ca.position(p[:1])[0]
-        rb = cb.position(p[1:])[0] + shift
-        diff = ra - rb
-        g = np.array([2.0 * diff @ ca.derivative(p[:1])[0], -2.0 * diff @ cb.derivative(p[1:])[0]])
-        return float(diff @ diff), g
-
-    bounds = [(max(ca.t0, ta0 - dta), min(ca.t1, ta0 + dta)), (max(cb.t0, tb0 - dtb), min(cb.t1, tb0 + dtb))]
-    res = minimize(f, np.array([ta0, tb0]), jac=True, method="L-BFGS-B", bounds=bounds, options={"ftol": 1e-15, "gtol": 1e-12})
-    ta, tb = float(res.x[0]), float(res.x[1])
-    d = float(np.sqrt(max(res.fun, 0.0)))
-    if not np.isfinite(d) or d > d0:
-        ta, tb, d = ta0, tb0, d0
-    elif ya == yb or sm.strand[ia] == sm.strand[ib]:
-        # still a contact, not a neighbour, after refinement?
-        sa = ca.arc_coordinate(np.array([ta]))[0] + (sm.S[ia] - ca.arc_coordinate(np.array([ta0]))[0])
-        sb = cb.arc_coordinate(np.array([tb]))[0] + (sm.S[ib] - cb.arc_coordinate(np.array([tb0]))[0])
-        sm2 = attrs.evolve(sm, S=np.array([sa, sb]), yarn=np.array([ya, yb]), strand=sm.strand[[ia, ib]])
-        if _excluded(sm2, np.array([0]), np.array([1]), np.array([kb]), excl)[0]:
-            ta, tb, d = ta0, tb0, d0
-    pa = ca.position(np.array([ta]))[0]
-    pb = cb.position(np.array([tb]))[0] + shift
+    pa = cell.yarns[ya].position(np.array([ta]))[0]
+    pb = cell.yarns[yb].position(np.array([tb]))[0] + kb[0] * cell.L1 + kb[1] * cell.L2
     mid = 0.5 * (pa + pb)
-    return Contact((ya, yb), (kb[0], kb[1]), (ta, tb), (float(mid[0]), float(mid[1]), float(mid[2])), d)
+    return Contact((ya, yb), (kb[0], kb[1]), (ta, tb), (float(mid[0]), float(mid[1]), float(mid[2])), float(d))
 
 
 def _dedupe(contacts: list[Contact]) -> list[Contact]:
@@ -534,6 +605,34 @@ def _dedupe(contacts: list[Contact]) -> list[Contact]:
         if key not in out or c.distance < out[key].distance:
             out[key] = c
     return list(out.values())
+
+
+def crossings(cell: UnitCell, upper: int, lower: int, shift: np.ndarray, n: int = 800) -> list[tuple[float, float, float]]:
+    """Crossings in the x-y projection of yarn ``upper`` with yarn ``lower`` shifted by ``shift`` (and ±L1).
+
+    Both yarns are sampled as polylines of ``n`` segments. Returns ``(t_upper, x, z_upper -
+    z_lower)`` for each crossing, sorted by t_upper: the sign says which yarn passes in front (+z).
+    """
+    cu, cl = cell.yarns[upper], cell.yarns[lower]
+    tu = np.linspace(cu.t0, cu.t1, n + 1)
+    xu = cu.position(tu)
+    tl = np.linspace(cl.t0, cl.t1, n + 1)
+    out = []
+    for k1 in (-1, 0, 1):
+        xl = cl.position(tl) + shift + k1 * cell.L1
+        p, r = xu[:-1, None, :2], (xu[1:] - xu[:-1])[:, None, :2]
+        q, s = xl[None, :-1, :2], (xl[1:] - xl[:-1])[None, :, :2]
+        den = r[..., 0] * s[..., 1] - r[..., 1] * s[..., 0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            qp = q - p
+            lam = (qp[..., 0] * s[..., 1] - qp[..., 1] * s[..., 0]) / den
+            mu = (qp[..., 0] * r[..., 1] - qp[..., 1] * r[..., 0]) / den
+        hit = (den != 0) & (lam >= 0) & (lam < 1) & (mu >= 0) & (mu < 1)
+        for i, j in zip(*np.nonzero(hit)):
+            zu = xu[i, 2] + lam[i, j] * (xu[i + 1, 2] - xu[i, 2])
+            zl = xl[j, 2] + mu[i, j] * (xl[j + 1, 2] - xl[j, 2])
+            out.append((float(tu[i] + lam[i, j] * (tu[1] - tu[0])), float(xu[i, 0] + lam[i, j] * r[i, 0, 0]), float(zu - zl)))
+    return sorted(out)
 
 
 # ---------------------------------------------------------------------------------------- output
@@ -594,8 +693,9 @@ def write_vtu(cell: UnitCell, out: str | Path, *, n: int = 256, sides: int = 16)
 def plot_views(cell: UnitCell, path: str | Path, *, tiles: int = 2, n: int = 400) -> Path:
     """Three-view PNG (front x-y, top x-z, side y-z) of ``tiles`` x ``tiles`` copies of the cell.
 
-    Yarns are drawn as segments of the knitted diameter's width, painted back to front, so the
-    front view shows which loop passes over which. Rows have their own colours.
+    Yarns are drawn as segments of the knitted diameter's width, painted back to front and
+    darker further back, so each view shows which yarn passes over which. Rows have their own
+    colours.
     """
     import matplotlib
 
@@ -630,8 +730,8 @@ def plot_views(cell: UnitCell, path: str | Path, *, tiles: int = 2, n: int = 400
         fig.canvas.draw()
         bbox = ax.get_window_extent()
         pts_per_mm = min(bbox.width / (hi[0] - lo[0]), bbox.height / (hi[1] - lo[1])) * 72.0 / fig.dpi
-        shade = np.clip(0.55 + 0.45 * (np.arange(len(order)) / max(1, len(order) - 1)), 0, 1)[:, None]
-        ax.add_collection(LineCollection(s[order], colors="k", linewidths=cell.dk * pts_per_mm + 1.0, capstyle="round"))
+        dep = np.concatenate(depth[v])[order]
+        shade = (0.55 + 0.45 * (dep - dep.min()) / max(float(np.ptp(dep)), 1e-300))[:, None]
         ax.add_collection(
             LineCollection(s[order], colors=allc[order] * shade, linewidths=cell.dk * pts_per_mm, capstyle="round")
         )
@@ -648,3 +748,24 @@ def plot_views(cell: UnitCell, path: str | Path, *, tiles: int = 2, n: int = 400
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def summary(cell: UnitCell, clr: Clearance | None = None) -> dict[str, Any]:
+    """Plain-data description of a cell (and its clearance) for ``geometry.json``."""
+    lengths = [c.arc_length() for c in cell.yarns]
+    out: dict[str, Any] = {
+        "pattern": cell.pattern,
+        "layout": [list(r) for r in cell.layout],
+        "arc_length_per_stitch": cell.arc_length_per_stitch,
+        "yarn_lengths": lengths,
+        "course_pitch": cell.course_pitch,
+        "wale_pitch": cell.wale_pitch,
+        "L1": cell.L1.tolist(),
+        "L2": cell.L2.tolist(),
+        "dk": cell.dk,
+        "end_pairs": [list(p) for p in cell.end_pairs],
+        "shape": dict(cell.info),
+    }
+    if clr is not None:
+        out["clearance"] = clr.to_dict()
+    return out

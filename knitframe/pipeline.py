@@ -113,7 +113,7 @@ class Pipeline:
         stage_kind = self.registry["stage"]
         owners: dict[str, str] = {}
         for name in stage_kind:
-            owners[name] = name
+            owners[_table(stage_kind[name])] = name
             for t in stage_kind[name].uses:
                 owners.setdefault(t, name)
         for key, value in self.config.items():
@@ -126,9 +126,9 @@ class Pipeline:
                 raise ConfigError(key, f"expected a table, got {value!r}", source=source)
         self._check_pipeline_table()
         ctx = BuildContext(self.registry, base_dir, source, frozenset(self.config))
-        present = [stage_kind[n] for n in stage_kind if n in self.config]
+        present = [stage_kind[n] for n in stage_kind if _table(stage_kind[n]) in self.config]
         if not present:
-            stages = ", ".join(f"[{n}]" for n in stage_kind)
+            stages = ", ".join(f"[{_table(stage_kind[n])}]" for n in stage_kind)
             raise ConfigError("", f"nothing to do: the config has none of the stage tables {stages}", source=source)
         self.stages = [cls.from_config(self.config, ctx) for cls in sorted(present, key=lambda c: c.order)]
 
@@ -193,6 +193,11 @@ class Pipeline:
             shutil.rmtree(out)
         os.replace(partial, out)
         return PipelineResult(out, ctx.responses, ctx.models, ctx.results, summary)
+
+
+def _table(stage: Any) -> str:
+    """The top-level table a stage owns: its ``table`` ClassVar if it has one, else its name."""
+    return getattr(stage, "table", None) or stage.name
 
 
 def _jsonable(obj: Any) -> Any:

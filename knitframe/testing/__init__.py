@@ -137,7 +137,8 @@ def check_entry(entry: Entry) -> None:
         assert declared == entry.name, f"registered as '{entry.name}' but its name attribute is '{declared}'"
     proto = PROTOCOLS.get(entry.kind)
     if proto is not None:
-        target = default_instance(obj) if entry.kind not in ("stage",) else obj
+        # stages and yarn models are built from a config / a Yarn, not from defaults
+        target = default_instance(obj) if entry.kind not in ("stage", "yarn_model") else obj
         missing = [m for m in _protocol_members(proto) if not hasattr(target, m)]
         assert not missing, f"{entry.kind} '{entry.name}' lacks {', '.join(sorted(missing))}"
     if entry.kind == "linear_solver":

@@ -1,0 +1,70 @@
+"""``knitframe geometry PATTERN``: the unit cell of a pattern as VTU, a three-view PNG and geometry.json.
+
+Example: ``knitframe geometry jersey --stitch-length 11 --yarn cotton --out jersey-geo`` writes
+``centerlines.vtu`` and ``tubes.vtu`` (open in ParaView), ``preview.png`` and ``geometry.json``
+(arc length, pitches, minimum clearance and the places closer than the yarn diameter).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("geometry", help="build and export a pattern's unit-cell geometry", description=__doc__)
+    p.add_argument("pattern", help="pattern name (see `knitframe plugins`)")
+    p.add_argument("--stitch-length", type=float, default=None, help="machine setting, e.g. 10, 11, 12")
+    p.add_argument("--arc-length", type=float, default=None, help="yarn length per stitch, mm (overrides the setting)")
+    p.add_argument("--yarn", default="cotton", help="yarn name from the library (default cotton)")
+    p.add_argument("--course-pitch", type=float, default=None, help="stitch width, mm (default: Munden)")
+    p.add_argument("--wale-pitch", type=float, default=None, help="stitch height, mm (default: Munden)")
+    p.add_argument("--out", type=Path, default=None, help="output directory (default: <pattern>-geometry)")
+    p.add_argument("--segments", type=int, default=256, help="polyline segments per yarn in the VTU files")
+    p.set_defaults(func=main)
+
+
+def main(args) -> int:
+    from knitframe import __version__
+    from knitframe.errors import ConfigError
+    from knitframe.geometry import clearance, plot_views, summary, write_vtu
+    from knitframe.plugins import get_registry
+    from knitframe.records import Fabric
+
+    reg = get_registry()
+    pattern = reg["pattern"][args.pattern]()
+    yarn = reg["yarn"][args.yarn]
+    if args.segments < 8:
+        raise ConfigError("--segments", f"must be >= 8, got {args.segments}")
+    table = {"pattern": args.pattern, "yarn": yarn}
+    for key in ("stitch_length", "arc_length", "course_pitch", "wale_pitch"):
+        if getattr(args, key) is not None:
+            table[key] = getattr(args, key)
+    try:
+        fabric = Fabric.from_dict(table)
+    except ConfigError as e:
+        raise ConfigError("--" + e.path.replace("_", "-"), e.problem) from None
+    cell = pattern.cell(fabric)
+    clr = clearance(cell)
+    out = args.out or Path(f"{args.pattern}-geometry")
+    out.mkdir(parents=True, exist_ok=True)
+    files = write_vtu(cell, out, n=args.segments)
+    files.append(plot_views(cell, out / "preview.png"))
+    info = summary(cell, clr)
+    info.update(
+        {
+            "yarn": {"name": yarn.name, "d0": yarn.d0, "dk": yarn.dk, "source": yarn.source},
+            "stitch_length": args.stitch_length,
+            "arc_length_target": args.arc_length,
+            "knitframe": __version__,
+        }
+    )
+    (out / "geometry.json").write_text(json.dumps(info, indent=2) + "\n", encoding="utf-8")
+    files.append(out / "geometry.json")
+    print(
+        f"{cell.pattern}: {cell.arc_length_per_stitch:.6g} mm/stitch, pitches {cell.course_pitch:.4g} x "
+        f"{cell.wale_pitch:.4g} mm, min clearance {clr.minimum:.4g} mm ({clr.minimum / cell.dk:.3g} dk), "
+        f"{len(clr.overlaps)} places closer than dk"
+    )
+    print(f"wrote {', '.join(str(f) for f in files)}")
+    return 0

@@ -1,0 +1,287 @@
+"""Newton's method on an energy, load-path continuation with cut-back, and step checkpoints.
+
+Shared by the unit-cell solvers. A problem is a function ``fun(x, order)`` returning
+``(E, g, H, info)``: the energy E (N·mm), and for ``order >= 1`` its gradient g (n,), for
+``order == 2`` its sparse Hessian H (n, n); ``info`` is a dict of diagnostics (the rod solver
+reports the number of active contacts there). An energy of ``inf`` marks an inadmissible state
+(for example yarns pushed through a contact barrier); the line search backs off from it.
+
+:func:`minimise` solves g_f(x) = 0 on the free DOFs by Newton steps H_ff·dx = −g_f through a
+linear-solver plugin, with
+
+* a backtracking Armijo line search on E: E(x + α dx) ≤ E(x) + c·α·g·dx;
+* a Levenberg shift μ·mean|diag H| added to H_ff when the factorisation fails or dx is not a
+  descent direction, and (the rigid-mode stabilisation) while ``stabilise(info)`` is true.
+  Convergence is always tested on the unshifted gradient, so the shift changes the path, not
+  the converged answer;
+* an optional cap on the step size (``step_norm(dx) <= max_step``), which keeps contacts from
+  being jumped over in one step.
+
+Failure raises :class:`~knitframe.errors.NumericalError` with the iteration history, never NaN.
+:func:`continuation` follows a load parameter t from t0 to each target, halving the increment
+on failure and growing it again after successes. :class:`StepCheckpoints` stores converged
+steps so a killed run can resume.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import attrs
+import numpy as np
+import scipy.sparse as sp
+
+from knitframe.errors import NumericalError
+
+__all__ = ["NewtonOptions", "NewtonResult", "minimise", "continuation", "StepCheckpoints", "Problem"]
+
+#: ``fun(x, order) -> (E, g | None, H | None, info)``
+Problem = Callable[[np.ndarray, int], tuple[float, Any, Any, dict]]
+
+
+@attrs.frozen
+class NewtonOptions:
+    """Tolerances and safeguards of :func:`minimise`."""
+
+    atol: float = 1e-9  #: absolute tolerance on max |g_free|, in the units of the gradient (N)
+    rtol: float = 1e-9  #: tolerance relative to max |g_free| at the start
+    max_iter: int = 60
+    armijo: float = 1e-4  #: sufficient-decrease constant c
+    max_backtracks: int = 40
+    stabilisation: float = 1e-6  #: relative Hessian shift while stabilise(info) is true
+    max_shift_increases: int = 12
+    max_step: float = math.inf  #: cap on step_norm(dx)
+    xtol: float = 0.0  #: also converged when an unshifted full Newton step moves no DOF more than this (round-off floor)
+
+
+@attrs.frozen
+class NewtonResult:
+    """Outcome of :func:`minimise`."""
+
+    x: np.ndarray
+    energy: float
+    gradient: np.ndarray
+    iterations: int
+    converged: bool
+    history: tuple[dict, ...]  #: per iteration: energy, residual, alpha, shift
+    info: dict
+
+
+def _diag_scale(A: sp.spmatrix) -> float:
+    d = np.abs(A.diagonal())
+    return float(d.mean()) if d.size and d.mean() > 0 else 1.0
+
+
+def _fmt(history: Sequence[dict], last: int = 6) -> str:
+    rows = [f"it {h['it']}: E={h['energy']:.6g} |g|={h['residual']:.3g} alpha={h.get('alpha', 0):.3g} "
+            f"shift={h.get('shift', 0):.2g}" for h in history[-last:]]
+    return "; ".join(rows)
+
+
+def minimise(
+    fun: Problem,
+    x0: np.ndarray,
+    free: np.ndarray,
+    *,
+    solve: Callable[[Any, np.ndarray], np.ndarray],
+    options: NewtonOptions = NewtonOptions(),
+    stabilise: Callable[[dict], bool] | None = None,
+    step_norm: Callable[[np.ndarray], float] | None = None,
+) -> NewtonResult:
+    """Minimise the energy of ``fun`` over the DOFs selected by the boolean mask ``free``.
+
+    Parameters
+    ----------
+    fun : callable
+        ``fun(x, order) -> (E, g, H, info)``, see the module docstring.
+    x0 : (n,) array
+        Start; the fixed DOFs keep their values.
+    free : (n,) bool array
+    solve : callable
+        ``solve(A, b)`` from a linear-solver plugin.
+    options : NewtonOptions
+    stabilise : callable, optional
+        ``stabilise(info) -> bool``: add the relative shift ``options.stabilisation`` to the
+        Hessian while true (rigid modes not yet held by contact).
+    step_norm : callable, optional
+        Size of a full-length step dx (n,), compared with ``options.max_step``.
+
+    Returns
+    -------
+    NewtonResult
+        Raises NumericalError when the iteration cannot make progress.
+    """
+    x = np.array(x0, dtype=np.float64, copy=True)
+    free = np.asarray(free, bool)
+    E, g, H, info = fun(x, 2)
+    if not np.isfinite(E):
+        raise NumericalError(f"Newton: the starting state is inadmissible (energy {E}); {info.get('diagnostic', '')}".strip())
+    r0 = float(np.max(np.abs(g[free]), initial=0.0))
+    tol = max(options.atol, options.rtol * r0)
+    history: list[dict] = []
+    shift_rel = 0.0
+    for it in range(options.max_iter + 1):
+        res = float(np.max(np.abs(g[free]), initial=0.0))
+        if not np.isfinite(res):
+            raise NumericalError(f"Newton: non-finite gradient at iteration {it}; {_fmt(history)}")
+        history.append({"it": it, "energy": float(E), "residual": res, "shift": shift_rel})
+        if res <= tol:
+            return NewtonResult(x, float(E), g, it, True, tuple(history), info)
+        if it == options.max_iter:
+            break
+        Hff = H[free][:, free].tocsc()
+        gf = g[free]
+        scale = _diag_scale(Hff)
+        base = options.stabilisation if (stabilise is not None and stabilise(info)) else 0.0
+        shift_rel = shift_rel * 0.1 if shift_rel * 0.1 > max(base, 1e-10) else base
+        accepted = False
+        for _ in range(options.max_shift_increases + 1):
+            A = Hff + sp.identity(Hff.shape[0], format="csc") * (shift_rel * scale) if shift_rel > 0 else Hff
+            dx_f = None
+            try:
+                with np.errstate(all="ignore"):
+                    dx_f = np.asarray(solve(A, -gf), dtype=np.float64)
+            except (RuntimeError, np.linalg.LinAlgError, NumericalError, ValueError):
+                dx_f = None
+            slope = float(gf @ dx_f) if dx_f is not None and np.all(np.isfinite(dx_f)) else math.nan
+            if dx_f is not None and np.isfinite(slope) and slope < 0:
+                dx = np.zeros_like(x)
+                dx[free] = dx_f
+                if step_norm is not None and np.isfinite(options.max_step):
+                    size = step_norm(dx)
+                    if size > options.max_step:
+                        dx *= options.max_step / size
+                        slope *= options.max_step / size
+                step = _line_search(fun, x, E, g, dx, slope, options)
+                if step is not None:
+                    alpha, x_new, E_new = step
+                    accepted = True
+                    break
+            shift_rel = max(10.0 * shift_rel, 1e-8)
+        if not accepted:
+            raise NumericalError(
+                f"Newton: no descent step at iteration {it} (residual {res:.3g} > tol {tol:.3g}, shift up to "
+                f"{shift_rel:.2g}); {_fmt(history)}"
+            )
+        history[-1]["alpha"] = alpha
+        x = x_new
+        E, g, H, info = fun(x, 2)
+        if alpha == 1.0 and shift_rel == 0.0 and float(np.max(np.abs(dx), initial=0.0)) <= options.xtol:
+            res = float(np.max(np.abs(g[free]), initial=0.0))
+            history.append({"it": it + 1, "energy": float(E), "residual": res, "shift": 0.0, "xtol": True})
+            return NewtonResult(x, float(E), g, it + 1, True, tuple(history), info)
+    raise NumericalError(
+        f"Newton: no convergence in {options.max_iter} iterations (residual {history[-1]['residual']:.3g} > "
+        f"tol {tol:.3g}); {_fmt(history)}"
+    )
+
+
+def _line_search(fun: Problem, x: np.ndarray, E: float, g: np.ndarray, dx: np.ndarray, slope: float,
+                 options: NewtonOptions) -> tuple[float, np.ndarray, float] | None:
+    """Backtracking Armijo search; near round-off level it accepts a step that lowers |g|."""
+    alpha = 1.0
+    g_norm = float(np.linalg.norm(g))
+    for _ in range(options.max_backtracks):
+        x_new = x + alpha * dx
+        E_new = fun(x_new, 0)[0]
+        if np.isfinite(E_new):
+            if E_new <= E + options.armijo * alpha * slope:
+                return alpha, x_new, E_new
+            # the energy change is below round-off: judge the step by the gradient instead
+            if abs(alpha * slope) < 1e-12 * max(abs(E), 1e-300) * 1e3:
+                g_new = fun(x_new, 1)[1]
+                if np.linalg.norm(g_new) < g_norm:
+                    return alpha, x_new, E_new
+        alpha *= 0.5
+    return None
+
+
+def continuation(
+    solve_at: Callable[[float, np.ndarray], NewtonResult],
+    x0: np.ndarray,
+    targets: Sequence[float],
+    *,
+    t0: float = 0.0,
+    min_fraction: float = 1.0 / 256,
+    grow: float = 2.0,
+    on_target: Callable[[int, float, NewtonResult], None] | None = None,
+) -> list[NewtonResult]:
+    """Follow the load parameter from ``t0`` through every target with adaptive cut-back.
+
+    ``solve_at(t, x_start)`` solves the state at load parameter t from the start x_start and
+    raises NumericalError on failure. A failed increment is halved; once it falls below
+    ``min_fraction`` of the target spacing the path stops with a NumericalError carrying the
+    last diagnostic. After a success the increment grows by ``grow`` (never past the next target).
+
+    Returns the result at each target; ``on_target(index, t, result)`` is called as each is reached.
+    """
+    out: list[NewtonResult] = []
+    x = np.asarray(x0, dtype=np.float64)
+    t = float(t0)
+    prev = t
+    for n, target in enumerate(targets):
+        span = max(float(target) - prev, 1e-300)
+        dt = span
+        min_dt = span * min_fraction
+        while True:
+            t_try = min(t + dt, float(target))
+            try:
+                result = solve_at(t_try, x)
+            except NumericalError as e:
+                dt *= 0.5
+                if dt < min_dt:
+                    raise NumericalError(
+                        f"load step cut back below {min_dt:.3g} at t = {t:.6g} (target {target:.6g}): {e}"
+                    ) from None
+                continue
+            x, t = result.x, t_try
+            if t >= float(target) - 1e-15 * max(1.0, abs(float(target))):
+                break
+            dt = min(dt * grow, float(target) - t)
+        out.append(result)
+        if on_target is not None:
+            on_target(n, float(target), result)
+        prev = float(target)
+    return out
+
+
+class StepCheckpoints:
+    """Converged steps saved as ``step-NNNN.npz`` (+ JSON metadata) in a directory, written atomically.
+
+    ``key`` identifies the run (a hash of its inputs); checkpoints with another key are ignored,
+    so a resumed run never continues someone else's path.
+    """
+
+    def __init__(self, directory: str | Path, key: str):
+        self.directory = Path(directory)
+        self.directory.mkdir(parents=True, exist_ok=True)
+        self.key = key
+
+    def save(self, index: int, arrays: dict[str, np.ndarray], meta: dict[str, Any]) -> Path:
+        """Store step ``index`` (arrays plus JSON-able metadata)."""
+        path = self.directory / f"step-{index:04d}.npz"
+        fd, tmp = tempfile.mkstemp(dir=self.directory, suffix=".npz.tmp")
+        with os.fdopen(fd, "wb") as fh:
+            np.savez(fh, **arrays, __meta__=np.array(json.dumps({**meta, "key": self.key, "index": index})))
+        os.replace(tmp, path)
+        return path
+
+    def latest(self) -> tuple[int, dict[str, np.ndarray], dict[str, Any]] | None:
+        """The highest saved step of this run's key, or None."""
+        for path in sorted(self.directory.glob("step-*.npz"), reverse=True):
+            try:
+                with np.load(path) as data:
+                    meta = json.loads(str(data["__meta__"]))
+                    if meta.get("key") != self.key:
+                        continue
+                    arrays = {k: data[k] for k in data.files if k != "__meta__"}
+            except (OSError, ValueError, KeyError):
+                continue
+            return int(meta["index"]), arrays, meta
+        return None

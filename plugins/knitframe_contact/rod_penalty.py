@@ -1,0 +1,122 @@
+"""Contact law ``rod_penalty``: smooth penalty between yarn centerlines, with a stiffening core.
+
+For two yarn segments whose centerlines are a distance d apart (knitted diameter dk, contact
+stiffness k in N/mm, penetration δ = dk − d, smoothing length ε = smoothing·dk)::
+
+    e(d) = k ε² h(δ/ε) + k_c dk² B(d/dk)
+    h(x) = 0 (x ≤ 0),  x³/6 (0 < x ≤ 1),  x²/2 − x/2 + 1/6 (x > 1)          (C², force k(δ − ε/2))
+    B(y) = −(y − y₁)² ln((y − c)/(y₁ − c))  for c < y < y₁ = (1 + c)/2, else 0; +∞ for y ≤ c
+
+h is a linear penalty of stiffness k with a C² onset; B is a barrier (Li et al. 2020, IPC) that
+stiffens the law once the two yarns are squeezed past y₁ and forbids centre distances below
+c·dk, so soft yarns cannot pass through each other. k defaults to the yarn's transverse
+contact stiffness; the core stiffness k_c, that of the packed fibres once the yarn's free
+volume is squeezed out, defaults to k (solvers pass E_axial·dk).
+
+Friction (only when the scene asks for it): regularised Coulomb on the slip u_T of the two
+material contact points since the last converged step, with the normal force λ lagged from
+that step (Li et al. 2020)::
+
+    D(u_T) = μ λ ε_s f0(|u_T|/ε_s),   f0(y) = y² − y³/3 (y < 1),  y − 1/3 (y ≥ 1)
+
+so the tangential force is μ λ once the slip exceeds ε_s.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import attrs
+import numpy as np
+
+from knitframe import hookimpl, validators as v
+
+
+@attrs.frozen
+class RodPenalty:
+    """Smooth penalty + stiffening barrier between rod centerlines, optional regularised Coulomb friction."""
+
+    name: ClassVar[str] = "rod_penalty"
+    description: ClassVar[str] = "smooth centerline penalty with a stiffening core, regularised Coulomb friction (rods)"
+    discretisation: ClassVar[str] = "rod"
+
+    stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: k, N/mm; default: the yarn's transverse contact stiffness
+    smoothing: float = attrs.field(default=0.05, validator=v.in_range(0.0, 1.0, lo_open=True))  #: ε/dk, -
+    core: float = attrs.field(default=0.5, validator=v.in_range(0.0, 1.0, hi_open=True))  #: smallest centre distance / dk (0: no barrier), -
+    friction: float = attrs.field(default=0.3, validator=v.non_negative)  #: Coulomb coefficient μ, -
+    slip: float = attrs.field(default=0.01, validator=v.positive)  #: regularisation slip ε_s / dk, -
+
+    def normal(self, d: np.ndarray, dk: float, k: float, k_core: float | None = None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Energy e (N·mm) and its first and second derivatives with respect to the centre distance d.
+
+        Parameters
+        ----------
+        d : (m,) centre distances, mm
+        dk : contact distance (knitted diameter), mm
+        k : penalty stiffness, N/mm
+        k_core : barrier stiffness k_c, N/mm (default k)
+
+        Returns ``(e, de/dd, d²e/dd²)``, each (m,); e is +inf inside the core.
+        """
+        d = np.asarray(d, dtype=np.float64)
+        eps = self.smoothing * dk
+        x = (dk - d) / eps
+        xc = np.clip(x, 0.0, 1.0)
+        h = np.where(x > 1.0, 0.5 * x * x - 0.5 * x + 1.0 / 6.0, xc**3 / 6.0)
+        h1 = np.where(x > 1.0, x - 0.5, 0.5 * xc**2)
+        h2 = np.where(x > 1.0, 1.0, xc)
+        e, e1, e2 = k * eps**2 * h, -k * eps * h1, k * h2
+        if self.core > 0.0:
+            c = self.core
+            y1 = 0.5 * (1.0 + c)
+            y = d / dk
+            band = (y < y1) & (y > c)
+            yy = np.where(band, y, y1)
+            r = (yy - c) / (y1 - c)
+            lg = np.log(r)
+            z = yy - y1
+            w = yy - c
+            B = -(z**2) * lg
+            B1 = -2.0 * z * lg - z**2 / w
+            B2 = -2.0 * lg - 4.0 * z / w + z**2 / w**2
+            kc = k if k_core is None else k_core
+            e = e + kc * dk**2 * B
+            e1 = e1 + kc * dk * B1
+            e2 = e2 + kc * B2
+            inside = y <= c
+            e = np.where(inside, np.inf, e)
+        return e, e1, e2
+
+    def force(self, d: np.ndarray, dk: float, k: float, k_core: float | None = None) -> np.ndarray:
+        """Compressive contact force −de/dd (N) at centre distances d (mm); zero when d ≥ dk."""
+        return -self.normal(d, dk, k, k_core)[1]
+
+    def friction_potential(self, u: np.ndarray, lam: np.ndarray, dk: float
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Friction pseudo-potential D, its gradient (m, 3) and Hessian (m, 3, 3) in the slip u (m, 3) mm.
+
+        ``lam`` (m,) is the lagged normal force, N.
+        """
+        eps = self.slip * dk
+        mu_l = self.friction * np.asarray(lam, dtype=np.float64)
+        n = np.linalg.norm(u, axis=1)
+        y = n / eps
+        stick = y < 1.0
+        D = mu_l * eps * np.where(stick, y**2 - y**3 / 3.0, y - 1.0 / 3.0)
+        safe = np.where(n > 0, n, 1.0)
+        uh = u / safe[:, None]
+        # stick: ∇D = μλ (2 − y) u/ε; slip: ∇D = μλ û
+        coef = np.where(stick, mu_l * (2.0 - y) / eps, mu_l / safe)
+        g = coef[:, None] * u
+        eye = np.eye(3)
+        uu = uh[:, :, None] * uh[:, None, :]
+        H_stick = (mu_l / eps)[:, None, None] * ((2.0 - y)[:, None, None] * eye - y[:, None, None] * uu)
+        H_slip = (mu_l / safe)[:, None, None] * (eye - uu)
+        H = np.where(stick[:, None, None], H_stick, H_slip)
+        return D, g, H
+
+
+@hookimpl
+def register_contact_laws(register):
+    register(RodPenalty)

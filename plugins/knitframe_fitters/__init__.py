@@ -1,0 +1,1 @@
+"""Built-in fitters: reduced-model parameters from Responses."""

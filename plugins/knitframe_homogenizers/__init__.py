@@ -1,0 +1,1 @@
+"""Built-in reduced-order fabric models (homogenizers)."""

@@ -1,0 +1,1 @@
+"""Built-in sparse linear solvers (factories returning solve(A, b) closures)."""

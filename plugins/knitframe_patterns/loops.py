@@ -1,0 +1,245 @@
+"""Knit and purl loops on Crane's plain-knit curve, shared by the weft-knit pattern plugins.
+
+Crane (2023, "A Simple Parametric Model of Plain-Knit Yarns") draws a row of jersey loops as
+
+    γ(t) = (t + a sin 2t,  h cos t,  d cos 2t),   one loop per 2π of t.
+
+Here it is made dimensional and generalised to purl loops. For row r of the cell (yarn ``rowr``)
+
+    x(t) = p_c/(2π) · (t + a sin 2t)
+    y(t) = r·p_w + H cos t
+    z(t) = -D cos 2t · g(t)
+
+with course pitch p_c, wale pitch p_w, roundness a, loop-height amplitude H and depth D = depth·dk.
+The head of column j sits at t = 2πj, its legs near t = 2πj ± π/2 and the sinker loops near
+t = 2πj ± π. ``g`` carries the knit/purl signs σ = +1 (knit) / -1 (purl):
+
+    g(t) = σ_up(t) w(t) + σ_own(t) (1 - w(t)),   w(t) = (1 + S(cos t)) / 2,
+    σ(t) = (σ_0 + σ_1)/2 + (σ_0 - σ_1)/2 · S(cos(t/2)),   S(c) = tanh(κc) / tanh κ.
+
+σ_own are the row's own stitches (they set the legs and sinkers, which pass through the heads of
+the row below), σ_up the stitches of the row above (they set the heads, through which that row
+passes). For jersey g = 1 and z = -D cos 2t is Crane's curve mirrored so that the technical face
+(the side showing the legs' Vs) is +z. A purl loop is a knit loop mirrored z -> -z; where knit and
+purl meet, S blends the two smoothly (sharpness κ), so every curve is analytic with an exact
+tangent.
+
+The pitches default to Munden's relations for relaxed plain knit, p_c = ℓ/Kw and p_w = ℓ/Kc
+(ℓ the yarn length per stitch). Given ℓ, H is solved with :func:`scipy.optimize.brentq` so that
+the arc length per stitch equals ℓ: the arc length grows strictly with H, and H must exceed
+p_w/2 for the loops of successive rows to interlock.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import attrs
+import numpy as np
+
+from knitframe import validators as v
+from knitframe.errors import FieldError, GeometryError, NumericalError
+from knitframe.geometry import Centerline, UnitCell, crossings
+from knitframe.records import Fabric
+
+__all__ = ["STITCH_LENGTHS", "KC", "KW", "LoopRow", "KnitLoopPattern", "arc_length_for"]
+
+#: Machine stitch-length setting -> yarn length per jersey stitch, mm (paper's microscopy, 12 stitches).
+STITCH_LENGTHS: dict[str, float] = {"10": 3.9, "11": 4.7, "12": 5.9}
+#: Munden's constants for relaxed plain knit (courses/cm = Kc/ℓ, wales/cm = Kw/ℓ, ℓ in cm); mid-range values.
+KC, KW = 5.3, 4.0
+
+SIGN = {"k": 1.0, "p": -1.0}
+
+
+def _step(c: np.ndarray, kappa: float) -> tuple[np.ndarray, np.ndarray]:
+    """S(c) = tanh(κc)/tanh κ and dS/dc: a smooth sign that is ±1 at c = ±1."""
+    th = np.tanh(kappa * c)
+    k = np.tanh(kappa)
+    return th / k, kappa * (1.0 - th * th) / k
+
+
+@attrs.frozen
+class LoopRow:
+    """One row of loops (two stitches per 4π of t); evaluates r(t) and dr/dt exactly."""
+
+    course_pitch: float  #: p_c, mm
+    y0: float  #: row offset r·p_w, mm
+    height: float  #: H, mm
+    roundness: float  #: a, -
+    depth: float  #: D, mm
+    own: tuple[float, float]  #: σ of this row's two stitches
+    up: tuple[float, float]  #: σ of the two stitches of the row above
+    sharpness: float  #: κ, -
+
+    def _g(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        s1, ds1 = _step(np.cos(t), self.sharpness)
+        w, dw = 0.5 * (1.0 + s1), -0.5 * ds1 * np.sin(t)
+        s2, ds2 = _step(np.cos(0.5 * t), self.sharpness)
+        half = -0.5 * ds2 * np.sin(0.5 * t)
+
+        def blend(sig):
+            mean, diff = 0.5 * (sig[0] + sig[1]), 0.5 * (sig[0] - sig[1])
+            return mean + diff * s2, diff * half
+
+        up, dup = blend(self.up)
+        own, down = blend(self.own)
+        return up * w + own * (1.0 - w), dup * w + (up - own) * dw + down * (1.0 - w)
+
+    def position(self, t: np.ndarray) -> np.ndarray:
+        """r(t), (n,) -> (n, 3) mm."""
+        t = np.asarray(t, dtype=np.float64)
+        g, _ = self._g(t)
+        sx = self.course_pitch / (2.0 * np.pi)
+        return np.stack(
+            [
+                sx * (t + self.roundness * np.sin(2.0 * t)),
+                self.y0 + self.height * np.cos(t),
+                -self.depth * np.cos(2.0 * t) * g,
+            ],
+            axis=-1,
+        )
+
+    def derivative(self, t: np.ndarray) -> np.ndarray:
+        """dr/dt, (n,) -> (n, 3) mm."""
+        t = np.asarray(t, dtype=np.float64)
+        g, dg = self._g(t)
+        sx = self.course_pitch / (2.0 * np.pi)
+        return np.stack(
+            [
+                sx * (1.0 + 2.0 * self.roundness * np.cos(2.0 * t)),
+                -self.height * np.sin(t),
+                -self.depth * (-2.0 * np.sin(2.0 * t) * g + np.cos(2.0 * t) * dg),
+            ],
+            axis=-1,
+        )
+
+    def centerline(self, name: str) -> Centerline:
+        """The row as a Centerline over its two stitches, t in [-π, 3π] (sinker to sinker)."""
+        return Centerline(name, self.position, self.derivative, -np.pi, 3.0 * np.pi, (2.0 * self.course_pitch, 0.0, 0.0))
+
+
+def _check_table(instance, attribute, value) -> None:
+    for key, length in value.items():
+        try:
+            float(key)
+        except ValueError:
+            raise FieldError(f"{attribute.name}.{key}", "key must be a machine setting number, e.g. \"11\"") from None
+        if not (isinstance(length, (int, float)) and np.isfinite(length) and length > 0):
+            raise FieldError(f"{attribute.name}.{key}", f"must be an arc length > 0 mm, got {length!r}")
+
+
+def arc_length_for(fabric: Fabric, table: dict[str, float]) -> float:
+    """Yarn length per stitch, mm: ``fabric.arc_length`` if given, else the machine setting looked up in ``table``."""
+    if fabric.arc_length is not None:
+        return float(fabric.arc_length)
+    for key, length in table.items():
+        if float(key) == float(fabric.stitch_length):
+            return float(length)
+    known = ", ".join(f"{k} -> {val} mm" for k, val in sorted(table.items(), key=lambda kv: float(kv[0])))
+    raise GeometryError(
+        f"stitch_length {fabric.stitch_length:g} is not in the stitch-length table ({known}); "
+        "give arc_length in mm or add the setting to the pattern's stitch_lengths"
+    )
+
+
+@attrs.frozen
+class KnitLoopPattern:
+    """Base of the weft-knit patterns: a 2x2 cell of knit/purl loops given by ``layout``.
+
+    Subclasses set ``name``, ``description`` and ``layout`` (rows x columns of "k"/"p"). The
+    fields are the pattern options of a config's ``[pattern]`` table.
+    """
+
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    layout: ClassVar[tuple[tuple[str, str], tuple[str, str]]] = (("k", "k"), ("k", "k"))
+
+    stitch_lengths: dict[str, float] = attrs.field(factory=lambda: dict(STITCH_LENGTHS), validator=_check_table)  #: machine setting -> yarn length per stitch, mm
+    Kc: float = attrs.field(default=KC, validator=v.positive)  #: Munden course constant (courses/cm = Kc/ℓ[cm]), -
+    Kw: float = attrs.field(default=KW, validator=v.positive)  #: Munden wale constant (wales/cm = Kw/ℓ[cm]), -
+    roundness: float = attrs.field(default=1.5, validator=v.in_range(0.0, 10.0))  #: Crane's a, -
+    depth: float = attrs.field(default=0.625, validator=v.positive)  #: out-of-plane amplitude D / dk (Crane: 1/1.6), -
+    sharpness: float = attrs.field(default=3.0, validator=v.in_range(0.0, 50.0, lo_open=True))  #: knit/purl blend κ, -
+
+    def pitches(self, arc: float, fabric: Fabric) -> tuple[float, float]:
+        """(course, wale) pitch in mm: the fabric's if given, else Munden's ℓ/Kw and ℓ/Kc."""
+        return (
+            float(fabric.course_pitch) if fabric.course_pitch is not None else arc / self.Kw,
+            float(fabric.wale_pitch) if fabric.wale_pitch is not None else arc / self.Kc,
+        )
+
+    def rows(self, height: float, pc: float, pw: float, dk: float) -> list[LoopRow]:
+        """The two LoopRows for loop-height amplitude ``height`` (mm)."""
+        sig = [[SIGN[s] for s in row] for row in self.layout]
+        return [
+            LoopRow(pc, r * pw, height, self.roundness, self.depth * dk, tuple(sig[r]), tuple(sig[(r + 1) % 2]), self.sharpness)
+            for r in range(2)
+        ]
+
+    def _per_stitch(self, height: float, pc: float, pw: float, dk: float) -> float:
+        return sum(row.centerline("").arc_length() for row in self.rows(height, pc, pw, dk)) / 4.0
+
+    def cell(self, fabric: Fabric) -> UnitCell:
+        """The 2x2 unit cell whose arc length per stitch matches the fabric's to 1e-9 relative."""
+        from scipy.optimize import brentq
+
+        if set(s for row in self.layout for s in row) - set(SIGN) or np.shape(self.layout) != (2, 2):
+            raise GeometryError(f"pattern '{self.name}': layout must be 2x2 of 'k'/'p', got {self.layout}")
+        arc = arc_length_for(fabric, self.stitch_lengths)
+        pc, pw = self.pitches(arc, fabric)
+        dk = float(fabric.yarn.dk)
+        h_min = 0.5 * pw  # below this the heads of one row do not reach the legs of the next
+        f = lambda h: self._per_stitch(h, pc, pw, dk) - arc  # noqa: E731
+        low = f(h_min)
+        if low >= 0.0:
+            raise GeometryError(
+                f"arc length {arc:g} mm per stitch is too short for course pitch {pc:.4g} mm, wale pitch {pw:.4g} mm "
+                f"and dk {dk:g} mm: interlocking loops need more than {low + arc:.4g} mm"
+            )
+        h_hi = max(pw, arc)
+        while f(h_hi) <= 0.0:
+            h_hi *= 2.0
+        height = brentq(f, h_min, h_hi, xtol=1e-15 * h_hi, rtol=4 * np.finfo(float).eps, maxiter=200)
+        rows = self.rows(height, pc, pw, dk)
+        yarns = tuple(row.centerline(f"row{r}") for r, row in enumerate(rows))
+        got = sum(y.arc_length() for y in yarns) / 4.0
+        if abs(got - arc) > 1e-9 * arc:
+            raise NumericalError(f"pattern '{self.name}': arc length {got!r} mm missed the target {arc!r} mm")
+        cell = UnitCell(
+            pattern=self.name,
+            yarns=yarns,
+            L1=(2.0 * pc, 0.0, 0.0),
+            L2=(0.0, 2.0 * pw, 0.0),
+            radius=0.5 * dk,
+            end_pairs=((0, 0), (1, 1)),
+            layout=tuple(tuple(r) for r in self.layout),
+            arc_length_per_stitch=got,
+            course_pitch=pc,
+            wale_pitch=pw,
+            info={
+                "curve": "crane2023",
+                "loop_height": height,
+                "roundness": self.roundness,
+                "depth": self.depth * dk,
+                "sharpness": self.sharpness,
+                "Kc": self.Kc,
+                "Kw": self.Kw,
+            },
+        )
+        _check_interlock(cell, arc)
+        return cell
+
+
+def _check_interlock(cell: UnitCell, arc: float) -> None:
+    """Every half-loop must cross the row below (leg over head, sinker over leg) in the x-y projection."""
+    for r in range(len(cell.yarns)):
+        cr = crossings(cell, r, (r - 1) % len(cell.yarns), -cell.L2 if r == 0 else np.zeros(3), n=400)
+        c = cell.yarns[r]
+        edges = np.arange(c.t0, c.t1 + 1e-9, np.pi)
+        counts = np.histogram([x[0] for x in cr], bins=edges)[0]
+        if np.any(counts < 2):
+            raise GeometryError(
+                f"{cell.pattern}: with arc length {arc:g} mm per stitch the loops do not reach through the row below "
+                f"at wale pitch {cell.wale_pitch:.4g} mm; give a smaller wale_pitch (or larger Kc) or a longer stitch"
+            )

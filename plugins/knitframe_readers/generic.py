@@ -1,0 +1,187 @@
+"""Reader ``generic``: a documented CSV format for uniaxial (free-sides) fabric tension tests.
+
+Format. Optional ``#`` lines first; a ``# key = value`` line sets file-wide metadata. Then a header
+row and one row per measured point::
+
+    # direction = course          course | wale (x | y); or give a 'direction' column
+    # thickness_mm = 0.9          needed only for stress_MPa
+    sample,strain,transverse_strain,tension_N_per_mm
+    1,0.00,0.000,0.000
+    1,0.05,-0.012,0.011
+    2,0.00,0.000,0.000
+    ...
+
+Columns (case-insensitive; exactly one from each "one of" group):
+
+======================================  ============================================================
+``strain`` or ``stretch``               loaded direction: engineering strain (stretch = 1 + strain)
+``tension_N_per_mm`` or ``stress_MPa``  force per unit width; stress × thickness (mm) = tension
+``transverse_strain`` / ``..._stretch`` optional: measured lateral strain of the free side
+``sample``                              optional repeat id: repeats are averaged to mean ± sd
+``direction``                           optional: course | wale per row (else the ``#`` key)
+``thickness_mm``                        optional per-row thickness (else the ``#`` key or option)
+======================================  ============================================================
+
+Each (direction) group becomes one Response (``uniaxial-course`` or ``uniaxial-wale``: the free
+side carries no tension). Repeats are put on a common strain grid and averaged (mean ± sample
+sd). Without a transverse column the free-side stretch is unknown: it is set to 1 and marked
+``provenance.extra["transverse_measured"] = False``, so fitters do not score it.
+
+Every problem is one DataError line naming the file, the line and the column: a missing file, an
+empty file, a missing or ambiguous column, a non-number or NaN, a non-positive stretch, an
+unknown direction, a stress without a thickness.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import ClassVar
+
+import attrs
+import numpy as np
+
+from knitframe import hookimpl, validators as v
+from knitframe.csvio import Table, read_table
+from knitframe.errors import DataError
+from knitframe.records import Provenance, Response
+from knitframe_readers.singal2024 import average_repeats
+
+_DIRECTIONS = {"course": "uniaxial-course", "x": "uniaxial-course", "wale": "uniaxial-wale", "y": "uniaxial-wale"}
+
+
+def _metadata(comments: list[str]) -> dict[str, str]:
+    """``key = value`` (or ``key: value``) pairs from the leading comment lines, keys lower-case."""
+    out = {}
+    for c in comments:
+        m = re.match(r"^\s*([A-Za-z_][\w\-]*)\s*[=:]\s*(.+?)\s*$", c)
+        if m:
+            out[m.group(1).lower()] = m.group(2)
+    return out
+
+
+def _one_of(table: Table, names: tuple[str, ...], what: str, required: bool = True) -> str | None:
+    found = [n for n in names if n in table]
+    if len(found) > 1:
+        raise DataError(table.path, f"give only one of the columns {', '.join(found)} for the {what}", line=_header_line(table))
+    if not found and required:
+        raise DataError(table.path, f"missing column for the {what}: one of {', '.join(names)} "
+                                    f"(header has {', '.join(table.header)})", line=_header_line(table))
+    return found[0] if found else None
+
+
+def _header_line(table: Table) -> int:
+    return table.lines[0] - 1 if table.lines else 1
+
+
+def _stretch(table: Table, column: str) -> np.ndarray:
+    """A strain or stretch column as stretch; a stretch <= 0 is a DataError at its cell."""
+    x = table[column]
+    lam = x if column.endswith("stretch") else 1.0 + x
+    if np.any(lam <= 0):
+        i = int(np.flatnonzero(lam <= 0)[0])
+        raise DataError(table.path, f"{column} {x[i]} gives a non-positive stretch", line=table.lines[i], column=column)
+    return lam
+
+
+@attrs.frozen
+class GenericReader:
+    """Documented CSV: strain or stretch, course or wale, N/mm or MPa with a thickness; repeats → mean ± sd."""
+
+    name: ClassVar[str] = "generic"
+    description: ClassVar[str] = "generic CSV: strain|stretch, course|wale, tension_N_per_mm|stress_MPa (+ thickness)"
+
+    average: bool = True  #: one mean ± sd Response per direction; false gives one Response per sample
+    points: int = attrs.field(default=50, validator=v.in_range(2, 100000))  #: grid size when averaging
+    direction: str | None = attrs.field(default=None, validator=v.optional(v.one_of(tuple(_DIRECTIONS))))  #: default direction
+    thickness_mm: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: default thickness, mm
+
+    def read(self, path: Path) -> list[Response]:
+        path = Path(path)
+        table = read_table(path)
+        table.header = [h.lower() for h in table.header]
+        meta = _metadata(table.comments)
+        axial_col = _one_of(table, ("strain", "stretch"), "loaded strain")
+        load_col = _one_of(table, ("tension_n_per_mm", "stress_mpa"), "load")
+        lat_col = _one_of(table, ("transverse_strain", "transverse_stretch"), "transverse strain", required=False)
+        lam = _stretch(table, axial_col)
+        lat = _stretch(table, lat_col) if lat_col else np.ones_like(lam)
+        tension = table[load_col]
+        if load_col == "stress_mpa":
+            tension = tension * self._thickness(table, meta)
+        loads = self._directions(table, meta)
+        samples = table.text("sample") if "sample" in table else ["1"] * len(table)
+        out = []
+        for load in dict.fromkeys(loads):
+            rows = np.array([ld == load for ld in loads])
+            out += self._responses(path, load, lam[rows], lat[rows], tension[rows],
+                                   [s for s, r in zip(samples, rows) if r], lat_col is not None)
+        return out
+
+    def _thickness(self, table: Table, meta: dict[str, str]) -> np.ndarray | float:
+        if "thickness_mm" in table:
+            t = table["thickness_mm"]
+            if np.any(t <= 0):
+                i = int(np.flatnonzero(t <= 0)[0])
+                raise DataError(table.path, f"thickness must be > 0, got {t[i]}", line=table.lines[i], column="thickness_mm")
+            return t
+        if "thickness_mm" in meta:
+            try:
+                t = float(meta["thickness_mm"])
+            except ValueError:
+                t = float("nan")
+            if not t > 0:
+                raise DataError(table.path, f"'# thickness_mm' must be a number > 0, got {meta['thickness_mm']!r}")
+            return t
+        if self.thickness_mm is not None:
+            return self.thickness_mm
+        raise DataError(table.path, "stress_MPa needs a thickness: add a '# thickness_mm = ...' line or a thickness_mm column",
+                        column="stress_mpa")
+
+    def _directions(self, table: Table, meta: dict[str, str]) -> list[str]:
+        if "direction" in table:
+            cells = [c.strip().lower() for c in table.text("direction")]
+            for i, c in enumerate(cells):
+                if c not in _DIRECTIONS:
+                    raise DataError(table.path, f"direction must be course or wale (x or y), got {c!r}",
+                                    line=table.lines[i], column="direction")
+            return [_DIRECTIONS[c] for c in cells]
+        d = meta.get("direction", self.direction)
+        if d is None:
+            raise DataError(table.path, "cannot tell the direction: add a '# direction = course|wale' line or a direction column")
+        if d.strip().lower() not in _DIRECTIONS:
+            raise DataError(table.path, f"'# direction' must be course or wale (x or y), got {d!r}")
+        return [_DIRECTIONS[d.strip().lower()]] * len(table)
+
+    def _responses(self, path, load, lam, lat, tension, samples, measured) -> list[Response]:
+        ids = list(dict.fromkeys(samples))
+        groups = [np.array([s == k for s in samples]) for k in ids]
+        prov = Provenance(kind="experiment", source=path.name, extra={"transverse_measured": measured})
+        d = 0 if load == "uniaxial-course" else 1
+        base = f"{path.stem}-{('course', 'wale')[d]}"
+        if not self.average:
+            return [_response(d, lam[g], lat[g], tension[g], None, None, 1, f"{base}/{k}", load, prov)
+                    for k, g in zip(ids, groups)]
+        if len(ids) == 1:  # nothing to average: keep the measured points, sorted by strain
+            o = np.argsort(lam, kind="stable")
+            return [_response(d, lam[o], lat[o], tension[o], None, None, 1, base, load, prov)]
+        try:
+            grid, lat_m, lat_sd, ten_m, ten_sd = average_repeats(
+                [lam[g] - 1 for g in groups], [lat[g] - 1 for g in groups], [tension[g] for g in groups], self.points)
+        except ValueError as e:
+            raise DataError(path, f"{('course', 'wale')[d]} samples: {e}") from None
+        return [_response(d, 1 + grid, 1 + lat_m, ten_m, lat_sd if measured else None, ten_sd, len(ids), base, load, prov)]
+
+
+def _response(d, lam, lat, tension, lat_sd, ten_sd, n, label, load, prov) -> Response:
+    zero = np.zeros_like(tension)
+    if d == 0:
+        return Response(lam, lat, tension, zero, load=load, label=label, n_samples=n, T1_sd=ten_sd,
+                        lambda2_sd=lat_sd, provenance=prov)
+    return Response(lat, lam, zero, tension, load=load, label=label, n_samples=n, T2_sd=ten_sd,
+                    lambda1_sd=lat_sd, provenance=prov)
+
+
+@hookimpl
+def register_readers(register):
+    register(GenericReader)

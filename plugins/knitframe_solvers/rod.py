@@ -1,0 +1,335 @@
+"""Solver ``rod``: discrete elastic rods on the periodic 2x2 unit cell, with yarn-yarn contact.
+
+The fast rung of the accuracy ladder. Each yarn centerline of the pattern's cell is a chain of
+straight segments (:mod:`knitframe_solvers.rod_model`) with stretching EA and bending EI from
+the yarn model (straight rest shape, no twist: see :mod:`knitframe_solvers.rod_terms`). Yarns
+touch each other, their periodic images under the current F̄ and (with ``self_contact``)
+themselves through a rod contact-law plugin. F̄ enters through the macro DOFs of
+:mod:`knitframe.periodic`; the course and wale tensions per unit width are the macro reactions
+divided by the cell area.
+
+A run is
+
+1. pre-stress (scene effect ``prestress``): the contact distance grows from an undersized
+   value — small enough that the knitted centerlines do not overlap — to dk, at F̄ = I and
+   constant yarn length (rest lengths are those of the geometry);
+2. the scene's load path: equibiaxial, uniaxial with the other side free (its macro DOF is
+   solved for, so its tension is zero) or a general λ1(t), λ2(t), in the scene's steps, each cut
+   back adaptively on failure (:func:`knitframe.newton.continuation`).
+
+Every step is solved by Newton with an Armijo line search (:func:`knitframe.newton.minimise`);
+the rigid modes of yarns that no contact holds yet are stabilised by a Hessian shift, which does
+not change the converged state. One node is pinned to remove the cell's free translation.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from pathlib import Path
+from typing import Any, ClassVar, Literal
+
+import attrs
+import numpy as np
+
+from knitframe import hookimpl, validators as v
+from knitframe.config import instantiate
+from knitframe.errors import ConfigError, NumericalError
+from knitframe.newton import NewtonOptions, StepCheckpoints, continuation, minimise
+from knitframe.periodic import macro_index
+from knitframe.plugins import get_registry
+from knitframe.records import Fabric, Provenance, Response, Scene
+
+from knitframe_solvers.rod_model import RodEnergy, RodModel, from_cell
+
+__all__ = ["RodSolver", "rod_stiffness", "write_rod_vtu"]
+
+
+def rod_stiffness(yarn, registry=None) -> dict[str, float]:
+    """EA (N), EI (N·mm²) and the point-contact stiffness k (N/mm) of a yarn, from its yarn model.
+
+    k is the yarn model's tangent line-contact stiffness (N/mm², Hertz line contact with the
+    transverse modulus) at the line load that flattens a pair by 5 % of dk, times the contact
+    length dk of two crossing yarns. The core stiffness k_core = E_axial·dk (N/mm) is that of
+    the packed fibres, used by the contact law's barrier.
+    """
+    registry = registry or get_registry()
+    model = registry["yarn_model"][yarn.model].from_yarn(yarn)
+    f_ref = float(np.asarray(model.contact_load(np.array([0.05 * yarn.dk])))[0])
+    k_line = float(np.asarray(model.contact_stiffness(np.array([f_ref])))[0])
+    return {"EA": float(model.EA), "EI": float(model.EI), "k_contact": k_line * yarn.dk,
+            "k_core": float(yarn.E_axial * yarn.dk)}
+
+
+def write_rod_vtu(path: Path, model: RodModel, q: np.ndarray, radius: float, cell_data: dict | None = None) -> Path:
+    """Deformed centerlines as VTU line cells; segments crossing the cell boundary get their own end point."""
+    import meshio
+
+    x = model.positions(q)
+    p0, p1 = model.segments(q)
+    n = model.n_nodes
+    cross = np.any(model.edge_images[:, 1] != 0, axis=1)
+    extra = p1[cross]
+    pts = np.vstack([x, extra])
+    cells = model.edges.copy()
+    cells[cross, 1] = n + np.arange(int(cross.sum()))
+    yarn = np.concatenate([model.yarn, model.yarn[model.edges[cross, 0]]])
+    disp = pts - np.vstack([model.X, model.X[model.edges[cross, 1]]])
+    meshio.write(path, meshio.Mesh(
+        pts, [("line", cells)],
+        point_data={"yarn": yarn.astype(np.float64), "displacement": disp, "radius": np.full(len(pts), radius)},
+        cell_data={k: [np.asarray(v_, dtype=np.float64)] for k, v_ in (cell_data or {}).items()},
+    ))
+    return path
+
+
+def _write_pvd(path: Path, files: list[tuple[float, str]]) -> None:
+    rows = "\n".join(f'    <DataSet timestep="{t:.10g}" file="{f}"/>' for t, f in files)
+    path.write_text(f'<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n{rows}\n'
+                    "  </Collection>\n</VTKFile>\n")
+
+
+@attrs.frozen
+class RodSolver:
+    """Discrete elastic rods (EA, EI) on the periodic 2x2 cell with penalty contact and macro DOFs."""
+
+    name: ClassVar[str] = "rod"
+    description: ClassVar[str] = "fast unit-cell solver: discrete elastic rods, penalty contact with periodic images"
+    effects: ClassVar[frozenset[str]] = frozenset(
+        {"large_deformation", "bending", "contact", "self_contact", "friction", "prestress"})
+    loads: ClassVar[frozenset[str]] = frozenset({"equibiaxial", "uniaxial-course", "uniaxial-wale", "general"})
+
+    segments_per_stitch: int = attrs.field(default=16, validator=v.in_range(4, 1000))  #: rod segments per stitch of yarn, -
+    linear_solver: str | dict[str, Any] = "direct"  #: linear-solver plugin name or table with ``kind``
+    contact_law: str | dict[str, Any] = "rod_penalty"  #: rod contact-law plugin name or table with ``kind``
+    prestress_steps: int = attrs.field(default=8, validator=v.in_range(1, 1000))  #: steps growing the contact radius, -
+    initial_radius: float = attrs.field(default=0.7, validator=v.in_range(0.0, 1.0, lo_open=True))  #: largest start of the pre-stress radius / (dk/2), -
+    self_contact_exclusion: float = attrs.field(default=np.pi, validator=v.positive)  #: same-strand pairs closer than this × dk along the yarn are neighbours, -
+    tolerance: float = attrs.field(default=1e-9, validator=v.positive)  #: Newton residual tolerance / EA, -
+    stabilisation: float = attrs.field(default=1e-6, validator=v.non_negative)  #: relative Hessian shift while a strand has no contact, -
+    max_step: float = attrs.field(default=0.2, validator=v.positive)  #: largest node move per Newton step / max(current contact distance, dk/2), -
+    min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))  #: smallest cut-back increment / load step, -
+    max_iterations: int = attrs.field(default=100, validator=v.in_range(1, 10000))  #: Newton iterations per increment, -
+    relax: bool = True  #: after pre-stress, let the lattice contract or expand to zero tension and load from there
+    on_failure: Literal["raise", "truncate"] = "raise"  #: "truncate" returns the converged steps (converged = false)
+    EA: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: override axial stiffness, N
+    EI: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: override bending stiffness, N·mm²
+    contact_stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: override k, N/mm
+
+    # ------------------------------------------------------------------------------------- setup
+    def setup(self, fabric: Fabric, scene: Scene, registry=None) -> tuple[RodModel, RodEnergy, Any]:
+        """Rod model, energy and unit cell for a fabric and the effects of a scene."""
+        registry = registry or get_registry()
+        cell = registry["pattern"][fabric.pattern]().cell(fabric)
+        model = from_cell(cell, self.segments_per_stitch)
+        stiff = rod_stiffness(fabric.yarn, registry)
+        EA = self.EA or stiff["EA"]
+        EI = self.EI or stiff["EI"]
+        law = None
+        k = self.contact_stiffness or stiff["k_contact"]
+        if "contact" in scene.effects:
+            law = instantiate(registry, "contact_law", self.contact_law, "solver.contact_law")
+            if getattr(law, "discretisation", None) != "rod":
+                raise ConfigError("solver.contact_law", f"contact law '{law.name}' is for '{law.discretisation}', not rods")
+            k = getattr(law, "stiffness", None) or k
+        energy = RodEnergy(
+            model, EA, EI, bending="bending" in scene.effects, law=law, dk=cell.dk, k_contact=k, k_core=stiff["k_core"],
+            self_contact="self_contact" in scene.effects, exclusion=self.self_contact_exclusion * cell.dk,
+            friction="friction" in scene.effects,
+        )
+        return model, energy, cell
+
+    def _key(self, fabric: Fabric, scene: Scene) -> str:
+        text = json.dumps([fabric.to_dict(), scene.to_dict(), attrs.asdict(self)], sort_keys=True, default=str)
+        return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+    # ---------------------------------------------------------------------------------- simulate
+    def simulate(self, fabric: Fabric, scene: Scene, *, progress=None, output_dir: str | Path | None = None,
+                 checkpoint_dir: str | Path | None = None) -> Response:
+        """Pre-stress (if asked) and follow the scene's load path; returns tensions per unit width.
+
+        Parameters
+        ----------
+        fabric, scene : the fabric to simulate and what to simulate.
+        progress : callable, optional
+            ``progress(done, total, message)`` after every converged step.
+        output_dir : path, optional
+            Where the deformed geometry of every step goes as ``rod-NNNN.vtu`` (plus
+            ``rod.pvd``) when the scene's outputs include ``"vtu"``.
+        checkpoint_dir : path, optional
+            Converged steps are saved there; a later call with the same inputs resumes after
+            the last saved step.
+        """
+        t_start = time.perf_counter()
+        registry = get_registry()
+        model, energy, cell = self.setup(fabric, scene, registry)
+        lat = model.lattice
+        n = model.n_nodes
+        solve = instantiate(registry, "linear_solver", self.linear_solver, "solver.linear_solver")
+        t_load, lam1, lam2 = scene.load.stretches()
+        n_load = len(t_load)
+        prestress = "prestress" in scene.effects and energy.law is not None
+        total = n_load + (self.prestress_steps if prestress else 0)
+        report = progress or (lambda done, tot, msg: None)
+        opts = NewtonOptions(atol=self.tolerance * energy.EA, rtol=1e-10, max_iter=self.max_iterations,
+                             stabilisation=self.stabilisation, max_step=self.max_step,
+                             xtol=1e-12 * float(np.linalg.norm(lat.L1) + np.linalg.norm(lat.L2)))
+        L_max = float(max(np.linalg.norm(lat.L1), np.linalg.norm(lat.L2)))
+
+        def step_norm(dx: np.ndarray) -> float:
+            # in units of the current contact distance, which is small early in the pre-stress
+            return max(float(np.max(np.linalg.norm(dx[: 3 * n].reshape(-1, 3), axis=1))),
+                       float(np.max(np.abs(dx[3 * n:]))) * L_max) / max(energy.dk, 0.5 * cell.dk)
+
+        n_strands = model.n_strands
+
+        def stabilise(info: dict) -> bool:
+            return info.get("strands_in_contact", 0) < n_strands
+
+        base_free = np.ones(model.n_dof, bool)
+        base_free[:3] = False  # pin node 0: the cell's free translation
+        vtu = "vtu" in scene.outputs and output_dir is not None
+        out_dir = Path(output_dir) if output_dir is not None else None
+        if vtu:
+            out_dir.mkdir(parents=True, exist_ok=True)
+        vtu_files: list[tuple[float, str]] = []
+        ckpt = StepCheckpoints(checkpoint_dir, self._key(fabric, scene)) if checkpoint_dir is not None else None
+
+        def newton(q0: np.ndarray, free: np.ndarray, options: NewtonOptions = opts):
+            if energy.friction and energy.law is not None:
+                energy.update_lag(q0)
+            return minimise(energy, q0, free, solve=solve, options=options, stabilise=stabilise, step_norm=step_norm)
+
+        rows: list[tuple[float, float, float, float]] = []
+        q = np.zeros(model.n_dof)
+        start_phase, start_index = "prestress", -1
+        if ckpt is not None and (saved := ckpt.latest()) is not None:
+            _, arrays, meta = saved
+            q = arrays["q"]
+            rows = [tuple(r) for r in arrays["rows"].tolist()]
+            start_phase, start_index = meta["phase"], int(meta["target"])
+            energy.dk = float(meta["dk"])
+        notes: list[str] = []
+        converged = True
+        step_counter = [0]
+
+        def after(phase: str, index: int, qv: np.ndarray, message: str, done: int) -> None:
+            if ckpt is not None:
+                ckpt.save(step_counter[0], {"q": qv, "rows": np.array(rows, dtype=np.float64).reshape(-1, 4)},
+                          {"phase": phase, "target": index, "dk": energy.dk})
+            if vtu:
+                name = f"rod-{step_counter[0]:04d}.vtu"
+                write_rod_vtu(out_dir / name, model, qv, 0.5 * energy.dk)
+                vtu_files.append((float(step_counter[0]), name))
+                _write_pvd(out_dir / "rod.pvd", vtu_files)
+            step_counter[0] += 1
+            report(done, total, message)
+
+        try:
+            # ---- pre-stress: grow the contact distance at F̄ = I and constant yarn length
+            if prestress and start_phase == "prestress":
+                dk_full = cell.dk
+                if start_index < 0:
+                    energy.dk = dk_full
+                    d_min = float(energy.pairs(q).distance.min(initial=dk_full))
+                    dk0 = min(self.initial_radius * dk_full, 0.95 * d_min)
+                    energy.dk = dk0
+                dk_start = energy.dk
+                free = base_free.copy()
+                free[3 * n:] = False
+                targets = np.arange(1, self.prestress_steps + 1) / self.prestress_steps
+                targets = targets[targets > (start_index + 1) / self.prestress_steps - 1e-12] if start_index >= 0 else targets
+
+                def solve_prestress(t: float, q0: np.ndarray):
+                    # geometric growth: every increment enlarges the contact distance by the same factor
+                    energy.dk = dk_start * (dk_full / dk_start) ** ((t - t_prestress[0]) / (1.0 - t_prestress[0]))
+                    return newton(q0, free)
+
+                t_prestress = [0.0 if start_index < 0 else (start_index + 1) / self.prestress_steps]
+
+                def on_prestress(i: int, t: float, res) -> None:
+                    nonlocal q
+                    q = res.x
+                    idx = int(round(t * self.prestress_steps)) - 1
+                    after("prestress", idx, q, f"pre-stress {idx + 1}/{self.prestress_steps}", idx + 1)
+
+                continuation(solve_prestress, q, list(targets), t0=t_prestress[0],
+                             min_fraction=self.min_step_fraction, on_target=on_prestress)
+                energy.dk = dk_full
+                start_phase, start_index = "load", -1
+            elif energy.law is not None and start_phase == "prestress":
+                E0 = energy(q, 0)[0]
+                if not np.isfinite(E0):
+                    d_min = float(energy.pairs(q).distance.min(initial=cell.dk))
+                    raise NumericalError(
+                        f"rod: the knitted centerlines overlap (closest centre distance {d_min:.4g} mm < "
+                        f"{getattr(energy.law, 'core', 0) * cell.dk:.4g} mm); add 'prestress' to scene.effects")
+                start_phase, start_index = "load", -1
+
+            # ---- relaxation: the course and wale stretches are free (zero tension), shear stays zero
+            if self.relax and start_phase == "load" and start_index < 0 and not rows:
+                free = base_free.copy()
+                pres, _ = lat.constraints(None, None)
+                free[3 * n:] = ~pres
+                # one long Newton solve: the lattice may move far, in steps capped by max_step
+                q = newton(q, free, attrs.evolve(opts, max_iter=10 * self.max_iterations)).x
+            h_ref = q[3 * n:].copy()
+            lam_ref = (1.0 + h_ref[macro_index(0, 0)], 1.0 + h_ref[macro_index(1, 1)])
+
+            # ---- load path
+            lam1_path = None if lam1 is None else np.concatenate([[1.0], lam1])
+            lam2_path = None if lam2 is None else np.concatenate([[1.0], lam2])
+            offset = total - n_load
+
+            def prescribed(tau: float):
+                l1 = None if lam1_path is None else float(np.interp(tau, np.arange(n_load + 1), lam1_path))
+                l2 = None if lam2_path is None else float(np.interp(tau, np.arange(n_load + 1), lam2_path))
+                return lat.constraints(None if l1 is None else l1 * lam_ref[0], None if l2 is None else l2 * lam_ref[1])
+
+            def solve_load(tau: float, q0: np.ndarray):
+                pres, vals = prescribed(tau)
+                qs = q0.copy()
+                qs[3 * n:][pres] = vals[pres]
+                free = base_free.copy()
+                free[3 * n:] = ~pres
+                return newton(qs, free)
+
+            def on_load(i: int, tau: float, res) -> None:
+                nonlocal q
+                q = res.x
+                T1, T2 = lat.tensions(res.gradient[3 * n:])
+                h = q[3 * n:]
+                # stretches relative to the relaxed lattice; tensions per unit relaxed width
+                l1, l2 = 1.0 + h[macro_index(0, 0)], 1.0 + h[macro_index(1, 1)]
+                rows.append((l1 / lam_ref[0], l2 / lam_ref[1], T1 / lam_ref[1], T2 / lam_ref[0]))
+                k = int(round(tau))
+                after("load", k - 1, q, f"load step {k}/{n_load}", offset + k)
+
+            first = start_index + 1
+            continuation(solve_load, q, list(np.arange(first + 1, n_load + 1, dtype=float)), t0=float(first),
+                         min_fraction=self.min_step_fraction, on_target=on_load)
+        except NumericalError as e:
+            if self.on_failure == "raise" or not rows:
+                raise NumericalError(f"rod solver ({fabric.pattern}, {fabric.yarn.name}): {e}") from None
+            converged = False
+            notes.append(f"stopped after {len(rows)} of {n_load} load steps: {e}")
+        arr = np.array(rows, dtype=np.float64).reshape(-1, 4)
+        load = scene.load
+        key = f"uniaxial-{load.direction}" if load.kind == "uniaxial" else load.kind
+        sl = fabric.stitch_length if fabric.stitch_length is not None else fabric.arc_length
+        prov = Provenance(
+            kind="simulation", source=f"rod {fabric.pattern}", solver=self.name,
+            mesh=f"{model.n_nodes} nodes, {len(model.edges)} segments ({self.segments_per_stitch}/stitch)",
+            wall_time=time.perf_counter() - t_start, converged=converged, notes="; ".join(notes),
+            extra={"EA_N": energy.EA, "EI_Nmm2": energy.EI, "k_contact_N_per_mm": energy.k_contact,
+                   "dk_mm": cell.dk, "L1_mm": lat.L1.tolist(), "L2_mm": lat.L2.tolist(),
+                   "effects": sorted(scene.effects), "options": attrs.asdict(self)},
+        )
+        return Response(arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3], load=key,
+                        label=f"rod {fabric.pattern} SL{sl:g} {fabric.yarn.name}", provenance=prov)
+
+
+@hookimpl
+def register_solvers(register):
+    register(RodSolver)

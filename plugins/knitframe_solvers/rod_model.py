@@ -1,0 +1,313 @@
+"""Rod discretisation of yarn centerlines and the total energy with its gradient and sparse Hessian.
+
+DOFs: ``q = [u (3 N), h (6)]`` — node displacements (mm) and the macro DOFs of
+:mod:`knitframe.periodic` (H = F̄ − I). An element point is a node at a periodic image, so an
+edge that crosses the cell boundary joins the last node of yarn i to the first node of its
+paired yarn j at image (1, 0), and contact with images is contact between points whose image
+shifts depend on F̄.
+
+The energy is the sum of the terms of the effects asked for: stretching (always), bending
+(``bending``), contact (``contact``; same-strand pairs only with ``self_contact``), lagged
+friction (``friction``) and external work −f·q. Terms not asked for are never evaluated:
+:attr:`RodEnergy.calls` counts evaluations per term.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from typing import Any
+
+import attrs
+import numpy as np
+import scipy.sparse as sp
+
+from knitframe.contact_search import SegmentTopology, find_pairs
+from knitframe.periodic import N_MACRO, Lattice, PointMap
+
+from knitframe_solvers.rod_contact import contact_energy, friction_energy, pair_weights
+from knitframe_solvers.rod_terms import bend, stretch
+
+__all__ = ["RodModel", "RodEnergy", "from_cell", "open_rods"]
+
+
+@attrs.frozen(eq=False)
+class RodModel:
+    """Nodes, edges and bending triplets of a set of rods, possibly periodic."""
+
+    X: np.ndarray  #: (N, 3) reference node positions, mm
+    edges: np.ndarray  #: (E, 2) node indices
+    edge_images: np.ndarray  #: (E, 2, 2) periodic image of each edge point
+    triplets: np.ndarray  #: (B, 3) node indices (previous, vertex, next)
+    triplet_images: np.ndarray  #: (B, 3, 2)
+    l0: np.ndarray  #: (E,) rest lengths, mm
+    lbar: np.ndarray  #: (B,) Voronoi lengths, mm
+    topology: SegmentTopology  #: strand bookkeeping per edge
+    yarn: np.ndarray  #: (N,) yarn index of each node
+    lattice: Lattice | None = None
+
+    @property
+    def n_nodes(self) -> int:
+        return int(self.X.shape[0])
+
+    @property
+    def n_dof(self) -> int:
+        return 3 * self.n_nodes + N_MACRO
+
+    @property
+    def n_strands(self) -> int:
+        return int(self.topology.cycle.shape[0])
+
+    def positions(self, q: np.ndarray) -> np.ndarray:
+        """Current node positions (N, 3), mm."""
+        return self.X + q[: 3 * self.n_nodes].reshape(-1, 3)
+
+    def segments(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Current edge end points (E, 3) each, with image shifts applied."""
+        x = self.positions(q)
+        h = q[3 * self.n_nodes:]
+        p = x[self.edges]
+        if self.lattice is not None:
+            p = p + self.lattice.shift(self.edge_images, h)
+        return p[:, 0], p[:, 1]
+
+
+def _assemble(nodes: list[np.ndarray], images: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    return np.concatenate(nodes).astype(np.int64), np.concatenate(images).astype(np.int64)
+
+
+def open_rods(polylines: list[np.ndarray]) -> RodModel:
+    """Model of open (non-periodic) rods, one per polyline (n_i, 3) of vertices in mm."""
+    X, edges, tri, strand, arc, yarn = [], [], [], [], [], []
+    off = 0
+    for r, pts in enumerate(polylines):
+        pts = np.asarray(pts, dtype=np.float64)
+        n = len(pts)
+        X.append(pts)
+        idx = off + np.arange(n)
+        edges.append(np.stack([idx[:-1], idx[1:]], axis=1))
+        tri.append(np.stack([idx[:-2], idx[1:-1], idx[2:]], axis=1))
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        arc.append(np.concatenate([[0.0], np.cumsum(seg)[:-1]]) + 0.5 * seg)
+        strand.append(np.full(n - 1, r))
+        yarn.append(np.full(n, r))
+        off += n
+    X = np.vstack(X)
+    E = np.vstack(edges)
+    T = np.vstack(tri) if tri else np.zeros((0, 3), np.int64)
+    l0 = np.linalg.norm(X[E[:, 1]] - X[E[:, 0]], axis=1)
+    lbar = 0.5 * (np.linalg.norm(X[T[:, 1]] - X[T[:, 0]], axis=1) + np.linalg.norm(X[T[:, 2]] - X[T[:, 1]], axis=1))
+    n_r = len(polylines)
+    prev = np.arange(len(E)) - 1
+    prev[np.concatenate([[0], np.cumsum([len(p) - 1 for p in polylines])[:-1]])] = -1
+    topo = SegmentTopology(np.concatenate(strand), np.zeros(len(E), np.int64), np.concatenate(arc),
+                           np.zeros(n_r, np.int64), np.zeros(n_r), prev, np.zeros((len(E), 2), np.int64))
+    return RodModel(X, E, np.zeros((len(E), 2, 2), np.int64), T, np.zeros((len(T), 3, 2), np.int64),
+                    l0, lbar, topo, np.concatenate(yarn))
+
+
+def _uniform_arc_samples(curve, n: int) -> np.ndarray:
+    """n parameters t in [t0, t1) equally spaced in arc length."""
+    grid = np.linspace(curve.t0, curve.t1, 40 * n + 1)
+    s = curve.arc_coordinate(grid)
+    target = np.linspace(0.0, s[-1], n, endpoint=False)
+    return np.interp(target, s, grid)
+
+
+def from_cell(cell: Any, segments_per_stitch: int) -> RodModel:
+    """Periodic rod model of a :class:`knitframe.geometry.UnitCell`.
+
+    Each yarn (two stitches) gets ``2·segments_per_stitch`` segments equally spaced in arc
+    length; its last node connects to the first node of its paired yarn at image (1, 0).
+    Rest lengths are the chords of the knitted centerline, so the yarn length is that of the
+    geometry.
+    """
+    from knitframe.geometry import strands
+
+    lattice = Lattice(cell.L1, cell.L2)
+    n_y = len(cell.yarns)
+    counts = [2 * segments_per_stitch] * n_y
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    X = []
+    for i, c in enumerate(cell.yarns):
+        X.append(np.asarray(c.position(_uniform_arc_samples(c, counts[i])), dtype=np.float64))
+    X = np.vstack(X)
+    pair = dict(cell.end_pairs)
+    edges, eimg, tri, timg, yarn = [], [], [], [], []
+    for i in range(n_y):
+        n = counts[i]
+        idx = starts[i] + np.arange(n)
+        nxt = np.append(idx[1:], starts[pair[i]])
+        nimg = np.zeros((n, 2), np.int64)
+        nimg[-1] = (1, 0)
+        edges.append(np.stack([idx, nxt], axis=1))
+        eimg.append(np.stack([np.zeros((n, 2), np.int64), nimg], axis=1))
+        yarn.append(np.full(n, i))
+    prev_of = {j: i for i, j in cell.end_pairs}
+    for i in range(n_y):
+        n = counts[i]
+        idx = starts[i] + np.arange(n)
+        prv = np.insert(idx[:-1], 0, starts[prev_of[i]] + counts[prev_of[i]] - 1)
+        pimg = np.zeros((n, 2), np.int64)
+        pimg[0] = (-1, 0)
+        nxt = np.append(idx[1:], starts[pair[i]])
+        nimg = np.zeros((n, 2), np.int64)
+        nimg[-1] = (1, 0)
+        tri.append(np.stack([prv, idx, nxt], axis=1))
+        timg.append(np.stack([pimg, np.zeros((n, 2), np.int64), nimg], axis=1))
+    E, EI_ = _assemble(edges, eimg)
+    T, TI = _assemble(tri, timg)
+    P = X[E] + lattice.reference_shift(EI_)
+    l0 = np.linalg.norm(P[:, 1] - P[:, 0], axis=1)
+    Pt = X[T] + lattice.reference_shift(TI)
+    lbar = 0.5 * (np.linalg.norm(Pt[:, 1] - Pt[:, 0], axis=1) + np.linalg.norm(Pt[:, 2] - Pt[:, 1], axis=1))
+    # strand bookkeeping: position of each yarn in its strand and arc unrolled along the strand
+    st = strands(cell)
+    strand_of, pos = np.zeros(n_y, np.int64), np.zeros(n_y, np.int64)
+    offset, cycle, length = np.zeros(n_y), np.zeros(len(st), np.int64), np.zeros(len(st))
+    seg_y = np.concatenate(yarn)
+    for k, cyc in enumerate(st):
+        acc = 0.0
+        for p_, i in enumerate(cyc):
+            strand_of[i], pos[i], offset[i] = k, p_, acc
+            acc += l0[seg_y == i].sum()
+        cycle[k], length[k] = len(cyc), acc
+    arc = np.empty(len(E))
+    for i in range(n_y):
+        sel = seg_y == i
+        li = l0[sel]
+        arc[sel] = offset[i] + np.concatenate([[0.0], np.cumsum(li)[:-1]]) + 0.5 * li
+    # previous segment along the yarn; a yarn's first segment follows the last one of the yarn before it
+    seg_start = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    prev = np.arange(len(E)) - 1
+    prev_img = np.zeros((len(E), 2), np.int64)
+    for j in range(n_y):
+        i = prev_of[j]
+        prev[seg_start[j]] = seg_start[i] + counts[i] - 1
+        prev_img[seg_start[j]] = (-1, 0)
+    topo = SegmentTopology(strand_of[seg_y], pos[seg_y], arc, cycle, length, prev, prev_img)
+    node_yarn = np.concatenate([np.full(counts[i], i) for i in range(n_y)])
+    return RodModel(X, E, EI_, T, TI, l0, lbar, topo, node_yarn, lattice)
+
+
+@attrs.define(eq=False)
+class FrictionLag:
+    """Contacts of the last converged state, whose normal force and normal friction uses."""
+
+    i: np.ndarray
+    j: np.ndarray
+    k: np.ndarray
+    s: np.ndarray
+    t: np.ndarray
+    c: np.ndarray  #: (m, 3) c = J x at the lag
+    normal: np.ndarray  #: (m, 3)
+    lam: np.ndarray  #: (m,) N
+
+
+@attrs.define(eq=False, slots=False)
+class RodEnergy:
+    """Total energy of a :class:`RodModel`: ``energy(q, order) -> (E, g, H, info)`` for :func:`knitframe.newton.minimise`.
+
+    ``dk`` (the contact distance) is mutable for the pre-stress step. ``law`` is a rod
+    contact-law plugin instance, None when the scene does not ask for contact.
+    """
+
+    model: RodModel
+    EA: float  #: N
+    EI: float  #: N·mm²
+    bending: bool = True
+    law: Any = None
+    dk: float = 0.0  #: contact distance, mm
+    k_contact: float = 0.0  #: N/mm
+    k_core: float | None = None  #: contact-law core (barrier) stiffness, N/mm
+    self_contact: bool = False
+    exclusion: float = 0.0  #: mm
+    friction: bool = False
+    external: np.ndarray | None = None  #: (n_dof,) generalised forces, N (and N·mm on h)
+    lag: FrictionLag | None = None
+    calls: Counter = attrs.Factory(Counter)
+
+    def __attrs_post_init__(self) -> None:
+        m = self.model
+        self._stretch_map = PointMap(m.n_nodes, m.edges, m.edge_images, m.lattice)
+        self._bend_map = PointMap(m.n_nodes, m.triplets, m.triplet_images, m.lattice)
+
+    # -- contact -------------------------------------------------------------------------------
+    def pairs(self, q: np.ndarray):
+        """Segment pairs closer than dk under the current state (one contact search)."""
+        self.calls["contact_search"] += 1
+        p0, p1 = self.model.segments(q)
+        h = q[3 * self.model.n_nodes:]
+        return find_pairs(p0, p1, self.dk, topology=self.model.topology, lattice=self.model.lattice, h=h,
+                          self_contact=self.self_contact, exclusion=self.exclusion)
+
+    def _pair_map(self, i: np.ndarray, j: np.ndarray, k: np.ndarray) -> PointMap:
+        m = self.model
+        nodes = np.concatenate([m.edges[i], m.edges[j]], axis=1)
+        images = np.concatenate([m.edge_images[i], m.edge_images[j] + k[:, None, :]], axis=1)
+        return PointMap(m.n_nodes, nodes, images, m.lattice)
+
+    def update_lag(self, q: np.ndarray) -> None:
+        """Freeze the contacts of state q (normal forces, normals, material points) for friction."""
+        pr = self.pairs(q)
+        pm = self._pair_map(pr.i, pr.j, pr.k)
+        x = self.model.positions(q)
+        p = pm.points(x, q[3 * self.model.n_nodes:])
+        c = np.einsum("mi,mic->mc", pair_weights(pr.s, pr.t), p)
+        lam = self.law.force(pr.distance, self.dk, self.k_contact, self.k_core)
+        n = c / np.linalg.norm(c, axis=1)[:, None]
+        act = lam > 0
+        self.lag = FrictionLag(pr.i[act], pr.j[act], pr.k[act], pr.s[act], pr.t[act], c[act], n[act], lam[act])
+
+    # -- total ---------------------------------------------------------------------------------
+    def __call__(self, q: np.ndarray, order: int = 2):
+        m = self.model
+        x = m.positions(q)
+        h = q[3 * m.n_nodes:]
+        E = 0.0
+        g = np.zeros(m.n_dof) if order >= 1 else None
+        coo: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        info: dict[str, Any] = {"active_contacts": 0, "strands_in_contact": 0, "min_distance": np.inf}
+
+        def add(pm: PointMap, e, ge, He):
+            nonlocal E
+            E += float(np.sum(e))
+            if order >= 1:
+                g[:] += pm.gradient(ge)
+            if order >= 2:
+                coo.append(pm.hessian_coo(He))
+
+        self.calls["stretch"] += 1
+        add(self._stretch_map, *stretch(self._stretch_map.points(x, h), m.l0, self.EA, order))
+        if self.bending and len(m.triplets):
+            self.calls["bending"] += 1
+            add(self._bend_map, *bend(self._bend_map.points(x, h), m.lbar, self.EI, order))
+        if self.law is not None:
+            pr = self.pairs(q)
+            self.calls["contact"] += 1
+            if len(pr):
+                pm = self._pair_map(pr.i, pr.j, pr.k)
+                e, ge, He, d = contact_energy(pm.points(x, h), pr.s, pr.t, self.law, self.dk, self.k_contact, order,
+                                              self.k_core)
+                add(pm, e, ge, He)
+                act = d < self.dk
+                info["active_contacts"] = int(np.count_nonzero(act))
+                info["min_distance"] = float(d.min())
+                touched = np.union1d(m.topology.strand[pr.i[act]], m.topology.strand[pr.j[act]])
+                info["strands_in_contact"] = int(len(touched))
+            if self.friction and self.lag is not None and len(self.lag.i):
+                self.calls["friction"] += 1
+                L = self.lag
+                pm = self._pair_map(L.i, L.j, L.k)
+                add(pm, *friction_energy(pm.points(x, h), L.s, L.t, L.c, L.normal, L.lam, self.law, self.dk, order))
+        if self.external is not None:
+            E -= float(self.external @ q)
+            if order >= 1:
+                g -= self.external
+        H = None
+        if order >= 2:
+            r, c, v = (np.concatenate(a) for a in zip(*coo))
+            H = sp.csr_matrix((v, (r, c)), shape=(m.n_dof, m.n_dof))
+        if not np.isfinite(E):
+            info["diagnostic"] = (f"contact barrier crossed (closest centre distance {info['min_distance']:.4g} mm, "
+                                  f"contact distance {self.dk:.4g} mm)")
+        return E, g, H, info

@@ -1,0 +1,416 @@
+"""Solver ``volumetric``: the paper's ABAQUS unit-cell model rebuilt on scikit-fem.
+
+The high-fidelity rung of the accuracy ladder. Every yarn of the pattern's periodic 2x2 cell is
+a swept tetrahedral tube (:mod:`knitframe.mesh`, P1 or isoparametric P2, seed r/3 by default)
+made of the yarn model's hyperelastic law in total-Lagrangian large deformation, with the fibre
+along the centerline (:mod:`knitframe_solvers.volumetric_material`). Yarns touch each other,
+their periodic images under the current F̄ and (with ``self_contact``) distant parts of
+themselves through a solid contact-law plugin (``mortar`` or ``penalty``).
+
+Periodicity is the shared macro-DOF mechanism of :mod:`knitframe.periodic`: the end faces of
+each yarn at the course boundary are images of the start faces of their paired yarn,
+u_end = u_start + (F̄ − I)·L1, folded into u = T·[u_independent, h]. The reaction conjugate to the
+macro DOFs h divided by the cell area gives the course and wale tensions per unit width.
+
+A run is
+
+1. pre-stress (scene effect ``prestress``): the yarns start shrunk across the fibre to radius
+   s₀·r — small enough that the knitted tubes do not overlap — and an eigenstrain
+   Fθ = I + (s − 1)(I − a⊗a) with s growing from s₀ to 1 restores the knitted diameter dk at
+   constant length, against contact (this resolves the geometry's initial interference);
+2. the scene's load path (equibiaxial, uniaxial with a free side, or general) in the scene's
+   steps, each cut back adaptively on failure (:func:`knitframe.newton.continuation`).
+
+Each increment is solved by the shared Newton driver (:func:`knitframe.newton.minimise`) with a
+linear-solver plugin. Every converged step is checkpointed; a call with the same inputs and
+checkpoint directory resumes after the last saved step.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from pathlib import Path
+from typing import Any, ClassVar, Literal
+
+import attrs
+import numpy as np
+import scipy.sparse as sp
+
+from knitframe import hookimpl, validators as v
+from knitframe.config import instantiate
+from knitframe.contact_search import SegmentTopology
+from knitframe.errors import ConfigError, NumericalError
+from knitframe.newton import NewtonOptions, StepCheckpoints, continuation, minimise
+from knitframe.periodic import N_MACRO, Lattice, macro_index, periodic_transform
+from knitframe.plugins import get_registry
+from knitframe.records import Fabric, Provenance, Response, Scene
+
+from knitframe_contact.solid_geometry import SolidSurface
+from knitframe_solvers.volumetric_material import SolidForms, YarnLaw
+
+__all__ = ["VolumetricSolver", "contact_surface", "write_solid_vtu"]
+
+
+def contact_surface(cm: Any, lattice: Lattice | None, exclusion: float | None = None) -> SolidSurface:
+    """Two-pass contact surface of a cell mesh: every lateral facet is both slave and master.
+
+    Nodes get the strand bookkeeping of their yarn (position in its strand, arc unrolled along
+    the strand), so pairs closer than ``exclusion`` (default π·dk) along one strand copy — a
+    tube's own cross-section — are not contacts.
+    """
+    n_y = len(cm.names)
+    nxt = {int(cm.node_body[end[0]]): int(cm.node_body[start[0]]) for end, start, _ in cm.end_pairs}
+    periodic = len(nxt) == n_y
+    st, seen = [], set()
+    for i in range(n_y):  # strands: cycles of the end pairs (a handful of yarns)
+        if i in seen:
+            continue
+        cyc = [i]
+        while periodic and nxt[cyc[-1]] != i:
+            cyc.append(nxt[cyc[-1]])
+        seen.update(cyc)
+        st.append(cyc)
+    strand_of, pos, offset = np.zeros(n_y, np.int64), np.zeros(n_y, np.int64), np.zeros(n_y)
+    cycle, length = np.zeros(len(st), np.int64), np.zeros(len(st))
+    for k, cyc in enumerate(st):
+        acc = 0.0
+        for p, i in enumerate(cyc):
+            strand_of[i], pos[i], offset[i] = k, p, acc
+            acc += cm.lengths[i]
+        cycle[k], length[k] = (len(cyc) if periodic else 0), acc
+    b = cm.node_body
+    topo = SegmentTopology(strand_of[b], pos[b], offset[b] + cm.node_arc, cycle, length)
+    excl = np.pi * 2.0 * cm.radius if exclusion is None else float(exclusion)
+    all_f = np.arange(len(cm.surface))
+    return SolidSurface.build(cm.nodes, cm.surface, all_f, all_f, topo, excl, lattice)
+
+
+def write_solid_vtu(path: Path, forms: SolidForms, u: np.ndarray, s: float, pressure: np.ndarray) -> Path:
+    """VTU of the deformed solid: displacement and contact pressure (points), max principal stress (cells).
+
+    The maximum principal Cauchy stress σ = J⁻¹ P Fᵀ (MPa) is averaged over each element's
+    quadrature points. P2 meshes are written as VTK quadratic tetrahedra (same node order as
+    scikit-fem's P2 element).
+    """
+    import meshio
+
+    mesh = forms.mesh
+    X = (mesh.doflocs if forms.edofs.shape[0] == 10 else mesh.p).T
+    F = np.concatenate([forms.deformation_gradient(u, sl) for sl in forms._chunks()], axis=2)
+    P = forms.stress(u, s)
+    J = np.linalg.det(np.moveaxis(F, (0, 1), (-2, -1)))
+    sigma = np.einsum("iJeq,kJeq->ikeq", P, F) / J
+    w = forms.dx / forms.dx.sum(axis=1, keepdims=True)
+    sig_e = np.einsum("ikeq,eq->eik", sigma, w)
+    smax = np.linalg.eigvalsh(0.5 * (sig_e + np.swapaxes(sig_e, 1, 2)))[:, -1]
+    cell_type = "tetra10" if forms.edofs.shape[0] == 10 else "tetra"
+    out = meshio.Mesh(
+        X,
+        [(cell_type, forms.edofs.T)],
+        point_data={"displacement": u.reshape(-1, 3), "contact_pressure": pressure},
+        cell_data={"max_principal_stress": [smax], "yarn": [np.asarray(getattr(forms, "element_body", np.zeros(len(smax))))]},
+    )
+    out.write(str(path))
+    return Path(path)
+
+
+def _write_pvd(path: Path, files: list[tuple[float, str]]) -> None:
+    rows = "\n".join(f'    <DataSet timestep="{t:g}" file="{f}"/>' for t, f in files)
+    path.write_text(f'<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n{rows}\n'
+                    "  </Collection>\n</VTKFile>\n")
+
+
+@attrs.frozen
+class VolumetricSolver:
+    """Tetrahedral yarn solids (P1/P2) on the periodic 2x2 cell with solid contact and macro DOFs."""
+
+    name: ClassVar[str] = "volumetric"
+    description: ClassVar[str] = "paper-fidelity unit-cell solver: P2 tetrahedral yarn solids, solid contact, pre-stress"
+    effects: ClassVar[frozenset[str]] = frozenset(
+        {"large_deformation", "bending", "contact", "self_contact", "prestress", "anisotropy"})
+    loads: ClassVar[frozenset[str]] = frozenset({"equibiaxial", "uniaxial-course", "uniaxial-wale", "general"})
+
+    order: int = attrs.field(default=2, validator=v.in_range(1, 2))  #: polynomial order of the tetrahedra (1 or 2), -
+    seed: float = attrs.field(default=1.0 / 3.0, validator=v.in_range(0.05, 1.5))  #: element size / yarn radius, -
+    contact_law: str | dict[str, Any] = "mortar"  #: solid contact-law plugin name or table with ``kind``
+    linear_solver: str | dict[str, Any] = "direct"  #: linear-solver plugin name or table with ``kind``
+    contact_modulus: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: modulus scaling the penalty, MPa; default the yarn's E_transverse
+    reach: float = attrs.field(default=0.5, validator=v.positive)  #: contact search distance / yarn radius, -
+    self_contact_exclusion: float = attrs.field(default=np.pi, validator=v.positive)  #: same-strand pairs closer than this × dk along the yarn are the yarn itself, -
+    prestress_steps: int = attrs.field(default=4, validator=v.in_range(1, 1000))  #: steps of the radial pre-stress, -
+    initial_radius: float = attrs.field(default=0.9, validator=v.in_range(0.05, 1.0))  #: largest start radius of the pre-stress / r, -
+    tolerance: float = attrs.field(default=1e-8, validator=v.positive)  #: Newton residual tolerance / (E_axial r²), -
+    max_step: float = attrs.field(default=0.25, validator=v.positive)  #: largest node move per Newton step / yarn radius, -
+    min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))  #: smallest cut-back increment / step, -
+    max_iterations: int = attrs.field(default=40, validator=v.in_range(1, 10000))  #: Newton iterations per increment, -
+    intorder: int = attrs.field(default=2, validator=v.in_range(1, 6))  #: quadrature order of the solid (2: 4 points), -
+    on_failure: Literal["raise", "truncate"] = "raise"  #: "truncate" returns the converged steps (converged = false)
+
+    def _key(self, fabric: Fabric, scene: Scene) -> str:
+        text = json.dumps([fabric.to_dict(), scene.to_dict(), attrs.asdict(self)], sort_keys=True, default=str)
+        return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+    def setup(self, fabric: Fabric, scene: Scene, registry=None) -> "VolumetricModel":
+        """Mesh, material forms, periodic map and contact of a fabric's cell for the effects of a scene."""
+        from knitframe.mesh import cell_mesh
+
+        registry = registry or get_registry()
+        cell = registry["pattern"][fabric.pattern]().cell(fabric)
+        t0 = time.perf_counter()
+        cm = cell_mesh(cell, seed=self.seed, order=self.order)
+        t_mesh = time.perf_counter() - t0
+        forms = SolidForms(cm.mesh, YarnLaw.from_yarn(fabric.yarn, registry), cm.node_tangent, intorder=self.intorder)
+        forms.element_body = cm.element_body
+        lattice = Lattice(cell.L1, cell.L2)
+        slave = np.concatenate([e for e, _, _ in cm.end_pairs])
+        master = np.concatenate([s for _, s, _ in cm.end_pairs])
+        images = np.tile([1, 0], (len(slave), 1))
+        T, independent = periodic_transform(cm.n_nodes, slave, master, images, lattice)
+        law, surface = None, None
+        if "contact" in scene.effects:
+            law = instantiate(registry, "contact_law", self.contact_law, "solver.contact_law")
+            if getattr(law, "discretisation", None) != "solid":
+                raise ConfigError("solver.contact_law",
+                                  f"contact law '{law.name}' is for '{law.discretisation}', not solid meshes")
+            surface = contact_surface(cm, lattice, self.self_contact_exclusion * cell.dk)
+            if "self_contact" not in scene.effects:
+                surface = attrs.evolve(surface, exclusion=np.inf)
+        modulus = self.contact_modulus or fabric.yarn.E_transverse
+        h = self.seed * cm.radius
+        stiffness = law.penalty(modulus, h) if law is not None else 0.0
+        return VolumetricModel(cell, cm, forms, lattice, T.tocsr(), independent, law, surface, stiffness,
+                               self.reach * cm.radius, t_mesh)
+
+    def simulate(self, fabric: Fabric, scene: Scene, *, progress=None, output_dir: str | Path | None = None,
+                 checkpoint_dir: str | Path | None = None) -> Response:
+        """Pre-stress (if asked) and follow the scene's load path; returns tensions per unit width.
+
+        Parameters
+        ----------
+        fabric, scene : the fabric to simulate and what to simulate.
+        progress : callable, optional
+            ``progress(done, total, message)`` after every converged step.
+        output_dir : path, optional
+            ``solid-NNNN.vtu`` per converged step plus ``solid.pvd`` when the scene's outputs
+            include ``"vtu"``.
+        checkpoint_dir : path, optional
+            Converged steps are saved there; a later call with the same inputs resumes after
+            the last saved step.
+        """
+        t_start = time.perf_counter()
+        registry = get_registry()
+        model = self.setup(fabric, scene, registry)
+        solve = instantiate(registry, "linear_solver", self.linear_solver, "solver.linear_solver")
+        t_load, lam1, lam2 = scene.load.stretches()
+        n_load = len(t_load)
+        prestress = "prestress" in scene.effects
+        total = n_load + (self.prestress_steps if prestress else 0)
+        report = progress or (lambda done, tot, msg: None)
+        r = model.cm.radius
+        opts = NewtonOptions(atol=self.tolerance * fabric.yarn.E_axial * r * r, rtol=1e-10, max_iter=self.max_iterations,
+                             max_step=self.max_step, xtol=1e-12 * r)
+        n_ind = 3 * len(model.independent)
+        base_free = np.ones(n_ind + N_MACRO, bool)
+        base_free[:3] = False  # pin one node: the cell's free translation
+        vtu = "vtu" in scene.outputs and output_dir is not None
+        out_dir = Path(output_dir) if output_dir is not None else None
+        if vtu:
+            out_dir.mkdir(parents=True, exist_ok=True)
+        vtu_files: list[tuple[float, str]] = []
+        ckpt = StepCheckpoints(checkpoint_dir, self._key(fabric, scene)) if checkpoint_dir is not None else None
+        lat = model.lattice
+
+        def step_norm(dx: np.ndarray) -> float:
+            du = model.T @ dx
+            return max(float(np.max(np.abs(du))), float(np.max(np.abs(dx[n_ind:]))) * model.L_max) / r
+
+        def newton(q0: np.ndarray, free: np.ndarray):
+            return minimise(model, q0, free, solve=solve, options=opts, step_norm=step_norm,
+                            stabilise=lambda info: info.get("active", 0) == 0)
+
+        s0 = 1.0
+        if prestress:
+            d_min = model.cm.clearance.minimum if model.cm.clearance is not None else 2.0 * r
+            s0 = min(self.initial_radius, 0.95 * d_min / (2.0 * r))
+        q = model.shrunk(s0)
+        rows: list[tuple[float, float, float, float]] = []
+        start_phase, start_index = "prestress", -1
+        if ckpt is not None and (saved := ckpt.latest()) is not None:
+            _, arrays, meta = saved
+            q = arrays["q"]
+            rows = [tuple(x) for x in arrays["rows"].tolist()]
+            start_phase, start_index = meta["phase"], int(meta["target"])
+            s0 = float(meta["s0"])
+        notes: list[str] = []
+        converged = True
+        step_counter = [0 if start_index < 0 and start_phase == "prestress" else int(ckpt.latest()[0]) + 1]
+
+        def after(phase: str, index: int, qv: np.ndarray, message: str, done: int) -> None:
+            if ckpt is not None:
+                ckpt.save(step_counter[0], {"q": qv, "rows": np.array(rows, dtype=np.float64).reshape(-1, 4)},
+                          {"phase": phase, "target": index, "s0": s0})
+            if vtu:
+                name = f"solid-{step_counter[0]:04d}.vtu"
+                u = model.T @ qv
+                _, _, _, info = model(qv, 0)
+                write_solid_vtu(out_dir / name, model.forms, u, model.s, info.get("pressure", np.zeros(model.cm.n_nodes)))
+                vtu_files.append((float(step_counter[0]), name))
+                _write_pvd(out_dir / "solid.pvd", vtu_files)
+            step_counter[0] += 1
+            report(done, total, message)
+
+        try:
+            if prestress and start_phase == "prestress":
+                free = base_free.copy()
+                free[n_ind:] = False
+                t_first = (start_index + 1) / self.prestress_steps
+                targets = [k / self.prestress_steps for k in range(start_index + 2, self.prestress_steps + 1)]
+
+                def solve_prestress(t: float, q0: np.ndarray):
+                    model.s = s0 + t * (1.0 - s0)
+                    return newton(q0, free)
+
+                def on_prestress(i: int, t: float, res) -> None:
+                    nonlocal q
+                    q = res.x
+                    idx = int(round(t * self.prestress_steps)) - 1
+                    after("prestress", idx, q, f"pre-stress {idx + 1}/{self.prestress_steps}", idx + 1)
+
+                if start_index < 0:  # equilibrium of the shrunk state (curvature makes it not quite stress-free)
+                    model.s = s0
+                    q = newton(q, free).x
+                continuation(solve_prestress, q, targets, t0=t_first, min_fraction=self.min_step_fraction,
+                             on_target=on_prestress)
+                start_phase, start_index = "load", -1
+            model.s = 1.0
+            if start_phase == "prestress":
+                E0, _, _, info = model(q, 0)
+                if not np.isfinite(E0) or info.get("max_penetration", 0.0) > 0.5 * r:
+                    raise NumericalError(
+                        f"volumetric: the knitted yarns overlap by {info.get('max_penetration', np.inf):.3g} mm; "
+                        "add 'prestress' to scene.effects")
+                start_phase, start_index = "load", -1
+
+            lam1_path = None if lam1 is None else np.concatenate([[1.0], lam1])
+            lam2_path = None if lam2 is None else np.concatenate([[1.0], lam2])
+            offset = total - n_load
+
+            def solve_load(tau: float, q0: np.ndarray):
+                l1 = None if lam1_path is None else float(np.interp(tau, np.arange(n_load + 1), lam1_path))
+                l2 = None if lam2_path is None else float(np.interp(tau, np.arange(n_load + 1), lam2_path))
+                pres, vals = lat.constraints(l1, l2)
+                qs = q0.copy()
+                qs[n_ind:][pres] = vals[pres]
+                free = base_free.copy()
+                free[n_ind:] = ~pres
+                return newton(qs, free)
+
+            def on_load(i: int, tau: float, res) -> None:
+                nonlocal q
+                q = res.x
+                T1, T2 = lat.tensions(res.gradient[n_ind:])
+                hm = q[n_ind:]
+                rows.append((1.0 + hm[macro_index(0, 0)], 1.0 + hm[macro_index(1, 1)], T1, T2))
+                k = int(round(tau))
+                after("load", k - 1, q, f"load step {k}/{n_load}", offset + k)
+
+            first = start_index + 1
+            continuation(solve_load, q, list(np.arange(first + 1, n_load + 1, dtype=float)), t0=float(first),
+                         min_fraction=self.min_step_fraction, on_target=on_load)
+        except NumericalError as e:
+            if self.on_failure == "raise" or not rows:
+                raise NumericalError(f"volumetric solver ({fabric.pattern}, {fabric.yarn.name}): {e}") from None
+            converged = False
+            notes.append(f"stopped after {len(rows)} of {n_load} load steps: {e}")
+        arr = np.array(rows, dtype=np.float64).reshape(-1, 4)
+        load = scene.load
+        key = f"uniaxial-{load.direction}" if load.kind == "uniaxial" else load.kind
+        sl = fabric.stitch_length if fabric.stitch_length is not None else fabric.arc_length
+        prov = Provenance(
+            kind="simulation", source=f"volumetric {fabric.pattern}", solver=self.name, mesh=model.cm.summary(),
+            wall_time=time.perf_counter() - t_start, converged=converged, notes="; ".join(notes),
+            extra={"timings_s": {k: round(v_, 3) for k, v_ in model.timings.items()},
+                   "newton_evaluations": model.evaluations, "prestress_start_radius_over_r": s0,
+                   "penalty_N_per_mm3": model.stiffness, "dk_mm": model.cell.dk,
+                   "L1_mm": lat.L1.tolist(), "L2_mm": lat.L2.tolist(), "effects": sorted(scene.effects),
+                   "options": attrs.asdict(self)},
+        )
+        return Response(arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3], load=key,
+                        label=f"volumetric {fabric.pattern} SL{sl:g} {fabric.yarn.name}", provenance=prov)
+
+
+class VolumetricModel:
+    """The discrete problem: ``model(q, order) -> (E, g, H, info)`` over q = [u_independent, h].
+
+    E is the strain energy of the yarns at the current pre-stress parameter ``s`` plus the
+    contact energy; g and H are pulled back to q through the periodic map u = T q. Wall time is
+    accumulated per part in ``timings`` (material assembly, contact, transforms).
+    """
+
+    def __init__(self, cell, cm, forms, lattice, T, independent, law, surface, stiffness, reach, t_mesh):
+        self.cell, self.cm, self.forms, self.lattice = cell, cm, forms, lattice
+        self.T, self.independent = T, independent
+        self.law, self.surface, self.stiffness, self.reach = law, surface, stiffness, reach
+        n = 3 * cm.n_nodes
+        # q → [u (3N), h (6)] for the contact terms, which also depend on h through the images
+        self.Q = sp.vstack([T, sp.hstack([sp.csr_matrix((N_MACRO, T.shape[1] - N_MACRO)), sp.identity(N_MACRO)])]).tocsr()
+        self.QT = self.Q.T.tocsr()
+        self.TT = T.T.tocsr()
+        self.n = n
+        self.s = 1.0
+        self.L_max = float(max(np.linalg.norm(lattice.L1), np.linalg.norm(lattice.L2)))
+        self.timings = {"mesh": t_mesh, "material": 0.0, "contact": 0.0, "transform": 0.0}
+        self.evaluations = {"energy": 0, "gradient": 0, "hessian": 0}
+
+    def shrunk(self, s0: float) -> np.ndarray:
+        """q of the yarns shrunk across the fibre to s0·r: u = (s0 − 1)·(transverse offset)."""
+        q = np.zeros(self.T.shape[1])
+        u = (s0 - 1.0) * self.cm.node_offset[self.independent]
+        q[: 3 * len(self.independent)] = u.ravel()
+        return q
+
+    def __call__(self, q: np.ndarray, order: int) -> tuple[float, Any, Any, dict]:
+        self.evaluations[("energy", "gradient", "hessian")[order]] += 1
+        t0 = time.perf_counter()
+        u = self.T @ q
+        h = q[-N_MACRO:]
+        self.timings["transform"] += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        E = self.forms.energy(u, self.s)
+        if not np.isfinite(E):
+            self.timings["material"] += time.perf_counter() - t0
+            return np.inf, None, None, {"diagnostic": "an element is inverted"}
+        R = self.forms.residual(u, self.s) if order >= 1 else None
+        K = self.forms.tangent(u, self.s) if order == 2 else None
+        self.timings["material"] += time.perf_counter() - t0
+        info: dict[str, Any] = {"active": 0, "max_penetration": 0.0}
+        gc = Hc = None
+        if self.law is not None:
+            t0 = time.perf_counter()
+            x = self.cm.nodes + u.reshape(-1, 3)
+            Ec, gc, Hc, info = self.law.evaluate(self.surface, x, h, order, stiffness=self.stiffness, reach=self.reach)
+            E += Ec
+            self.timings["contact"] += time.perf_counter() - t0
+        if order == 0:
+            return E, None, None, info
+        t0 = time.perf_counter()
+        g = self.TT @ R
+        if gc is not None:
+            g = g + self.QT @ gc
+        H = None
+        if order == 2:
+            H = self.TT @ K @ self.T
+            if Hc is not None and Hc.nnz:
+                H = H + self.QT @ Hc @ self.Q
+            H = H.tocsr()
+        self.timings["transform"] += time.perf_counter() - t0
+        if not np.all(np.isfinite(g)):
+            raise NumericalError("volumetric: non-finite residual")
+        return E, g, H, info
+
+
+@hookimpl
+def register_solvers(register):
+    register(VolumetricSolver)

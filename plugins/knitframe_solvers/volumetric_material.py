@@ -1,0 +1,237 @@
+"""Total-Lagrangian hyperelastic solid on tetrahedra: energy, residual and tangent by batched einsum.
+
+Kinematics: x = X + u, F = I + ∇u (3, 3, n_el, n_qp), with u interpolated by scikit-fem's P1 or P2
+Lagrange basis (vector DOF ``3·node + i``). For a strain energy density Ψ(F) per reference volume
+(MPa = N/mm²)::
+
+    W(u)       = Σ_e Σ_q Ψ(F_eq) dV_eq                                   (N·mm)
+    R_ai(u)    = Σ_q P_iJ ∂_J N_a dV                                      (N)
+    K_aibk(u)  = Σ_q ∂_J N_a A_iJkL ∂_L N_b dV,  A = ∂P/∂F                (N/mm)
+
+The kernels run over (element, quadrature point) at once with ``numpy.einsum`` on scikit-fem's
+basis gradients, quadrature weights and DOF maps, in chunks of elements to bound memory; the
+sparse tangent is summed into a fixed CSR pattern with ``np.bincount``.
+
+Thermal pre-stress: an eigenstrain transverse to the fibre a (the centerline tangent), with the
+multiplicative split F = Fe·Fθ, Fθ = I + (s − 1)(I − a⊗a). The yarn's stress-free radius is s·r,
+so raising s from r_under/r to 1 grows an undersized yarn to its knitted diameter at constant
+length. W = ∫ Jθ Ψ(Fe) dV, Jθ = s², P = Jθ Pe(Fe)·Fθ⁻ᵀ, A_iJkL = Jθ Ae_iMkN Fθ⁻¹_JM Fθ⁻¹_LN.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import attrs
+import numpy as np
+import scipy.sparse as sp
+
+from knitframe.errors import NumericalError
+
+__all__ = ["YarnLaw", "SolidForms", "fibre_at_quadrature"]
+
+
+def _inv_det(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse and determinant of (3, 3, ...) matrices by cofactors."""
+    c = np.empty_like(F)
+    c[0, 0] = F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1]
+    c[0, 1] = F[0, 2] * F[2, 1] - F[0, 1] * F[2, 2]
+    c[0, 2] = F[0, 1] * F[1, 2] - F[0, 2] * F[1, 1]
+    c[1, 0] = F[1, 2] * F[2, 0] - F[1, 0] * F[2, 2]
+    c[1, 1] = F[0, 0] * F[2, 2] - F[0, 2] * F[2, 0]
+    c[1, 2] = F[0, 2] * F[1, 0] - F[0, 0] * F[1, 2]
+    c[2, 0] = F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0]
+    c[2, 1] = F[0, 1] * F[2, 0] - F[0, 0] * F[2, 1]
+    c[2, 2] = F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]
+    J = F[0, 0] * c[0, 0] + F[0, 1] * c[1, 0] + F[0, 2] * c[2, 0]
+    return c / np.where(J == 0, 1.0, J), J
+
+
+@attrs.frozen
+class YarnLaw:
+    """A yarn model's solid law on skfem-shaped arrays: F (3, 3, n_el, n_qp), fibres a (3, n_el, n_qp).
+
+    ``model.evaluate(F (..., 3, 3), fibre (..., 3)) -> (Ψ, P, A)`` is the vectorised law of a yarn
+    model plugin (for example ``transverse_isotropic`` or ``isotropic``); this adapter moves the
+    tensor axes to the front, as scikit-fem's forms expect, and returns Ψ = +inf for inverted
+    states instead of raising, so line searches can back off.
+    """
+
+    model: Any  #: yarn model plugin instance with ``evaluate``
+
+    @classmethod
+    def from_yarn(cls, yarn: Any, registry: Any = None) -> "YarnLaw":
+        """Law of the yarn model named by ``yarn.model``, parameterised by the Yarn record."""
+        from knitframe.plugins import get_registry
+
+        reg = registry or get_registry()
+        return cls(reg["yarn_model"][yarn.model].from_yarn(yarn))
+
+    def _evaluate(self, F: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        W, P, A = self.model.evaluate(np.moveaxis(F, (0, 1), (-2, -1)), np.moveaxis(a, 0, -1))
+        return W, np.moveaxis(P, (-2, -1), (0, 1)), np.moveaxis(A, (-4, -3, -2, -1), (0, 1, 2, 3))
+
+    def energy(self, F: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """Ψ (n_el, n_qp), MPa; +inf everywhere if any point is inverted."""
+        if np.any(~(_inv_det(F)[1] > 0)):
+            return np.full(F.shape[2:], np.inf)
+        return self._evaluate(F, a)[0]
+
+    def stress(self, F: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """First Piola-Kirchhoff stress P (3, 3, n_el, n_qp), MPa."""
+        return self._evaluate(F, a)[1]
+
+    def tangent(self, F: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """A_iJkL = ∂P_iJ/∂F_kL (3, 3, 3, 3, n_el, n_qp), MPa."""
+        return self._evaluate(F, a)[2]
+
+
+def fibre_at_quadrature(basis: Any, node_tangent: np.ndarray) -> np.ndarray:
+    """Unit fibre directions a (3, n_el, n_qp): nodal tangents interpolated with the basis, normalised."""
+    dofs = basis.element_dofs  # (n_local, n_el) node numbers for a scalar Lagrange basis
+    vals = np.stack([np.asarray(phi[0]) for phi in basis.basis])  # (n_local, n_el, n_qp)
+    a = np.einsum("leq,lei->ieq", vals, node_tangent[dofs])
+    return a / np.linalg.norm(a, axis=0, keepdims=True)
+
+
+def _eigen_transform(a: np.ndarray, s: float) -> np.ndarray:
+    """Fθ⁻¹ = I + (1/s − 1)(I − a⊗a), (3, 3, n_el, n_qp); symmetric."""
+    I = np.eye(3)[:, :, None, None]
+    return I + (1.0 / s - 1.0) * (I - a[:, None] * a[None, :])
+
+
+class SolidForms:
+    """Energy, residual and tangent of a hyperelastic body on a scikit-fem tetrahedral mesh.
+
+    Parameters
+    ----------
+    mesh : skfem.MeshTet1 or skfem.MeshTet2.
+    law : a material with ``energy``, ``stress`` and ``tangent`` of (F, a), e.g. :class:`YarnLaw`.
+    node_tangent : (N, 3) fibre direction at each node (N = vertices for P1, vertices + edges
+        for P2); None gives a fixed x fibre (only meaningful for isotropic laws).
+    intorder : quadrature order (default 2: 4 points, like ABAQUS C3D10).
+    chunk : elements per einsum batch.
+    """
+
+    def __init__(self, mesh: Any, law: Any, node_tangent: np.ndarray | None = None, *, intorder: int = 2,
+                 chunk: int = 4096):
+        import skfem
+
+        elem = skfem.ElementTetP2() if isinstance(mesh, skfem.MeshTet2) else skfem.ElementTetP1()
+        self.mesh = mesh
+        self.law = law
+        self.basis = skfem.Basis(mesh, elem, intorder=intorder)
+        self.grad = np.stack([phi[0].grad for phi in self.basis.basis])  # (nl, 3, n_el, n_qp)
+        self.dx = np.asarray(self.basis.dx)  # (n_el, n_qp) mm³
+        self.edofs = np.asarray(self.basis.element_dofs)  # (nl, n_el) node numbers
+        self.n_nodes = int(self.basis.N)
+        self.ndof = 3 * self.n_nodes
+        if node_tangent is None:
+            node_tangent = np.tile([1.0, 0.0, 0.0], (self.n_nodes, 1))
+        self.fibre = fibre_at_quadrature(self.basis, np.asarray(node_tangent, dtype=np.float64))
+        self.chunk = int(chunk)
+        nl, ne = self.edofs.shape
+        self.vdofs = (3 * self.edofs[:, None, :] + np.arange(3)[None, :, None]).reshape(3 * nl, ne)  # (3nl, n_el)
+        self._pattern: tuple[sp.csr_matrix, np.ndarray] | None = None
+
+    # -- kinematics ------------------------------------------------------------------------------
+    def deformation_gradient(self, u: np.ndarray, sl: slice = slice(None)) -> np.ndarray:
+        """F = I + Σ_a u_a ⊗ ∇N_a, (3, 3, n_el, n_qp) for the elements ``sl``."""
+        ue = u.reshape(-1, 3)[self.edofs[:, sl]]  # (nl, n_el, 3)
+        F = np.einsum("lei,lJeq->iJeq", ue, self.grad[:, :, sl])
+        F[0, 0] += 1.0
+        F[1, 1] += 1.0
+        F[2, 2] += 1.0
+        return F
+
+    def _chunks(self):
+        ne = self.edofs.shape[1]
+        for start in range(0, ne, self.chunk):  # batches of thousands of elements, not single ones
+            yield slice(start, min(start + self.chunk, ne))
+
+    def _check(self, F: np.ndarray, sl: slice) -> None:
+        _, J = _inv_det(F)
+        bad = ~(J > 0)
+        if np.any(bad):
+            e = int(np.flatnonzero(bad.any(axis=1))[0]) + (sl.start or 0)
+            raise NumericalError(
+                f"volumetric solid: {int(bad.sum())} quadrature points inverted (det F = {float(J[bad].min()):.3g}), "
+                f"first in element {e}; the load step is too large or the mesh too coarse"
+            )
+
+    # -- forms -------------------------------------------------------------------------------------
+    def energy(self, u: np.ndarray, s: float = 1.0) -> float:
+        """Strain energy W = Σ Jθ Ψ(F Fθ⁻¹) dV, N·mm; +inf if any element is inverted."""
+        total = 0.0
+        for sl in self._chunks():
+            F = self.deformation_gradient(u, sl)
+            a = self.fibre[:, sl]
+            if s != 1.0:
+                F = np.einsum("iMeq,MJeq->iJeq", F, _eigen_transform(a, s))
+            total += s * s * float(np.sum(self.law.energy(F, a) * self.dx[sl]))
+        return total
+
+    def _stress(self, F: np.ndarray, a: np.ndarray, s: float) -> np.ndarray:
+        if s == 1.0:
+            return self.law.stress(F, a)
+        Ti = _eigen_transform(a, s)
+        Fe = np.einsum("iMeq,MJeq->iJeq", F, Ti)
+        return s * s * np.einsum("iMeq,JMeq->iJeq", self.law.stress(Fe, a), Ti)
+
+    def residual(self, u: np.ndarray, s: float = 1.0) -> np.ndarray:
+        """Internal force R = ∂W/∂u (3N,), N."""
+        out = np.zeros(self.ndof)
+        for sl in self._chunks():
+            F = self.deformation_gradient(u, sl)
+            self._check(F, sl)
+            P = self._stress(F, self.fibre[:, sl], s)
+            Re = np.einsum("iJeq,lJeq,eq->lie", P, self.grad[:, :, sl], self.dx[sl])
+            out += np.bincount(self.vdofs[:, sl].ravel(), Re.reshape(-1, Re.shape[-1]).ravel(), minlength=self.ndof)
+        return out
+
+    def stress(self, u: np.ndarray, s: float = 1.0) -> np.ndarray:
+        """First Piola-Kirchhoff stress at the quadrature points (3, 3, n_el, n_qp), MPa."""
+        return np.concatenate(
+            [self._stress(self.deformation_gradient(u, sl), self.fibre[:, sl], s) for sl in self._chunks()], axis=2
+        )
+
+    def _tangent_moduli(self, F: np.ndarray, a: np.ndarray, s: float) -> np.ndarray:
+        if s == 1.0:
+            return self.law.tangent(F, a)
+        Ti = _eigen_transform(a, s)
+        Fe = np.einsum("iMeq,MJeq->iJeq", F, Ti)
+        return s * s * np.einsum("iMkNeq,JMeq,LNeq->iJkLeq", self.law.tangent(Fe, a), Ti, Ti, optimize=True)
+
+    def pattern(self) -> tuple[sp.csr_matrix, np.ndarray]:
+        """CSR sparsity pattern of the tangent and the map from element-matrix entries to its data."""
+        if self._pattern is None:
+            m, ne = self.vdofs.shape
+            rows = np.broadcast_to(self.vdofs[:, None, :], (m, m, ne)).transpose(2, 0, 1).ravel()
+            cols = np.broadcast_to(self.vdofs[None, :, :], (m, m, ne)).transpose(2, 0, 1).ravel()
+            key = rows.astype(np.int64) * self.ndof + cols
+            uniq, where = np.unique(key, return_inverse=True)
+            K = sp.csr_matrix(
+                (np.zeros(uniq.size), (uniq // self.ndof, uniq % self.ndof)), shape=(self.ndof, self.ndof)
+            )
+            K.sort_indices()
+            # csr data order is row-major sorted keys, the same order as np.unique's
+            self._pattern = (K, where.astype(np.int64 if uniq.size > 2**31 - 1 else np.int32))
+        return self._pattern
+
+    def tangent(self, u: np.ndarray, s: float = 1.0) -> sp.csr_matrix:
+        """Tangent stiffness K = ∂R/∂u (3N, 3N) as CSR, N/mm."""
+        K0, where = self.pattern()
+        data = np.zeros(K0.nnz)
+        m = self.vdofs.shape[0]
+        for sl in self._chunks():
+            F = self.deformation_gradient(u, sl)
+            self._check(F, sl)
+            A = self._tangent_moduli(F, self.fibre[:, sl], s)
+            G = self.grad[:, :, sl]
+            T = np.einsum("aJeq,iJkLeq->aikLeq", G, A, optimize=True)
+            Ke = np.einsum("aikLeq,bLeq,eq->eaibk", T, G, self.dx[sl], optimize=True)
+            lo, hi = sl.start * m * m, sl.stop * m * m
+            data += np.bincount(where[lo:hi], Ke.ravel(), minlength=K0.nnz)
+        K = K0.copy()
+        K.data = data
+        return K

@@ -1,0 +1,83 @@
+"""Stage ``[fit]``: fit a reduced model to the run's Responses.
+
+::
+
+    [fit]
+    model = "hgo"                     # or { kind = "hgo2m", compression_fibre = false }
+    fitter = "lbfgs"                  # or { kind = "mads", max_evals = 2000 }
+    labels = []                       # Response labels to fit; empty: all of them
+
+Writes ``params.json`` (every parameter, θ as ``theta_deg``, NRMSE per direction and overall,
+wall time, evaluations) and ``fit.png`` (data ±1 sd against the fit), and appends the fitted
+model (a :class:`~knitframe.fitting.FitResult`) to ``ctx.models``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import attrs
+
+from knitframe import hookimpl
+from knitframe.config import PluginSpec, instantiate
+from knitframe.errors import ConfigError
+from knitframe.fitting import write_fit_outputs
+from knitframe.schema import build
+
+
+@attrs.frozen
+class FitTable:
+    """Schema of the ``[fit]`` table."""
+
+    model: str | dict[str, Any] = "hgo"  #: homogenizer name, or a table with ``kind`` and options
+    fitter: str | dict[str, Any] = "lbfgs"  #: fitter name, or a table with ``kind`` and options
+    labels: list[str] = attrs.Factory(list)  #: fit only these Responses (by label); empty: all
+
+
+@attrs.frozen
+class FitStage:
+    """Fit a reduced model to every (or the selected) Response of the run."""
+
+    name: ClassVar[str] = "fit"
+    description: ClassVar[str] = "fit a reduced model (homogenizer) to the run's Responses"
+    order: ClassVar[int] = 50
+    uses: ClassVar[tuple[str, ...]] = ()
+
+    model: Any
+    fitter: Any
+    model_name: str
+    fitter_name: str
+    labels: tuple[str, ...]
+    source: str | None = None
+
+    @classmethod
+    def from_config(cls, config, ctx) -> "FitStage":
+        table = build(FitTable, config["fit"], "fit", source=ctx.source)
+        model = instantiate(ctx.registry, "homogenizer", table.model, "fit.model", source=ctx.source)
+        fitter = instantiate(ctx.registry, "fitter", table.fitter, "fit.fitter", source=ctx.source)
+        if not (ctx.tables - {"fit", "patchwork", "pipeline"}):
+            raise ConfigError("fit", "nothing to fit: add a [data] table (or a stage that makes Responses)",
+                              source=ctx.source)
+        return cls(model, fitter, PluginSpec.parse(table.model, "fit.model").kind,
+                   PluginSpec.parse(table.fitter, "fit.fitter").kind, tuple(table.labels), ctx.source)
+
+    def run(self, ctx) -> None:
+        ctx.used("stage", self.name)
+        ctx.used("homogenizer", self.model_name)
+        ctx.used("fitter", self.fitter_name)
+        responses = [r for r in ctx.responses if not self.labels or r.label in self.labels]
+        missing = sorted(set(self.labels) - {r.label for r in ctx.responses})
+        if missing:
+            raise ConfigError("fit.labels", f"no Response labelled {missing[0]!r}; have "
+                              f"{', '.join(r.label for r in ctx.responses) or 'none'}", source=self.source)
+        if not responses:
+            raise ConfigError("fit", "no Responses to fit: an earlier stage must produce some", source=self.source)
+        result = self.fitter.fit(self.model, responses)
+        write_fit_outputs(result, responses, ctx.output("params.json"), ctx.output("fit.png"))
+        ctx.models.append(result)
+        ctx.results[self.name] = {**result.to_json(), "headline": result.headline()}
+
+
+@hookimpl
+def register_stages(register):
+    register(FitStage)

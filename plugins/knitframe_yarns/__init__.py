@@ -1,0 +1,1 @@
+"""Built-in yarns (the yarn library) and yarn constitutive models."""

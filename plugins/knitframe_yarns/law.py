@@ -1,0 +1,211 @@
+"""Hyperelastic yarn laws, rod stiffnesses and yarn-yarn line contact, shared by the yarn models.
+
+The solid law is the transversely isotropic model of Bonet & Burton (1998, Comput. Methods Appl.
+Mech. Engrg. 162:151-164): a compressible neo-Hookean matrix plus fibre terms in the invariants of
+C = FᵀF and the fibre (yarn tangent) direction a,
+
+    W = μ/2 (I1 - 3) - μ ln J + λ/2 (ln J)²
+        + [α + β ln J + γ (I4 - 1)] (I4 - 1) - α/2 (I5 - 1),
+    I1 = tr C,  J = det F,  I4 = a·C a,  I5 = a·C² a.
+
+α = β = γ = 0 gives the isotropic neo-Hookean law. The five constants are chosen so the law
+linearises exactly to transversely isotropic elasticity with axial modulus E_A, transverse
+modulus E_T, axial shear modulus G_A and Poisson ratio ν (used for ν_T and ν_AT):
+
+    μ = E_T / (2(1 + ν)),  λ = C_2233,  β = (C_1122 - λ)/2,  α = μ - G_A,
+    γ = (C_1111 - λ - 2μ - 4β + 4α) / 8,
+
+with C the linear stiffness (fibre along 1) from inverting the compliance matrix.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import attrs
+import numpy as np
+
+from knitframe import validators as v
+from knitframe.errors import NumericalError
+from knitframe.records import Yarn
+from knitframe.yarnfit import line_contact_approach, line_contact_load
+
+__all__ = ["linear_stiffness", "constants", "invariant_law", "YarnModelBase"]
+
+
+def linear_stiffness(E_A: float, E_T: float, G_A: float, nu: float) -> np.ndarray:
+    """6x6 Voigt stiffness (order 11, 22, 33, 23, 13, 12; engineering shear) with the fibre along 1, MPa."""
+    s = np.array(
+        [
+            [1.0 / E_A, -nu / E_A, -nu / E_A],
+            [-nu / E_A, 1.0 / E_T, -nu / E_T],
+            [-nu / E_A, -nu / E_T, 1.0 / E_T],
+        ]
+    )
+    c = np.zeros((6, 6))
+    c[:3, :3] = np.linalg.inv(s)
+    c[3, 3] = E_T / (2.0 * (1.0 + nu))
+    c[4, 4] = c[5, 5] = G_A
+    return c
+
+
+def constants(E_A: float, E_T: float, G_A: float, nu: float) -> dict[str, float]:
+    """Bonet-Burton constants (μ, λ, α, β, γ), MPa, matching the linear transversely isotropic law."""
+    c = linear_stiffness(E_A, E_T, G_A, nu)
+    mu = E_T / (2.0 * (1.0 + nu))
+    lam = c[1, 2]
+    beta = 0.5 * (c[0, 1] - lam)
+    alpha = mu - G_A
+    gamma = (c[0, 0] - lam - 2.0 * mu - 4.0 * beta + 4.0 * alpha) / 8.0
+    return {"mu": mu, "lam": lam, "alpha": alpha, "beta": beta, "gamma": gamma}
+
+
+def invariant_law(
+    F: np.ndarray, a: np.ndarray | None, mu: float, lam: float, alpha: float = 0.0, beta: float = 0.0, gamma: float = 0.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Energy density, first Piola stress and tangent of the Bonet-Burton law (see module docstring).
+
+    Parameters
+    ----------
+    F : (..., 3, 3) deformation gradients.
+    a : (..., 3) unit fibre directions in the reference configuration (None for isotropic).
+    mu, lam, alpha, beta, gamma : float
+        Constants, MPa.
+
+    Returns
+    -------
+    W : (...,) MPa;  P : (..., 3, 3) MPa, P = F S;
+    A : (..., 3, 3, 3, 3) MPa, A_iJkL = ∂P_iJ/∂F_kL = δ_ik S_LJ + F_iI F_kK ℂ_IJKL,
+        with S = 2∂W/∂C and ℂ = 4∂²W/∂C².
+    """
+    F = np.asarray(F, dtype=np.float64)
+    J = np.linalg.det(F)
+    if np.any(~np.isfinite(J)) or np.any(J <= 0):
+        bad = np.unravel_index(int(np.argmin(np.where(np.isfinite(J), J, -np.inf))), J.shape)
+        raise NumericalError(f"yarn law: det F = {J[bad]:.3g} <= 0 at index {tuple(int(i) for i in bad)}")
+    C = np.einsum("...ki,...kj->...ij", F, F)
+    Ci = np.linalg.inv(C)
+    lnJ = np.log(J)
+    eye = np.broadcast_to(np.eye(3), C.shape)
+    I1 = np.trace(C, axis1=-2, axis2=-1)
+    W = 0.5 * mu * (I1 - 3.0) - mu * lnJ + 0.5 * lam * lnJ**2
+    S = mu * (eye - Ci) + lam * lnJ[..., None, None] * Ci
+    c1 = mu - lam * lnJ  # coefficient of the symmetric C⁻¹ ⊙ C⁻¹ product below
+    Cm = lam * np.einsum("...ij,...kl->...ijkl", Ci, Ci)
+    if a is not None and (alpha or beta or gamma):
+        a = np.broadcast_to(np.asarray(a, dtype=np.float64), C.shape[:-1])
+        Ca = np.einsum("...ij,...j->...i", C, a)
+        I4 = np.einsum("...i,...i->...", a, Ca)
+        I5 = np.einsum("...i,...i->...", Ca, Ca)
+        e4 = I4 - 1.0
+        W = W + (alpha + beta * lnJ + gamma * e4) * e4 - 0.5 * alpha * (I5 - 1.0)
+        A_ = np.einsum("...i,...j->...ij", a, a)
+        aCa = np.einsum("...i,...j->...ij", a, Ca)
+        S = S + (beta * e4)[..., None, None] * Ci + 2.0 * (alpha + beta * lnJ + 2.0 * gamma * e4)[..., None, None] * A_
+        S = S - alpha * (aCa + np.swapaxes(aCa, -1, -2))
+        c1 = c1 - beta * e4
+        Cm = Cm + 2.0 * beta * (np.einsum("...ij,...kl->...ijkl", Ci, A_) + np.einsum("...ij,...kl->...ijkl", A_, Ci))
+        Cm = Cm + 8.0 * gamma * np.einsum("...ij,...kl->...ijkl", A_, A_)
+        Cm = Cm - alpha * (
+            np.einsum("...il,...jk->...ijkl", A_, eye)
+            + np.einsum("...ik,...jl->...ijkl", A_, eye)
+            + np.einsum("...jl,...ik->...ijkl", A_, eye)
+            + np.einsum("...jk,...il->...ijkl", A_, eye)
+        )
+    # -∂C⁻¹/∂C, symmetrised: ½(C⁻¹_IK C⁻¹_JL + C⁻¹_IL C⁻¹_JK)
+    sym = 0.5 * (np.einsum("...ik,...jl->...ijkl", Ci, Ci) + np.einsum("...il,...jk->...ijkl", Ci, Ci))
+    Cm = Cm + 2.0 * c1[..., None, None, None, None] * sym
+    P = np.einsum("...ik,...kj->...ij", F, S)
+    A = np.einsum("...ik,...lj->...ijkl", eye, S) + np.einsum("...iI,...kK,...IJKL->...iJkL", F, F, Cm)
+    if not (np.all(np.isfinite(W)) and np.all(np.isfinite(P))):
+        raise NumericalError("yarn law: non-finite energy or stress")
+    return W, P, A
+
+
+@attrs.frozen
+class YarnModelBase:
+    """Fields and rod/contact quantities shared by the yarn models.
+
+    Subclasses add ``evaluate(F, fibre) -> (W, P, A)``, the solid law, and ``from_yarn``.
+    """
+
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+
+    E_axial: float = attrs.field(validator=v.positive)  #: axial Young's modulus, MPa
+    radius: float = attrs.field(validator=v.positive)  #: knitted radius dk/2, mm
+    nu: float = attrs.field(default=0.3, validator=v.in_range(-1.0, 0.5, lo_open=True, hi_open=True))  #: Poisson ratio, -
+    bending_modulus: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: fitted EI, N·mm²
+
+    @property
+    def transverse_modulus(self) -> float:
+        """Modulus governing transverse contact, MPa."""
+        return self.E_axial
+
+    @property
+    def shear_modulus(self) -> float:
+        """Axial shear modulus, MPa."""
+        return self.E_axial / (2.0 * (1.0 + self.nu))
+
+    @property
+    def area(self) -> float:
+        """Cross-section π r², mm²."""
+        return np.pi * self.radius**2
+
+    @property
+    def EA(self) -> float:
+        """Axial stiffness E_A π r², N."""
+        return self.E_axial * self.area
+
+    @property
+    def EI(self) -> float:
+        """Bending stiffness, N·mm²: the fitted ``bending_modulus`` if given, else E_A π r⁴/4."""
+        return self.bending_modulus if self.bending_modulus is not None else self.E_axial * np.pi * self.radius**4 / 4.0
+
+    @property
+    def GJ(self) -> float:
+        """Torsional stiffness G_A π r⁴/2, N·mm²."""
+        return self.shear_modulus * np.pi * self.radius**4 / 2.0
+
+    def contact_approach(self, f: np.ndarray) -> np.ndarray:
+        """Approach (mm) of two touching parallel yarns under line load ``f`` (N/mm).
+
+        Hertz line contact of two cylinders of radius dk/2 with the transverse modulus and ν
+        (:func:`knitframe.yarnfit.line_contact_approach`).
+        """
+        return line_contact_approach(f, self.radius, self.transverse_modulus, self.nu)
+
+    def contact_load(self, delta: np.ndarray) -> np.ndarray:
+        """Line load (N/mm) between two parallel yarns whose axes approach by ``delta`` (mm)."""
+        return line_contact_load(delta, self.radius, self.transverse_modulus, self.nu)
+
+    def contact_stiffness(self, f: np.ndarray) -> np.ndarray:
+        """Tangent transverse contact stiffness per unit length df/dδ at line load ``f``, N/mm².
+
+        From δ(f) = (4f/π)(1 - ν²)/E_T (ln(4R/b) - 1/2) with b ∝ √f:
+        dδ/df = (4/π)(1 - ν²)/E_T (ln(4R/b) - 1).
+        """
+        f = np.asarray(f, dtype=np.float64)
+        k = (1.0 - self.nu**2) / self.transverse_modulus
+        b = np.sqrt(4.0 * np.maximum(f, 1e-300) * 0.5 * self.radius * 2.0 * k / np.pi)
+        return 1.0 / (4.0 / np.pi * k * (np.log(4.0 * self.radius / b) - 1.0))
+
+    def energy(self, F: np.ndarray, fibre: np.ndarray | None = None) -> np.ndarray:
+        """Strain energy density (...,), MPa."""
+        return self.evaluate(F, fibre)[0]
+
+    def stress(self, F: np.ndarray, fibre: np.ndarray | None = None) -> np.ndarray:
+        """First Piola-Kirchhoff stress (..., 3, 3), MPa."""
+        return self.evaluate(F, fibre)[1]
+
+    def tangent(self, F: np.ndarray, fibre: np.ndarray | None = None) -> np.ndarray:
+        """Tangent ∂P/∂F (..., 3, 3, 3, 3), MPa."""
+        return self.evaluate(F, fibre)[2]
+
+    def rod(self) -> dict[str, float]:
+        """Rod stiffnesses EA (N), EI and GJ (N·mm²) and the yarn radius (mm)."""
+        return {"EA": self.EA, "EI": self.EI, "GJ": self.GJ, "radius": self.radius}
+
+    @classmethod
+    def _common(cls, yarn: Yarn) -> dict[str, float]:
+        return {"E_axial": yarn.E_axial, "radius": yarn.rk, "nu": yarn.nu}

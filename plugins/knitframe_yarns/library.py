@@ -1,0 +1,97 @@
+"""The built-in yarn library and :func:`resolve_yarn`, which turns a config value into a Yarn.
+
+Diameters are the paper's measurements (du Pasquier et al. 2026). Moduli are representative
+estimates to be replaced by fits to the user's own tests (``knitframe.yarnfit``); docs/yarns.md
+gives the source of every number.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from knitframe import hookimpl
+from knitframe.errors import ConfigError, UnknownPluginError
+from knitframe.records import Yarn
+from knitframe.schema import build
+
+__all__ = ["YARNS", "resolve_yarn"]
+
+_PAPER = "du Pasquier et al. 2026 (EML), yarn section"
+
+YARNS = (
+    Yarn(
+        name="cotton",
+        d0=0.445,
+        dk=0.444,
+        E_axial=1200.0,
+        E_transverse=0.12,
+        nu=0.3,
+        failure_strain=0.10,
+        model="transverse_isotropic",
+        source=f"Cotton 20/2 (Supreme Corp.): d0, dk and strain capacity < 10 % from {_PAPER}; E_axial representative "
+        "(1-1.5 GPa: ~400 cN/tex x 59 tex over the dk section); E_transverse = 1e-4 E_axial (paper's ratio)",
+    ),
+    Yarn(
+        name="nylon",
+        d0=0.951,
+        dk=0.334,
+        E_axial=40.0,
+        E_transverse=0.004,
+        nu=0.3,
+        failure_strain=1.2,
+        model="transverse_isotropic",
+        source=f"Nylon 70 den, 24 f, 2-ply textured (Hickory Throwing): d0, dk and elongation > 120 % from {_PAPER}; "
+        "E_axial representative of the crimp-straightening range (30-50 MPa; ~0.4-0.5 GPa once straight); "
+        "E_transverse = 1e-4 E_axial (paper's ratio)",
+    ),
+    Yarn(
+        name="pet",
+        d0=0.178,
+        dk=0.178,
+        E_axial=4000.0,
+        E_transverse=4000.0,
+        nu=0.35,
+        model="isotropic",
+        source=f"PET monofilament 0.178 mm (Thread Exchange), isotropic, from {_PAPER}; E = 4 GPa and nu = 0.35 "
+        "representative (3-5 GPa)",
+    ),
+)
+
+
+def resolve_yarn(registry, value: Any, path: str) -> Yarn:
+    """A Yarn from a config value at TOML ``path``.
+
+    ``value`` is a library name (``"cotton"``), a Yarn, or a table of Yarn fields. A table may
+    start from a library yarn with ``like = "cotton"`` and override some fields; its ``name``
+    defaults to the last key of ``path`` (``yarns.myyarn`` -> ``myyarn``). Errors are
+    ConfigErrors naming ``path``.
+    """
+    if isinstance(value, Yarn):
+        return value
+    if isinstance(value, str):
+        try:
+            return registry["yarn"][value]
+        except UnknownPluginError as e:
+            raise ConfigError(path, str(e)) from None
+    if not isinstance(value, dict):
+        raise ConfigError(path, f"expected a yarn name or a table of yarn fields, got {value!r}")
+    table = dict(value)
+    base: dict[str, Any] = {}
+    if "like" in table:
+        like = table.pop("like")
+        if not isinstance(like, str):
+            raise ConfigError(f"{path}.like", f"expected a yarn name, got {like!r}")
+        base = resolve_yarn(registry, like, f"{path}.like").to_dict()
+        base.pop("name")
+        base["source"] = f"{base.get('source', '')}; modified in config at {path}".lstrip("; ")
+    table = {**base, **table}
+    table.setdefault("name", path.rsplit(".", 1)[-1] if path else "yarn")
+    table.setdefault("source", f"config table {path}")
+    return build(Yarn, table, path)
+
+
+@hookimpl
+def register_yarns(register) -> None:
+    for yarn in YARNS:
+        label = yarn.source.split(" (")[0]
+        register(yarn, description=f"{label}: d0 {yarn.d0:g} mm, dk {yarn.dk:g} mm, E_axial {yarn.E_axial:g} MPa")

@@ -1,0 +1,67 @@
+"""Transversely isotropic hyperelastic yarn (cotton, textured nylon): stiff along the yarn, soft across it.
+
+The fibre direction is the yarn tangent in the reference configuration. Energy, stress and tangent
+come from the Bonet-Burton law in :mod:`knitframe_yarns.law`, whose linearisation has axial
+modulus E_A, transverse modulus E_T, axial shear modulus G_A and Poisson ratio ν.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import attrs
+import numpy as np
+
+from knitframe import hookimpl, validators as v
+from knitframe.errors import FieldError
+from knitframe.records import Yarn
+from knitframe_yarns.law import YarnModelBase, constants, invariant_law
+
+
+@attrs.frozen
+class TransverseIsotropic(YarnModelBase):
+    """Transversely isotropic yarn: E_A along the fibre (yarn tangent), E_T and G_A across and in shear."""
+
+    name: ClassVar[str] = "transverse_isotropic"
+    description: ClassVar[str] = "transversely isotropic hyperelastic yarn (Bonet-Burton), fibre = yarn tangent"
+
+    E_transverse: float = attrs.field(kw_only=True, validator=v.positive)  #: transverse Young's modulus, MPa
+    G_axial: float | None = attrs.field(default=None, kw_only=True, validator=v.optional(v.positive))  #: axial shear modulus, MPa
+
+    def __attrs_post_init__(self) -> None:
+        if self.E_transverse > self.E_axial:
+            raise FieldError("E_transverse", f"must be <= E_axial = {self.E_axial}, got {self.E_transverse}")
+        nu_ta = self.nu * self.E_transverse / self.E_axial
+        if 1.0 - self.nu - 2.0 * self.nu * nu_ta <= 0.0:
+            raise FieldError("nu", f"{self.nu} makes the transversely isotropic stiffness indefinite")
+
+    @property
+    def transverse_modulus(self) -> float:
+        return self.E_transverse
+
+    @property
+    def shear_modulus(self) -> float:
+        """G_A if given, else the transverse shear modulus E_T / (2(1 + ν)) (fibres slide past each other)."""
+        return self.G_axial if self.G_axial is not None else self.E_transverse / (2.0 * (1.0 + self.nu))
+
+    @property
+    def constants(self) -> dict[str, float]:
+        """Bonet-Burton constants μ, λ, α, β, γ (MPa)."""
+        return constants(self.E_axial, self.E_transverse, self.shear_modulus, self.nu)
+
+    def evaluate(self, F: np.ndarray, fibre: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(W, P, A) at F (..., 3, 3) with unit reference fibre directions ``fibre`` (..., 3), MPa."""
+        if fibre is None:
+            raise FieldError("fibre", "the transversely isotropic law needs the fibre (yarn tangent) direction")
+        c = self.constants
+        return invariant_law(F, fibre, c["mu"], c["lam"], c["alpha"], c["beta"], c["gamma"])
+
+    @classmethod
+    def from_yarn(cls, yarn: Yarn) -> "TransverseIsotropic":
+        """Model with the yarn's moduli and knitted radius."""
+        return cls(**cls._common(yarn), E_transverse=yarn.E_transverse, G_axial=yarn.G_axial)
+
+
+@hookimpl
+def register_yarn_models(register) -> None:
+    register(TransverseIsotropic)

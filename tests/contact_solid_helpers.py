@@ -1,0 +1,131 @@
+"""Small solid-contact problems shared by the contact tests: stacked blocks and a cylinder on a flat."""
+
+from __future__ import annotations
+
+import numpy as np
+import skfem
+
+from knitframe.contact_search import SegmentTopology
+from knitframe.mesh import surface_facets
+from knitframe.newton import NewtonOptions, minimise
+from knitframe_contact.solid_geometry import SolidSurface
+from knitframe_linsolvers.direct import direct
+from knitframe_solvers.volumetric_material import SolidForms, YarnLaw
+from knitframe_yarns.isotropic import Isotropic
+
+
+def join(meshes: list, order: int):
+    """One mesh from separate P1 bodies (body id per node), raised to P2 if asked."""
+    p, t, body, off = [], [], [], 0
+    for b, m in enumerate(meshes):
+        p.append(m.p)
+        t.append(m.t + off)
+        off += m.p.shape[1]
+    m1 = skfem.MeshTet1(np.hstack(p), np.hstack(t))
+    vbody = np.concatenate([np.full(m.p.shape[1], b) for b, m in enumerate(meshes)])
+    if order == 1:
+        return m1, vbody
+    m2 = skfem.MeshTet2.from_mesh(m1)
+    ebody = vbody[m1.edges[0]]
+    return m2, np.concatenate([vbody, ebody])
+
+
+def nodes(mesh) -> np.ndarray:
+    return mesh.doflocs.T if isinstance(mesh, skfem.MeshTet2) else mesh.p.T
+
+
+def surface(mesh, body: np.ndarray, slave_facets: np.ndarray, master_facets: np.ndarray) -> SolidSurface:
+    """Contact surface with one strand per body (bodies never contact themselves)."""
+    fs, fm = surface_facets(mesh, slave_facets), surface_facets(mesh, master_facets)
+    n = nodes(mesh).shape[0]
+    nb = int(body.max()) + 1
+    topo = SegmentTopology(body, np.zeros(n, np.int64), np.zeros(n), np.zeros(nb, np.int64), np.zeros(nb))
+    return SolidSurface.build(nodes(mesh), np.vstack([fs, fm]), np.arange(len(fs)), np.arange(len(fs), len(fs) + len(fm)),
+                              topo, exclusion=1.0)
+
+
+def solve(forms: SolidForms, law, surf: SolidSurface, u0: np.ndarray, free: np.ndarray, stiffness: float,
+          reach: float):
+    """Equilibrium of elasticity + contact by the shared Newton driver; returns (u, contact info)."""
+    X = nodes(forms.mesh)
+    n = forms.ndof
+
+    def fun(u, order):
+        E = forms.energy(u)
+        if not np.isfinite(E):
+            return np.inf, None, None, {}
+        Ec, gc, Hc, info = law.evaluate(surf, X + u.reshape(-1, 3), None, order, stiffness=stiffness, reach=reach)
+        if order == 0:
+            return E + Ec, None, None, info
+        g = forms.residual(u) + gc[:n]
+        if order == 1:
+            return E + Ec, g, None, info
+        return E + Ec, g, forms.tangent(u) + Hc[:n, :n], info
+
+    res = minimise(fun, u0, free, solve=direct(), options=NewtonOptions(atol=1e-10, rtol=1e-9, max_iter=80))
+    return res.x, fun(res.x, 1)[3]
+
+
+def iso(E: float, nu: float) -> YarnLaw:
+    return YarnLaw(Isotropic(E_axial=E, radius=1.0, nu=nu))
+
+
+def quarter_cylinder_on_flat(R: float, h_contact: float, h_far: float, thickness: float, order: int):
+    """Quarter disc x ≥ 0, y ≤ 0 of radius R (one element thick in z) above a flat block touching at (0, −R).
+
+    Returns (mesh, body, slave facets (arc), master facets (block top)).
+    """
+    import gmsh
+
+    gmsh.initialize(interruptible=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        geo = gmsh.model.geo
+        c = geo.addPoint(0, 0, 0, h_far)
+        p1 = geo.addPoint(R, 0, 0, h_far)
+        p2 = geo.addPoint(0, -R, 0, h_contact)
+        arc = geo.addCircleArc(p1, c, p2)
+        l1 = geo.addLine(p2, c)
+        l2 = geo.addLine(c, p1)
+        s = geo.addPlaneSurface([geo.addCurveLoop([arc, l1, l2])])
+        geo.extrude([(2, s)], 0, 0, thickness, numElements=[1])
+        geo.synchronize()
+        # grade the size away from the contact point
+        f = gmsh.model.mesh.field.add("Distance")
+        gmsh.model.mesh.field.setNumbers(f, "PointsList", [p2])
+        th = gmsh.model.mesh.field.add("MathEval")
+        gmsh.model.mesh.field.setString(th, "F", f"min({h_contact} + 0.35*F{f}, {h_far})")
+        gmsh.model.mesh.field.setAsBackgroundMesh(th)
+        gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+        gmsh.model.mesh.generate(3)
+        tags, xyz, _ = gmsh.model.mesh.getNodes()
+        _, _, en = gmsh.model.mesh.getElements(3)
+    finally:
+        gmsh.finalize()
+    lookup = np.zeros(int(tags.max()) + 1, np.int64)
+    lookup[tags.astype(np.int64)] = np.arange(tags.size)
+    tet = lookup[np.asarray(en[0], np.int64).reshape(-1, 4)]
+    used = np.unique(tet)
+    remap = np.full(tags.size, -1)
+    remap[used] = np.arange(used.size)
+    cyl = skfem.MeshTet1(xyz.reshape(-1, 3)[used].T.copy(), remap[tet].T.copy())
+    nb = max(int(round(0.5 * R / h_contact / 4)), 4)
+    block = skfem.MeshTet1.init_tensor(np.linspace(0, 0.5 * R, nb + 1), np.linspace(-1.2 * R, -R, 3),
+                                       np.linspace(0, thickness, 2))
+    mesh, body = join([cyl, block], order)
+    if order == 2:
+        # curved isoparametric arc: push the arc's mid-edge nodes onto the circle
+        X = mesh.doflocs.copy()
+        r = np.hypot(X[0], X[1])
+        on_arc = (body == 0) & (np.abs(r - R) < 0.02 * h_far) & (X[1] < -1e-12) & (X[0] > 1e-12)
+        X[:2, on_arc] *= R / r[on_arc]
+        mesh = skfem.MeshTet2(X, mesh.t)
+    Xn = nodes(mesh)
+    bf = mesh.boundary_facets()
+    fx = Xn[mesh.facets[:, bf]]  # (3, nbf, 3)
+    vb = body[mesh.facets[0, bf]]
+    rr = np.hypot(fx[..., 0], fx[..., 1])
+    arc_f = bf[(vb == 0) & np.all(np.abs(rr - R) < 1e-6 * R + 0.01 * h_contact, axis=0)
+               & ~np.all(np.isclose(fx[..., 2], fx[0:1, :, 2]), axis=0)]
+    top_f = bf[(vb == 1) & np.all(np.isclose(fx[..., 1], -R), axis=0)]
+    return mesh, body, arc_f, top_f

@@ -1,0 +1,101 @@
+"""Newton driver, load continuation with cut-back, and step checkpoints."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from knitframe.errors import NumericalError
+from knitframe.newton import NewtonOptions, StepCheckpoints, continuation, minimise
+from knitframe_linsolvers.direct import direct
+
+
+def quartic(x, order=2):
+    """E = Σ (x_i − i)⁴/4 + (x_i − i)²/2: convex, minimum at x_i = i."""
+    r = x - np.arange(len(x))
+    E = float(np.sum(r**4 / 4 + r**2 / 2))
+    g = r**3 + r if order >= 1 else None
+    H = sp.diags(3 * r**2 + 1).tocsr() if order >= 2 else None
+    return E, g, H, {}
+
+
+def test_minimise_converges_from_far_away():
+    """Newton with line search reaches the minimum of a stiff convex energy."""
+    res = minimise(quartic, np.full(6, 50.0), np.ones(6, bool), solve=direct(), options=NewtonOptions(rtol=0.0))
+    assert res.converged and np.allclose(res.x, np.arange(6), atol=1e-8)
+
+
+def test_fixed_dofs_keep_their_values():
+    """DOFs outside the free mask are not moved."""
+    free = np.array([True, False, True, True])
+    res = minimise(quartic, np.full(4, 7.0), free, solve=direct())
+    assert res.x[1] == 7.0 and np.allclose(res.x[free], np.arange(4)[free], atol=1e-8)
+
+
+def test_singular_hessian_is_shifted_not_nan():
+    """A flat direction (zero Hessian) is handled by the Levenberg shift and the answer is unaffected."""
+
+    def flat(x, order=2):
+        E, g, H, info = quartic(x[:2], order)
+        g = None if g is None else np.append(g, 0.0)
+        H = None if H is None else sp.block_diag([H, sp.csr_matrix((1, 1))]).tocsr()
+        return E, g, H, {"loose": True}
+
+    for stab in (0.0, 1e-3):
+        res = minimise(flat, np.array([5.0, 5.0, 3.0]), np.ones(3, bool), solve=direct(),
+                       options=NewtonOptions(stabilisation=stab), stabilise=lambda info: info["loose"])
+        assert res.converged and np.allclose(res.x, [0, 1, 3], atol=1e-8)
+
+
+def test_inadmissible_start_raises_numerical_error():
+    """An infinite starting energy stops with a NumericalError, never NaN."""
+    with pytest.raises(NumericalError, match="inadmissible"):
+        minimise(lambda x, o=2: (np.inf, np.zeros(1), sp.eye(1).tocsr(), {}), np.zeros(1), np.ones(1, bool),
+                 solve=direct())
+
+
+def test_unbounded_energy_fails_with_diagnostic():
+    """An energy without minimum ends in a NumericalError that carries the iteration history."""
+
+    def down(x, order=2):
+        return float(-x[0]), np.array([-1.0]), sp.csr_matrix(np.array([[0.0]])), {}
+
+    with pytest.raises(NumericalError, match="it "):
+        minimise(down, np.zeros(1), np.ones(1, bool), solve=direct(), options=NewtonOptions(max_iter=5))
+
+
+def test_continuation_cuts_back_and_reaches_every_target():
+    """Increments that are too large fail, are halved, and the path still reaches each target."""
+    attempts = []
+
+    def solve_at(t, x):
+        attempts.append(t)
+        if t - x[0] > 0.3:
+            raise NumericalError("increment too large")
+        return minimise(lambda y, o=2: quartic(y - t, o), x, np.ones(1, bool), solve=direct())
+
+    reached = []
+    out = continuation(solve_at, np.zeros(1), [1.0, 2.0], on_target=lambda i, t, r: reached.append(t))
+    assert reached == [1.0, 2.0] and out[-1].x[0] == pytest.approx(2.0)
+    assert len(attempts) > 4
+
+
+def test_continuation_gives_up_below_the_smallest_increment():
+    """A step that never converges stops with a NumericalError naming the load parameter."""
+
+    def solve_at(t, x):
+        raise NumericalError("never")
+
+    with pytest.raises(NumericalError, match="cut back"):
+        continuation(solve_at, np.zeros(1), [1.0], min_fraction=1 / 8)
+
+
+def test_checkpoints_round_trip_and_ignore_other_runs(tmp_path):
+    """The latest step of the same key comes back; another key's files are ignored."""
+    a = StepCheckpoints(tmp_path, "run-a")
+    a.save(0, {"q": np.zeros(3)}, {"phase": "load"})
+    a.save(1, {"q": np.ones(3)}, {"phase": "load"})
+    idx, arrays, meta = a.latest()
+    assert idx == 1 and np.array_equal(arrays["q"], np.ones(3)) and meta["phase"] == "load"
+    assert StepCheckpoints(tmp_path, "run-b").latest() is None

@@ -1,0 +1,257 @@
+"""Rod solver: analytic references, derivative checks, periodicity, stabilisation, opt-in effects."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_bvp
+
+from knitframe.geometry import Centerline, UnitCell
+from knitframe.newton import NewtonOptions, continuation, minimise
+from knitframe.periodic import Lattice, macro_index
+from knitframe_contact.rod_penalty import RodPenalty
+from knitframe_linsolvers.direct import direct
+from knitframe_solvers.rod_model import RodEnergy, from_cell, open_rods
+
+EA, EI = 50.0, 0.05
+
+
+def wavy_cell(amp: float = 0.2, gap: float = 0.5, radius: float = 0.26) -> UnitCell:
+    """Two wavy rows a distance ``gap`` apart in the wale, in antiphase out of plane, touching their images."""
+
+    def yarn(y0, sign, name):
+        w = 2 * np.pi / 2.0
+        return Centerline(
+            name,
+            lambda t: np.stack([t, np.full_like(t, y0) + 0.05 * np.sin(2 * w * t), sign * amp * np.sin(w * t)], 1),
+            lambda t: np.stack([np.ones_like(t), 0.1 * w * np.cos(2 * w * t), sign * amp * w * np.cos(w * t)], 1),
+            0.0, 2.0, [2.0, 0, 0])
+
+    return UnitCell("wavy", (yarn(0.0, 1, "row0"), yarn(gap, -1, "row1")), [2.0, 0, 0], [0, 2 * gap, 0], radius,
+                    ((0, 0), (1, 1)), (("k", "k"), ("k", "k")), 2.0, 1.0, gap)
+
+
+def cell_energy(cell, segments=8, bending=True, friction=False, **kw):
+    model = from_cell(cell, segments)
+    law = RodPenalty()
+    en = RodEnergy(model, EA, EI, bending=bending, law=law, dk=cell.dk, k_contact=5.0, k_core=50.0,
+                   friction=friction, **kw)
+    return model, en
+
+
+def solve_macro(model, en, F_path, stabilisation=1e-6, q0=None):
+    """Follow prescribed F̄ (list of 3x3) with node 0 pinned; returns the last NewtonResult."""
+    n = model.n_nodes
+    free = np.ones(model.n_dof, bool)
+    free[:3] = False
+    free[3 * n:] = False
+
+    def solve_at(t, q):
+        k = min(int(np.ceil(t - 1e-12)), len(F_path)) - 1
+        F0 = np.eye(3) if k == 0 else F_path[k - 1]
+        F = F0 + (t - k) * (F_path[k] - F0)
+        qs = q.copy()
+        qs[3 * n:] = Lattice.h_from_F(F)
+        return minimise(en, qs, free, solve=direct(),
+                        options=NewtonOptions(atol=1e-11, rtol=0.0, stabilisation=stabilisation, xtol=1e-13),
+                        stabilise=lambda info: info["strands_in_contact"] < model.n_strands)
+
+    q = np.zeros(model.n_dof) if q0 is None else q0
+    return continuation(solve_at, q, [float(i + 1) for i in range(len(F_path))])[-1]
+
+
+def stress(model, res):
+    return model.lattice.nominal_stress(res.gradient[3 * model.n_nodes:])
+
+
+# ---------------------------------------------------------------------------------------- derivatives
+def test_total_gradient_and_hessian_match_finite_differences():
+    """The assembled analytic gradient and sparse Hessian (rods, contact with images, friction, macro DOFs) match FD."""
+    model, en = cell_energy(wavy_cell(), segments=5, friction=True)
+    rng = np.random.default_rng(0)
+    q = np.zeros(model.n_dof)
+    q[3 * model.n_nodes:] = Lattice.h_from_F(np.diag([1.03, 0.93, 1.0]))
+    en.update_lag(q)
+    q[: 3 * model.n_nodes] += 0.01 * rng.standard_normal(3 * model.n_nodes)
+    E, g, H, info = en(q)
+    assert info["active_contacts"] > 0 and en.calls["friction"] == 1
+    H = H.toarray()
+    assert np.allclose(H, H.T, atol=1e-9 * np.abs(H).max())
+    eps = 1e-6
+    for i in range(model.n_dof):
+        dq = np.zeros(model.n_dof)
+        dq[i] = eps
+        Ep, gp, _, _ = en(q + dq, 1)
+        Em, gm, _, _ = en(q - dq, 1)
+        assert (Ep - Em) / (2 * eps) == pytest.approx(g[i], rel=1e-5, abs=1e-7), f"gradient DOF {i}"
+        assert np.allclose((gp - gm) / (2 * eps), H[:, i], rtol=1e-4, atol=1e-5 * np.abs(H).max()), f"Hessian column {i}"
+
+
+# ---------------------------------------------------------------------------------------- references
+def test_cantilever_matches_the_elastica():
+    """A clamped rod under a large tip load (PL²/EI = 5) ends where the elastica BVP says, to 0.1 % of L."""
+    L, EIc, P_ = 10.0, 2.0, 5 * 2.0 / 100.0
+    sol = solve_bvp(lambda s, y: np.vstack([y[1], -(P_ / EIc) * np.cos(y[0]), np.cos(y[0]), np.sin(y[0])]),
+                    lambda a, b: np.array([a[0], b[1], a[2], a[3]]), np.linspace(0, L, 100),
+                    np.vstack([np.zeros((2, 100)), np.linspace(0, L, 100), np.zeros(100)]), tol=1e-10)
+    tip_ref = np.array([sol.y[2, -1], -sol.y[3, -1]])
+    n = 80
+    h = L / (n - 0.5)  # the clamped first edge is centred on s = 0
+    X = np.stack([(np.arange(n + 1) - 0.5) * h, np.zeros(n + 1), np.zeros(n + 1)], 1)
+    model = open_rods([X])
+    f = np.zeros(model.n_dof)
+    f[3 * n + 1] = -P_
+    en = RodEnergy(model, 1e5, EIc)
+    free = np.ones(model.n_dof, bool)
+    free[:6] = False
+    free[3 * model.n_nodes:] = False
+
+    def solve_at(t, q):
+        en.external = t * f
+        return minimise(en, q, free, solve=direct(), options=NewtonOptions(xtol=1e-11))
+
+    res = continuation(solve_at, np.zeros(model.n_dof), [0.25, 0.5, 0.75, 1.0])[-1]
+    tip = model.positions(res.x)[-1, :2]
+    assert np.abs(tip - tip_ref).max() < 1e-3 * L
+
+
+def crossing_rods(drop, n=20, span=4.0, z0=0.5):
+    """Rod A fixed along x at z = 0; rod B along y at z = z0 (crossing mid-segment), end nodes lowered by ``drop``."""
+    s = np.linspace(-span / 2, span / 2, n)
+    A = np.stack([s, np.zeros(n), np.zeros(n)], 1)
+    B = np.stack([np.zeros(n), s, np.full(n, z0)], 1)
+    model = open_rods([A, B])
+    return model
+
+
+def test_crossing_rods_pressed_together_follow_the_contact_law():
+    """The end reaction equals the law's force at the crossing and the beam's three-point-bending compliance."""
+    law = RodPenalty(core=0.0)
+    dk, k, EIb, span, z0, drop = 0.4, 0.5, 2.0, 4.0, 0.41, 0.06
+    model = crossing_rods(drop, span=span, z0=z0)
+    en = RodEnergy(model, 1e4, EIb, law=law, dk=dk, k_contact=k)
+    n = model.n_nodes // 2
+    q = np.zeros(model.n_dof)
+    ends = [n, 2 * n - 1]
+    q[[3 * e + 2 for e in ends]] = -drop
+    free = np.ones(model.n_dof, bool)
+    free[: 3 * n] = False  # rod A fixed
+    for e in ends:
+        free[3 * e: 3 * e + 3] = False  # B pinned at its ends
+    free[3 * model.n_nodes:] = False
+    res = minimise(en, q, free, solve=direct(), options=NewtonOptions(atol=1e-10, rtol=0.0, xtol=1e-12))
+    F = -sum(res.gradient[3 * e + 2] for e in ends)  # upward push of the contact on B, N
+    pr = en.pairs(res.x)
+    assert len(pr) == 1
+    d = pr.distance[0]
+    assert F > 1e-3 and F == pytest.approx(law.force(np.array([d]), dk, k)[0], rel=1e-6)
+    # small-deflection beam: end drop = rigid approach + mid-span deflection F L³ / (48 EI)
+    assert (z0 - d) + F * span**3 / (48 * EIb) == pytest.approx(drop, rel=0.02)
+
+
+def test_friction_resists_sliding_with_mu_times_normal_force():
+    """Sliding pressed crossing rods past each other needs a tangential force μ·N once slip ≫ ε_s."""
+    law = RodPenalty(core=0.0, friction=0.3, slip=0.001)
+    dk, k = 0.4, 0.5
+    model = crossing_rods(0.0, z0=0.39)
+    n = model.n_nodes // 2
+    en = RodEnergy(model, 1e4, 1e3, law=law, dk=dk, k_contact=k, friction=True)
+    free = np.zeros(model.n_dof, bool)  # both rods rigid: all DOFs prescribed
+    q = np.zeros(model.n_dof)
+    en.update_lag(q)
+    q[3 * n: 6 * n: 3] = 0.05  # slide B along x by 0.05 mm ≫ ε_s = 0.4 µm
+    _, g, _, _ = en(q, 1)
+    N = law.force(np.array([0.39]), dk, k)[0]
+    assert g[3 * n: 6 * n: 3].sum() == pytest.approx(0.3 * N, rel=1e-6)
+    assert en.calls["friction"] == 1
+
+
+def test_straight_periodic_yarn_tension_is_EA_strain_per_width():
+    """A straight yarn along the course stretched by 10 % carries T1 = EA·0.1/|L2| (reaction → tension)."""
+    c = Centerline("row0", lambda t: np.stack([t, 0 * t, 0 * t], 1), lambda t: np.stack([1 + 0 * t, 0 * t, 0 * t], 1),
+                   0.0, 2.0, [2.0, 0, 0])
+    cell = UnitCell("straight", (c,), [2.0, 0, 0], [0, 1.5, 0], 0.2, ((0, 0),), (("k",),), 1.0, 1.0, 1.5)
+    model, en = cell_energy(cell, segments=4)
+    res = solve_macro(model, en, [np.diag([1.1, 1.0, 1.0])])
+    P = stress(model, res)
+    assert P[0, 0] == pytest.approx(EA * 0.1 / 1.5, rel=1e-9) and abs(P[1, 1]) < 1e-12
+
+
+def test_rigid_rotation_inside_F_gives_zero_stress():
+    """F̄ = R(30°) applied to a stress-free cell leaves energy and stress at zero."""
+    c = Centerline("row0", lambda t: np.stack([t, 0 * t, 0 * t], 1), lambda t: np.stack([1 + 0 * t, 0 * t, 0 * t], 1),
+                   0.0, 2.0, [2.0, 0, 0])
+    cell = UnitCell("straight", (c,), [2.0, 0, 0], [0, 1.5, 0], 0.2, ((0, 0),), (("k",),), 1.0, 1.0, 1.5)
+    model, en = cell_energy(cell, segments=4)
+    path = [np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+            for a in np.radians([10, 20, 30])]
+    res = solve_macro(model, en, path)
+    assert res.energy < 1e-16 and np.abs(stress(model, res)).max() < 1e-8
+
+
+def test_frame_indifference_of_a_loaded_cell():
+    """Rotating F̄ by R rotates the nominal stress: P(R F) = R P(F), with the same energy."""
+    model, en = cell_energy(wavy_cell())
+    F = np.diag([1.04, 0.94, 1.0])
+    a = np.radians(25)
+    R = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+    r1 = solve_macro(model, en, [F])
+    r2 = solve_macro(model, en, [F, R @ F])
+    P1, P2 = stress(model, r1), stress(model, r2)
+    assert np.abs(P1).max() > 1e-3  # contact is loaded
+    assert np.allclose(P2, R @ P1, atol=1e-7 * np.abs(P1).max())
+    assert r2.energy == pytest.approx(r1.energy, rel=1e-8)
+
+
+def test_energy_is_invariant_under_periodic_translation():
+    """Translating the cell content by any vector, or by a lattice vector under F̄, keeps the energy."""
+    cell = wavy_cell()
+    model, en = cell_energy(cell)
+    q = np.zeros(model.n_dof)
+    q[3 * model.n_nodes:] = Lattice.h_from_F(np.diag([1.02, 0.95, 1.0]))
+    E0 = en(q, 0)[0]
+    assert E0 > 0
+    shift = np.tile([0.37, -0.21, 0.05], model.n_nodes)
+    q1 = q.copy()
+    q1[: 3 * model.n_nodes] += shift
+    assert en(q1, 0)[0] == pytest.approx(E0, rel=1e-12)
+    # the whole content moved by a lattice vector under the current F̄
+    q2 = q.copy()
+    q2[: 3 * model.n_nodes] += np.tile(model.lattice.shift(np.array([1, -1]), q[3 * model.n_nodes:]), model.n_nodes)
+    assert en(q2, 0)[0] == pytest.approx(E0, rel=1e-10)
+
+
+def test_stabilisation_does_not_change_the_converged_answer():
+    """The rigid-mode Hessian shift changes the iterations, not the converged stress."""
+    out = []
+    for stab in (0.0, 1e-6, 1e-4):
+        model, en = cell_energy(wavy_cell())
+        res = solve_macro(model, en, [np.diag([1.05, 0.93, 1.0])], stabilisation=stab)
+        out.append(stress(model, res))
+    assert np.abs(out[0]).max() > 1e-3
+    for P in out[1:]:
+        assert np.allclose(P, out[0], rtol=1e-7, atol=1e-9)
+
+
+# ---------------------------------------------------------------------------------------- effects
+def test_terms_not_asked_for_are_never_evaluated(monkeypatch):
+    """Without 'contact' no contact search runs; without 'friction' no friction state exists or is evaluated."""
+    import knitframe_solvers.rod_model as rm
+
+    calls = {"n": 0}
+    real = rm.find_pairs
+
+    def counting(*a, **k):
+        calls["n"] += 1
+        return real(*a, **k)
+
+    monkeypatch.setattr(rm, "find_pairs", counting)
+    model = from_cell(wavy_cell(), 6)
+    bare = RodEnergy(model, EA, EI, bending=False)
+    q = np.zeros(model.n_dof)
+    bare(q)
+    assert calls["n"] == 0 and bare.calls["contact"] == 0 and bare.calls["bending"] == 0
+    model, en = cell_energy(wavy_cell())
+    res = solve_macro(model, en, [np.diag([1.02, 0.95, 1.0])])
+    assert res.converged and calls["n"] > 0
+    assert en.lag is None and en.calls["friction"] == 0

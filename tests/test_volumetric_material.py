@@ -1,0 +1,176 @@
+"""Total-Lagrangian solid forms of the volumetric solver: tangent, patch test, Lamé cylinder, pre-stress."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse.linalg as spla
+import skfem
+from skfem.helpers import dot
+
+from knitframe.errors import NumericalError
+from knitframe_solvers.volumetric_material import SolidForms, YarnLaw
+from knitframe_yarns.isotropic import Isotropic
+from knitframe_yarns.law import linear_stiffness
+from knitframe_yarns.transverse_isotropic import TransverseIsotropic
+
+
+def ti(E_axial: float, E_transverse: float, nu: float = 0.3) -> YarnLaw:
+    return YarnLaw(TransverseIsotropic(E_axial=E_axial, radius=0.2, nu=nu, E_transverse=E_transverse))
+
+
+def iso(E: float, nu: float) -> YarnLaw:
+    return YarnLaw(Isotropic(E_axial=E, radius=0.2, nu=nu))
+
+
+def block(order: int):
+    m = skfem.MeshTet1.init_tensor(np.linspace(0, 1, 4), np.linspace(0, 1, 3), np.linspace(0, 2, 4))
+    return m if order == 1 else skfem.MeshTet2.from_mesh(m)
+
+
+def nodes_of(mesh) -> np.ndarray:
+    return (mesh.doflocs if isinstance(mesh, skfem.MeshTet2) else mesh.p).T
+
+
+def newton(forms: SolidForms, u: np.ndarray, free: np.ndarray, f_ext: np.ndarray | None = None, s: float = 1.0,
+           tol: float = 1e-10, maxit: int = 25) -> np.ndarray:
+    """Plain Newton on the free DOFs, started from the linear lift of the prescribed values (test helper)."""
+    f_ext = np.zeros_like(u) if f_ext is None else f_ext
+    fixed = np.setdiff1d(np.arange(u.size), free)
+    if np.any(u[fixed]):
+        K0 = forms.tangent(np.zeros_like(u), s)
+        u[free] = -spla.spsolve(K0[free][:, free].tocsc(), K0[free][:, fixed] @ u[fixed])
+    for _ in range(maxit):
+        r = forms.residual(u, s) - f_ext
+        if np.linalg.norm(r[free]) < tol * max(1.0, np.linalg.norm(f_ext)):
+            return u
+        K = forms.tangent(u, s)
+        u[free] -= spla.spsolve(K[free][:, free].tocsc(), r[free])
+    raise AssertionError("Newton did not converge")
+
+
+@pytest.mark.parametrize("order", [1, 2])
+@pytest.mark.parametrize("s", [1.0, 0.8])
+def test_tangent_matches_finite_differences(order, s):
+    """K·δu equals the central difference of the residual, and R·δu that of the energy, with and without eigenstrain."""
+    mesh = block(order)
+    rng = np.random.default_rng(0)
+    n = nodes_of(mesh).shape[0]
+    fibre = rng.normal(size=(n, 3))
+    forms = SolidForms(mesh, ti(500.0, 2.0), fibre / np.linalg.norm(fibre, axis=1)[:, None])
+    u = 0.01 * rng.normal(size=forms.ndof)
+    du = rng.normal(size=forms.ndof)
+    eps = 1e-6
+    fd_K = (forms.residual(u + eps * du, s) - forms.residual(u - eps * du, s)) / (2 * eps)
+    fd_R = (forms.energy(u + eps * du, s) - forms.energy(u - eps * du, s)) / (2 * eps)
+    K = forms.tangent(u, s)
+    assert np.linalg.norm(K @ du - fd_K) < 1e-7 * np.linalg.norm(fd_K)
+    assert abs(forms.residual(u, s) @ du - fd_R) < 1e-7 * abs(fd_R)
+    assert abs(K - K.T).max() < 1e-12 * abs(K).max()
+
+
+def test_adapter_keeps_tensor_order():
+    """At F = I the adapted tangent is the linear transversely isotropic stiffness with the fibre along x."""
+    law = ti(1000.0, 10.0)
+    A = law.tangent(np.eye(3)[:, :, None, None], np.array([1.0, 0.0, 0.0])[:, None, None])[..., 0, 0]
+    C = linear_stiffness(1000.0, 10.0, 10.0 / 2.6, 0.3)
+    assert A[0, 0, 0, 0] == pytest.approx(C[0, 0])
+    assert A[1, 1, 1, 1] == pytest.approx(C[1, 1])
+    assert A[0, 0, 1, 1] == pytest.approx(C[0, 1])
+    assert A[0, 1, 0, 1] == pytest.approx(C[5, 5])
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_patch_test_large_strain(order):
+    """An affine displacement on the boundary gives the same affine field inside and the uniform stress's tractions."""
+    mesh = block(order)
+    X = nodes_of(mesh)
+    H = np.array([[0.15, 0.05, 0.0], [-0.02, -0.08, 0.03], [0.01, 0.04, 0.1]])
+    fibre = np.tile(np.array([1.0, 1.0, 0.0]) / np.sqrt(2), (X.shape[0], 1))
+    law = ti(200.0, 5.0)
+    forms = SolidForms(mesh, law, fibre)
+    exact = (X @ H.T).ravel()
+    bnodes = np.unique(mesh.facets[:, mesh.boundary_facets()]) if order == 1 else np.unique(
+        skfem.Basis(mesh, skfem.ElementTetP2()).get_dofs().flatten())
+    fixed = (3 * bnodes[:, None] + np.arange(3)).ravel()
+    free = np.setdiff1d(np.arange(forms.ndof), fixed)
+    u = np.zeros(forms.ndof)
+    u[fixed] = exact[fixed]
+    u = newton(forms, u, free)
+    assert np.abs(u - exact).max() < 1e-10
+    P = law.stress((np.eye(3) + H)[:, :, None, None], fibre[0][:, None, None])[..., 0, 0]
+    R = forms.residual(u).reshape(-1, 3)
+    assert np.allclose(R[np.setdiff1d(np.arange(X.shape[0]), bnodes)], 0.0, atol=1e-9)
+    # the reactions on the face z = 2, away from its edges, are the consistent nodal forces of P·N
+    face = skfem.FacetBasis(mesh, skfem.ElementVector(forms.basis.elem), facets=mesh.facets_satisfying(
+        lambda x: np.isclose(x[2], 2.0)))
+    trac = skfem.LinearForm(lambda v, w: dot(np.einsum("ij,j...->i...", P, w.n), v)).assemble(face)
+    inner = np.isclose(X[:, 2], 2.0) & (X[:, 0] > 1e-9) & (X[:, 0] < 1 - 1e-9) & (X[:, 1] > 1e-9) & (X[:, 1] < 1 - 1e-9)
+    assert inner.any()
+    assert np.abs(R[inner] - trac.reshape(-1, 3)[inner]).max() < 1e-8 * np.abs(trac).max()
+
+
+def annulus(order: int, a: float = 1.0, b: float = 2.0, h: float = 0.25):
+    """Quarter annulus a ≤ r ≤ b, 0 ≤ θ ≤ π/2, 0 ≤ z ≤ h, isoparametric for P2 (P1 twice as fine)."""
+    n = 4 if order == 2 else 8
+    ref = skfem.MeshTet1.init_tensor(np.linspace(a, b, n + 1), np.linspace(0, np.pi / 2, 2 * n + 1), np.linspace(0, h, 2))
+
+    def polar(p):
+        return np.stack([p[0] * np.cos(p[1]), p[0] * np.sin(p[1]), p[2]])
+
+    m1 = skfem.MeshTet1(polar(ref.p), ref.t)
+    if order == 1:
+        return m1
+    return skfem.MeshTet2(polar(skfem.MeshTet2.from_mesh(ref).doflocs), ref.t)
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_lame_thick_cylinder(order):
+    """A thick cylinder under internal pressure in plane strain matches Lamé's radial displacement."""
+    a, b, p, E, nu = 1.0, 2.0, 0.05, 1000.0, 0.3
+    mesh = annulus(order, a, b)
+    forms = SolidForms(mesh, iso(E, nu), None)
+    X = nodes_of(mesh)
+    fixed = np.concatenate([3 * np.flatnonzero(np.isclose(X[:, 0], 0.0, atol=1e-12)),
+                            3 * np.flatnonzero(np.isclose(X[:, 1], 0.0, atol=1e-12)) + 1,
+                            3 * np.arange(X.shape[0]) + 2])
+    free = np.setdiff1d(np.arange(forms.ndof), fixed)
+    inner = skfem.FacetBasis(mesh, skfem.ElementVector(forms.basis.elem), intorder=4,
+                             facets=mesh.facets_satisfying(lambda x: np.isclose(np.hypot(x[0], x[1]), a, atol=0.02)))
+    f_ext = skfem.LinearForm(lambda v, w: -p * dot(w.n, v)).assemble(inner)
+    u = newton(forms, np.zeros(forms.ndof), free, f_ext)
+    r = np.hypot(X[:, 0], X[:, 1])
+    ur = (u.reshape(-1, 3)[:, :2] * X[:, :2]).sum(axis=1) / r
+    exact = (1 + nu) * p * a**2 / (E * (b**2 - a**2)) * ((1 - 2 * nu) * r + b**2 / r)
+    err = np.abs(ur - exact).max() / exact.max()
+    assert err < (0.05 if order == 1 else 0.01)
+
+
+def test_eigenstrain_shrinks_a_free_tube_transversely():
+    """A free body with transverse eigenstrain s contracts by s across the fibre and not along it."""
+    mesh = block(2)
+    X = nodes_of(mesh)
+    fibre = np.tile([0.0, 0.0, 1.0], (X.shape[0], 1))
+    forms = SolidForms(mesh, ti(1000.0, 1.0), fibre)
+    s = 0.7
+    corner = np.flatnonzero(np.all(np.isclose(X, 0.0), axis=1))[0]
+    fixed = np.array([3 * corner, 3 * corner + 1, 3 * corner + 2])
+    # remove the rotations with two more point constraints
+    px = np.flatnonzero(np.isclose(X[:, 0], 1) & np.isclose(X[:, 1], 0) & np.isclose(X[:, 2], 0))[0]
+    pz = np.flatnonzero(np.isclose(X[:, 0], 0) & np.isclose(X[:, 1], 0) & np.isclose(X[:, 2], 2))[0]
+    fixed = np.concatenate([fixed, [3 * px + 1, 3 * px + 2, 3 * pz, 3 * pz + 1]])
+    free = np.setdiff1d(np.arange(forms.ndof), fixed)
+    u = newton(forms, np.zeros(forms.ndof), free, s=s)
+    expected = X * np.array([s - 1, s - 1, 0.0])
+    assert np.abs(u.reshape(-1, 3) - expected).max() < 1e-9
+    assert forms.energy(u, s) < 1e-12
+
+
+def test_inverted_element_raises():
+    """An inverted element stops the assembly with a NumericalError naming the element, never NaN."""
+    mesh = block(1)
+    forms = SolidForms(mesh, iso(1.0, 0.3), None)
+    u = -2.5 * nodes_of(mesh).ravel()
+    assert forms.energy(u) == np.inf
+    with pytest.raises(NumericalError, match="inverted"):
+        forms.residual(u)
