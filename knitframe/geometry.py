@@ -555,6 +555,7 @@ def _refine(cell: UnitCell, sm: _Samples, ia: np.ndarray, ib: np.ndarray, k: np.
             -np.stack([h22 * g[:, 0] - h12 * g[:, 1], h11 * g[:, 1] - h12 * g[:, 0]], 1) / safe[:, None],
             -g / (np.einsum("ij,ij->i", da, da) + np.einsum("ij,ij->i", db, db))[:, None],
         )
+        before = t.copy()
         moved = np.zeros(len(t), bool)
         for _ in range(30):
             trial = np.clip(t + step, lo, hi)
@@ -565,7 +566,7 @@ def _refine(cell: UnitCell, sm: _Samples, ia: np.ndarray, ib: np.ndarray, k: np.
             if moved.all():
                 break
             step = np.where(moved[:, None], step, 0.5 * step)
-        if np.max(np.abs(step)) < 1e-13 * span.max():
+        if np.max(np.abs(t - before)) < 1e-13 * span.max():
             break
     d = np.sqrt(2.0 * f)
     bad = ~np.isfinite(d) | (d > d0)
@@ -594,7 +595,7 @@ def _contact(cell, ia, ib, kb, ta, tb, d, sm) -> Contact:
     pa = cell.yarns[ya].position(np.array([ta]))[0]
     pb = cell.yarns[yb].position(np.array([tb]))[0] + kb[0] * cell.L1 + kb[1] * cell.L2
     mid = 0.5 * (pa + pb)
-    return Contact((ya, yb), (kb[0], kb[1]), (ta, tb), (float(mid[0]), float(mid[1]), float(mid[2])), float(d))
+    return Contact((ya, yb), (int(kb[0]), int(kb[1])), (float(ta), float(tb)), (float(mid[0]), float(mid[1]), float(mid[2])), float(d))
 
 
 def _dedupe(contacts: list[Contact]) -> list[Contact]:

@@ -87,6 +87,7 @@ class Yarn(Record):
     G_axial: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: axial shear modulus, MPa
     nu: float = attrs.field(default=0.3, validator=v.in_range(-1.0, 0.5, lo_open=True, hi_open=True))  #: Poisson ratio, -
     failure_strain: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: axial strain at failure, -
+    bending_stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: measured EI, N·mm²; unset: solid section E_axial·π·dk⁴/64
     model: str = "transverse_isotropic"  #: yarn-model plugin name
     source: str = ""  #: where the numbers come from
 

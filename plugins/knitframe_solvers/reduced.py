@@ -43,6 +43,8 @@ class ReducedSolver:
     description: ClassVar[str] = "fitted reduced model (hgo, hgo2m, ...) along the load path; no geometry, instant"
     effects: ClassVar[frozenset[str]] = frozenset({"large_deformation", "anisotropy"})
     loads: ClassVar[frozenset[str]] = frozenset({"equibiaxial", "uniaxial-course", "uniaxial-wale", "general"})
+    #: cheap enough for the conformance kit to simulate with default options
+    conformance_simulate: ClassVar[bool] = True
 
     model: str | dict[str, Any] = "hgo"  #: homogenizer name, or a table with ``kind`` and its options
     params: dict[str, float] = attrs.Factory(dict)  #: parameters by name, angles as ``<name>_deg``; empty: the model's defaults

@@ -13,9 +13,18 @@ basis gradients, quadrature weights and DOF maps, in chunks of elements to bound
 sparse tangent is summed into a fixed CSR pattern with ``np.bincount``.
 
 Thermal pre-stress: an eigenstrain transverse to the fibre a (the centerline tangent), with the
-multiplicative split F = Fe·Fθ, Fθ = I + (s − 1)(I − a⊗a). The yarn's stress-free radius is s·r,
-so raising s from r_under/r to 1 grows an undersized yarn to its knitted diameter at constant
-length. W = ∫ Jθ Ψ(Fe) dV, Jθ = s², P = Jθ Pe(Fe)·Fθ⁻ᵀ, A_iJkL = Jθ Ae_iMkN Fθ⁻¹_JM Fθ⁻¹_LN.
+multiplicative split F = Fe·Fθ::
+
+    Fθ = s (I − a⊗a) + λa a⊗a,     λa = (1 − s c) / (1 − c),     c = κ·o
+
+where o is the point's offset from the centerline and κ the centerline's curvature vector
+(1/mm). Fθ is exactly the deformation of the tube of radius r onto the tube of radius s·r around
+the same centerline (on a rotation-minimising frame a fibre at offset o has length (1 − κ·o) ds),
+so the undersized tube x = C + s·o is stress-free; without the axial factor λa the fibres of a
+curved yarn would be strained by κ·o·(1 − s), which is large for a stiff yarn in a tight loop.
+Raising s from r_under/r to 1 grows an undersized yarn to its knitted diameter dk at constant
+centerline length; at s = 1, Fθ = I. W = ∫ Jθ Ψ(Fe) dV with Jθ = s² λa, P = Jθ Pe(Fe)·Fθ⁻ᵀ and
+A_iJkL = Jθ Ae_iMkN Fθ⁻¹_JM Fθ⁻¹_LN.
 """
 
 from __future__ import annotations
@@ -94,10 +103,12 @@ def fibre_at_quadrature(basis: Any, node_tangent: np.ndarray) -> np.ndarray:
     return a / np.linalg.norm(a, axis=0, keepdims=True)
 
 
-def _eigen_transform(a: np.ndarray, s: float) -> np.ndarray:
-    """Fθ⁻¹ = I + (1/s − 1)(I − a⊗a), (3, 3, n_el, n_qp); symmetric."""
+def _eigen_transform(a: np.ndarray, s: float, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Fθ⁻¹ (3, 3, n_el, n_qp) (symmetric) and Jθ (n_el, n_qp) of the pre-stress eigenstrain at s."""
+    lam_a = (1.0 - s * c) / (1.0 - c)
     I = np.eye(3)[:, :, None, None]
-    return I + (1.0 / s - 1.0) * (I - a[:, None] * a[None, :])
+    aa = a[:, None] * a[None, :]
+    return I + (1.0 / s - 1.0) * (I - aa) + (1.0 / lam_a - 1.0) * aa, s * s * lam_a
 
 
 class SolidForms:
@@ -109,12 +120,14 @@ class SolidForms:
     law : a material with ``energy``, ``stress`` and ``tangent`` of (F, a), e.g. :class:`YarnLaw`.
     node_tangent : (N, 3) fibre direction at each node (N = vertices for P1, vertices + edges
         for P2); None gives a fixed x fibre (only meaningful for isotropic laws).
+    node_bend : (N,) c = κ·o at each node (centerline curvature vector dotted with the node's
+        offset from the centerline) for the pre-stress eigenstrain; None means straight yarns.
     intorder : quadrature order (default 2: 4 points, like ABAQUS C3D10).
     chunk : elements per einsum batch.
     """
 
     def __init__(self, mesh: Any, law: Any, node_tangent: np.ndarray | None = None, *, intorder: int = 2,
-                 chunk: int = 4096):
+                 chunk: int = 4096, node_bend: np.ndarray | None = None):
         import skfem
 
         elem = skfem.ElementTetP2() if isinstance(mesh, skfem.MeshTet2) else skfem.ElementTetP1()
@@ -129,6 +142,9 @@ class SolidForms:
         if node_tangent is None:
             node_tangent = np.tile([1.0, 0.0, 0.0], (self.n_nodes, 1))
         self.fibre = fibre_at_quadrature(self.basis, np.asarray(node_tangent, dtype=np.float64))
+        vals = np.stack([np.asarray(phi[0]) for phi in self.basis.basis])
+        bend = np.zeros(self.n_nodes) if node_bend is None else np.asarray(node_bend, dtype=np.float64)
+        self.bend = np.einsum("leq,le->eq", vals, bend[self.edofs])  # c = κ·o at the quadrature points
         self.chunk = int(chunk)
         nl, ne = self.edofs.shape
         self.vdofs = (3 * self.edofs[:, None, :] + np.arange(3)[None, :, None]).reshape(3 * nl, ne)  # (3nl, n_el)
@@ -166,17 +182,19 @@ class SolidForms:
         for sl in self._chunks():
             F = self.deformation_gradient(u, sl)
             a = self.fibre[:, sl]
+            Jt = 1.0
             if s != 1.0:
-                F = np.einsum("iMeq,MJeq->iJeq", F, _eigen_transform(a, s))
-            total += s * s * float(np.sum(self.law.energy(F, a) * self.dx[sl]))
+                Ti, Jt = _eigen_transform(a, s, self.bend[sl])
+                F = np.einsum("iMeq,MJeq->iJeq", F, Ti)
+            total += float(np.sum(Jt * self.law.energy(F, a) * self.dx[sl]))
         return total
 
-    def _stress(self, F: np.ndarray, a: np.ndarray, s: float) -> np.ndarray:
+    def _stress(self, F: np.ndarray, a: np.ndarray, s: float, sl: slice) -> np.ndarray:
         if s == 1.0:
             return self.law.stress(F, a)
-        Ti = _eigen_transform(a, s)
+        Ti, Jt = _eigen_transform(a, s, self.bend[sl])
         Fe = np.einsum("iMeq,MJeq->iJeq", F, Ti)
-        return s * s * np.einsum("iMeq,JMeq->iJeq", self.law.stress(Fe, a), Ti)
+        return Jt * np.einsum("iMeq,JMeq->iJeq", self.law.stress(Fe, a), Ti)
 
     def residual(self, u: np.ndarray, s: float = 1.0) -> np.ndarray:
         """Internal force R = ∂W/∂u (3N,), N."""
@@ -184,7 +202,7 @@ class SolidForms:
         for sl in self._chunks():
             F = self.deformation_gradient(u, sl)
             self._check(F, sl)
-            P = self._stress(F, self.fibre[:, sl], s)
+            P = self._stress(F, self.fibre[:, sl], s, sl)
             Re = np.einsum("iJeq,lJeq,eq->lie", P, self.grad[:, :, sl], self.dx[sl])
             out += np.bincount(self.vdofs[:, sl].ravel(), Re.reshape(-1, Re.shape[-1]).ravel(), minlength=self.ndof)
         return out
@@ -192,15 +210,15 @@ class SolidForms:
     def stress(self, u: np.ndarray, s: float = 1.0) -> np.ndarray:
         """First Piola-Kirchhoff stress at the quadrature points (3, 3, n_el, n_qp), MPa."""
         return np.concatenate(
-            [self._stress(self.deformation_gradient(u, sl), self.fibre[:, sl], s) for sl in self._chunks()], axis=2
+            [self._stress(self.deformation_gradient(u, sl), self.fibre[:, sl], s, sl) for sl in self._chunks()], axis=2
         )
 
-    def _tangent_moduli(self, F: np.ndarray, a: np.ndarray, s: float) -> np.ndarray:
+    def _tangent_moduli(self, F: np.ndarray, a: np.ndarray, s: float, sl: slice) -> np.ndarray:
         if s == 1.0:
             return self.law.tangent(F, a)
-        Ti = _eigen_transform(a, s)
+        Ti, Jt = _eigen_transform(a, s, self.bend[sl])
         Fe = np.einsum("iMeq,MJeq->iJeq", F, Ti)
-        return s * s * np.einsum("iMkNeq,JMeq,LNeq->iJkLeq", self.law.tangent(Fe, a), Ti, Ti, optimize=True)
+        return Jt * np.einsum("iMkNeq,JMeq,LNeq->iJkLeq", self.law.tangent(Fe, a), Ti, Ti, optimize=True)
 
     def pattern(self) -> tuple[sp.csr_matrix, np.ndarray]:
         """CSR sparsity pattern of the tangent and the map from element-matrix entries to its data."""
@@ -226,7 +244,7 @@ class SolidForms:
         for sl in self._chunks():
             F = self.deformation_gradient(u, sl)
             self._check(F, sl)
-            A = self._tangent_moduli(F, self.fibre[:, sl], s)
+            A = self._tangent_moduli(F, self.fibre[:, sl], s, sl)
             G = self.grad[:, :, sl]
             T = np.einsum("aJeq,iJkLeq->aikLeq", G, A, optimize=True)
             Ke = np.einsum("aikLeq,bLeq,eq->eaibk", T, G, self.dx[sl], optimize=True)

@@ -28,11 +28,12 @@ from typing import Any, ClassVar
 import attrs
 
 from knitframe import hookimpl
+from knitframe.yarns import config_yarns, resolve_yarn
 from knitframe.config import PluginSpec, instantiate
 from knitframe.effects import require_effects
 from knitframe.errors import ConfigError, UnknownPluginError
 from knitframe.progress import ProgressBar
-from knitframe.records import Fabric, Scene, Yarn
+from knitframe.records import Fabric, Scene
 from knitframe.report import plot_responses, write_responses_csv
 from knitframe.schema import build
 
@@ -42,20 +43,6 @@ class SolverTable:
     """Schema of the ``[solver]`` table: ``kind`` names the solver plugin; every other key is one of its options."""
 
     kind: str = "rod"  #: solver plugin name (see "Plugin options" → solver)
-
-
-def resolve_yarn(registry, value: Any, path: str) -> Yarn:
-    """A Yarn from a library name or a table of Yarn fields at TOML ``path``."""
-    if isinstance(value, Yarn):
-        return value
-    if isinstance(value, str):
-        try:
-            return registry["yarn"][value]
-        except UnknownPluginError as e:
-            raise ConfigError(path, str(e)) from None
-    if isinstance(value, dict):
-        return build(Yarn, value, path)
-    raise ConfigError(path, f"expected a yarn name or a table of yarn fields, got {value!r}")
 
 
 def _accepts(fn, name: str) -> bool:
@@ -73,7 +60,7 @@ class SimulateStage:
     table: ClassVar[str] = "solver"
     description: ClassVar[str] = "simulate the unit cell with a solver plugin ([solver] kind = ...)"
     order: ClassVar[int] = 20
-    uses: ClassVar[tuple[str, ...]] = ("fabric", "scene")
+    uses: ClassVar[tuple[str, ...]] = ("fabric", "scene", "yarns")
     schema: ClassVar[type] = SolverTable
 
     solver_name: str
@@ -92,7 +79,10 @@ class SimulateStage:
         if "yarn" not in table:
             raise ConfigError("fabric.yarn", "required key is missing", source=src)
         try:
-            table["yarn"] = resolve_yarn(ctx.registry, table["yarn"], "fabric.yarn")
+            own = config_yarns(ctx.registry, config.get("yarns", {}))
+            value = table["yarn"]
+            table["yarn"] = own[value] if isinstance(value, str) and value in own else resolve_yarn(
+                ctx.registry, value, "fabric.yarn")
         except ConfigError as e:
             raise ConfigError(e.path, e.problem, source=src) from None
         fabric = build(Fabric, table, "fabric", source=src)

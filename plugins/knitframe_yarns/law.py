@@ -208,4 +208,4 @@ class YarnModelBase:
 
     @classmethod
     def _common(cls, yarn: Yarn) -> dict[str, float]:
-        return {"E_axial": yarn.E_axial, "radius": yarn.rk, "nu": yarn.nu}
+        return {"E_axial": yarn.E_axial, "radius": yarn.rk, "nu": yarn.nu, "bending_modulus": yarn.bending_stiffness}

@@ -7,12 +7,9 @@ gives the source of every number.
 
 from __future__ import annotations
 
-from typing import Any
-
 from knitframe import hookimpl
-from knitframe.errors import ConfigError, UnknownPluginError
 from knitframe.records import Yarn
-from knitframe.schema import build
+from knitframe.yarns import resolve_yarn  # noqa: F401  (re-exported for plugin users)
 
 __all__ = ["YARNS", "resolve_yarn"]
 
@@ -56,38 +53,6 @@ YARNS = (
         "representative (3-5 GPa)",
     ),
 )
-
-
-def resolve_yarn(registry, value: Any, path: str) -> Yarn:
-    """A Yarn from a config value at TOML ``path``.
-
-    ``value`` is a library name (``"cotton"``), a Yarn, or a table of Yarn fields. A table may
-    start from a library yarn with ``like = "cotton"`` and override some fields; its ``name``
-    defaults to the last key of ``path`` (``yarns.myyarn`` -> ``myyarn``). Errors are
-    ConfigErrors naming ``path``.
-    """
-    if isinstance(value, Yarn):
-        return value
-    if isinstance(value, str):
-        try:
-            return registry["yarn"][value]
-        except UnknownPluginError as e:
-            raise ConfigError(path, str(e)) from None
-    if not isinstance(value, dict):
-        raise ConfigError(path, f"expected a yarn name or a table of yarn fields, got {value!r}")
-    table = dict(value)
-    base: dict[str, Any] = {}
-    if "like" in table:
-        like = table.pop("like")
-        if not isinstance(like, str):
-            raise ConfigError(f"{path}.like", f"expected a yarn name, got {like!r}")
-        base = resolve_yarn(registry, like, f"{path}.like").to_dict()
-        base.pop("name")
-        base["source"] = f"{base.get('source', '')}; modified in config at {path}".lstrip("; ")
-    table = {**base, **table}
-    table.setdefault("name", path.rsplit(".", 1)[-1] if path else "yarn")
-    table.setdefault("source", f"config table {path}")
-    return build(Yarn, table, path)
 
 
 @hookimpl
