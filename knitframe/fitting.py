@@ -82,7 +82,8 @@ def _pair(d: int, lam_load, lam_free):
     return (lam_load, lam_free) if d == 0 else (lam_free, lam_load)
 
 
-def solve_free_side(model: Any, params: np.ndarray, lam: np.ndarray, direction: str | int = "course"):
+def solve_free_side(model: Any, params: np.ndarray, lam: np.ndarray, direction: str | int = "course", *,
+                    guess: np.ndarray | None = None):
     """Uniaxial load with a free side: the free stretch λf with ``P_free(λ, λf) = 0``.
 
     The root is bracketed from the reference λf = 1: if P_free(λ, 1) > 0 the bracket is
@@ -99,6 +100,8 @@ def solve_free_side(model: Any, params: np.ndarray, lam: np.ndarray, direction: 
     params : (k,) parameters
     lam : (n,) loaded stretch, -
     direction : ``"course"`` or ``"wale"``
+    guess : (n,) optional start for the iteration (e.g. the previous solution during a fit); it is
+        used only where it lies inside the bracket
 
     Returns
     -------
@@ -113,6 +116,9 @@ def solve_free_side(model: Any, params: np.ndarray, lam: np.ndarray, direction: 
         return model.stress(params, *_pair(d, lam, lf))[1 - d]
 
     def fdf(lf):
+        if hasattr(model, "stress_tangent"):  # one evaluation instead of two
+            P1, P2, K11, _, K22 = model.stress_tangent(params, *_pair(d, lam, lf))
+            return (P2, K22) if d == 0 else (P1, K11)
         K11, _, K22 = model.tangent(params, *_pair(d, lam, lf))
         return f(lf), (K22 if d == 0 else K11)
 
@@ -134,43 +140,47 @@ def solve_free_side(model: Any, params: np.ndarray, lam: np.ndarray, direction: 
         )
     fixed = np.where(collapse, FREE_MIN, 1.0)  # collapsed points and exact roots at 1 need no iteration
     done = collapse | (f1 == 0)
-    root = bracketed_newton(fdf, np.where(done, fixed, lo), np.where(done, fixed, hi), fixed)
+    lo, hi = np.where(done, fixed, lo), np.where(done, fixed, hi)
+    x0 = fixed if guess is None else np.clip(np.asarray(guess, dtype=np.float64).ravel(), lo, hi)
+    root = bracketed_newton(fdf, lo, hi, x0, increasing=True)
     P = model.stress(params, *_pair(d, lam, root))[d]
     return root.reshape(shape), np.asarray(P).reshape(shape)
 
 
 def bracketed_newton(fdf, lo: np.ndarray, hi: np.ndarray, x0: np.ndarray, *, xtol: float = 1e-13,
-                     maxiter: int = 200) -> np.ndarray:
+                     xscale: float = 1.0, maxiter: int = 200, increasing: bool | None = None) -> np.ndarray:
     """Vectorised safeguarded Newton: a root of ``f`` in [lo, hi] for every element.
 
-    ``fdf(x) -> (f, df)``. Needs sign(f(lo)) != sign(f(hi)) (or a zero at an end). Each step is
+    ``fdf(x) -> (f, df)``. Needs sign(f(lo)) != sign(f(hi)) (or a zero at an end); ``increasing``
+    states f(lo) <= 0 <= f(hi), saving the evaluation at ``lo`` that would find out. Each step is
     Newton's unless it leaves the current bracket or ``df`` is not finite and non-zero, then it
     bisects; the bracket shrinks on every step, so the iteration cannot diverge. Converged when
-    the step is below ``xtol·max(1, |x|)``; not converging in ``maxiter`` steps raises
-    NumericalError.
+    the step (or the bracket) is below ``xtol·max(xscale, |x|)``; not converging in ``maxiter``
+    steps raises NumericalError.
     """
     lo, hi = np.array(lo, dtype=np.float64), np.array(hi, dtype=np.float64)
     x = np.clip(np.asarray(x0, dtype=np.float64), lo, hi)
-    f_lo = fdf(lo)[0]
-    rising = f_lo < 0  # orientation of the bracket
+    rising = fdf(lo)[0] < 0 if increasing is None else increasing  # orientation of the bracket
     for _ in range(maxiter):
         fx, dfx = fdf(x)
         below = (fx < 0) == rising
         lo = np.where(below, x, lo)
         hi = np.where(below, hi, x)
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             xn = x - fx / dfx
-        bad = ~np.isfinite(xn) | (xn < lo) | (xn > hi)
+        bad = ~np.isfinite(xn) | ~np.isfinite(dfx) | (dfx == 0) | (xn < lo) | (xn > hi)
         xn = np.where(bad, 0.5 * (lo + hi), xn)
         xn = np.where(fx == 0, x, xn)
         step = np.abs(xn - x)
         x = xn
-        if np.all((step <= xtol * np.maximum(1.0, np.abs(x))) | (hi - lo <= xtol * np.maximum(1.0, np.abs(x)))):
+        tol = xtol * np.maximum(xscale, np.abs(x))
+        if np.all((step <= tol) | (hi - lo <= tol)):
             return x
     raise NumericalError(f"bracketed Newton did not converge in {maxiter} steps (widest bracket {np.max(hi - lo):.3g})")
 
 
-def free_side_grad(model: Any, params: np.ndarray, lam: np.ndarray, direction: str | int = "course"):
+def free_side_grad(model: Any, params: np.ndarray, lam: np.ndarray, direction: str | int = "course", *,
+                   guess: np.ndarray | None = None):
     """:func:`solve_free_side` plus parameter derivatives.
 
     Returns ``(lam_free, P_loaded, dlam_free (n, k), dP_loaded (n, k))``. The implicit
@@ -178,7 +188,7 @@ def free_side_grad(model: Any, params: np.ndarray, lam: np.ndarray, direction: s
     free side (λf = FREE_MIN) or a vanishing ∂P_f/∂λf gives ``∂λf/∂p = 0``.
     """
     d = direction_index(direction)
-    lf, _ = solve_free_side(model, params, lam, d)
+    lf, _ = solve_free_side(model, params, lam, d, guess=guess)
     lam = np.asarray(lam, dtype=np.float64).reshape(lf.shape)
     l1, l2 = _pair(d, lam, lf)
     P1, P2, dP1, dP2 = model.stress_grad(params, l1, l2)
@@ -253,6 +263,7 @@ class FitProblem:
         self.transverse_weight = float(transverse_weight)
         self.lateral = bool(getattr(model, "predicts_lateral", False))
         self.n_evals = 0
+        self._guess: dict[int, np.ndarray] = {}
         self.blocks = [self._block(i, r) for i, r in enumerate(self.responses)]
         # group id of every residual, in block order
         gid = []
@@ -307,11 +318,13 @@ class FitProblem:
         for b in self.blocks:
             if b.uniaxial and b.lam_free is not None:
                 lam_load = (b.lam1, b.lam2)[b.direction]
+                guess = self._guess.get(b.index)  # warm start: parameters move little between evaluations
                 if grad:
-                    lf, P, dlf, dP = free_side_grad(m, params, lam_load, b.direction)
+                    lf, P, dlf, dP = free_side_grad(m, params, lam_load, b.direction, guess=guess)
                     js += [dP, dlf]
                 else:
-                    lf, P = solve_free_side(m, params, lam_load, b.direction)
+                    lf, P = solve_free_side(m, params, lam_load, b.direction, guess=guess)
+                self._guess[b.index] = lf
                 rs += [P - b.measured[0], lf - b.lam_free]
                 continue
             if grad:

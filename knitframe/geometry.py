@@ -12,6 +12,12 @@ Following the pairs from a yarn back to itself gives a *strand*: one infinite ya
 Along the wale the rows hold together only through contact with periodic images (``±L2``,
 ``±L1 ± L2``); :func:`image_shifts` lists them.
 
+Pattern plugins, built-in or third-party, share the helpers that turn a Fabric into cell
+dimensions: the machine stitch-length table (:data:`STITCH_LENGTHS`, :func:`arc_length_for`,
+:func:`check_stitch_lengths`), Munden's pitches (:func:`munden_pitches`), a smooth sign for
+blending stitch shapes (:func:`smooth_sign`) and the arc-length calibration
+(:func:`solve_arc_length`).
+
 Besides the records this module holds the geometry every consumer needs: arc length,
 rotation-minimising frames closed over each strand (:func:`frames`), the minimum
 centerline-to-centerline clearance with periodic images and self-contact (:func:`clearance`),
@@ -21,12 +27,15 @@ and writers for VTU (:func:`write_vtu`) and a three-view PNG (:func:`plot_views`
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import attrs
 import numpy as np
 
-from knitframe.errors import GeometryError, NumericalError
+from knitframe.errors import FieldError, GeometryError, NumericalError
+
+if TYPE_CHECKING:
+    from knitframe.records import Fabric
 
 __all__ = [
     "Centerline",
@@ -36,6 +45,14 @@ __all__ = [
     "Clearance",
     "strands",
     "image_shifts",
+    "STITCH_LENGTHS",
+    "MUNDEN_KC",
+    "MUNDEN_KW",
+    "check_stitch_lengths",
+    "arc_length_for",
+    "munden_pitches",
+    "smooth_sign",
+    "solve_arc_length",
     "arc_length",
     "frames",
     "clearance",
@@ -202,6 +219,83 @@ def image_shifts(cell: UnitCell, reach: int = 1) -> tuple[np.ndarray, np.ndarray
     k = np.array([(a, b) for a in r for b in r], dtype=int)
     k = k[np.argsort(np.abs(k).sum(axis=1), kind="stable")]
     return k, k[:, :1] * cell.L1[None, :] + k[:, 1:] * cell.L2[None, :]
+
+
+# ------------------------------------------------------------------------------- pattern helpers
+#: Machine stitch-length setting -> yarn length per stitch, mm (the paper's microscopy of jersey, 12 stitches each).
+STITCH_LENGTHS: dict[str, float] = {"10": 3.9, "11": 4.7, "12": 5.9}
+#: Munden's constants for relaxed plain knit (courses/cm = Kc/ℓ, wales/cm = Kw/ℓ, ℓ in cm); mid-range values.
+MUNDEN_KC, MUNDEN_KW = 5.3, 4.0
+
+
+def check_stitch_lengths(instance, attribute, value) -> None:
+    """attrs validator of a ``stitch_lengths`` table: machine-setting keys ("11") to arc lengths > 0 mm."""
+    for key, length in value.items():
+        try:
+            float(key)
+        except ValueError:
+            raise FieldError(f"{attribute.name}.{key}", "key must be a machine setting number, e.g. \"11\"") from None
+        if not (isinstance(length, (int, float)) and np.isfinite(length) and length > 0):
+            raise FieldError(f"{attribute.name}.{key}", f"must be an arc length > 0 mm, got {length!r}")
+
+
+def arc_length_for(fabric: "Fabric", table: dict[str, float]) -> float:
+    """Yarn length per stitch, mm: ``fabric.arc_length`` if given, else the machine setting looked up in ``table``."""
+    if fabric.arc_length is not None:
+        return float(fabric.arc_length)
+    for key, length in table.items():
+        if float(key) == float(fabric.stitch_length):
+            return float(length)
+    known = ", ".join(f"{k} -> {val} mm" for k, val in sorted(table.items(), key=lambda kv: float(kv[0])))
+    raise GeometryError(
+        f"stitch_length {fabric.stitch_length:g} is not in the stitch-length table ({known}); "
+        "give arc_length in mm or add the setting to the pattern's stitch_lengths"
+    )
+
+
+def munden_pitches(arc: float, fabric: "Fabric", Kc: float = MUNDEN_KC, Kw: float = MUNDEN_KW) -> tuple[float, float]:
+    """(course, wale) pitch in mm: the fabric's if given, else Munden's p_c = ℓ/Kw and p_w = ℓ/Kc.
+
+    ``arc`` is the yarn length per stitch ℓ in mm; Kc and Kw are the dimensionless constants
+    (courses/cm = Kc/ℓ, wales/cm = Kw/ℓ with ℓ in cm).
+    """
+    return (
+        float(fabric.course_pitch) if fabric.course_pitch is not None else arc / Kw,
+        float(fabric.wale_pitch) if fabric.wale_pitch is not None else arc / Kc,
+    )
+
+
+def smooth_sign(c: np.ndarray, kappa: float) -> tuple[np.ndarray, np.ndarray]:
+    """S(c) = tanh(κc)/tanh κ and dS/dc: a smooth sign, exactly ±1 at c = ±1, sharper for larger κ.
+
+    With c = cos t or cos(t/2) it switches a stitch property analytically between stitches, so
+    a curve blended with it keeps an exact derivative. ``c`` (n,) -> two arrays (n,).
+    """
+    th = np.tanh(kappa * np.asarray(c, dtype=np.float64))
+    k = np.tanh(kappa)
+    return th / k, kappa * (1.0 - th * th) / k
+
+
+def solve_arc_length(per_stitch: Callable[[float], float], target: float, lower: float, upper: float, *, context: str) -> float:
+    """The shape parameter h >= ``lower`` at which ``per_stitch(h)`` (mm of yarn per stitch) equals ``target``.
+
+    ``per_stitch`` must grow with h. The bracket [lower, upper] is widened by doubling ``upper``,
+    then :func:`scipy.optimize.brentq` solves to round-off. When even ``lower`` (the smallest
+    shape that still interlocks) needs more yarn than ``target`` the request is impossible:
+    GeometryError names the target, ``context`` (e.g. the pitches) and the least yarn needed.
+    """
+    from scipy.optimize import brentq
+
+    f = lambda h: per_stitch(h) - target  # noqa: E731
+    low = f(lower)
+    if low >= 0.0:
+        raise GeometryError(
+            f"arc length {target:g} mm per stitch is too short for {context}: "
+            f"interlocking loops need more than {low + target:.4g} mm"
+        )
+    while f(upper) <= 0.0:
+        upper *= 2.0
+    return brentq(f, lower, upper, xtol=1e-15 * upper, rtol=4 * np.finfo(float).eps, maxiter=200)
 
 
 # ----------------------------------------------------------------------------------------- frames

@@ -166,7 +166,6 @@ class CellMesh:
     node_arc: np.ndarray  #: (N,) arc length of the node's section along its yarn, mm
     node_tangent: np.ndarray  #: (N, 3) unit centerline tangent at the node's section
     node_offset: np.ndarray  #: (N, 3) node minus centerline point (transverse offset), mm
-    node_bend: np.ndarray  #: (N,) κ·offset: centerline curvature vector dotted with the node's offset, -
     element_body: np.ndarray  #: (n_elements,) yarn index of each tetrahedron
     surface: np.ndarray  #: (M, 3) P1 or (M, 6) P2 node indices of the lateral-surface facets, outward
     surface_body: np.ndarray  #: (M,) yarn index of each surface triangle
@@ -324,8 +323,7 @@ def cell_mesh(
     t0 = time.perf_counter()
 
     # vertices: layer-major, section index minor
-    P, arc, tang, offs, body, ebody, tets, lay, sidx, bend = [], [], [], [], [], [], [], [], [], []
-    curv = {iy: np.gradient(frames[iy][1], ss[iy], axis=0) for iy in frames}  # κ = dT/ds, 1/mm
+    P, arc, tang, offs, body, ebody, tets, lay, sidx = [], [], [], [], [], [], [], [], []
     vstart = 0
     for iy in range(len(yarns)):
         x, T, N, B = frames[iy]
@@ -334,7 +332,6 @@ def cell_mesh(
         off = radius * (sec.points[None, :, 0, None] * Nv[:, None, :] + sec.points[None, :, 1, None] * Bv[:, None, :])
         P.append((xv[:, None, :] + off).reshape(-1, 3))
         offs.append(off.reshape(-1, 3))
-        bend.append(np.einsum("lk,lnk->ln", curv[iy][::2], off).reshape(-1))
         arc.append(np.repeat(ss[iy][::2], n2d))
         tang.append(np.repeat(Tv, n2d, axis=0))
         body.append(np.full((nl + 1) * n2d, iy))
@@ -343,8 +340,7 @@ def cell_mesh(
         tets.append(_prism_tets(sec.triangles, n2d, nl) + vstart)
         ebody.append(np.full(3 * sec.triangles.shape[0] * nl, iy))
         vstart += (nl + 1) * n2d
-    P, arc, tang, offs, body, lay, sidx, bend = (
-        np.concatenate(a) for a in (P, arc, tang, offs, body, lay, sidx, bend))
+    P, arc, tang, offs, body, lay, sidx = (np.concatenate(a) for a in (P, arc, tang, offs, body, lay, sidx))
     t_all, ebody = np.concatenate(tets, axis=1), np.concatenate(ebody)
     mesh1 = skfem.MeshTet1(P.T.copy(), t_all, sort_t=False)
     nv = P.shape[0]
@@ -363,7 +359,6 @@ def cell_mesh(
         Tm = np.empty_like(xm)
         om = np.empty_like(xm)
         am = np.empty(edges.shape[1])
-        bm = np.empty(edges.shape[1])
         for iy in range(len(yarns)):  # per yarn, vectorised over its edges
             sel = yb == iy
             x, T, N, B = frames[iy]
@@ -371,12 +366,10 @@ def cell_mesh(
             o = radius * (xi[sel, 0, None] * N[k] + xi[sel, 1, None] * B[k])
             xm[sel] = x[k] + o
             Tm[sel], om[sel], am[sel] = T[k], o, ss[iy][k]
-            bm[sel] = np.einsum("mk,mk->m", curv[iy][k], o)
         nodes = np.vstack([P, xm])
         arc = np.concatenate([arc, am])
         tang = np.concatenate([tang, Tm])
         offs = np.concatenate([offs, om])
-        bend = np.concatenate([bend, bm])
         body = np.concatenate([body, yb])
         mesh = skfem.MeshTet2(nodes.T.copy(), t_all, sort_t=False)
         lay_n = np.concatenate([lay, 0.5 * lmid2])
@@ -423,7 +416,6 @@ def cell_mesh(
         node_arc=arc,
         node_tangent=tang,
         node_offset=offs,
-        node_bend=bend,
         element_body=ebody,
         surface=tri,
         surface_body=sbody,

@@ -8,9 +8,11 @@ monotone) or a fitted reduced model (its uniaxial response with a free or a fixe
   stretch λ, the force is ``F = Σ w_i T_i(λ)`` (N) and the mean tension ``F / Σ w_i``.
 * **Series** (regions one after another along the load, lengths L_j): every region carries the
   same tension T, and the stretches partition the end displacement,
-  ``Σ_j L_j (λ_j(T) − 1) = u``. The left side is increasing in T, so T is found by a bracketed
-  root search (Chandrupatla, :func:`scipy.optimize.elementwise.find_root`), each λ_j(T) by
-  inverting the region's curve (exactly for Responses, by the same bracketed search for models).
+  ``Σ_j L_j (λ_j(T) − 1) = u``. The left side is increasing in T, so T is found by a bracketed,
+  bisection-safeguarded Newton iteration with ``d/dT = Σ_j L_j / T_j'(λ_j)`` (or by Chandrupatla's
+  bracketed search, :func:`scipy.optimize.elementwise.find_root`, for curves without a slope), each λ_j(T) by
+  inverting the region's curve (exactly for Responses; for models by a safeguarded Newton iteration
+  bracketed by a tabulated curve).
   The displacement of each interface, ``Σ_{k≤j} L_k (λ_k − 1)``, is reported.
 * **Grid** (rows across the load, columns along it): each row is a series chain of the same total
   length, the rows act in parallel. Rows do not exchange shear, so this is the classical
@@ -31,7 +33,7 @@ import attrs
 import numpy as np
 
 from knitframe.errors import NumericalError
-from knitframe.fitting import direction_index
+from knitframe.fitting import FREE_MIN, bracketed_newton, direction_index
 from knitframe.records import Provenance, Response
 
 __all__ = ["ResponseCurve", "ModelCurve", "as_curve", "PatchworkResult", "parallel", "series", "grid"]
@@ -86,6 +88,12 @@ class ResponseCurve:
         slope = (lk[-1] - lk[-2]) / (Tk[-1] - Tk[-2])
         return np.where(T > Tk[-1], lk[-1] + slope * (T - Tk[-1]), np.interp(T, Tk, lk))
 
+    def slope(self, lam: np.ndarray) -> np.ndarray:
+        """dT/dλ of the segment holding λ (the last segment beyond the end), N/mm."""
+        seg = np.diff(self.T) / np.diff(self.lam)
+        i = np.clip(np.searchsorted(self.lam, np.asarray(lam, dtype=np.float64), side="right") - 1, 0, len(seg) - 1)
+        return seg[i]
+
     def extrapolated(self, lam: np.ndarray) -> np.ndarray:
         """True where λ lies beyond the measured range."""
         return np.asarray(lam) > self.lam[-1]
@@ -100,34 +108,64 @@ class ModelCurve:
     direction: int = 0
     lateral: Literal["free", "fixed"] = "free"
     label: str = ""
+    _table: dict = attrs.field(factory=dict, init=False, repr=False)  # tabulated curve, grown on demand
+
+    def _state(self, lam: np.ndarray):
+        """Free-side stretch (or 1) and tension at loaded stretch λ."""
+        if self.lateral == "free":
+            return self.model.solve_uniaxial(self.params, lam, self.direction)
+        one = np.ones_like(lam)
+        return one, self.model.stress(self.params, *((lam, one) if self.direction == 0 else (one, lam)))[self.direction]
 
     def tension(self, lam: np.ndarray) -> np.ndarray:
         """Loaded tension at stretch λ, N/mm."""
+        return self._state(np.atleast_1d(np.asarray(lam, dtype=np.float64)))[1]
+
+    def slope(self, lam: np.ndarray) -> np.ndarray:
+        """dT/dλ along the load path: ∂P_l/∂λ_l, condensed by the free side (K_ll − K_lf²/K_ff) when it is free."""
+        return self.tension_slope(lam)[1]
+
+    def tension_slope(self, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Tension and its slope along the load path from one free-side solve."""
         lam = np.atleast_1d(np.asarray(lam, dtype=np.float64))
-        if self.lateral == "free":
-            return self.model.solve_uniaxial(self.params, lam, self.direction)[1]
-        pair = (lam, np.ones_like(lam)) if self.direction == 0 else (np.ones_like(lam), lam)
-        return self.model.stress(self.params, *pair)[self.direction]
+        lf, T = self._state(lam)
+        d = self.direction
+        K11, K12, K22 = self.model.tangent(self.params, *((lam, lf) if d == 0 else (lf, lam)))
+        Kll, Kff = (K11, K22) if d == 0 else (K22, K11)
+        if self.lateral == "fixed":
+            return T, Kll
+        interior = (lf > FREE_MIN) & (Kff > 0)
+        return T, Kll - np.where(interior, K12 * K12 / np.where(interior, Kff, 1.0), 0.0)
+
+    def _grid(self, T_max: float) -> tuple[np.ndarray, np.ndarray]:
+        """Stretch grid (and its running-maximum tension) reaching at least ``T_max``."""
+        lam, T = self._table.get("lam"), self._table.get("T")
+        top = 1.5
+        while lam is None or T[-1] < T_max:
+            if lam is not None:
+                top = 1.0 + 2.0 * (lam[-1] - 1.0)
+                if top > 1e3:
+                    raise NumericalError(f"region '{self.label}': tension {T_max:.4g} N/mm not reached up to stretch {lam[-1]:.4g}")
+            lam = np.linspace(1.0, top, 257)
+            T = np.maximum.accumulate(self.tension(lam))
+        self._table.update(lam=lam, T=T)
+        return lam, T
 
     def stretch(self, T: np.ndarray) -> np.ndarray:
-        """λ(T) by a bracketed root search on [1, hi]; T below :data:`TAUT` gives the end of any slack."""
-        from scipy.optimize.elementwise import find_root
+        """λ(T): bracketed by the tabulated curve, then Newton on the exact tension (bisection-safeguarded).
 
+        T below :data:`TAUT` gives the end of any slack (the smallest λ carrying TAUT).
+        """
         T = np.maximum(np.atleast_1d(np.asarray(T, dtype=np.float64)), TAUT)
-        hi = np.full_like(T, 1.5)
-        for _ in range(60):
-            short = self.tension(hi) < T
-            if not short.any():
-                break
-            hi = np.where(short, 1.0 + 2.0 * (hi - 1.0), hi)
-        else:
-            raise NumericalError(f"region '{self.label}': tension {T.max():.4g} N/mm not reached up to stretch {hi.max():.4g}")
-        f1 = self.tension(np.ones(1))[0] - T
-        res = find_root(lambda x, t: self.tension(x) - t, (np.ones_like(T), hi), args=(T,))
-        lam = np.where(f1 >= 0, 1.0, res.x)
-        if not np.all(res.success | (f1 >= 0)):
-            raise NumericalError(f"region '{self.label}': inverting the tension curve failed")
-        return lam
+        lam, Tg = self._grid(float(T.max()))
+        i = np.clip(np.searchsorted(Tg, T), 1, len(lam) - 1)
+        lo, hi = lam[i - 1], lam[i]
+        x0 = np.interp(T, Tg, lam)
+        def fdf(x):
+            t, k = self.tension_slope(x)
+            return t - T, k
+
+        return bracketed_newton(fdf, lo, hi, x0, xtol=1e-12, increasing=True)
 
 
 def as_curve(source: Any, direction: str | int = "course", lateral: str = "free", label: str = ""):
@@ -184,6 +222,12 @@ def _chain(curves: Sequence[Any], lengths: np.ndarray, u: np.ndarray) -> tuple[n
     def gap(T, uu):
         return (stretches(T) - 1.0) @ lengths - uu
 
+    def gap_newton(T, uu):
+        lam = stretches(T)
+        with np.errstate(divide="ignore"):
+            dlam = 1.0 / np.stack([c.slope(lam[:, j]) for j, c in enumerate(curves)], axis=-1)
+        return (lam - 1.0) @ lengths - uu, dlam @ lengths
+
     zero = np.zeros_like(u)
     lam0 = stretches(zero)  # end of each region's slack
     slack = (lam0 - 1.0) @ lengths
@@ -192,21 +236,27 @@ def _chain(curves: Sequence[Any], lengths: np.ndarray, u: np.ndarray) -> tuple[n
     lam = np.where(slack[:, None] > 0, 1.0 + (lam0 - 1.0) * (u / np.where(slack > 0, slack, 1.0))[:, None], 1.0)
     if taut.any():
         ut = u[taut]
-        scale = max(float(np.max(np.abs([c.tension(np.array([1.0 + 2.0 * ut.max() / lengths.sum()]))[0]
-                                          for c in curves]))), TAUT)
-        hi = np.full_like(ut, scale)
-        for _ in range(100):
+        # every region at the mean stretch: the stiffest one's tension bounds the chain's from above
+        mean = 1.0 + ut / lengths.sum()
+        hi = np.max([c.tension(mean) for c in curves], axis=0) + TAUT
+        for _ in range(100):  # safety net; the bound above already brackets the root
             short = gap(hi, ut) < 0
             if not short.any():
                 break
             hi = np.where(short, 2.0 * hi, hi)
         else:
             raise NumericalError("series patchwork: no tension reaches the requested stretch")
-        res = find_root(gap, (np.zeros_like(ut), hi), args=(ut,))
-        if not np.all(res.success):
-            raise NumericalError("series patchwork: the equal-tension root search failed")
-        T[taut] = res.x
-        lam[taut] = stretches(res.x)
+        if all(hasattr(c, "slope") for c in curves):
+            # the inner inversions hold λ to ~1e-12, so the tension is asked for to 1e-9 (relative)
+            Tt = bracketed_newton(lambda x: gap_newton(x, ut), np.zeros_like(ut), hi, 0.5 * hi, xtol=1e-9,
+                                  xscale=1e3 * TAUT, increasing=True)
+        else:  # curves without a slope: derivative-free bracketed search
+            res = find_root(gap, (np.zeros_like(ut), hi), args=(ut,))
+            if not np.all(res.success):
+                raise NumericalError("series patchwork: the equal-tension root search failed")
+            Tt = res.x
+        T[taut] = Tt
+        lam[taut] = stretches(Tt)
     return T, lam
 
 

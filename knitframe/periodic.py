@@ -155,6 +155,7 @@ class PointMap:
     lattice: Lattice | None = None
     dofs: np.ndarray = attrs.field(init=False)  #: (m, k, 3, s) global DOF of each slot
     weights: np.ndarray = attrs.field(init=False)  #: (m, k, 3, s) weights
+    imaged: np.ndarray = attrs.field(init=False)  #: (m,) elements with a point at a non-zero image
 
     def __attrs_post_init__(self) -> None:
         nodes = np.asarray(self.nodes, dtype=np.int64)
@@ -175,6 +176,7 @@ class PointMap:
         object.__setattr__(self, "images", images)
         object.__setattr__(self, "dofs", dofs)
         object.__setattr__(self, "weights", w)
+        object.__setattr__(self, "imaged", np.any(images != 0, axis=(1, 2)) if periodic else np.zeros(m, bool))
 
     @property
     def n_dof(self) -> int:
@@ -195,16 +197,37 @@ class PointMap:
         return np.bincount(self.dofs.reshape(-1), vals.reshape(-1), minlength=self.n_dof)
 
     def hessian_coo(self, H: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """COO triplets (rows, cols, vals) of Jᵀ·H·J for element Hessians H (m, k, 3, k, 3)."""
+        """COO triplets (rows, cols, vals) of Jᵀ·H·J for element Hessians H (m, k, 3, k, 3).
+
+        With J = [I | M] (node part, macro part M (3k, 6) of the image shifts), the blocks are
+        H (node–node), H·M and Mᵀ·H (node–macro) and Mᵀ·H·M (macro–macro); the macro blocks
+        are formed only for elements that have a point at a non-zero image.
+        """
         m, k = self.nodes.shape
-        s = self.dofs.shape[-1]
-        d = self.dofs.reshape(m, 3 * k * s)
-        w = self.weights.reshape(m, 3 * k, s)
-        Hl = H.reshape(m, 3 * k, 3 * k)
-        vals = np.einsum("mai,mab,mbj->maibj", w, Hl, w).reshape(m, 3 * k * s, 3 * k * s)
-        rows = np.broadcast_to(d[:, :, None], vals.shape)
-        cols = np.broadcast_to(d[:, None, :], vals.shape)
-        return rows.reshape(-1), cols.reshape(-1), vals.reshape(-1)
+        n3 = 3 * k
+        Hl = H.reshape(m, n3, n3)
+        nd = self.dofs[..., 0].reshape(m, n3)
+        rows = [np.broadcast_to(nd[:, :, None], Hl.shape).reshape(-1)]
+        cols = [np.broadcast_to(nd[:, None, :], Hl.shape).reshape(-1)]
+        vals = [Hl.reshape(-1)]
+        sel = self.imaged
+        if np.any(sel):
+            Hs = Hl[sel]
+            S = self.weights[sel][..., 1:].reshape(len(Hs), n3, 2)
+            M = np.zeros((len(Hs), n3, N_MACRO))
+            for c in range(3):
+                M[:, c::3, 2 * c: 2 * c + 2] = S[:, c::3, :]
+            HM = Hs @ M
+            MHM = np.einsum("mai,mab->ib", M, HM)
+            macro = 3 * self.n_nodes + np.arange(N_MACRO)
+            nds = nd[sel]
+            shape = HM.shape
+            rows += [np.broadcast_to(nds[:, :, None], shape).reshape(-1),
+                     np.broadcast_to(macro[None, None, :], shape).reshape(-1), np.repeat(macro, N_MACRO)]
+            cols += [np.broadcast_to(macro[None, None, :], shape).reshape(-1),
+                     np.broadcast_to(nds[:, :, None], shape).reshape(-1), np.tile(macro, N_MACRO)]
+            vals += [HM.reshape(-1), np.einsum("mab,mbi->mai", Hs, M).reshape(-1), MHM.reshape(-1)]
+        return np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
 
     def hessian(self, H: np.ndarray) -> sp.csr_matrix:
         """Global sparse Hessian (n_dof, n_dof) from element Hessians H (m, k, 3, k, 3)."""

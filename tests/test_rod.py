@@ -11,6 +11,7 @@ from knitframe.newton import NewtonOptions, continuation, minimise
 from knitframe.periodic import Lattice, macro_index
 from knitframe_contact.rod_penalty import RodPenalty
 from knitframe_linsolvers.direct import direct
+from knitframe_solvers.rod_contact import line_energy
 from knitframe_solvers.rod_model import RodEnergy, from_cell, open_rods
 
 EA, EI = 50.0, 0.05
@@ -115,20 +116,19 @@ def test_cantilever_matches_the_elastica():
     assert np.abs(tip - tip_ref).max() < 1e-3 * L
 
 
-def crossing_rods(drop, n=20, span=4.0, z0=0.5):
-    """Rod A fixed along x at z = 0; rod B along y at z = z0 (crossing mid-segment), end nodes lowered by ``drop``."""
+def crossing_rods(n=40, span=4.0, z0=0.5):
+    """Rod A along x at z = 0; rod B along y at z = z0, crossing A between two of its nodes."""
     s = np.linspace(-span / 2, span / 2, n)
     A = np.stack([s, np.zeros(n), np.zeros(n)], 1)
     B = np.stack([np.zeros(n), s, np.full(n, z0)], 1)
-    model = open_rods([A, B])
-    return model
+    return open_rods([A, B])
 
 
 def test_crossing_rods_pressed_together_follow_the_contact_law():
-    """The end reaction equals the law's force at the crossing and the beam's three-point-bending compliance."""
+    """Pressing a simply supported rod onto a crossing one: the reaction is 2π d φ(d) and the beam deflects F L³/48EI."""
     law = RodPenalty(core=0.0)
-    dk, k, EIb, span, z0, drop = 0.4, 0.5, 2.0, 4.0, 0.41, 0.06
-    model = crossing_rods(drop, span=span, z0=z0)
+    dk, k, EIb, span, z0, drop = 0.4, 50.0, 2.0, 4.0, 0.41, 0.06
+    model = crossing_rods(span=span, z0=z0)
     en = RodEnergy(model, 1e4, EIb, law=law, dk=dk, k_contact=k)
     n = model.n_nodes // 2
     q = np.zeros(model.n_dof)
@@ -137,33 +137,59 @@ def test_crossing_rods_pressed_together_follow_the_contact_law():
     free = np.ones(model.n_dof, bool)
     free[: 3 * n] = False  # rod A fixed
     for e in ends:
-        free[3 * e: 3 * e + 3] = False  # B pinned at its ends
+        free[3 * e: 3 * e + 3] = False  # B on supports...
+    free[3 * ends[1] + 1] = True  # ...one of them a roller, so B carries no membrane tension
     free[3 * model.n_nodes:] = False
-    res = minimise(en, q, free, solve=direct(), options=NewtonOptions(atol=1e-10, rtol=0.0, xtol=1e-12))
+    res = minimise(en, q, free, solve=direct(), options=NewtonOptions(atol=1e-12, rtol=0.0, xtol=1e-13))
     F = -sum(res.gradient[3 * e + 2] for e in ends)  # upward push of the contact on B, N
-    pr = en.pairs(res.x)
-    assert len(pr) == 1
-    d = pr.distance[0]
-    assert F > 1e-3 and F == pytest.approx(law.force(np.array([d]), dk, k)[0], rel=1e-6)
-    # small-deflection beam: end drop = rigid approach + mid-span deflection F L³ / (48 EI)
-    assert (z0 - d) + F * span**3 / (48 * EIb) == pytest.approx(drop, rel=0.02)
+    d = en.pairs(res.x).distance.min()
+    # perpendicular lines: E(d) = 2π ∫_d^dk φ(r) r dr, so F = −E′(d) = 2π d φ(d)
+    phi = law.normal(np.array([d]), dk, k)[0][0]
+    assert F > 1e-3 and F == pytest.approx(2 * np.pi * d * phi, rel=5e-3)
+    assert (z0 - d) + F * span**3 / (48 * EIb) == pytest.approx(drop, rel=2e-3)
+
+
+def test_parallel_yarns_carry_the_line_load_of_the_contact_law():
+    """Two straight periodic yarns a distance d apart push each other with the line load −ψ′(d) of the law."""
+    law = RodPenalty()
+    dk, k, kc, gap = 0.4, 50.0, 800.0, 0.36
+
+    def straight(y0, name):
+        return Centerline(name, lambda t: np.stack([t, np.full_like(t, y0), 0 * t], 1),
+                          lambda t: np.stack([1 + 0 * t, 0 * t, 0 * t], 1), 0.0, 2.0, [2.0, 0, 0])
+
+    cell = UnitCell("parallel", (straight(0.0, "row0"), straight(gap, "row1")), [2.0, 0, 0], [0, 4.0, 0], 0.5 * dk,
+                    ((0, 0), (1, 1)), (("k", "k"), ("k", "k")), 1.0, 1.0, 2.0)
+    model = from_cell(cell, 10)
+    en = RodEnergy(model, EA, EI, law=law, dk=dk, k_contact=k, k_core=kc)
+    E, g, _, _ = en(np.zeros(model.n_dof), 1)
+    row1 = model.yarn == 1
+    push = g[: 3 * model.n_nodes].reshape(-1, 3)[row1, 1].sum() / 2.0  # N per mm of yarn
+    assert E / 2.0 == pytest.approx(line_energy(law, gap, dk, k, kc), rel=1e-4)
+    assert push == pytest.approx(line_energy(law, gap, dk, k, kc, derivative=1), rel=2e-3)
 
 
 def test_friction_resists_sliding_with_mu_times_normal_force():
-    """Sliding pressed crossing rods past each other needs a tangential force μ·N once slip ≫ ε_s."""
+    """Sliding pressed crossing rods past each other by ≫ ε_s needs μ times the normal force of each contacting point pair."""
     law = RodPenalty(core=0.0, friction=0.3, slip=0.001)
-    dk, k = 0.4, 0.5
-    model = crossing_rods(0.0, z0=0.39)
+    dk, k = 0.4, 50.0
+    model = crossing_rods(z0=0.36)
     n = model.n_nodes // 2
     en = RodEnergy(model, 1e4, 1e3, law=law, dk=dk, k_contact=k, friction=True)
-    free = np.zeros(model.n_dof, bool)  # both rods rigid: all DOFs prescribed
     q = np.zeros(model.n_dof)
     en.update_lag(q)
+    _, g0, _, _ = en(q, 1)
+    N = -g0[3 * n + 2: 6 * n: 3].sum()  # normal (z) force of the contact on B, N
     q[3 * n: 6 * n: 3] = 0.05  # slide B along x by 0.05 mm ≫ ε_s = 0.4 µm
     _, g, _, _ = en(q, 1)
-    N = law.force(np.array([0.39]), dk, k)[0]
-    assert g[3 * n: 6 * n: 3].sum() == pytest.approx(0.3 * N, rel=1e-6)
-    assert en.calls["friction"] == 1
+    en.friction = False
+    _, g_normal, _, _ = en(q, 1)
+    lag = en.lag
+    tangential = np.sqrt(1.0 - lag.normal[:, 0] ** 2)  # |(I − n nᵀ) e_x| of each point pair
+    F = (g - g_normal)[3 * n: 6 * n: 3].sum()
+    assert N > 1e-3 and F == pytest.approx(0.3 * np.sum(lag.lam * tangential), rel=1e-6)
+    assert F == pytest.approx(0.3 * N, rel=0.05)  # the patch is nearly flat: μ times the total normal force
+    assert en.calls["friction"] == 2
 
 
 def test_straight_periodic_yarn_tension_is_EA_strain_per_width():

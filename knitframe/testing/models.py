@@ -111,6 +111,10 @@ def check_homogenizer(obj: Any) -> None:
             _close(K12, (c1 - d1) / (2 * h), 1e-5, "dP1/dλ2", fl)
             _close(K12, (a2 - b2) / (2 * h), 1e-5, "dP2/dλ1 (tangent symmetry)", fl)
             _close(K22, (c2 - d2) / (2 * h), 1e-5, "dP2/dλ2", fl)
+        if hasattr(m, "stress_tangent"):
+            both = m.stress_tangent(p, l1, l2)
+            for got, want, what in zip(both, (P1, P2, *m.tangent(p, l1, l2)), ("P1", "P2", "K11", "K12", "K22")):
+                _close(got, want, 1e-12, f"stress_tangent {what} vs stress/tangent")
     extreme = np.array([0.05, 0.3, 1.0, 3.0, 20.0])
     e1, e2 = (a.ravel() for a in np.meshgrid(extreme, extreme))
     with np.errstate(over="raise", invalid="raise", divide="raise"):

@@ -38,7 +38,7 @@ import numpy as np
 from knitframe import hookimpl
 from knitframe.fitting import solve_free_side
 
-__all__ = ["HGO", "Z_CAP", "capped_exp", "fibre_terms", "abaqus_card", "febio_block"]
+__all__ = ["HGO", "Z_CAP", "capped_exp", "fibre_terms", "fibre_gh", "abaqus_card", "febio_block"]
 
 #: Exponent above which exp(z) is continued by its second-order Taylor polynomial (see module doc).
 Z_CAP = 200.0
@@ -89,16 +89,25 @@ def fibre_terms(a: float, b: float, i4: np.ndarray, compression: bool) -> dict[s
     }
 
 
-def fibre_stress(a: float, b: float, theta: float, lam1: np.ndarray, lam2: np.ndarray, compression: bool):
-    """Fibre tensions only (the cheap path used for throughput): ``P = g ∂I4/∂λ``, N/mm."""
-    c2, s2 = math.cos(theta) ** 2, math.sin(theta) ** 2
-    x = lam1 * lam1 * c2 + lam2 * lam2 * s2 - 1.0
+def fibre_gh(a: float, b: float, i4: np.ndarray, compression: bool, second: bool = True):
+    """``g = ∂ψ/∂I4`` and (if ``second``) ``h = ∂²ψ/∂I4²`` only: the cheap path of :func:`fibre_terms`."""
+    x = i4 - 1.0
     if not compression:
         x = np.maximum(x, 0.0)
     z = b * x * x
     zl = np.minimum(z, Z_CAP)
-    e1 = np.exp(zl) * (1.0 + (z - zl))
+    ez = np.exp(zl)
+    e1 = ez * (1.0 + (z - zl))
     g = 2.0 * a * x * e1
+    if not second:
+        return g, None
+    return g, 2.0 * a * (e1 + 2.0 * z * ez) * (True if compression else i4 > 1.0)
+
+
+def fibre_stress(a: float, b: float, theta: float, lam1: np.ndarray, lam2: np.ndarray, compression: bool):
+    """Fibre tensions only (the path used for throughput): ``P = g ∂I4/∂λ``, N/mm."""
+    c2, s2 = math.cos(theta) ** 2, math.sin(theta) ** 2
+    g, _ = fibre_gh(a, b, lam1 * lam1 * c2 + lam2 * lam2 * s2, compression, second=False)
     return 2.0 * g * lam1 * c2, 2.0 * g * lam2 * s2
 
 
@@ -126,14 +135,6 @@ def fibre_stress_grad(a, b, theta, lam1, lam2, compression):
     dP1 = np.stack([f["g_a"] * k["d1"], f["g_b"] * k["d1"], h * k["dt"] * k["d1"] + g * k["d1t"]], axis=-1)
     dP2 = np.stack([f["g_a"] * k["d2"], f["g_b"] * k["d2"], h * k["dt"] * k["d2"] + g * k["d2t"]], axis=-1)
     return g * k["d1"], g * k["d2"], dP1, dP2
-
-
-def fibre_tangent(a, b, theta, lam1, lam2, compression):
-    """Fibre tangent ``(∂P1/∂λ1, ∂P1/∂λ2, ∂P2/∂λ2)``, N/mm."""
-    k = fibre_kinematics(theta, lam1, lam2)
-    f = fibre_terms(a, b, k["i4"], compression)
-    g, h = f["g"], f["h"]
-    return h * k["d1"] ** 2 + 2.0 * g * k["c2"], h * k["d1"] * k["d2"], h * k["d2"] ** 2 + 2.0 * g * k["s2"]
 
 
 def as_stretch(lam1, lam2) -> tuple[np.ndarray, np.ndarray]:
@@ -260,9 +261,16 @@ class HGO:
 
     def tangent(self, params, lam1, lam2):
         """``(∂P1/∂λ1, ∂P1/∂λ2, ∂P2/∂λ2)``, N/mm (∂P2/∂λ1 = ∂P1/∂λ2)."""
+        return self.stress_tangent(params, lam1, lam2)[2:]
+
+    def stress_tangent(self, params, lam1, lam2):
+        """``(P1, P2, ∂P1/∂λ1, ∂P1/∂λ2, ∂P2/∂λ2)`` from one evaluation of the fibre law."""
         a, b, theta = params
         l1, l2 = as_stretch(lam1, lam2)
-        return fibre_tangent(a, b, theta, l1, l2, self.compression_fibre)
+        c2, s2 = math.cos(theta) ** 2, math.sin(theta) ** 2
+        d1, d2 = 2.0 * l1 * c2, 2.0 * l2 * s2
+        g, h = fibre_gh(a, b, l1 * l1 * c2 + l2 * l2 * s2, self.compression_fibre)
+        return g * d1, g * d2, h * d1 * d1 + 2.0 * g * c2, h * d1 * d2, h * d2 * d2 + 2.0 * g * s2
 
     def solve_uniaxial(self, params, lam, direction="course"):
         """Free-side stretch and loaded tension under uniaxial load: ``(lam_free, P_loaded)``.

@@ -37,7 +37,7 @@ import numpy as np
 from knitframe import hookimpl
 from knitframe.errors import KnitframeError
 from knitframe.fitting import solve_free_side
-from knitframe_homogenizers.hgo import _fmt, as_stretch, febio_block, fibre_terms
+from knitframe_homogenizers.hgo import _fmt, as_stretch, febio_block, fibre_gh, fibre_terms
 
 __all__ = ["HGO2M"]
 
@@ -89,7 +89,7 @@ class HGO2M:
         l1, l2 = as_stretch(lam1, lam2)
         q = 0.5 * K * (l1 * l1 * l2 * l2 - 1.0)
         c = self.compression_fibre
-        g1, g2 = _fibre(a1, b1, l1, c)["g"], _fibre(a2, b2, l2, c)["g"]
+        g1, g2 = fibre_gh(a1, b1, l1 * l1, c, second=False)[0], fibre_gh(a2, b2, l2 * l2, c, second=False)[0]
         return mu1 * (l1 - 1.0 / l1) + q / l1 + 2.0 * l1 * g1, mu2 * (l2 - 1.0 / l2) + q / l2 + 2.0 * l2 * g2
 
     def stress_grad(self, params, lam1, lam2):
@@ -109,14 +109,22 @@ class HGO2M:
 
     def tangent(self, params, lam1, lam2):
         """``(∂P1/∂λ1, ∂P1/∂λ2, ∂P2/∂λ2)``, N/mm; the diagonal terms are > 0 for tension-only fibres."""
+        return self.stress_tangent(params, lam1, lam2)[2:]
+
+    def stress_tangent(self, params, lam1, lam2):
+        """``(P1, P2, ∂P1/∂λ1, ∂P1/∂λ2, ∂P2/∂λ2)`` sharing one evaluation of each fibre (the free-side solve's path)."""
         mu1, mu2, K, a1, b1, a2, b2 = params
         l1, l2 = as_stretch(lam1, lam2)
         c = self.compression_fibre
-        f1, f2 = _fibre(a1, b1, l1, c), _fibre(a2, b2, l2, c)
+        g1, h1 = fibre_gh(a1, b1, l1 * l1, c)
+        g2, h2 = fibre_gh(a2, b2, l2 * l2, c)
+        q = 0.5 * K * (l1 * l1 * l2 * l2 - 1.0)
         i1, i2 = 1.0 / (l1 * l1), 1.0 / (l2 * l2)
-        k11 = mu1 * (1.0 + i1) + 0.5 * K * (l2 * l2 + i1) + 4.0 * l1 * l1 * f1["h"] + 2.0 * f1["g"]
-        k22 = mu2 * (1.0 + i2) + 0.5 * K * (l1 * l1 + i2) + 4.0 * l2 * l2 * f2["h"] + 2.0 * f2["g"]
-        return k11, K * l1 * l2, k22
+        P1 = mu1 * (l1 - 1.0 / l1) + q / l1 + 2.0 * l1 * g1
+        P2 = mu2 * (l2 - 1.0 / l2) + q / l2 + 2.0 * l2 * g2
+        k11 = mu1 * (1.0 + i1) + 0.5 * K * (l2 * l2 + i1) + 4.0 * l1 * l1 * h1 + 2.0 * g1
+        k22 = mu2 * (1.0 + i2) + 0.5 * K * (l1 * l1 + i2) + 4.0 * l2 * l2 * h2 + 2.0 * g2
+        return P1, P2, k11, K * l1 * l2, k22
 
     def solve_uniaxial(self, params, lam, direction="course"):
         """Free-side stretch (the unique root of P_free = 0) and loaded tension: ``(lam_free, P_loaded)``."""

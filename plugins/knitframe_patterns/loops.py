@@ -38,25 +38,30 @@ import attrs
 import numpy as np
 
 from knitframe import validators as v
-from knitframe.errors import FieldError, GeometryError, NumericalError
-from knitframe.geometry import Centerline, UnitCell, crossings
+from knitframe.errors import GeometryError, NumericalError
+from knitframe.geometry import (
+    MUNDEN_KC,
+    MUNDEN_KW,
+    STITCH_LENGTHS,
+    Centerline,
+    UnitCell,
+    arc_length_for,
+    check_stitch_lengths,
+    crossings,
+    munden_pitches,
+    smooth_sign,
+    solve_arc_length,
+)
 from knitframe.records import Fabric
 
 __all__ = ["STITCH_LENGTHS", "KC", "KW", "LoopRow", "KnitLoopPattern", "arc_length_for"]
 
-#: Machine stitch-length setting -> yarn length per jersey stitch, mm (paper's microscopy, 12 stitches).
-STITCH_LENGTHS: dict[str, float] = {"10": 3.9, "11": 4.7, "12": 5.9}
-#: Munden's constants for relaxed plain knit (courses/cm = Kc/ℓ, wales/cm = Kw/ℓ, ℓ in cm); mid-range values.
-KC, KW = 5.3, 4.0
+# The stitch-length table, Munden's constants and the smooth sign live in knitframe.geometry so
+# that third-party patterns can use them; the old names stay importable from here.
+KC, KW = MUNDEN_KC, MUNDEN_KW
+_step = smooth_sign
 
 SIGN = {"k": 1.0, "p": -1.0}
-
-
-def _step(c: np.ndarray, kappa: float) -> tuple[np.ndarray, np.ndarray]:
-    """S(c) = tanh(κc)/tanh κ and dS/dc: a smooth sign that is ±1 at c = ±1."""
-    th = np.tanh(kappa * c)
-    k = np.tanh(kappa)
-    return th / k, kappa * (1.0 - th * th) / k
 
 
 @attrs.frozen
@@ -119,28 +124,7 @@ class LoopRow:
         return Centerline(name, self.position, self.derivative, -np.pi, 3.0 * np.pi, (2.0 * self.course_pitch, 0.0, 0.0))
 
 
-def _check_table(instance, attribute, value) -> None:
-    for key, length in value.items():
-        try:
-            float(key)
-        except ValueError:
-            raise FieldError(f"{attribute.name}.{key}", "key must be a machine setting number, e.g. \"11\"") from None
-        if not (isinstance(length, (int, float)) and np.isfinite(length) and length > 0):
-            raise FieldError(f"{attribute.name}.{key}", f"must be an arc length > 0 mm, got {length!r}")
-
-
-def arc_length_for(fabric: Fabric, table: dict[str, float]) -> float:
-    """Yarn length per stitch, mm: ``fabric.arc_length`` if given, else the machine setting looked up in ``table``."""
-    if fabric.arc_length is not None:
-        return float(fabric.arc_length)
-    for key, length in table.items():
-        if float(key) == float(fabric.stitch_length):
-            return float(length)
-    known = ", ".join(f"{k} -> {val} mm" for k, val in sorted(table.items(), key=lambda kv: float(kv[0])))
-    raise GeometryError(
-        f"stitch_length {fabric.stitch_length:g} is not in the stitch-length table ({known}); "
-        "give arc_length in mm or add the setting to the pattern's stitch_lengths"
-    )
+_check_table = check_stitch_lengths
 
 
 @attrs.frozen
@@ -164,10 +148,7 @@ class KnitLoopPattern:
 
     def pitches(self, arc: float, fabric: Fabric) -> tuple[float, float]:
         """(course, wale) pitch in mm: the fabric's if given, else Munden's ℓ/Kw and ℓ/Kc."""
-        return (
-            float(fabric.course_pitch) if fabric.course_pitch is not None else arc / self.Kw,
-            float(fabric.wale_pitch) if fabric.wale_pitch is not None else arc / self.Kc,
-        )
+        return munden_pitches(arc, fabric, self.Kc, self.Kw)
 
     def rows(self, height: float, pc: float, pw: float, dk: float) -> list[LoopRow]:
         """The two LoopRows for loop-height amplitude ``height`` (mm)."""
@@ -182,25 +163,16 @@ class KnitLoopPattern:
 
     def cell(self, fabric: Fabric) -> UnitCell:
         """The 2x2 unit cell whose arc length per stitch matches the fabric's to 1e-9 relative."""
-        from scipy.optimize import brentq
-
         if set(s for row in self.layout for s in row) - set(SIGN) or np.shape(self.layout) != (2, 2):
             raise GeometryError(f"pattern '{self.name}': layout must be 2x2 of 'k'/'p', got {self.layout}")
         arc = arc_length_for(fabric, self.stitch_lengths)
         pc, pw = self.pitches(arc, fabric)
         dk = float(fabric.yarn.dk)
-        h_min = 0.5 * pw  # below this the heads of one row do not reach the legs of the next
-        f = lambda h: self._per_stitch(h, pc, pw, dk) - arc  # noqa: E731
-        low = f(h_min)
-        if low >= 0.0:
-            raise GeometryError(
-                f"arc length {arc:g} mm per stitch is too short for course pitch {pc:.4g} mm, wale pitch {pw:.4g} mm "
-                f"and dk {dk:g} mm: interlocking loops need more than {low + arc:.4g} mm"
-            )
-        h_hi = max(pw, arc)
-        while f(h_hi) <= 0.0:
-            h_hi *= 2.0
-        height = brentq(f, h_min, h_hi, xtol=1e-15 * h_hi, rtol=4 * np.finfo(float).eps, maxiter=200)
+        # below H = p_w/2 the heads of one row do not reach the legs of the next
+        height = solve_arc_length(
+            lambda h: self._per_stitch(h, pc, pw, dk), arc, 0.5 * pw, max(pw, arc),
+            context=f"course pitch {pc:.4g} mm, wale pitch {pw:.4g} mm and dk {dk:g} mm",
+        )
         rows = self.rows(height, pc, pw, dk)
         yarns = tuple(row.centerline(f"row{r}") for r, row in enumerate(rows))
         got = sum(y.arc_length() for y in yarns) / 4.0

@@ -45,7 +45,7 @@ from knitframe import hookimpl, validators as v
 from knitframe.csvio import Table, read_table
 from knitframe.errors import DataError
 from knitframe.records import Provenance, Response
-from knitframe_readers.singal2024 import average_repeats
+from knitframe_readers.singal2024 import Singal2024Reader, average_repeats
 
 _DIRECTIONS = {"course": "uniaxial-course", "x": "uniaxial-course", "wale": "uniaxial-wale", "y": "uniaxial-wale"}
 
@@ -174,12 +174,8 @@ class GenericReader:
 
 
 def _response(d, lam, lat, tension, lat_sd, ten_sd, n, label, load, prov) -> Response:
-    zero = np.zeros_like(tension)
-    if d == 0:
-        return Response(lam, lat, tension, zero, load=load, label=label, n_samples=n, T1_sd=ten_sd,
-                        lambda2_sd=lat_sd, provenance=prov)
-    return Response(lat, lam, zero, tension, load=load, label=label, n_samples=n, T2_sd=ten_sd,
-                    lambda1_sd=lat_sd, provenance=prov)
+    """The same Response layout as the Singal et al. reader (loaded side measured, free side T = 0)."""
+    return Singal2024Reader._response(load, lam - 1.0, lat - 1.0, tension, lat_sd, ten_sd, n, label, prov)
 
 
 @hookimpl

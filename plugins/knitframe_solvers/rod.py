@@ -41,25 +41,38 @@ from knitframe.periodic import macro_index
 from knitframe.plugins import get_registry
 from knitframe.records import Fabric, Provenance, Response, Scene
 
+from knitframe_solvers.rod_contact import line_energy
 from knitframe_solvers.rod_model import RodEnergy, RodModel, from_cell
 
 __all__ = ["RodSolver", "rod_stiffness", "write_rod_vtu"]
 
 
-def rod_stiffness(yarn, registry=None) -> dict[str, float]:
-    """EA (N), EI (N·mm²) and the point-contact stiffness k (N/mm) of a yarn, from its yarn model.
+def rod_stiffness(yarn, registry=None, law=None, line_stiffness: float | None = None) -> dict[str, float]:
+    """EA (N), EI (N·mm²) and the contact stiffnesses of a yarn, from its yarn model.
 
-    k is the yarn model's tangent line-contact stiffness (N/mm², Hertz line contact with the
-    transverse modulus) at the line load that flattens a pair by 5 % of dk, times the contact
-    length dk of two crossing yarns. The core stiffness k_core = E_axial·dk (N/mm) is that of
-    the packed fibres, used by the contact law's barrier.
+    ``k_line`` (N/mm²) is the yarn model's tangent line-contact stiffness (Hertz line contact
+    with the transverse modulus) at the line load that flattens a pair of parallel yarns by 5 %
+    of dk, unless ``line_stiffness`` overrides it. Given a rod contact ``law``, its energy
+    density φ is scaled so that two parallel yarns reproduce it: ``k_contact`` (N/mm³) makes
+    ψ″(0.95 dk) = k_line, with ψ(d) = ∫ φ(√(d² + τ²)) dτ
+    (:func:`knitframe_solvers.rod_contact.line_energy`). The core (barrier) of the packed fibres
+    gets ``k_core`` (N/mm³), which makes the line stiffness E_axial halfway through the
+    barrier's band.
     """
     registry = registry or get_registry()
     model = registry["yarn_model"][yarn.model].from_yarn(yarn)
-    f_ref = float(np.asarray(model.contact_load(np.array([0.05 * yarn.dk])))[0])
-    k_line = float(np.asarray(model.contact_stiffness(np.array([f_ref])))[0])
-    return {"EA": float(model.EA), "EI": float(model.EI), "k_contact": k_line * yarn.dk,
-            "k_core": float(yarn.E_axial * yarn.dk)}
+    if line_stiffness is None:
+        f_ref = float(np.asarray(model.contact_load(np.array([0.05 * yarn.dk])))[0])
+        line_stiffness = float(np.asarray(model.contact_stiffness(np.array([f_ref])))[0])
+    out = {"EA": float(model.EA), "EI": float(model.EI), "k_line": float(line_stiffness)}
+    if law is not None:
+        dk = yarn.dk
+        out["k_contact"] = line_stiffness / line_energy(law, 0.95 * dk, dk, 1.0, 0.0, derivative=2)
+        core = float(getattr(law, "core", 0.0))
+        y_mid = 0.5 * (core + 0.5 * (1.0 + core))
+        out["k_core"] = (float(yarn.E_axial) / line_energy(law, y_mid * dk, dk, 0.0, 1.0, derivative=2)
+                         if core > 0 else 0.0)
+    return out
 
 
 def write_rod_vtu(path: Path, model: RodModel, q: np.ndarray, radius: float, cell_data: dict | None = None) -> Path:
@@ -115,7 +128,8 @@ class RodSolver:
     on_failure: Literal["raise", "truncate"] = "raise"  #: "truncate" returns the converged steps (converged = false)
     EA: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: override axial stiffness, N
     EI: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: override bending stiffness, N·mm²
-    contact_stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: override k, N/mm
+    contact_stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: override the line contact stiffness at 5 % flattening, N/mm²
+    contact_quadrature: int = attrs.field(default=4, validator=v.in_range(1, 16))  #: Gauss points per segment (each way) of the contact integral, -
 
     # ------------------------------------------------------------------------------------- setup
     def setup(self, fabric: Fabric, scene: Scene, registry=None) -> tuple[RodModel, RodEnergy, Any]:
@@ -123,20 +137,18 @@ class RodSolver:
         registry = registry or get_registry()
         cell = registry["pattern"][fabric.pattern]().cell(fabric)
         model = from_cell(cell, self.segments_per_stitch)
-        stiff = rod_stiffness(fabric.yarn, registry)
-        EA = self.EA or stiff["EA"]
-        EI = self.EI or stiff["EI"]
         law = None
-        k = self.contact_stiffness or stiff["k_contact"]
         if "contact" in scene.effects:
             law = instantiate(registry, "contact_law", self.contact_law, "solver.contact_law")
             if getattr(law, "discretisation", None) != "rod":
                 raise ConfigError("solver.contact_law", f"contact law '{law.name}' is for '{law.discretisation}', not rods")
-            k = getattr(law, "stiffness", None) or k
+        stiff = rod_stiffness(fabric.yarn, registry, law,
+                              line_stiffness=self.contact_stiffness or getattr(law, "stiffness", None))
         energy = RodEnergy(
-            model, EA, EI, bending="bending" in scene.effects, law=law, dk=cell.dk, k_contact=k, k_core=stiff["k_core"],
+            model, self.EA or stiff["EA"], self.EI or stiff["EI"], bending="bending" in scene.effects, law=law,
+            dk=cell.dk, dk_full=cell.dk, k_contact=stiff.get("k_contact", 0.0), k_core=stiff.get("k_core"),
             self_contact="self_contact" in scene.effects, exclusion=self.self_contact_exclusion * cell.dk,
-            friction="friction" in scene.effects,
+            friction="friction" in scene.effects, quadrature=self.contact_quadrature, k_line=stiff["k_line"],
         )
         return model, energy, cell
 
@@ -322,7 +334,7 @@ class RodSolver:
             kind="simulation", source=f"rod {fabric.pattern}", solver=self.name,
             mesh=f"{model.n_nodes} nodes, {len(model.edges)} segments ({self.segments_per_stitch}/stitch)",
             wall_time=time.perf_counter() - t_start, converged=converged, notes="; ".join(notes),
-            extra={"EA_N": energy.EA, "EI_Nmm2": energy.EI, "k_contact_N_per_mm": energy.k_contact,
+            extra={"EA_N": energy.EA, "EI_Nmm2": energy.EI, "k_line_N_per_mm2": energy.k_line,
                    "dk_mm": cell.dk, "L1_mm": lat.L1.tolist(), "L2_mm": lat.L2.tolist(),
                    "effects": sorted(scene.effects), "options": attrs.asdict(self)},
         )

@@ -24,7 +24,7 @@ import scipy.sparse as sp
 from knitframe.contact_search import SegmentTopology, find_pairs
 from knitframe.periodic import N_MACRO, Lattice, PointMap
 
-from knitframe_solvers.rod_contact import contact_energy, friction_energy, pair_weights
+from knitframe_solvers.rod_contact import friction_energy, gauss_points, pair_weights, quadrature_contact
 from knitframe_solvers.rod_terms import bend, stretch
 
 __all__ = ["RodModel", "RodEnergy", "from_cell", "open_rods"]
@@ -97,10 +97,8 @@ def open_rods(polylines: list[np.ndarray]) -> RodModel:
     l0 = np.linalg.norm(X[E[:, 1]] - X[E[:, 0]], axis=1)
     lbar = 0.5 * (np.linalg.norm(X[T[:, 1]] - X[T[:, 0]], axis=1) + np.linalg.norm(X[T[:, 2]] - X[T[:, 1]], axis=1))
     n_r = len(polylines)
-    prev = np.arange(len(E)) - 1
-    prev[np.concatenate([[0], np.cumsum([len(p) - 1 for p in polylines])[:-1]])] = -1
     topo = SegmentTopology(np.concatenate(strand), np.zeros(len(E), np.int64), np.concatenate(arc),
-                           np.zeros(n_r, np.int64), np.zeros(n_r), prev, np.zeros((len(E), 2), np.int64))
+                           np.zeros(n_r, np.int64), np.zeros(n_r))
     return RodModel(X, E, np.zeros((len(E), 2, 2), np.int64), T, np.zeros((len(T), 3, 2), np.int64),
                     l0, lbar, topo, np.concatenate(yarn))
 
@@ -176,39 +174,40 @@ def from_cell(cell: Any, segments_per_stitch: int) -> RodModel:
         sel = seg_y == i
         li = l0[sel]
         arc[sel] = offset[i] + np.concatenate([[0.0], np.cumsum(li)[:-1]]) + 0.5 * li
-    # previous segment along the yarn; a yarn's first segment follows the last one of the yarn before it
-    seg_start = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    prev = np.arange(len(E)) - 1
-    prev_img = np.zeros((len(E), 2), np.int64)
-    for j in range(n_y):
-        i = prev_of[j]
-        prev[seg_start[j]] = seg_start[i] + counts[i] - 1
-        prev_img[seg_start[j]] = (-1, 0)
-    topo = SegmentTopology(strand_of[seg_y], pos[seg_y], arc, cycle, length, prev, prev_img)
+    topo = SegmentTopology(strand_of[seg_y], pos[seg_y], arc, cycle, length)
     node_yarn = np.concatenate([np.full(counts[i], i) for i in range(n_y)])
     return RodModel(X, E, EI_, T, TI, l0, lbar, topo, node_yarn, lattice)
 
 
 @attrs.define(eq=False)
 class FrictionLag:
-    """Contacts of the last converged state, whose normal force and normal friction uses."""
+    """Contacting point pairs of the last converged state, whose normal force and normal friction uses."""
 
-    i: np.ndarray
-    j: np.ndarray
-    k: np.ndarray
-    s: np.ndarray
-    t: np.ndarray
+    i: np.ndarray  #: (m,) segment
+    j: np.ndarray  #: (m,) segment at image k
+    k: np.ndarray  #: (m, 2)
+    s: np.ndarray  #: (m,) quadrature parameter on i
+    t: np.ndarray  #: (m,) quadrature parameter on j
     c: np.ndarray  #: (m, 3) c = J x at the lag
     normal: np.ndarray  #: (m, 3)
-    lam: np.ndarray  #: (m,) N
+    lam: np.ndarray  #: (m,) normal force of the point pair, N
 
 
 @attrs.define(eq=False, slots=False)
 class RodEnergy:
     """Total energy of a :class:`RodModel`: ``energy(q, order) -> (E, g, H, info)`` for :func:`knitframe.newton.minimise`.
 
-    ``dk`` (the contact distance) is mutable for the pre-stress step. ``law`` is a rod
-    contact-law plugin instance, None when the scene does not ask for contact.
+    ``dk`` (the contact distance) is mutable for the pre-stress step; with ``dk_full`` set, the
+    contact stiffnesses are scaled by (dk_full/dk)², which keeps the line load of two yarns at a
+    given d/dk the same while dk grows (the density's line load scales as k·dk²), so the
+    undersized yarns of the pre-stress push apart as hard as the full-size ones. ``law`` is a rod
+    contact-law plugin instance, None when the scene does not ask for contact; its energy is a
+    density integrated over both centerlines (:mod:`knitframe_solvers.rod_contact`) with an
+    n × n Gauss rule per segment pair, n = max(``quadrature``, ⌈1.6 l_max/(c·dk)⌉) for a law
+    whose core (barrier) is c·dk: the largest gap between samples, about π l/(2n), then stays
+    below 0.7·√2·c·dk, so two yarns cannot slip through each other's core between samples.
+    Then sampled point pairs reach the core (where φ = +∞) before the exact segment distance
+    falls below half of it; a state where it does anyway is inadmissible (E = +∞).
     """
 
     model: RodModel
@@ -217,11 +216,14 @@ class RodEnergy:
     bending: bool = True
     law: Any = None
     dk: float = 0.0  #: contact distance, mm
-    k_contact: float = 0.0  #: N/mm
-    k_core: float | None = None  #: contact-law core (barrier) stiffness, N/mm
+    k_contact: float = 0.0  #: penalty stiffness of the contact density, N/mm³
+    k_core: float | None = None  #: core (barrier) stiffness of the contact density, N/mm³
     self_contact: bool = False
     exclusion: float = 0.0  #: mm
     friction: bool = False
+    quadrature: int = 4  #: Gauss points per segment in each direction of the contact integral
+    k_line: float | None = None  #: line contact stiffness the density was scaled to, N/mm² (reported only)
+    dk_full: float | None = None  #: contact distance at which k_contact and k_core hold, mm (None: any dk)
     external: np.ndarray | None = None  #: (n_dof,) generalised forces, N (and N·mm on h)
     lag: FrictionLag | None = None
     calls: Counter = attrs.Factory(Counter)
@@ -230,6 +232,27 @@ class RodEnergy:
         m = self.model
         self._stretch_map = PointMap(m.n_nodes, m.edges, m.edge_images, m.lattice)
         self._bend_map = PointMap(m.n_nodes, m.triplets, m.triplet_images, m.lattice)
+        self._rules: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._l_max = float(m.l0.max(initial=0.0))
+
+    def stiffness(self) -> tuple[float, float | None]:
+        """(k_contact, k_core) at the current contact distance, N/mm³ (see the class docstring)."""
+        f = 1.0 if self.dk_full is None else (self.dk_full / self.dk) ** 2
+        return self.k_contact * f, None if self.k_core is None else self.k_core * f
+
+    @property
+    def core(self) -> float:
+        """Centre distance below which the contact law forbids states, mm (0: no core)."""
+        return float(getattr(self.law, "core", 0.0) or 0.0) * self.dk
+
+    def rule(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The Gauss rule of the contact integral at the current contact distance (see the class docstring)."""
+        n = self.quadrature
+        if self.core > 0:
+            n = max(n, int(np.ceil(1.6 * self._l_max / self.core)))
+        if n not in self._rules:
+            self._rules[n] = gauss_points(n)
+        return self._rules[n]
 
     # -- contact -------------------------------------------------------------------------------
     def pairs(self, q: np.ndarray):
@@ -246,17 +269,21 @@ class RodEnergy:
         images = np.concatenate([m.edge_images[i], m.edge_images[j] + k[:, None, :]], axis=1)
         return PointMap(m.n_nodes, nodes, images, m.lattice)
 
+    def _lengths(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+        return self.model.l0[i] * self.model.l0[j]
+
     def update_lag(self, q: np.ndarray) -> None:
-        """Freeze the contacts of state q (normal forces, normals, material points) for friction."""
+        """Freeze the contacting point pairs of state q (normal forces, normals, material points) for friction."""
         pr = self.pairs(q)
         pm = self._pair_map(pr.i, pr.j, pr.k)
-        x = self.model.positions(q)
-        p = pm.points(x, q[3 * self.model.n_nodes:])
-        c = np.einsum("mi,mic->mc", pair_weights(pr.s, pr.t), p)
-        lam = self.law.force(pr.distance, self.dk, self.k_contact, self.k_core)
-        n = c / np.linalg.norm(c, axis=1)[:, None]
-        act = lam > 0
-        self.lag = FrictionLag(pr.i[act], pr.j[act], pr.k[act], pr.s[act], pr.t[act], c[act], n[act], lam[act])
+        p = pm.points(self.model.positions(q), q[3 * self.model.n_nodes:])
+        xa, xb, wq = self.rule()
+        c = np.einsum("qi,mic->mqc", pair_weights(xa, xb), p)
+        r = np.linalg.norm(c, axis=2)
+        lam = -(self._lengths(pr.i, pr.j)[:, None] * wq) * self.law.normal(r, self.dk, *self.stiffness())[1]
+        m_, q_ = np.nonzero(lam > 0)
+        self.lag = FrictionLag(pr.i[m_], pr.j[m_], pr.k[m_], xa[q_], xb[q_], c[m_, q_],
+                               c[m_, q_] / r[m_, q_, None], lam[m_, q_])
 
     # -- total ---------------------------------------------------------------------------------
     def __call__(self, q: np.ndarray, order: int = 2):
@@ -286,12 +313,18 @@ class RodEnergy:
             self.calls["contact"] += 1
             if len(pr):
                 pm = self._pair_map(pr.i, pr.j, pr.k)
-                e, ge, He, d = contact_energy(pm.points(x, h), pr.s, pr.t, self.law, self.dk, self.k_contact, order,
-                                              self.k_core)
+                e, ge, He, r_min = quadrature_contact(pm.points(x, h), self._lengths(pr.i, pr.j), self.law, self.dk,
+                                                      *self.stiffness(), self.rule(), order)
+                act = r_min < self.dk
+                if order >= 1:  # pairs with no sample inside dk contribute nothing
+                    pm = self._pair_map(pr.i[act], pr.j[act], pr.k[act])
+                    ge = ge[act]
+                    He = He[act] if He is not None else None
                 add(pm, e, ge, He)
-                act = d < self.dk
                 info["active_contacts"] = int(np.count_nonzero(act))
-                info["min_distance"] = float(d.min())
+                info["min_distance"] = float(pr.distance.min())
+                if info["min_distance"] <= 0.5 * self.core:
+                    E = np.inf  # the yarns slipped into each other's core between quadrature samples
                 touched = np.union1d(m.topology.strand[pr.i[act]], m.topology.strand[pr.j[act]])
                 info["strands_in_contact"] = int(len(touched))
             if self.friction and self.lag is not None and len(self.lag.i):

@@ -162,7 +162,7 @@ class VolumetricSolver:
         cm = cell_mesh(cell, seed=self.seed, order=self.order)
         t_mesh = time.perf_counter() - t0
         forms = SolidForms(cm.mesh, YarnLaw.from_yarn(fabric.yarn, registry), cm.node_tangent, intorder=self.intorder,
-                           node_bend=cm.node_bend)
+                           node_offset=cm.node_offset)
         forms.element_body = cm.element_body
         lattice = Lattice(cell.L1, cell.L2)
         slave = np.concatenate([e for e, _, _ in cm.end_pairs])

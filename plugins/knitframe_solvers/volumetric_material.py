@@ -13,18 +13,19 @@ basis gradients, quadrature weights and DOF maps, in chunks of elements to bound
 sparse tangent is summed into a fixed CSR pattern with ``np.bincount``.
 
 Thermal pre-stress: an eigenstrain transverse to the fibre a (the centerline tangent), with the
-multiplicative split F = Fe·Fθ::
+multiplicative split F = Fe·Fθ and the yarn's stress-free radius s·r::
 
-    Fθ = s (I − a⊗a) + λa a⊗a,     λa = (1 − s c) / (1 − c),     c = κ·o
+    Fθ = I + (s − 1) ∇o,      Jθ = det Fθ
 
-where o is the point's offset from the centerline and κ the centerline's curvature vector
-(1/mm). Fθ is exactly the deformation of the tube of radius r onto the tube of radius s·r around
-the same centerline (on a rotation-minimising frame a fibre at offset o has length (1 − κ·o) ds),
-so the undersized tube x = C + s·o is stress-free; without the axial factor λa the fibres of a
-curved yarn would be strained by κ·o·(1 − s), which is large for a stiff yarn in a tight loop.
-Raising s from r_under/r to 1 grows an undersized yarn to its knitted diameter dk at constant
-centerline length; at s = 1, Fθ = I. W = ∫ Jθ Ψ(Fe) dV with Jθ = s² λa, P = Jθ Pe(Fe)·Fθ⁻ᵀ and
-A_iJkL = Jθ Ae_iMkN Fθ⁻¹_JM Fθ⁻¹_LN.
+where o(X) is the offset of the material point from its yarn's centerline, interpolated from
+the nodes. On a rotation-minimising frame ∇o = (I − a⊗a) − c/(1 − c) a⊗a with c = κ·o (κ the
+centerline's curvature vector), so Fθ = s (I − a⊗a) + (1 − s c)/(1 − c) a⊗a: a transverse
+shrink by s plus the axial factor that keeps the undersized tube x = C + s·o exactly stress-free
+(without it the fibres of a curved yarn would be strained by κ·o·(1 − s), large for a stiff
+yarn in a tight loop). Using the interpolated offsets makes the undersized tube stress-free for
+the discrete mesh too. Raising s from r_under/r to 1 grows an undersized yarn to its knitted
+diameter dk at constant centerline length; at s = 1, Fθ = I. W = ∫ Jθ Ψ(Fe) dV,
+P = Jθ Pe(Fe)·Fθ⁻ᵀ and A_iJkL = Jθ Ae_iMkN Fθ⁻¹_JM Fθ⁻¹_LN.
 """
 
 from __future__ import annotations
@@ -103,12 +104,13 @@ def fibre_at_quadrature(basis: Any, node_tangent: np.ndarray) -> np.ndarray:
     return a / np.linalg.norm(a, axis=0, keepdims=True)
 
 
-def _eigen_transform(a: np.ndarray, s: float, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Fθ⁻¹ (3, 3, n_el, n_qp) (symmetric) and Jθ (n_el, n_qp) of the pre-stress eigenstrain at s."""
-    lam_a = (1.0 - s * c) / (1.0 - c)
-    I = np.eye(3)[:, :, None, None]
-    aa = a[:, None] * a[None, :]
-    return I + (1.0 / s - 1.0) * (I - aa) + (1.0 / lam_a - 1.0) * aa, s * s * lam_a
+def _eigen_transform(grad_offset: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Fθ⁻¹ (3, 3, n_el, n_qp) and Jθ (n_el, n_qp) of the pre-stress eigenstrain Fθ = I + (s − 1)∇o."""
+    Ft = (s - 1.0) * grad_offset
+    Ft[0, 0] += 1.0
+    Ft[1, 1] += 1.0
+    Ft[2, 2] += 1.0
+    return _inv_det(Ft)
 
 
 class SolidForms:
@@ -120,14 +122,14 @@ class SolidForms:
     law : a material with ``energy``, ``stress`` and ``tangent`` of (F, a), e.g. :class:`YarnLaw`.
     node_tangent : (N, 3) fibre direction at each node (N = vertices for P1, vertices + edges
         for P2); None gives a fixed x fibre (only meaningful for isotropic laws).
-    node_bend : (N,) c = κ·o at each node (centerline curvature vector dotted with the node's
-        offset from the centerline) for the pre-stress eigenstrain; None means straight yarns.
+    node_offset : (N, 3) offset of each node from its yarn's centerline (mm), for the pre-stress
+        eigenstrain; None disables it (then s must stay 1).
     intorder : quadrature order (default 2: 4 points, like ABAQUS C3D10).
     chunk : elements per einsum batch.
     """
 
     def __init__(self, mesh: Any, law: Any, node_tangent: np.ndarray | None = None, *, intorder: int = 2,
-                 chunk: int = 4096, node_bend: np.ndarray | None = None):
+                 chunk: int = 4096, node_offset: np.ndarray | None = None):
         import skfem
 
         elem = skfem.ElementTetP2() if isinstance(mesh, skfem.MeshTet2) else skfem.ElementTetP1()
@@ -142,9 +144,10 @@ class SolidForms:
         if node_tangent is None:
             node_tangent = np.tile([1.0, 0.0, 0.0], (self.n_nodes, 1))
         self.fibre = fibre_at_quadrature(self.basis, np.asarray(node_tangent, dtype=np.float64))
-        vals = np.stack([np.asarray(phi[0]) for phi in self.basis.basis])
-        bend = np.zeros(self.n_nodes) if node_bend is None else np.asarray(node_bend, dtype=np.float64)
-        self.bend = np.einsum("leq,le->eq", vals, bend[self.edofs])  # c = κ·o at the quadrature points
+        self.grad_offset = None  # ∇o at the quadrature points (3, 3, n_el, n_qp)
+        if node_offset is not None:
+            o = np.asarray(node_offset, dtype=np.float64)[self.edofs]  # (nl, n_el, 3)
+            self.grad_offset = np.einsum("lei,lJeq->iJeq", o, self.grad)
         self.chunk = int(chunk)
         nl, ne = self.edofs.shape
         self.vdofs = (3 * self.edofs[:, None, :] + np.arange(3)[None, :, None]).reshape(3 * nl, ne)  # (3nl, n_el)
@@ -184,15 +187,20 @@ class SolidForms:
             a = self.fibre[:, sl]
             Jt = 1.0
             if s != 1.0:
-                Ti, Jt = _eigen_transform(a, s, self.bend[sl])
+                Ti, Jt = self._eigen(s, sl)
                 F = np.einsum("iMeq,MJeq->iJeq", F, Ti)
             total += float(np.sum(Jt * self.law.energy(F, a) * self.dx[sl]))
         return total
 
+    def _eigen(self, s: float, sl: slice) -> tuple[np.ndarray, np.ndarray]:
+        if self.grad_offset is None:
+            raise NumericalError("volumetric solid: a pre-stress parameter s != 1 needs the nodes' centerline offsets")
+        return _eigen_transform(self.grad_offset[:, :, sl], s)
+
     def _stress(self, F: np.ndarray, a: np.ndarray, s: float, sl: slice) -> np.ndarray:
         if s == 1.0:
             return self.law.stress(F, a)
-        Ti, Jt = _eigen_transform(a, s, self.bend[sl])
+        Ti, Jt = self._eigen(s, sl)
         Fe = np.einsum("iMeq,MJeq->iJeq", F, Ti)
         return Jt * np.einsum("iMeq,JMeq->iJeq", self.law.stress(Fe, a), Ti)
 
@@ -216,7 +224,7 @@ class SolidForms:
     def _tangent_moduli(self, F: np.ndarray, a: np.ndarray, s: float, sl: slice) -> np.ndarray:
         if s == 1.0:
             return self.law.tangent(F, a)
-        Ti, Jt = _eigen_transform(a, s, self.bend[sl])
+        Ti, Jt = self._eigen(s, sl)
         Fe = np.einsum("iMeq,MJeq->iJeq", F, Ti)
         return Jt * np.einsum("iMkNeq,JMeq,LNeq->iJkLeq", self.law.tangent(Fe, a), Ti, Ti, optimize=True)
 

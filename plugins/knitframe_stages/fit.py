@@ -42,6 +42,7 @@ class FitStage:
     description: ClassVar[str] = "fit a reduced model (homogenizer) to the run's Responses"
     order: ClassVar[int] = 50
     uses: ClassVar[tuple[str, ...]] = ()
+    schema: ClassVar[type] = FitTable
 
     model: Any
     fitter: Any

@@ -61,12 +61,12 @@ class Region:
 class PatchworkTable:
     """Schema of the ``[patchwork]`` table."""
 
-    regions: list[Region]
-    mode: Literal["series", "parallel", "grid"] = "series"
-    direction: Literal["course", "wale"] = "course"
-    lateral: Literal["free", "fixed"] = "free"
-    max_strain: float = attrs.field(default=0.3, validator=v.in_range(0.0, 5.0, lo_open=True))
-    steps: int = attrs.field(default=30, validator=v.in_range(1, 100000))
+    regions: list[Region]  #: tables with name, source ("fit", "fit:<i>", "response:<label>", "file:<params.json>"), length and width in mm
+    mode: Literal["series", "parallel", "grid"] = "series"  #: how the regions are combined
+    direction: Literal["course", "wale"] = "course"  #: load direction for model regions
+    lateral: Literal["free", "fixed"] = "free"  #: model regions: free side (P = 0) or fixed (λ = 1)
+    max_strain: float = attrs.field(default=0.3, validator=v.in_range(0.0, 5.0, lo_open=True))  #: engineering strain of the whole patchwork, -
+    steps: int = attrs.field(default=30, validator=v.in_range(1, 100000))  #: load steps
     layout: list[list[str]] = attrs.Factory(list)  #: grid: region names, rows across the load
     row_widths: list[float] = attrs.Factory(list)  #: grid: width of each row, mm
 
@@ -95,8 +95,9 @@ class PatchworkStage:
     description: ClassVar[str] = "combine regions (fitted models or Responses) in series, parallel or a grid"
     order: ClassVar[int] = 60
     uses: ClassVar[tuple[str, ...]] = ()
+    schema: ClassVar[type] = PatchworkTable
 
-    table: PatchworkTable
+    spec: PatchworkTable
     files: dict[str, FitResult]  #: regions read from params.json files, by region name
     source: str | None = None
 
@@ -135,7 +136,7 @@ class PatchworkStage:
 
     def run(self, ctx) -> None:
         ctx.used("stage", self.name)
-        t = self.table
+        t = self.spec
         by_name = {r.name: (i, r) for i, r in enumerate(t.regions)}
         src = {r.name: self._resolve(r, ctx, i) for i, r in enumerate(t.regions)}
         if t.mode == "grid":
