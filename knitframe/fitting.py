@@ -71,7 +71,7 @@ DIRECTIONS = ("course", "wale")
 def direction_index(direction: str | int) -> int:
     """0 for the course (``"course"``, ``"x"``, 0), 1 for the wale (``"wale"``, ``"y"``, 1)."""
     key = str(direction).strip().lower()
-    if key in ("course", "x", "0", "1-direction"):
+    if key in ("course", "x", "0"):
         return 0
     if key in ("wale", "y", "1"):
         return 1

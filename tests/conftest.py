@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -15,6 +16,12 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = ROOT.parent / "shared" / "data" / "knit-uniaxial-singal2024"
 EXAMPLE_DATA = ROOT / "knitframe" / "examples" / "data"
+#: the example third-party plugin package shipped with the docs, its distribution name and version
+PLUGIN_DIR = ROOT / "docs" / "example-plugin"
+DIST = "knitframe-example-plugin"
+DIST_VERSION = tomllib.loads((PLUGIN_DIR / "pyproject.toml").read_text())["project"]["version"]
+#: environment that lets a subprocess load external (third-party) plugins
+EXTERNAL = {"KNITFRAME_DISABLE_EXTERNAL_PLUGINS": "0"}
 
 
 @pytest.fixture(autouse=True)
@@ -39,6 +46,20 @@ def cli(tmp_path):
         )
 
     return run
+
+
+def _pip(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "pip", "--disable-pip-version-check", "-q", *args],
+                          capture_output=True, text=True, timeout=600)
+
+
+@pytest.fixture(scope="session")
+def installed_plugin():
+    """pip-install the example third-party plugin package for the session's tests, then uninstall it."""
+    proc = _pip("install", "--no-deps", "--no-build-isolation", str(PLUGIN_DIR))
+    assert proc.returncode == 0, proc.stderr
+    yield
+    _pip("uninstall", "-y", DIST)
 
 
 @pytest.fixture

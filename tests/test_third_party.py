@@ -8,25 +8,7 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import ROOT
-
-PLUGIN_DIR = ROOT / "docs" / "example-plugin"
-DIST = "knitframe-example-plugin"
-EXTERNAL = {"KNITFRAME_DISABLE_EXTERNAL_PLUGINS": "0"}
-
-
-def _pip(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "pip", "--disable-pip-version-check", "-q", *args],
-                          capture_output=True, text=True, timeout=600)
-
-
-@pytest.fixture(scope="module")
-def installed_plugin():
-    """pip-install the example plugin for this module's tests, then uninstall it."""
-    proc = _pip("install", "--no-deps", "--no-build-isolation", str(PLUGIN_DIR))
-    assert proc.returncode == 0, proc.stderr
-    yield
-    _pip("uninstall", "-y", DIST)
+from conftest import DIST, DIST_VERSION, EXTERNAL
 
 
 def test_installed_plugin_is_listed_with_its_package(installed_plugin, cli):
@@ -34,7 +16,7 @@ def test_installed_plugin_is_listed_with_its_package(installed_plugin, cli):
     proc = cli("plugins", env=EXTERNAL)
     assert proc.returncode == 0, proc.stderr
     line = next(l for l in proc.stdout.splitlines() if l.strip().startswith("force-extension"))
-    assert f"[{DIST} 0.1.0]" in line
+    assert f"[{DIST} {DIST_VERSION}]" in line
 
 
 def test_installed_plugin_is_hidden_when_external_plugins_are_blocked(installed_plugin, cli):

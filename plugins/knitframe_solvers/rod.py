@@ -215,13 +215,16 @@ class RodSolver:
 
         rows: list[tuple[float, float, float, float]] = []
         q = np.zeros(model.n_dof)
+        kappa_knitted = model.curvature(q)
         start_phase, start_index = "prestress", -1
+        lam_ref: tuple[float, float] | None = None
         if ckpt is not None and (saved := ckpt.latest()) is not None:
             _, arrays, meta = saved
             q = arrays["q"]
             rows = [tuple(r) for r in arrays["rows"].tolist()]
             start_phase, start_index = meta["phase"], int(meta["target"])
             energy.dk = float(meta["dk"])
+            lam_ref = tuple(meta["lam_ref"]) if meta.get("lam_ref") else None
         notes: list[str] = []
         converged = True
         step_counter = [0]
@@ -229,7 +232,7 @@ class RodSolver:
         def after(phase: str, index: int, qv: np.ndarray, message: str, done: int) -> None:
             if ckpt is not None:
                 ckpt.save(step_counter[0], {"q": qv, "rows": np.array(rows, dtype=np.float64).reshape(-1, 4)},
-                          {"phase": phase, "target": index, "dk": energy.dk})
+                          {"phase": phase, "target": index, "dk": energy.dk, "lam_ref": lam_ref})
             if vtu:
                 name = f"rod-{step_counter[0]:04d}.vtu"
                 write_rod_vtu(out_dir / name, model, qv, 0.5 * energy.dk)
@@ -239,7 +242,8 @@ class RodSolver:
             report(done, total, message)
 
         try:
-            # ---- pre-stress: grow the contact distance at F̄ = I and constant yarn length
+            # ---- pre-stress: grow the contact distance at F̄ = I and constant yarn length, from the
+            # knitted centerlines as a stress-free start to the straight rest shape of the yarn
             if prestress and start_phase == "prestress":
                 dk_full = cell.dk
                 if start_index < 0:
@@ -256,9 +260,12 @@ class RodSolver:
                 def solve_prestress(t: float, q0: np.ndarray):
                     # geometric growth: every increment enlarges the contact distance by the same factor
                     energy.dk = dk_start * (dk_full / dk_start) ** ((t - t_prestress[0]) / (1.0 - t_prestress[0]))
-                    return newton(q0, free)
+                    energy.kappa0 = (1.0 - t) * kappa_knitted
+                    # few contacts hold the yarns early on: allow more iterations than in the load steps
+                    return newton(q0, free, prestress_opts)
 
                 t_prestress = [0.0 if start_index < 0 else (start_index + 1) / self.prestress_steps]
+                prestress_opts = attrs.evolve(opts, max_iter=4 * self.max_iterations)
 
                 def on_prestress(i: int, t: float, res) -> None:
                     nonlocal q
@@ -268,7 +275,7 @@ class RodSolver:
 
                 continuation(solve_prestress, q, list(targets), t0=t_prestress[0],
                              min_fraction=self.min_step_fraction, on_target=on_prestress)
-                energy.dk = dk_full
+                energy.dk, energy.kappa0 = dk_full, None
                 start_phase, start_index = "load", -1
             elif energy.law is not None and start_phase == "prestress":
                 E0 = energy(q, 0)[0]
@@ -286,8 +293,8 @@ class RodSolver:
                 free[3 * n:] = ~pres
                 # one long Newton solve: the lattice may move far, in steps capped by max_step
                 q = newton(q, free, attrs.evolve(opts, max_iter=10 * self.max_iterations)).x
-            h_ref = q[3 * n:].copy()
-            lam_ref = (1.0 + h_ref[macro_index(0, 0)], 1.0 + h_ref[macro_index(1, 1)])
+            if lam_ref is None:  # the lattice the stretches are measured from (saved with every load step)
+                lam_ref = (1.0 + q[3 * n + macro_index(0, 0)], 1.0 + q[3 * n + macro_index(1, 1)])
 
             # ---- load path
             lam1_path = None if lam1 is None else np.concatenate([[1.0], lam1])
@@ -303,6 +310,10 @@ class RodSolver:
                 pres, vals = prescribed(tau)
                 qs = q0.copy()
                 qs[3 * n:][pres] = vals[pres]
+                # predictor: carry the cell content along with the lattice (about the pinned node 0)
+                A = lat.F(qs[3 * n:]) @ np.linalg.inv(lat.F(q0[3 * n:]))
+                x = model.positions(q0)
+                qs[: 3 * n] = (x[0] + (x - x[0]) @ A.T - model.X).reshape(-1)
                 free = base_free.copy()
                 free[3 * n:] = ~pres
                 return newton(qs, free)

@@ -57,6 +57,16 @@ class RodModel:
     def n_strands(self) -> int:
         return int(self.topology.cycle.shape[0])
 
+    def curvature(self, q: np.ndarray) -> np.ndarray:
+        """Discrete curvature magnitude |κb| = 2 tan(φ/2) at every vertex (B,) in state q."""
+        x = self.positions(q)
+        p = x[self.triplets]
+        if self.lattice is not None:
+            p = p + self.lattice.shift(self.triplet_images, q[3 * self.n_nodes:])
+        a, b = p[:, 1] - p[:, 0], p[:, 2] - p[:, 1]
+        c = np.einsum("ij,ij->i", a, b) / (np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1))
+        return 2.0 * np.sqrt(np.maximum(1.0 - c, 0.0) / (1.0 + c))
+
     def positions(self, q: np.ndarray) -> np.ndarray:
         """Current node positions (N, 3), mm."""
         return self.X + q[: 3 * self.n_nodes].reshape(-1, 3)
@@ -224,6 +234,7 @@ class RodEnergy:
     quadrature: int = 4  #: Gauss points per segment in each direction of the contact integral
     k_line: float | None = None  #: line contact stiffness the density was scaled to, N/mm² (reported only)
     dk_full: float | None = None  #: contact distance at which k_contact and k_core hold, mm (None: any dk)
+    kappa0: np.ndarray | None = None  #: (B,) rest curvature magnitude of each vertex, - (None: straight)
     external: np.ndarray | None = None  #: (n_dof,) generalised forces, N (and N·mm on h)
     lag: FrictionLag | None = None
     calls: Counter = attrs.Factory(Counter)
@@ -307,7 +318,7 @@ class RodEnergy:
         add(self._stretch_map, *stretch(self._stretch_map.points(x, h), m.l0, self.EA, order))
         if self.bending and len(m.triplets):
             self.calls["bending"] += 1
-            add(self._bend_map, *bend(self._bend_map.points(x, h), m.lbar, self.EI, order))
+            add(self._bend_map, *bend(self._bend_map.points(x, h), m.lbar, self.EI, order, self.kappa0))
         if self.law is not None:
             pr = self.pairs(q)
             self.calls["contact"] += 1

@@ -9,13 +9,16 @@ Stretching (edge x0–x1, rest length l0, axial stiffness EA in N)::
     E = ½ EA l0 (l/l0 − 1)²,   l = |x1 − x0|
 
 Bending (vertex x1 between edges a = x1 − x0 and b = x2 − x1, bending stiffness EI in N·mm²,
-Voronoi length l̄ = (l0_a + l0_b)/2, straight rest shape)::
+Voronoi length l̄ = (l0_a + l0_b)/2)::
 
-    E = EI/(2 l̄) |κb|²,   κb = 2 a×b / (|a||b| + a·b),   |κb|² = 4 (1 − c)/(1 + c),  c = â·b̂
+    E = EI/(2 l̄) (|κb| − κ0)²,   κb = 2 a×b / (|a||b| + a·b),   |κb| = 2 √((1 − c)/(1 + c)),  c = â·b̂
 
-which is EI φ²/(2 l̄) for a small turning angle φ, the discrete ½∫EI κ² ds (Bergou et al. 2008).
-Twist is not modelled: a yarn of circular section with a straight, untwisted rest state has no
-bending–twist coupling, so the centerline alone carries the stretching and bending energy.
+which is EI φ²/(2 l̄) for a small turning angle φ and a straight rest shape (κ0 = 0), the
+discrete ½∫EI κ² ds (Bergou et al. 2008). Twist is not modelled: a yarn of circular section with
+a straight, untwisted rest state has no bending–twist coupling, so the centerline alone carries
+the stretching and bending energy. A rest curvature magnitude κ0 > 0 is used only on the way
+there (the rod solver's pre-stress releases the knitted curvature to straight); without twist
+it constrains how much a vertex bends, not in which direction.
 """
 
 from __future__ import annotations
@@ -61,14 +64,15 @@ def stretch(p: np.ndarray, l0: np.ndarray, EA: np.ndarray | float, order: int = 
     return E, g, H
 
 
-def bend(p: np.ndarray, lbar: np.ndarray, EI: np.ndarray | float, order: int = 2):
-    """Bending energy of vertex triplets (straight rest shape).
+def bend(p: np.ndarray, lbar: np.ndarray, EI: np.ndarray | float, order: int = 2, kappa0: np.ndarray | None = None):
+    """Bending energy of vertex triplets.
 
     Parameters
     ----------
     p : (m, 3, 3) points x0, x1, x2, mm
     lbar : (m,) Voronoi length (l0_a + l0_b)/2, mm
     EI : float or (m,) bending stiffness, N·mm²
+    kappa0 : (m,) rest curvature magnitude |κb|, - (None: straight rest shape)
 
     Returns
     -------
@@ -76,9 +80,11 @@ def bend(p: np.ndarray, lbar: np.ndarray, EI: np.ndarray | float, order: int = 2
 
     Notes
     -----
-    With f(c) = (1 − c)/(1 + c), E = (2 EI/l̄) f(c); f' = −2/(1 + c)², f'' = 4/(1 + c)³.
-    ∇_a c = P_a b̂/|a| with P_a = I − â âᵀ, ∇²_aa c = (3c ââᵀ − âb̂ᵀ − b̂âᵀ − c I)/|a|²,
-    ∇²_ab c = P_a P_b/(|a||b|). A fold-back (c → −1) has infinite energy.
+    In c = â·b̂, with f = (1 − c)/(1 + c) and u = |κb| = 2√f: E = K (u − κ0)², K = EI/(2 l̄);
+    E′ = 2K (u − κ0) u′, E″ = 2K (u′² + (u − κ0) u″), u′ = f′/√f, u″ = f″/√f − f′²/(2 f^{3/2}),
+    f′ = −2/(1 + c)², f″ = 4/(1 + c)³ (for κ0 = 0: E = 4K f). ∇_a c = P_a b̂/|a| with
+    P_a = I − â âᵀ, ∇²_aa c = (3c ââᵀ − âb̂ᵀ − b̂âᵀ − c I)/|a|², ∇²_ab c = P_a P_b/(|a||b|). A
+    fold-back (c → −1) has infinite energy.
     """
     a = p[:, 1] - p[:, 0]
     b = p[:, 2] - p[:, 1]
@@ -87,21 +93,35 @@ def bend(p: np.ndarray, lbar: np.ndarray, EI: np.ndarray | float, order: int = 2
     ah = a / la[:, None]
     bh = b / lb[:, None]
     c = np.einsum("ij,ij->i", ah, bh)
-    k = 2.0 * EI / lbar
+    K = 0.5 * EI / lbar
+    opc = 1.0 + c
     with np.errstate(divide="ignore", invalid="ignore"):
-        E = k * (1.0 - c) / (1.0 + c)
+        f = (1.0 - c) / opc
+    rest = kappa0 is not None and np.any(kappa0 != 0)
+    if rest:
+        sf = np.sqrt(np.maximum(f, 1e-30))
+        u = 2.0 * sf
+        E = K * (u - kappa0) ** 2
+    else:
+        E = 4.0 * K * f
     E = np.where(c > -1.0, E, np.inf)
     if order == 0:
         return E, None, None
-    opc = 1.0 + c
-    f1 = k * (-2.0 / opc**2)
+    fp = -2.0 / opc**2
+    fpp = 4.0 / opc**3
+    if rest:
+        up = fp / sf
+        upp = fpp / sf - fp**2 / (2.0 * sf**3)
+        f1 = 2.0 * K * (u - kappa0) * up
+        f2 = 2.0 * K * (up**2 + (u - kappa0) * upp)
+    else:
+        f1, f2 = 4.0 * K * fp, 4.0 * K * fpp
     ga = (bh - c[:, None] * ah) / la[:, None]  # ∇_a c
     gb = (ah - c[:, None] * bh) / lb[:, None]  # ∇_b c
     Ga, Gb = f1[:, None] * ga, f1[:, None] * gb
     g = np.stack([-Ga, Ga - Gb, Gb], axis=1)
     if order == 1:
         return E, g, None
-    f2 = k * (4.0 / opc**3)
     eye = np.eye(3)
     aa = ah[:, :, None] * ah[:, None, :]
     bb = bh[:, :, None] * bh[:, None, :]

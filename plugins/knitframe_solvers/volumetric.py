@@ -146,6 +146,7 @@ class VolumetricSolver:
     min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))  #: smallest cut-back increment / step, -
     max_iterations: int = attrs.field(default=40, validator=v.in_range(1, 10000))  #: Newton iterations per increment, -
     intorder: int = attrs.field(default=2, validator=v.in_range(1, 6))  #: quadrature order of the solid (2: 4 points), -
+    stabilisation: float = attrs.field(default=1e-4, validator=v.non_negative)  #: weak foundation on each increment's displacement / (E_transverse / h²), -
     on_failure: Literal["raise", "truncate"] = "raise"  #: "truncate" returns the converged steps (converged = false)
 
     def _key(self, fabric: Fabric, scene: Scene) -> str:
@@ -181,8 +182,10 @@ class VolumetricSolver:
         modulus = self.contact_modulus or fabric.yarn.E_transverse
         h = self.seed * cm.radius
         stiffness = law.penalty(modulus, h) if law is not None else 0.0
+        vol = float(forms.dx.sum())
+        damping = self.stabilisation * fabric.yarn.E_transverse / h**2 * vol / cm.n_nodes
         return VolumetricModel(cell, cm, forms, lattice, T.tocsr(), independent, law, surface, stiffness,
-                               self.reach * cm.radius, t_mesh)
+                               self.reach * cm.radius, t_mesh, damping)
 
     def simulate(self, fabric: Fabric, scene: Scene, *, progress=None, output_dir: str | Path | None = None,
                  checkpoint_dir: str | Path | None = None) -> Response:
@@ -228,8 +231,8 @@ class VolumetricSolver:
             return max(float(np.max(np.abs(du))), float(np.max(np.abs(dx[n_ind:]))) * model.L_max) / r
 
         def newton(q0: np.ndarray, free: np.ndarray):
-            return minimise(model, q0, free, solve=solve, options=opts, step_norm=step_norm,
-                            stabilise=lambda info: info.get("active", 0) == 0)
+            model.anchor(q0)
+            return minimise(model, q0, free, solve=solve, options=opts, step_norm=step_norm)
 
         s0 = 1.0
         if prestress:
@@ -346,11 +349,15 @@ class VolumetricModel:
     """The discrete problem: ``model(q, order) -> (E, g, H, info)`` over q = [u_independent, h].
 
     E is the strain energy of the yarns at the current pre-stress parameter ``s`` plus the
-    contact energy; g and H are pulled back to q through the periodic map u = T q. Wall time is
-    accumulated per part in ``timings`` (material assembly, contact, transforms).
+    contact energy plus a weak foundation ½ c |u − u₀|² on the increment from the start u₀ of the
+    current load increment (the stabilisation of ABAQUS's *STATIC, STABILIZE: it holds the rigid
+    modes of yarns that no contact holds yet; its share of the energy is reported). g and H are
+    pulled back to q through the periodic map u = T q. Wall time is accumulated per part in
+    ``timings`` (material assembly, contact, transforms).
     """
 
-    def __init__(self, cell, cm, forms, lattice, T, independent, law, surface, stiffness, reach, t_mesh):
+    def __init__(self, cell, cm, forms, lattice, T, independent, law, surface, stiffness, reach, t_mesh,
+                 damping=0.0):
         self.cell, self.cm, self.forms, self.lattice = cell, cm, forms, lattice
         self.T, self.independent = T, independent
         self.law, self.surface, self.stiffness, self.reach = law, surface, stiffness, reach
@@ -362,7 +369,11 @@ class VolumetricModel:
         self.n = n
         self.s = 1.0
         self.L_max = float(max(np.linalg.norm(lattice.L1), np.linalg.norm(lattice.L2)))
+        self.damping = float(damping)
+        self.u0 = np.zeros(n)
+        self.TtT = (self.TT @ T).tocsr()
         self.timings = {"mesh": t_mesh, "material": 0.0, "contact": 0.0, "transform": 0.0}
+        self.stabilisation_energy = 0.0
         self.evaluations = {"energy": 0, "gradient": 0, "hessian": 0}
 
     def shrunk(self, s0: float) -> np.ndarray:
@@ -371,6 +382,10 @@ class VolumetricModel:
         u = (s0 - 1.0) * self.cm.node_offset[self.independent]
         q[: 3 * len(self.independent)] = u.ravel()
         return q
+
+    def anchor(self, q0: np.ndarray) -> None:
+        """Start a load increment at q0: the foundation pulls towards this state."""
+        self.u0 = self.T @ q0
 
     def __call__(self, q: np.ndarray, order: int) -> tuple[float, Any, Any, dict]:
         self.evaluations[("energy", "gradient", "hessian")[order]] += 1
@@ -394,15 +409,19 @@ class VolumetricModel:
             Ec, gc, Hc, info = self.law.evaluate(self.surface, x, h, order, stiffness=self.stiffness, reach=self.reach)
             E += Ec
             self.timings["contact"] += time.perf_counter() - t0
+        du = u - self.u0
+        E_stab = 0.5 * self.damping * float(du @ du)
+        E += E_stab
+        info["stabilisation_energy"] = E_stab
         if order == 0:
             return E, None, None, info
         t0 = time.perf_counter()
-        g = self.TT @ R
+        g = self.TT @ (R + self.damping * du)
         if gc is not None:
             g = g + self.QT @ gc
         H = None
         if order == 2:
-            H = self.TT @ K @ self.T
+            H = self.TT @ K @ self.T + self.damping * self.TtT
             if Hc is not None and Hc.nnz:
                 H = H + self.QT @ Hc @ self.Q
             H = H.tocsr()

@@ -1,1 +1,1 @@
-"""An example third-party knitframe plugin package."""
+"""An example third-party knitframe plugin package: the ``tuck`` pattern and the ``force-extension`` reader."""

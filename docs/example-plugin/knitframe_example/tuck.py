@@ -55,7 +55,7 @@ from knitframe.geometry import (
 
 
 def z_profile(sinker: float, leg: float, head: float) -> np.ndarray:
-    """(c0, c1, c2) of z = c0 + c1 cos u + c2 cos 2u through the given z at u = π, ±π/2 and 0, mm."""
+    """(c0, c1, c2) of z = c0 + c1 cos u + c2 cos 2u through z at the sinker, legs and head (u = π, ±π/2, 0), mm."""
     mid = 0.5 * (head + sinker)
     return np.array([0.5 * (mid + leg), 0.5 * (head - sinker), 0.5 * (mid - leg)])
 
@@ -103,32 +103,37 @@ class TuckRow:
 
     def centerline(self, name: str) -> Centerline:
         """The course as a Centerline over its two stitches, t in [-π, 3π] (sinker to sinker)."""
-        return Centerline(name, self.position, self.derivative, -np.pi, 3.0 * np.pi, (2.0 * self.course_pitch, 0.0, 0.0))
+        period = (2.0 * self.course_pitch, 0.0, 0.0)
+        return Centerline(name, self.position, self.derivative, -np.pi, 3.0 * np.pi, period)
 
 
-#: Expected crossing signs, in the x-y projection, of a course's stitch with the courses below it
-#: (sign of z_upper - z_lower, in order of t): a knit loop enters each lower loop behind its legs
-#: and leaves in front of its head (-, +, +, -); a tuck loop stays behind the held loop (-, -).
-LINKS = {("knit", "tuck below"): "-++-", ("knit", "held loop"): "-++-", ("tuck", "tuck below"): "--", ("tuck", "held loop"): ""}
+#: Crossing signs (z_upper - z_lower > 0: "+") of a course's stitches with the courses below, in
+#: the x-y projection and in order along the upper yarn. A knit loop enters the loops below from
+#: behind their legs and leaves in front of their heads; a tuck loop only lies behind the held loop.
+LINKS = {
+    ("knit", "course below"): "-++-",
+    ("knit", "two courses below"): "-++-",
+    ("tuck", "course below"): "--",
+    ("tuck", "two courses below"): "",
+}
 
 
 def links(cell: UnitCell) -> dict[tuple[int, str, str], str]:
     """Crossing signs of every stitch with the course below and the course two below.
 
-    Returns ``{(row, stitch, lower): signs}`` with stitch "knit"/"tuck", lower "tuck below" (the
-    next course down: a tuck loop under a knit stitch, a held knit loop under a tuck stitch) or
-    "held loop" (two courses down, the knit loop held on the same needle) and ``signs`` a string
-    of "+"/"-" (upper yarn in front / behind) in order along the upper yarn.
+    Returns ``{(row, stitch, lower): signs}``. ``stitch`` is "knit" or "tuck". ``lower`` is
+    "course below" (under a knit stitch the tuck loop on its needle, under a tuck stitch the held
+    loop) or "two courses below" (under a knit stitch the loop held on its needle). ``signs``
+    holds "+" (upper yarn in front) or "-" per crossing, in order along the upper yarn.
     """
     out = {}
     for r in range(2):
         below = ((r - 1) % 2, -cell.L2 if r == 0 else np.zeros(3))
-        for lower, (row, shift) in (("tuck below", below), ("held loop", (r, -cell.L2))):
+        for lower, (row, shift) in (("course below", below), ("two courses below", (r, -cell.L2))):
             found = crossings(cell, r, row, shift)
             for col in range(2):
-                stitch = cell.info["stitches"][r][col]
-                mine = [dz for t, _, dz in found if round(t / (2.0 * np.pi)) % 2 == col]
-                out[(r, stitch, lower)] = "".join("+" if dz > 0 else "-" for dz in mine)
+                signs = ["+" if dz > 0 else "-" for t, _, dz in found if round(t / (2.0 * np.pi)) % 2 == col]
+                out[(r, cell.info["stitches"][r][col], lower)] = "".join(signs)
     return out
 
 
@@ -136,31 +141,36 @@ def links(cell: UnitCell) -> dict[tuple[int, str, str], str]:
 class Tuck:
     """1x1 cross tuck unit cell: course 0 knits needle 0 and tucks needle 1, course 1 the reverse.
 
-    The fields are the pattern options of a config's ``[fabric.pattern]`` table. The defaults
-    are modelling choices, not measurements: with them the smallest centerline clearance of
-    cotton at SL10-12 stays near half a yarn diameter.
+    The fields are the pattern's options. The defaults are modelling choices, not measurements:
+    with them the smallest centerline clearance of cotton at SL10-12 is about half a diameter.
     """
 
     name: ClassVar[str] = "tuck"
-    description: ClassVar[str] = "1x1 cross tuck: knit and tuck alternate by needle and by course (example plugin)"
+    description: ClassVar[str] = "1x1 cross tuck: knit and tuck alternate by needle and course (example plugin)"
 
-    stitch_lengths: dict[str, float] = attrs.field(factory=lambda: dict(STITCH_LENGTHS), validator=check_stitch_lengths)  #: machine setting -> yarn length per stitch, mm
-    Kc: float = attrs.field(default=8.5, validator=v.positive)  #: courses/cm = Kc/ℓ[cm]; held loops pull the courses together, -
-    Kw: float = attrs.field(default=3.6, validator=v.positive)  #: wales/cm = Kw/ℓ[cm]; tuck loops push the wales apart, -
+    stitch_lengths: dict[str, float] = attrs.field(
+        factory=lambda: dict(STITCH_LENGTHS), validator=check_stitch_lengths
+    )  #: machine setting -> yarn length per stitch, mm
+    Kc: float = attrs.field(default=8.5, validator=v.positive)  #: courses/cm = Kc/ℓ[cm] (jersey: 5.3), -
+    Kw: float = attrs.field(default=3.6, validator=v.positive)  #: wales/cm = Kw/ℓ[cm] (jersey: 4.0), -
     roundness: float = attrs.field(default=1.8, validator=v.in_range(0.0, 10.0))  #: Crane's a of the knit loops, -
     tuck_roundness: float = attrs.field(default=0.35, validator=v.in_range(0.0, 10.0))  #: a of the tuck loops, -
-    tuck_spread: float = attrs.field(default=0.7, validator=v.in_range(0.0, 0.9))  #: b: how far the tuck loop's legs open, -
+    tuck_spread: float = attrs.field(default=0.7, validator=v.in_range(0.0, 1.0))  #: b: how wide the tuck loops open, -
     depth: float = attrs.field(default=0.7, validator=v.positive)  #: out-of-plane amplitude D / dk, -
-    tuck_depth: float = attrs.field(default=0.65, validator=v.positive)  #: tuck head behind the fabric plane / D, -
-    tuck_drop: float = attrs.field(default=0.15, validator=v.in_range(0.0, 1.0, hi_open=True))  #: tuck head below the held loop's head / (2H - p_w), -
-    sharpness: float = attrs.field(default=3.0, validator=v.in_range(0.0, 50.0, lo_open=True))  #: κ of the knit/tuck switch, -
+    tuck_depth: float = attrs.field(default=0.65, validator=v.positive)  #: tuck head behind the mid-plane / D, -
+    tuck_drop: float = attrs.field(
+        default=0.15, validator=v.in_range(0.0, 1.0, hi_open=True)
+    )  #: tuck head below the held loop's head / (2H - p_w), -
+    sharpness: float = attrs.field(
+        default=3.0, validator=v.in_range(0.0, 50.0, lo_open=True)
+    )  #: κ of the smooth knit/tuck switch, -
 
     def rows(self, height: float, pc: float, pw: float, dk: float) -> list[TuckRow]:
-        """The two TuckRows for loop height H = ``height`` (mm)."""
+        """The two courses for loop height H = ``height``, pitches ``pc``, ``pw`` and diameter ``dk``, mm."""
         D = self.depth * dk
         knit = (self.roundness, 0.0, height + pw, *z_profile(-D, D, 0.0))
-        tuck = (self.tuck_roundness, self.tuck_spread, height - self.tuck_drop * (2.0 * height - pw),
-                *z_profile(-D, 0.0, -self.tuck_depth * D))
+        tuck_head = height - self.tuck_drop * (2.0 * height - pw)
+        tuck = (self.tuck_roundness, self.tuck_spread, tuck_head, *z_profile(-D, 0.0, -self.tuck_depth * D))
         return [TuckRow(pc, r * pw, height, 1.0 - 2.0 * r, knit, tuck, self.sharpness) for r in range(2)]
 
     def cell(self, fabric: knitframe.Fabric) -> UnitCell:
@@ -169,12 +179,12 @@ class Tuck:
         pc, pw = munden_pitches(arc, fabric, self.Kc, self.Kw)
         dk = float(fabric.yarn.dk)
 
-        def per_stitch(h: float) -> float:
-            return sum(row.centerline("").arc_length() for row in self.rows(h, pc, pw, dk)) / 4.0
+        def per_stitch(height: float) -> float:
+            return sum(row.centerline("").arc_length() for row in self.rows(height, pc, pw, dk)) / 4.0
 
-        # below H = p_w/2 a knit loop's base does not reach up to the loops it must pass through
-        height = solve_arc_length(per_stitch, arc, 0.5 * pw, max(pw, arc),
-                                  context=f"course pitch {pc:.4g} mm, wale pitch {pw:.4g} mm and dk {dk:g} mm")
+        # below H = p_w/2 a knit loop's base cannot reach the loops it must pass through
+        context = f"course pitch {pc:.4g} mm, wale pitch {pw:.4g} mm and dk {dk:g} mm"
+        height = solve_arc_length(per_stitch, arc, 0.5 * pw, max(pw, arc), context=context)
         yarns = tuple(row.centerline(f"row{r}") for r, row in enumerate(self.rows(height, pc, pw, dk)))
         got = sum(y.arc_length() for y in yarns) / 4.0
         if abs(got - arc) > 1e-9 * arc:
@@ -186,20 +196,20 @@ class Tuck:
             L2=(0.0, 2.0 * pw, 0.0),
             radius=0.5 * dk,
             end_pairs=((0, 0), (1, 1)),
-            # every needle works on the face side; which of them tuck is in info["stitches"]
+            # every needle works on the face side ("k"); which stitches tuck is in info["stitches"]
             layout=(("k", "k"), ("k", "k")),
             arc_length_per_stitch=got,
             course_pitch=pc,
             wale_pitch=pw,
-            info={"stitches": [["knit", "tuck"], ["tuck", "knit"]], "loop_height": height, "Kc": self.Kc, "Kw": self.Kw},
+            info={"stitches": [["knit", "tuck"], ["tuck", "knit"]], "loop_height": height},
         )
-        bad = {key: signs for key, signs in links(cell).items() if signs != LINKS[key[1:]]}
-        if bad:
-            (row, stitch, lower), signs = next(iter(bad.items()))
-            raise GeometryError(
-                f"tuck: with {arc:g} mm of yarn per stitch at pitches {pc:.4g} x {pw:.4g} mm the {stitch} stitch of "
-                f"course {row} crosses the {lower} as '{signs}', not '{LINKS[(stitch, lower)]}'; change the pitches or the stitch length"
-            )
+        for (row, stitch, lower), signs in links(cell).items():
+            if signs != LINKS[(stitch, lower)]:
+                raise GeometryError(
+                    f"tuck: at {arc:g} mm per stitch and pitches {pc:.4g} x {pw:.4g} mm the {stitch} stitch of "
+                    f"course {row} crosses the {lower} as '{signs}', not '{LINKS[(stitch, lower)]}'; "
+                    "change the pitches or the stitch length"
+                )
         return cell
 
 
