@@ -15,8 +15,8 @@ Along the wale the rows hold together only through contact with periodic images 
 Pattern plugins, built-in or third-party, share the helpers that turn a Fabric into cell
 dimensions: the machine stitch-length table (:data:`STITCH_LENGTHS`, :func:`arc_length_for`,
 :func:`check_stitch_lengths`), Munden's pitches (:func:`munden_pitches`), a smooth sign for
-blending stitch shapes (:func:`smooth_sign`) and the arc-length calibration
-(:func:`solve_arc_length`).
+blending stitch shapes (:func:`smooth_sign`), the arc-length calibration
+(:func:`solve_arc_length`) and the cell of one yarn per course row (:func:`course_cell`).
 
 Besides the records this module holds the geometry every consumer needs: arc length,
 rotation-minimising frames closed over each strand (:func:`frames`), the minimum
@@ -53,6 +53,7 @@ __all__ = [
     "munden_pitches",
     "smooth_sign",
     "solve_arc_length",
+    "course_cell",
     "arc_length",
     "frames",
     "clearance",
@@ -222,7 +223,7 @@ def image_shifts(cell: UnitCell, reach: int = 1) -> tuple[np.ndarray, np.ndarray
 
 
 # ------------------------------------------------------------------------------- pattern helpers
-#: Machine stitch-length setting -> yarn length per stitch, mm (the paper's microscopy of jersey, 12 stitches each).
+#: Machine stitch-length setting -> yarn length per stitch, mm (paper's microscopy, 12 stitches).
 STITCH_LENGTHS: dict[str, float] = {"10": 3.9, "11": 4.7, "12": 5.9}
 #: Munden's constants for relaxed plain knit (courses/cm = Kc/ℓ, wales/cm = Kw/ℓ, ℓ in cm); mid-range values.
 MUNDEN_KC, MUNDEN_KW = 5.3, 4.0
@@ -296,6 +297,40 @@ def solve_arc_length(per_stitch: Callable[[float], float], target: float, lower:
     while f(upper) <= 0.0:
         upper *= 2.0
     return brentq(f, lower, upper, xtol=1e-15 * upper, rtol=4 * np.finfo(float).eps, maxiter=200)
+
+
+def course_cell(
+    pattern: str,
+    yarns: tuple[Centerline, ...],
+    course_pitch: float,
+    wale_pitch: float,
+    dk: float,
+    layout: tuple[tuple[str, ...], ...],
+    target: float,
+    info: dict[str, Any] | None = None,
+) -> UnitCell:
+    """The 2x2 cell of one yarn per course row, each yarn continuing as itself across the course boundary.
+
+    L1 = (2 p_c, 0, 0), L2 = (0, 2 p_w, 0), end_pairs (i, i), radius dk/2 (lengths in mm). The arc
+    length per stitch, the yarns' total length over the stitches of ``layout``, must match
+    ``target`` to 1e-9 relative; a miss means the calibration failed and raises NumericalError.
+    """
+    got = sum(y.arc_length() for y in yarns) / sum(len(row) for row in layout)
+    if abs(got - target) > 1e-9 * target:
+        raise NumericalError(f"pattern '{pattern}': arc length {got!r} mm missed the target {target!r} mm")
+    return UnitCell(
+        pattern=pattern,
+        yarns=tuple(yarns),
+        L1=(2.0 * course_pitch, 0.0, 0.0),
+        L2=(0.0, 2.0 * wale_pitch, 0.0),
+        radius=0.5 * dk,
+        end_pairs=tuple((i, i) for i in range(len(yarns))),
+        layout=tuple(tuple(row) for row in layout),
+        arc_length_per_stitch=got,
+        course_pitch=course_pitch,
+        wale_pitch=wale_pitch,
+        info=dict(info or {}),
+    )
 
 
 # ----------------------------------------------------------------------------------------- frames
@@ -864,3 +899,27 @@ def summary(cell: UnitCell, clr: Clearance | None = None) -> dict[str, Any]:
     if clr is not None:
         out["clearance"] = clr.to_dict()
     return out
+
+
+def unit_cell(fabric: "Fabric", registry=None) -> UnitCell:
+    """The unit cell of ``fabric``: its pattern plugin, built with ``fabric.pattern_options``, asked for the cell.
+
+    Both unit-cell solvers call this, so a pattern option set in a config (``[fabric.pattern_options]``)
+    reaches every solver. Errors in the options name the TOML path ``fabric.pattern_options.<key>``.
+    """
+    return pattern_for(fabric, registry).cell(fabric)
+
+
+def pattern_for(fabric: "Fabric", registry=None) -> Any:
+    """The pattern plugin instance of ``fabric`` with its ``pattern_options``; ConfigError on bad names or options."""
+    from knitframe.config import instantiate
+    from knitframe.errors import ConfigError, UnknownPluginError
+    from knitframe.plugins import get_registry
+
+    registry = registry or get_registry()
+    try:
+        registry["pattern"].entry(fabric.pattern)
+    except UnknownPluginError as e:
+        raise ConfigError("fabric.pattern", str(e)) from None
+    return instantiate(registry, "pattern", {"kind": fabric.pattern, **fabric.pattern_options},
+                       "fabric.pattern_options")

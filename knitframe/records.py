@@ -120,6 +120,7 @@ class Fabric(Record):
     arc_length: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: yarn per stitch, mm
     course_pitch: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: stitch width, mm
     wale_pitch: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: stitch height, mm
+    pattern_options: dict[str, Any] = attrs.Factory(dict)  #: options of the pattern plugin, e.g. stitch_lengths
 
     def __attrs_post_init__(self) -> None:
         if self.stitch_length is None and self.arc_length is None:

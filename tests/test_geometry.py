@@ -287,3 +287,23 @@ def test_two_yarn_strand_frames_and_clearance():
     other = np.linalg.norm(r[:, None] - (r[None] + cell.L1), axis=2)
     assert clr.minimum == pytest.approx(min(own.min(), other.min()), abs=2e-3)
     assert clr.minimum > 0.4  # the cut between the two yarns is not mistaken for a contact
+
+
+def test_pattern_options_from_the_fabric_reach_the_cell():
+    """Fabric.pattern_options override the pattern's stitch-length table in the cell every solver builds."""
+    from knitframe.geometry import unit_cell
+
+    cotton = get_registry()["yarn"]["cotton"]
+    base = Fabric("jersey", cotton, stitch_length=11)
+    custom = Fabric("jersey", cotton, stitch_length=11, pattern_options={"stitch_lengths": {"11": 5.0}})
+    assert unit_cell(base).arc_length_per_stitch == pytest.approx(4.7, rel=1e-6)
+    assert unit_cell(custom).arc_length_per_stitch == pytest.approx(5.0, rel=1e-6)
+
+
+def test_bad_pattern_option_names_its_config_path():
+    """An unknown pattern option is a ConfigError at fabric.pattern_options.<key>."""
+    from knitframe.errors import ConfigError
+    from knitframe.geometry import unit_cell
+
+    with pytest.raises(ConfigError, match=r"^fabric.pattern_options.loops: unknown key"):
+        unit_cell(Fabric("jersey", get_registry()["yarn"]["cotton"], stitch_length=11, pattern_options={"loops": 3}))

@@ -38,7 +38,7 @@ import attrs
 import numpy as np
 
 from knitframe import validators as v
-from knitframe.errors import GeometryError, NumericalError
+from knitframe.errors import GeometryError
 from knitframe.geometry import (
     MUNDEN_KC,
     MUNDEN_KW,
@@ -47,6 +47,7 @@ from knitframe.geometry import (
     UnitCell,
     arc_length_for,
     check_stitch_lengths,
+    course_cell,
     crossings,
     munden_pitches,
     smooth_sign,
@@ -56,8 +57,9 @@ from knitframe.records import Fabric
 
 __all__ = ["STITCH_LENGTHS", "KC", "KW", "LoopRow", "KnitLoopPattern", "arc_length_for"]
 
-# The stitch-length table, Munden's constants and the smooth sign live in knitframe.geometry so
-# that third-party patterns can use them; the old names stay importable from here.
+# The stitch-length table, Munden's pitches, the smooth sign, the arc-length solve and the cell
+# assembly live in knitframe.geometry so that third-party patterns can use them; the old names
+# stay importable from here.
 KC, KW = MUNDEN_KC, MUNDEN_KW
 _step = smooth_sign
 
@@ -175,20 +177,8 @@ class KnitLoopPattern:
         )
         rows = self.rows(height, pc, pw, dk)
         yarns = tuple(row.centerline(f"row{r}") for r, row in enumerate(rows))
-        got = sum(y.arc_length() for y in yarns) / 4.0
-        if abs(got - arc) > 1e-9 * arc:
-            raise NumericalError(f"pattern '{self.name}': arc length {got!r} mm missed the target {arc!r} mm")
-        cell = UnitCell(
-            pattern=self.name,
-            yarns=yarns,
-            L1=(2.0 * pc, 0.0, 0.0),
-            L2=(0.0, 2.0 * pw, 0.0),
-            radius=0.5 * dk,
-            end_pairs=((0, 0), (1, 1)),
-            layout=tuple(tuple(r) for r in self.layout),
-            arc_length_per_stitch=got,
-            course_pitch=pc,
-            wale_pitch=pw,
+        cell = course_cell(
+            self.name, yarns, pc, pw, dk, self.layout, arc,
             info={
                 "curve": "crane2023",
                 "loop_height": height,

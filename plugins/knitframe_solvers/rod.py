@@ -4,22 +4,32 @@ The fast rung of the accuracy ladder. Each yarn centerline of the pattern's cell
 straight segments (:mod:`knitframe_solvers.rod_model`) with stretching EA and bending EI from
 the yarn model (straight rest shape, no twist: see :mod:`knitframe_solvers.rod_terms`). Yarns
 touch each other, their periodic images under the current F̄ and (with ``self_contact``)
-themselves through a rod contact-law plugin. F̄ enters through the macro DOFs of
-:mod:`knitframe.periodic`; the course and wale tensions per unit width are the macro reactions
-divided by the cell area.
+themselves through a rod contact-law plugin, whose energy density is integrated over both
+centerlines (:mod:`knitframe_solvers.rod_contact`) and scaled so that two parallel yarns have
+the yarn model's transverse line-contact stiffness (:func:`rod_stiffness`). F̄ enters through
+the macro DOFs of :mod:`knitframe.periodic`; the course and wale tensions per unit width are the
+macro reactions divided by the cell area.
 
 A run is
 
-1. pre-stress (scene effect ``prestress``): the contact distance grows from an undersized
-   value — small enough that the knitted centerlines do not overlap — to dk, at F̄ = I and
-   constant yarn length (rest lengths are those of the geometry);
-2. the scene's load path: equibiaxial, uniaxial with the other side free (its macro DOF is
+1. pre-stress (scene effect ``prestress``): the contact distance grows geometrically from an
+   undersized value — small enough that the knitted centerlines do not overlap — to dk, at
+   F̄ = I and constant yarn length (rest lengths are those of the geometry). The yarns start
+   stress-free in their knitted shape, like the paper's volumetric cell: the rest curvature
+   is released linearly to the straight yarn over the same steps, so contact takes over from
+   the rest shape gradually. Intermediate steps are solved to 1000× the tolerance (they are
+   a path); the last one, at dk and straight rest shape, to the full tolerance;
+2. with ``relax``, the course and wale stretches are freed until both tensions vanish; the
+   stretches of the load path are measured from this relaxed lattice;
+3. the scene's load path: equibiaxial, uniaxial with the other side free (its macro DOF is
    solved for, so its tension is zero) or a general λ1(t), λ2(t), in the scene's steps, each cut
-   back adaptively on failure (:func:`knitframe.newton.continuation`).
+   back adaptively on failure (:func:`knitframe.newton.continuation`); each increment starts
+   from the previous state mapped affinely by the change of F̄.
 
 Every step is solved by Newton with an Armijo line search (:func:`knitframe.newton.minimise`);
 the rigid modes of yarns that no contact holds yet are stabilised by a Hessian shift, which does
 not change the converged state. One node is pinned to remove the cell's free translation.
+Converged steps are checkpointed; the stretches, tensions and relaxed lattice travel with them.
 """
 
 from __future__ import annotations
@@ -33,6 +43,7 @@ from typing import Any, ClassVar, Literal
 import attrs
 import numpy as np
 
+from knitframe.geometry import unit_cell
 from knitframe import hookimpl, validators as v
 from knitframe.config import instantiate
 from knitframe.errors import ConfigError, NumericalError
@@ -135,7 +146,7 @@ class RodSolver:
     def setup(self, fabric: Fabric, scene: Scene, registry=None) -> tuple[RodModel, RodEnergy, Any]:
         """Rod model, energy and unit cell for a fabric and the effects of a scene."""
         registry = registry or get_registry()
-        cell = registry["pattern"][fabric.pattern]().cell(fabric)
+        cell = unit_cell(fabric, registry)
         model = from_cell(cell, self.segments_per_stitch)
         law = None
         if "contact" in scene.effects:
@@ -261,11 +272,13 @@ class RodSolver:
                     # geometric growth: every increment enlarges the contact distance by the same factor
                     energy.dk = dk_start * (dk_full / dk_start) ** ((t - t_prestress[0]) / (1.0 - t_prestress[0]))
                     energy.kappa0 = (1.0 - t) * kappa_knitted
-                    # few contacts hold the yarns early on: allow more iterations than in the load steps
-                    return newton(q0, free, prestress_opts)
+                    # the intermediate states are only a path to t = 1: near the stress-free start the
+                    # contacts barely touch, where the smooth onset of the law makes Newton converge
+                    # linearly, so they are solved to a looser tolerance (and more iterations)
+                    return newton(q0, free, prestress_opts if t < 1.0 - 1e-12 else opts)
 
                 t_prestress = [0.0 if start_index < 0 else (start_index + 1) / self.prestress_steps]
-                prestress_opts = attrs.evolve(opts, max_iter=4 * self.max_iterations)
+                prestress_opts = attrs.evolve(opts, atol=1e3 * opts.atol, max_iter=2 * self.max_iterations)
 
                 def on_prestress(i: int, t: float, res) -> None:
                     nonlocal q

@@ -11,21 +11,27 @@ Stretching (edge x0–x1, rest length l0, axial stiffness EA in N)::
 Bending (vertex x1 between edges a = x1 − x0 and b = x2 − x1, bending stiffness EI in N·mm²,
 Voronoi length l̄ = (l0_a + l0_b)/2)::
 
-    E = EI/(2 l̄) (|κb| − κ0)²,   κb = 2 a×b / (|a||b| + a·b),   |κb| = 2 √((1 − c)/(1 + c)),  c = â·b̂
+    E = EI/(2 l̄) |κb|²,   κb = 2 a×b / (|a||b| + a·b),   |κb|² = 4 (1 − c)/(1 + c),  c = â·b̂
 
-which is EI φ²/(2 l̄) for a small turning angle φ and a straight rest shape (κ0 = 0), the
-discrete ½∫EI κ² ds (Bergou et al. 2008). Twist is not modelled: a yarn of circular section with
-a straight, untwisted rest state has no bending–twist coupling, so the centerline alone carries
-the stretching and bending energy. A rest curvature magnitude κ0 > 0 is used only on the way
-there (the rod solver's pre-stress releases the knitted curvature to straight); without twist
-it constrains how much a vertex bends, not in which direction.
+which is EI φ²/(2 l̄) for a small turning angle φ: the discrete ½∫EI κ² ds of a straight rest
+shape (Bergou et al. 2008). Twist is not modelled: a yarn of circular section with a straight,
+untwisted rest state has no bending–twist coupling, so the centerline alone carries the
+stretching and bending energy.
+
+A rest curvature κ0 (the rod solver's pre-stress starts from the knitted shape and releases it
+to straight) enters as E = EI/(2 l̄) (v − v0)², v = √(|κb|² + ε²), v0 = √(κ0² + ε²), ε = 0.05:
+≈ (|κb| − κ0)² but smooth through a straight vertex, where |κb| itself has a cone. Without
+twist it constrains how much a vertex bends, not in which direction.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["stretch", "bend"]
+__all__ = ["stretch", "bend", "REST_EPS"]
+
+#: smoothing of the rest-curvature energy at a straight vertex (|κb| is 2 tan(φ/2), dimensionless)
+REST_EPS = 0.05
 
 
 def stretch(p: np.ndarray, l0: np.ndarray, EA: np.ndarray | float, order: int = 2):
@@ -80,9 +86,9 @@ def bend(p: np.ndarray, lbar: np.ndarray, EI: np.ndarray | float, order: int = 2
 
     Notes
     -----
-    In c = â·b̂, with f = (1 − c)/(1 + c) and u = |κb| = 2√f: E = K (u − κ0)², K = EI/(2 l̄);
-    E′ = 2K (u − κ0) u′, E″ = 2K (u′² + (u − κ0) u″), u′ = f′/√f, u″ = f″/√f − f′²/(2 f^{3/2}),
-    f′ = −2/(1 + c)², f″ = 4/(1 + c)³ (for κ0 = 0: E = 4K f). ∇_a c = P_a b̂/|a| with
+    In c = â·b̂, with f = (1 − c)/(1 + c), K = EI/(2 l̄): E = 4K f (straight rest shape), or with
+    v = √(4f + ε²): E = K (v − v0)², E′ = 2K (v − v0) v′, E″ = 2K (v′² + (v − v0) v″),
+    v′ = 2f′/v, v″ = 2f″/v − 4f′²/v³; f′ = −2/(1 + c)², f″ = 4/(1 + c)³. ∇_a c = P_a b̂/|a| with
     P_a = I − â âᵀ, ∇²_aa c = (3c ââᵀ − âb̂ᵀ − b̂âᵀ − c I)/|a|², ∇²_ab c = P_a P_b/(|a||b|). A
     fold-back (c → −1) has infinite energy.
     """
@@ -97,11 +103,11 @@ def bend(p: np.ndarray, lbar: np.ndarray, EI: np.ndarray | float, order: int = 2
     opc = 1.0 + c
     with np.errstate(divide="ignore", invalid="ignore"):
         f = (1.0 - c) / opc
-    rest = kappa0 is not None and np.any(kappa0 != 0)
+    rest = kappa0 is not None
     if rest:
-        sf = np.sqrt(np.maximum(f, 1e-30))
-        u = 2.0 * sf
-        E = K * (u - kappa0) ** 2
+        v = np.sqrt(4.0 * np.maximum(f, 0.0) + REST_EPS**2)
+        v0 = np.sqrt(np.asarray(kappa0) ** 2 + REST_EPS**2)
+        E = K * (v - v0) ** 2
     else:
         E = 4.0 * K * f
     E = np.where(c > -1.0, E, np.inf)
@@ -110,10 +116,10 @@ def bend(p: np.ndarray, lbar: np.ndarray, EI: np.ndarray | float, order: int = 2
     fp = -2.0 / opc**2
     fpp = 4.0 / opc**3
     if rest:
-        up = fp / sf
-        upp = fpp / sf - fp**2 / (2.0 * sf**3)
-        f1 = 2.0 * K * (u - kappa0) * up
-        f2 = 2.0 * K * (up**2 + (u - kappa0) * upp)
+        vp = 2.0 * fp / v
+        vpp = 2.0 * fpp / v - 4.0 * fp**2 / v**3
+        f1 = 2.0 * K * (v - v0) * vp
+        f2 = 2.0 * K * (vp**2 + (v - v0) * vpp)
     else:
         f1, f2 = 4.0 * K * fp, 4.0 * K * fpp
     ga = (bh - c[:, None] * ah) / la[:, None]  # ∇_a c

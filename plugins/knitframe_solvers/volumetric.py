@@ -38,6 +38,7 @@ import attrs
 import numpy as np
 import scipy.sparse as sp
 
+from knitframe.geometry import unit_cell
 from knitframe import hookimpl, validators as v
 from knitframe.config import instantiate
 from knitframe.contact_search import SegmentTopology
@@ -158,7 +159,7 @@ class VolumetricSolver:
         from knitframe.mesh import cell_mesh
 
         registry = registry or get_registry()
-        cell = registry["pattern"][fabric.pattern]().cell(fabric)
+        cell = unit_cell(fabric, registry)
         t0 = time.perf_counter()
         cm = cell_mesh(cell, seed=self.seed, order=self.order)
         t_mesh = time.perf_counter() - t0
@@ -230,8 +231,8 @@ class VolumetricSolver:
             du = model.T @ dx
             return max(float(np.max(np.abs(du))), float(np.max(np.abs(dx[n_ind:]))) * model.L_max) / r
 
-        def newton(q0: np.ndarray, free: np.ndarray):
-            model.anchor(q0)
+        def newton(q0: np.ndarray, free: np.ndarray, anchor: np.ndarray | None = None):
+            model.anchor(q0 if anchor is None else anchor)
             return minimise(model, q0, free, solve=solve, options=opts, step_norm=step_norm)
 
         s0 = 1.0
@@ -273,8 +274,11 @@ class VolumetricSolver:
                 targets = [k / self.prestress_steps for k in range(start_index + 2, self.prestress_steps + 1)]
 
                 def solve_prestress(t: float, q0: np.ndarray):
-                    model.s = s0 + t * (1.0 - s0)
-                    return newton(q0, free)
+                    # predictor: the free growth of the tubes, exact away from contacts
+                    s_new = s0 + t * (1.0 - s0)
+                    q1 = q0 + model.shrunk(s_new) - model.shrunk(model.s)
+                    model.s = s_new
+                    return newton(q1, free, anchor=q0)
 
                 def on_prestress(i: int, t: float, res) -> None:
                     nonlocal q
@@ -307,9 +311,11 @@ class VolumetricSolver:
                 pres, vals = lat.constraints(l1, l2)
                 qs = q0.copy()
                 qs[n_ind:][pres] = vals[pres]
+                # predictor: the affine increment (F̄ − I)·X of the macro step on every node
+                qs[:n_ind] += lat.affine(model.X_ind, qs[n_ind:] - q0[n_ind:]).ravel()
                 free = base_free.copy()
                 free[n_ind:] = ~pres
-                return newton(qs, free)
+                return newton(qs, free, anchor=q0)
 
             def on_load(i: int, tau: float, res) -> None:
                 nonlocal q
@@ -369,6 +375,7 @@ class VolumetricModel:
         self.n = n
         self.s = 1.0
         self.L_max = float(max(np.linalg.norm(lattice.L1), np.linalg.norm(lattice.L2)))
+        self.X_ind = cm.nodes[independent]
         self.damping = float(damping)
         self.u0 = np.zeros(n)
         self.TtT = (self.TT @ T).tocsr()

@@ -28,10 +28,11 @@ from typing import Any, ClassVar
 import attrs
 
 from knitframe import hookimpl
+from knitframe.geometry import pattern_for
 from knitframe.yarns import config_yarns, resolve_yarn
 from knitframe.config import PluginSpec, instantiate
 from knitframe.effects import require_effects
-from knitframe.errors import ConfigError, UnknownPluginError
+from knitframe.errors import ConfigError
 from knitframe.progress import ProgressBar
 from knitframe.records import Fabric, Scene
 from knitframe.report import plot_responses, write_responses_csv
@@ -87,9 +88,9 @@ class SimulateStage:
             raise ConfigError(e.path, e.problem, source=src) from None
         fabric = build(Fabric, table, "fabric", source=src)
         try:
-            ctx.registry["pattern"].entry(fabric.pattern)
-        except UnknownPluginError as e:
-            raise ConfigError("fabric.pattern", str(e), source=src) from None
+            pattern_for(fabric, ctx.registry)  # validates the pattern name and its options before any work
+        except ConfigError as e:
+            raise ConfigError(e.path, e.problem, source=src) from None
         scene = build(Scene, config.get("scene", {}), "scene", source=src)
         require_effects(scene, solver, ctx.registry, name=spec.kind)
         return cls(spec.kind, solver, fabric, scene)

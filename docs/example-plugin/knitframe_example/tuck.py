@@ -40,13 +40,14 @@ import numpy as np
 
 import knitframe
 from knitframe import validators as v
-from knitframe.errors import GeometryError, NumericalError
+from knitframe.errors import GeometryError
 from knitframe.geometry import (
     STITCH_LENGTHS,
     Centerline,
     UnitCell,
     arc_length_for,
     check_stitch_lengths,
+    course_cell,
     crossings,
     munden_pitches,
     smooth_sign,
@@ -186,23 +187,10 @@ class Tuck:
         context = f"course pitch {pc:.4g} mm, wale pitch {pw:.4g} mm and dk {dk:g} mm"
         height = solve_arc_length(per_stitch, arc, 0.5 * pw, max(pw, arc), context=context)
         yarns = tuple(row.centerline(f"row{r}") for r, row in enumerate(self.rows(height, pc, pw, dk)))
-        got = sum(y.arc_length() for y in yarns) / 4.0
-        if abs(got - arc) > 1e-9 * arc:
-            raise NumericalError(f"pattern 'tuck': arc length {got!r} mm missed the target {arc!r} mm")
-        cell = UnitCell(
-            pattern=self.name,
-            yarns=yarns,
-            L1=(2.0 * pc, 0.0, 0.0),
-            L2=(0.0, 2.0 * pw, 0.0),
-            radius=0.5 * dk,
-            end_pairs=((0, 0), (1, 1)),
-            # every needle works on the face side ("k"); which stitches tuck is in info["stitches"]
-            layout=(("k", "k"), ("k", "k")),
-            arc_length_per_stitch=got,
-            course_pitch=pc,
-            wale_pitch=pw,
-            info={"stitches": [["knit", "tuck"], ["tuck", "knit"]], "loop_height": height},
-        )
+        # every needle works on the face side ("k"); which stitches tuck goes in info["stitches"]
+        layout = (("k", "k"), ("k", "k"))
+        info = {"stitches": [["knit", "tuck"], ["tuck", "knit"]], "loop_height": height}
+        cell = course_cell(self.name, yarns, pc, pw, dk, layout, arc, info)
         for (row, stitch, lower), signs in links(cell).items():
             if signs != LINKS[(stitch, lower)]:
                 raise GeometryError(
