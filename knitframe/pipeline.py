@@ -2,7 +2,8 @@
 
 A config's top-level tables select stages: each registered :class:`~knitframe.interfaces.Stage`
 owns the table named after it (``[data]``, ``[solver]``, ``[fit]`` …) and may read others it
-``uses`` (``[fabric]``, ``[scene]``). The pipeline
+``uses`` (``[fabric]``, ``[scene]``). A stage that declares ``repeatable = True`` may be given as
+an array of tables (``[[fit]]``), one stage run per table. The pipeline
 
 1. validates the whole config — unknown tables, every stage's options, plugin names, files,
    effects — before any work, so bad input leaves nothing behind;
@@ -122,7 +123,12 @@ class Pipeline:
             if key not in owners:
                 known = sorted(set(owners) | set(RESERVED_TABLES))
                 raise ConfigError(key, f"unknown table; expected one of {', '.join(known)}", source=source)
-            if not isinstance(value, dict):
+            owner = stage_kind[owners[key]]
+            repeatable = getattr(owner, "repeatable", False) and _table(owner) == key
+            if isinstance(value, list) and repeatable:
+                if not value or not all(isinstance(v, dict) for v in value):
+                    raise ConfigError(key, "expected one or more tables ([[%s]])" % key, source=source)
+            elif not isinstance(value, dict):
                 raise ConfigError(key, f"expected a table, got {value!r}", source=source)
         self._check_pipeline_table()
         ctx = BuildContext(self.registry, base_dir, source, frozenset(self.config))
@@ -130,7 +136,30 @@ class Pipeline:
         if not present:
             stages = ", ".join(f"[{_table(stage_kind[n])}]" for n in stage_kind)
             raise ConfigError("", f"nothing to do: the config has none of the stage tables {stages}", source=source)
-        self.stages = [cls.from_config(self.config, ctx) for cls in sorted(present, key=lambda c: c.order)]
+        self.stages = []
+        for cls in sorted(present, key=lambda c: c.order):
+            self.stages.extend(self._build(cls, ctx))
+
+    def _build(self, cls: Any, ctx: BuildContext) -> list[Any]:
+        """One stage instance per table; ``[[name]]`` arrays of a repeatable stage give several."""
+        key = _table(cls)
+        value = self.config[key]
+        if not isinstance(value, list):
+            return [cls.from_config(self.config, ctx)]
+        stages = []
+        for i, entry in enumerate(value):
+            try:
+                stages.append(cls.from_config({**self.config, key: entry}, ctx))
+            except ConfigError as e:
+                path = f"{key}[{i}]" + e.path[len(key):] if e.path.startswith(key) else e.path
+                raise ConfigError(path, e.problem, source=e.source) from None
+        labels = [_label(s) for s in stages]
+        dup = next((lab for lab in labels if labels.count(lab) > 1), None)
+        if dup is not None:
+            i = labels.index(dup, labels.index(dup) + 1)
+            raise ConfigError(f"{key}[{i}].name", f"repeated [[{key}]] tables need distinct names, "
+                              f"'{dup}' is used twice", source=self.source)
+        return stages
 
     def _check_pipeline_table(self) -> None:
         table = self.config.get("pipeline", {})
@@ -168,7 +197,7 @@ class Pipeline:
             for stage in self.stages:
                 t0 = time.perf_counter()
                 stage.run(ctx)
-                timings.append({"stage": stage.name, "seconds": round(time.perf_counter() - t0, 6)})
+                timings.append({"stage": _label(stage), "seconds": round(time.perf_counter() - t0, 6)})
         except BaseException:
             # keep the partial directory only if it holds checkpoints worth resuming from
             ckpt = partial / "checkpoints"
@@ -193,6 +222,11 @@ class Pipeline:
             shutil.rmtree(out)
         os.replace(partial, out)
         return PipelineResult(out, ctx.responses, ctx.models, ctx.results, summary)
+
+
+def _label(stage: Any) -> str:
+    """A stage instance's name in timings and results: ``fit`` or, for named repeats, ``fit:measured``."""
+    return getattr(stage, "label", None) or stage.name
 
 
 def _table(stage: Any) -> str:

@@ -103,3 +103,30 @@ def test_stages_run_in_order_and_new_stages_plug_in_without_core_changes(tmp_pat
     assert (tmp_path / "o" / "count.txt").read_text() == "10"
     with pytest.raises(ConfigError, match="count.factor: expected an integer"):
         Pipeline({"count": {"factor": "x"}}, base_dir=tmp_path, registry=reg)
+
+
+def test_repeated_fit_tables_run_one_fit_each(tmp_path, singal_file):
+    """[[fit]] arrays give one fit per table, filtered by kind or label, with prefixed outputs."""
+    cfg = {
+        "data": {"files": [str(singal_file("cotton-rib-x.csv")), str(singal_file("cotton-rib-y.csv"))]},
+        "fit": [
+            {"name": "course", "labels": ["cotton-rib-x"]},
+            {"name": "both", "kinds": ["experiment"]},
+        ],
+    }
+    res = knitframe.run(cfg, tmp_path / "o")
+    assert [s["stage"] for s in res.summary["stages"]] == ["data", "fit:course", "fit:both"]
+    assert json.loads((tmp_path / "o" / "course-params.json").read_text())["responses"] == ["cotton-rib-x"]
+    assert len(json.loads((tmp_path / "o" / "both-params.json").read_text())["responses"]) == 2
+    assert (tmp_path / "o" / "both-fit.png").exists()
+
+
+def test_repeated_tables_name_the_failing_entry(tmp_path, singal_file):
+    """An error inside the second [[fit]] table names fit[1]; duplicate names are refused."""
+    data = {"files": [str(singal_file("cotton-rib-x.csv"))]}
+    with pytest.raises(ConfigError, match=r"^fit\[1\]\.fitter: unknown fitter 'nope'"):
+        knitframe.run({"data": data, "fit": [{"name": "a"}, {"name": "b", "fitter": "nope"}]})
+    with pytest.raises(ConfigError, match=r"^fit\[1\]\.name: repeated \[\[fit\]\] tables need distinct names"):
+        knitframe.run({"data": data, "fit": [{"name": "a"}, {"name": "a"}]})
+    with pytest.raises(ConfigError, match=r"^data: expected a table"):
+        knitframe.run({"data": [data]})

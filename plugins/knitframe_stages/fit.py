@@ -6,6 +6,10 @@
     model = "hgo"                     # or { kind = "hgo2m", compression_fibre = false }
     fitter = "lbfgs"                  # or { kind = "mads", max_evals = 2000 }
     labels = []                       # Response labels to fit; empty: all of them
+    kinds = []                        # provenance kinds to fit ("experiment", "simulation"); empty: all
+
+Several fits in one run: give ``[[fit]]`` tables with distinct ``name`` keys; each writes
+``<name>-params.json`` and ``<name>-fit.png``.
 
 Writes ``params.json`` (every parameter, θ as ``theta_deg``, NRMSE per direction and overall,
 wall time, evaluations) and ``fit.png`` (data ±1 sd against the fit), and appends the fitted
@@ -14,7 +18,7 @@ model (a :class:`~knitframe.fitting.FitResult`) to ``ctx.models``.
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal
 
 import attrs
 
@@ -32,6 +36,8 @@ class FitTable:
     model: str | dict[str, Any] = "hgo"  #: homogenizer name, or a table with ``kind`` and options
     fitter: str | dict[str, Any] = "lbfgs"  #: fitter name, or a table with ``kind`` and options
     labels: list[str] = attrs.Factory(list)  #: fit only these Responses (by label); empty: all
+    kinds: list[Literal["experiment", "simulation", "model"]] = attrs.Factory(list)  #: fit only Responses of these provenance kinds; empty: all
+    name: str = ""  #: name of this fit when several [[fit]] tables are given; prefixes its output files
 
 
 @attrs.frozen
@@ -43,6 +49,7 @@ class FitStage:
     order: ClassVar[int] = 50
     uses: ClassVar[tuple[str, ...]] = ()
     schema: ClassVar[type] = FitTable
+    repeatable: ClassVar[bool] = True
 
     model: Any
     fitter: Any
@@ -50,6 +57,13 @@ class FitStage:
     fitter_name: str
     labels: tuple[str, ...]
     source: str | None = None
+    kinds: tuple[str, ...] = ()
+    fit_name: str = ""
+
+    @property
+    def label(self) -> str:
+        """``fit``, or ``fit:<name>`` for a named fit."""
+        return f"fit:{self.fit_name}" if self.fit_name else "fit"
 
     @classmethod
     def from_config(cls, config, ctx) -> "FitStage":
@@ -60,13 +74,15 @@ class FitStage:
             raise ConfigError("fit", "nothing to fit: add a [data] table (or a stage that makes Responses)",
                               source=ctx.source)
         return cls(model, fitter, PluginSpec.parse(table.model, "fit.model").kind,
-                   PluginSpec.parse(table.fitter, "fit.fitter").kind, tuple(table.labels), ctx.source)
+                   PluginSpec.parse(table.fitter, "fit.fitter").kind, tuple(table.labels), ctx.source,
+                   tuple(table.kinds), table.name)
 
     def run(self, ctx) -> None:
         ctx.used("stage", self.name)
         ctx.used("homogenizer", self.model_name)
         ctx.used("fitter", self.fitter_name)
-        responses = [r for r in ctx.responses if not self.labels or r.label in self.labels]
+        responses = [r for r in ctx.responses if (not self.labels or r.label in self.labels)
+                     and (not self.kinds or r.provenance.kind in self.kinds)]
         missing = sorted(set(self.labels) - {r.label for r in ctx.responses})
         if missing:
             raise ConfigError("fit.labels", f"no Response labelled {missing[0]!r}; have "
@@ -74,9 +90,10 @@ class FitStage:
         if not responses:
             raise ConfigError("fit", "no Responses to fit: an earlier stage must produce some", source=self.source)
         result = self.fitter.fit(self.model, responses)
-        write_fit_outputs(result, responses, ctx.output("params.json"), ctx.output("fit.png"))
+        prefix = f"{self.fit_name}-" if self.fit_name else ""
+        write_fit_outputs(result, responses, ctx.output(f"{prefix}params.json"), ctx.output(f"{prefix}fit.png"))
         ctx.models.append(result)
-        ctx.results[self.name] = {**result.to_json(), "headline": result.headline()}
+        ctx.results[self.label] = {**result.to_json(), "headline": result.headline()}
 
 
 @hookimpl

@@ -42,6 +42,21 @@ YARNS = (
         "E_transverse = 1e-4 E_axial (paper's ratio)",
     ),
     Yarn(
+        name="pearl-cotton",
+        d0=0.74,
+        dk=0.74,
+        E_axial=1200.0,
+        E_transverse=0.12,
+        nu=0.3,
+        bending_stiffness=0.0708,
+        model="transverse_isotropic",
+        source="Pearl cotton 3/2, the cotton of Singal et al. 2024 (Nat Commun 15:2622, Supplement): bending modulus "
+        "B = 70.8 mN mm2 measured (bending_stiffness); their compression law k = 11.49, p = 2.94 has no Yarn field and "
+        "is not used. d0 = dk = 0.74 mm estimated from the count (3/2 = Ne 1.5, about 394 tex) with Peirce's "
+        "d = 1/(28 sqrt(Ne)) inch; E_axial representative of cotton yarn (as 'cotton'); E_transverse = 1e-4 E_axial "
+        "(the paper's ratio for cotton)",
+    ),
+    Yarn(
         name="pet",
         d0=0.178,
         dk=0.178,
