@@ -1,17 +1,22 @@
 """Contact law ``rod_penalty``: smooth penalty between yarn centerlines, with a stiffening core.
 
-For two yarn segments whose centerlines are a distance d apart (knitted diameter dk, contact
-stiffness k in N/mm, penetration δ = dk − d, smoothing length ε = smoothing·dk)::
+For two points of yarn centerlines a distance d apart (knitted diameter dk, stiffness k,
+penetration δ = dk − d, smoothing length ε = smoothing·dk)::
 
     e(d) = k ε² h(δ/ε) + k_c dk² B(d/dk)
-    h(x) = 0 (x ≤ 0),  x³/6 (0 < x ≤ 1),  x²/2 − x/2 + 1/6 (x > 1)          (C², force k(δ − ε/2))
+    h(x) = 0 (x ≤ 0),  x³/6 (0 < x ≤ 1),  x²/2 − x/2 + 1/6 (x > 1)          (C², −e′ = k(δ − ε/2))
     B(y) = −(y − y₁)² ln((y − c)/(y₁ − c))  for c < y < y₁ = (1 + c)/2, else 0; +∞ for y ≤ c
 
-h is a linear penalty of stiffness k with a C² onset; B is a barrier (Li et al. 2020, IPC) that
-stiffens the law once the two yarns are squeezed past y₁ and forbids centre distances below
-c·dk, so soft yarns cannot pass through each other. k defaults to the yarn's transverse
-contact stiffness; the core stiffness k_c, that of the packed fibres once the yarn's free
-volume is squeezed out, defaults to k (solvers pass E_axial·dk).
+h is a linear penalty with a C² onset; B is a barrier (Li et al. 2020, IPC) that stiffens the law
+once the two yarns are squeezed past y₁ and forbids centre distances below c·dk, so soft yarns
+cannot pass through each other.
+
+The rod solver uses e as an energy density per unit length of both centerlines (N/mm, k and
+k_c in N/mm³), integrated over every pair of yarn segments
+(:mod:`knitframe_solvers.rod_contact`). It scales k so that two parallel yarns have the yarn
+model's transverse line-contact stiffness at 5 % flattening (or ``stiffness``, N/mm²), and k_c
+so that their line stiffness is the yarn's axial modulus halfway through the barrier's band: the
+core of packed fibres.
 
 Friction (only when the scene asks for it): regularised Coulomb on the slip u_T of the two
 material contact points since the last converged step, with the normal force λ lagged from
@@ -40,7 +45,7 @@ class RodPenalty:
     description: ClassVar[str] = "smooth centerline penalty with a stiffening core, regularised Coulomb friction (rods)"
     discretisation: ClassVar[str] = "rod"
 
-    stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: k, N/mm; default: the yarn's transverse contact stiffness
+    stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: line contact stiffness of two parallel yarns at 5 % flattening, N/mm²; default: the yarn model's
     smoothing: float = attrs.field(default=0.05, validator=v.in_range(0.0, 1.0, lo_open=True))  #: ε/dk, -
     core: float = attrs.field(default=0.5, validator=v.in_range(0.0, 1.0, hi_open=True))  #: smallest centre distance / dk (0: no barrier), -
     friction: float = attrs.field(default=0.3, validator=v.non_negative)  #: Coulomb coefficient μ, -
@@ -48,14 +53,14 @@ class RodPenalty:
 
     def normal(self, d: np.ndarray, dk: float, k: float, k_core: float | None = None
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Energy e (N·mm) and its first and second derivatives with respect to the centre distance d.
+        """Energy e and its first and second derivatives with respect to the centre distance d.
 
         Parameters
         ----------
         d : (m,) centre distances, mm
         dk : contact distance (knitted diameter), mm
-        k : penalty stiffness, N/mm
-        k_core : barrier stiffness k_c, N/mm (default k)
+        k : penalty stiffness (N/mm³ for the rod solver's density, N/mm for a point contact)
+        k_core : barrier stiffness k_c, same units as k (default k)
 
         Returns ``(e, de/dd, d²e/dd²)``, each (m,); e is +inf inside the core.
         """
@@ -89,7 +94,7 @@ class RodPenalty:
         return e, e1, e2
 
     def force(self, d: np.ndarray, dk: float, k: float, k_core: float | None = None) -> np.ndarray:
-        """Compressive contact force −de/dd (N) at centre distances d (mm); zero when d ≥ dk."""
+        """Repulsion −de/dd at centre distances d (mm); zero when d ≥ dk."""
         return -self.normal(d, dk, k, k_core)[1]
 
     def friction_potential(self, u: np.ndarray, lam: np.ndarray, dk: float

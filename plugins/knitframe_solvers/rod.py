@@ -42,6 +42,7 @@ from typing import Any, ClassVar, Literal
 
 import attrs
 import numpy as np
+import scipy.sparse as sp
 
 from knitframe.geometry import unit_cell
 from knitframe import hookimpl, validators as v
@@ -56,6 +57,9 @@ from knitframe_solvers.rod_contact import line_energy
 from knitframe_solvers.rod_model import RodEnergy, RodModel, from_cell
 
 __all__ = ["RodSolver", "rod_stiffness", "write_rod_vtu"]
+
+#: decades over which the springs holding the lattice are released in the relaxation
+RELAX_DECADES = 6
 
 
 def rod_stiffness(yarn, registry=None, law=None, line_stiffness: float | None = None) -> dict[str, float]:
@@ -124,10 +128,11 @@ class RodSolver:
         {"large_deformation", "bending", "contact", "self_contact", "friction", "prestress"})
     loads: ClassVar[frozenset[str]] = frozenset({"equibiaxial", "uniaxial-course", "uniaxial-wale", "general"})
 
-    segments_per_stitch: int = attrs.field(default=16, validator=v.in_range(4, 1000))  #: rod segments per stitch of yarn, -
+    segments_per_stitch: int | None = attrs.field(default=None, validator=v.optional(v.in_range(4, 1000)))  #: rod segments per stitch of yarn; unset: segments no longer than dk/2 (at least 16), -
     linear_solver: str | dict[str, Any] = "direct"  #: linear-solver plugin name or table with ``kind``
     contact_law: str | dict[str, Any] = "rod_penalty"  #: rod contact-law plugin name or table with ``kind``
     prestress_steps: int = attrs.field(default=8, validator=v.in_range(1, 1000))  #: steps growing the contact radius, -
+    prestress_start: Literal["auto", "straight", "knitted"] = "auto"  #: yarn rest shape during the pre-stress: straight throughout, or the knitted shape released to straight; "auto" tries straight, then knitted
     initial_radius: float = attrs.field(default=0.7, validator=v.in_range(0.0, 1.0, lo_open=True))  #: largest start of the pre-stress radius / (dk/2), -
     self_contact_exclusion: float = attrs.field(default=np.pi, validator=v.positive)  #: same-strand pairs closer than this × dk along the yarn are neighbours, -
     tolerance: float = attrs.field(default=1e-9, validator=v.positive)  #: Newton residual tolerance / EA, -
@@ -147,7 +152,7 @@ class RodSolver:
         """Rod model, energy and unit cell for a fabric and the effects of a scene."""
         registry = registry or get_registry()
         cell = unit_cell(fabric, registry)
-        model = from_cell(cell, self.segments_per_stitch)
+        model = from_cell(cell, self.segments(cell))
         law = None
         if "contact" in scene.effects:
             law = instantiate(registry, "contact_law", self.contact_law, "solver.contact_law")
@@ -162,6 +167,12 @@ class RodSolver:
             friction="friction" in scene.effects, quadrature=self.contact_quadrature, k_line=stiff["k_line"],
         )
         return model, energy, cell
+
+    def segments(self, cell) -> int:
+        """Segments per stitch: the option, or the smallest multiple of 4 (at least 16) with segments ≤ dk/2."""
+        if self.segments_per_stitch is not None:
+            return self.segments_per_stitch
+        return max(16, 4 * int(np.ceil(cell.arc_length_per_stitch / (0.5 * cell.dk) / 4.0)))
 
     def _key(self, fabric: Fabric, scene: Scene) -> str:
         text = json.dumps([fabric.to_dict(), scene.to_dict(), attrs.asdict(self)], sort_keys=True, default=str)
@@ -224,26 +235,51 @@ class RodSolver:
                 energy.update_lag(q0)
             return minimise(energy, q0, free, solve=solve, options=options, stabilise=stabilise, step_norm=step_norm)
 
+        def relax_lattice(q0: np.ndarray, free: np.ndarray) -> np.ndarray:
+            # Springs on the course and wale stretch tie the lattice to where the pre-stress left
+            # it and are released in decades: the cell follows the nearest branch of equilibria
+            # to zero tension instead of jumping in one long solve to whichever basin it meets.
+            idx = 3 * n + np.array([macro_index(0, 0), macro_index(1, 1)])
+            h0 = q0[idx].copy()
+            K0 = 10.0 * float(np.abs(energy(q0, 2)[2].diagonal()[idx]).max())
+            x = q0
+            for K in [K0 * 10.0**-k for k in range(RELAX_DECADES)] + [0.0]:
+                def fun(qv: np.ndarray, order: int = 2, K: float = K):
+                    E, g, H, info = energy(qv, order)
+                    dh = qv[idx] - h0
+                    E += 0.5 * K * float(dh @ dh)
+                    if order >= 1:
+                        g = g.copy()
+                        g[idx] += K * dh
+                    if order >= 2:
+                        H = H + sp.csr_matrix((np.full(2, K), (idx, idx)), shape=H.shape)
+                    return E, g, H, info
+                x = minimise(fun, x, free, solve=solve, options=attrs.evolve(opts, max_iter=4 * self.max_iterations),
+                             stabilise=stabilise, step_norm=step_norm).x
+            return x
+
         rows: list[tuple[float, float, float, float]] = []
         q = np.zeros(model.n_dof)
         kappa_knitted = model.curvature(q)
-        start_phase, start_index = "prestress", -1
-        lam_ref: tuple[float, float] | None = None
+        dk_full = cell.dk
+        # what a checkpoint carries besides q and rows, so a resumed run retraces the same path
+        state: dict[str, Any] = {"phase": "prestress", "target": -1, "dk": energy.dk, "dk0": None, "lam_ref": None,
+                                 "start": None, "relaxed_energy": None}
+        step_counter = [0]
         if ckpt is not None and (saved := ckpt.latest()) is not None:
-            _, arrays, meta = saved
+            index, arrays, meta = saved
             q = arrays["q"]
             rows = [tuple(r) for r in arrays["rows"].tolist()]
-            start_phase, start_index = meta["phase"], int(meta["target"])
+            state.update({k: meta.get(k) for k in state})
             energy.dk = float(meta["dk"])
-            lam_ref = tuple(meta["lam_ref"]) if meta.get("lam_ref") else None
+            step_counter[0] = index + 1
         notes: list[str] = []
         converged = True
-        step_counter = [0]
 
         def after(phase: str, index: int, qv: np.ndarray, message: str, done: int) -> None:
+            state.update(phase=phase, target=index, dk=energy.dk)
             if ckpt is not None:
-                ckpt.save(step_counter[0], {"q": qv, "rows": np.array(rows, dtype=np.float64).reshape(-1, 4)},
-                          {"phase": phase, "target": index, "dk": energy.dk, "lam_ref": lam_ref})
+                ckpt.save(step_counter[0], {"q": qv, "rows": np.array(rows, dtype=np.float64).reshape(-1, 4)}, state)
             if vtu:
                 name = f"rod-{step_counter[0]:04d}.vtu"
                 write_rod_vtu(out_dir / name, model, qv, 0.5 * energy.dk)
@@ -252,67 +288,88 @@ class RodSolver:
             step_counter[0] += 1
             report(done, total, message)
 
+        def run_prestress(start: str, q0: np.ndarray, first: int) -> np.ndarray:
+            """Grow the contact distance dk0 → dk geometrically at F̄ = I, from pre-stress step ``first``."""
+            free = base_free.copy()
+            free[3 * n:] = False
+            t_first = first / self.prestress_steps
+            targets = [k / self.prestress_steps for k in range(first + 1, self.prestress_steps + 1)]
+            dk0 = state["dk0"]
+            loose = attrs.evolve(opts, atol=1e3 * opts.atol, max_iter=2 * self.max_iterations)
+            label = "" if self.prestress_start == "straight" else f" ({start} start)"
+
+            def solve_prestress(t: float, x0: np.ndarray):
+                energy.dk = dk0 * (dk_full / dk0) ** t
+                if start == "knitted":
+                    energy.kappa0 = (1.0 - t) * kappa_knitted
+                    # the intermediate states are only a path to t = 1: near the stress-free start
+                    # the contacts barely touch, where the smooth onset of the law makes Newton
+                    # converge linearly, so they are solved to a looser tolerance
+                    return newton(x0, free, loose if t < 1.0 - 1e-12 else opts)
+                return newton(x0, free)
+
+            def on_prestress(i: int, t: float, res) -> None:
+                idx = int(round(t * self.prestress_steps)) - 1
+                after("prestress", idx, res.x, f"pre-stress{label} {idx + 1}/{self.prestress_steps}", idx + 1)
+
+            try:
+                out = continuation(solve_prestress, q0, targets, t0=t_first, min_fraction=self.min_step_fraction,
+                                   on_target=on_prestress)
+            except NumericalError as e:
+                raise NumericalError(f"pre-stress{label} (contact distance {energy.dk:.4g} of {dk_full:.4g} mm): {e}"
+                                     ) from None
+            finally:
+                energy.kappa0 = None
+            energy.dk = dk_full
+            return out[-1].x if out else q0
+
         try:
-            # ---- pre-stress: grow the contact distance at F̄ = I and constant yarn length, from the
-            # knitted centerlines as a stress-free start to the straight rest shape of the yarn
-            if prestress and start_phase == "prestress":
-                dk_full = cell.dk
-                if start_index < 0:
+            # ---- pre-stress: grow the contact distance at F̄ = I and constant yarn length
+            if prestress and state["phase"] == "prestress":
+                if state["start"] is not None:  # resuming
+                    starts = [state["start"]]
+                else:
                     energy.dk = dk_full
                     d_min = float(energy.pairs(q).distance.min(initial=dk_full))
-                    dk0 = min(self.initial_radius * dk_full, 0.95 * d_min)
-                    energy.dk = dk0
-                dk_start = energy.dk
-                free = base_free.copy()
-                free[3 * n:] = False
-                targets = np.arange(1, self.prestress_steps + 1) / self.prestress_steps
-                targets = targets[targets > (start_index + 1) / self.prestress_steps - 1e-12] if start_index >= 0 else targets
-
-                def solve_prestress(t: float, q0: np.ndarray):
-                    # geometric growth: every increment enlarges the contact distance by the same factor
-                    energy.dk = dk_start * (dk_full / dk_start) ** ((t - t_prestress[0]) / (1.0 - t_prestress[0]))
-                    energy.kappa0 = (1.0 - t) * kappa_knitted
-                    # the intermediate states are only a path to t = 1: near the stress-free start the
-                    # contacts barely touch, where the smooth onset of the law makes Newton converge
-                    # linearly, so they are solved to a looser tolerance (and more iterations)
-                    return newton(q0, free, prestress_opts if t < 1.0 - 1e-12 else opts)
-
-                t_prestress = [0.0 if start_index < 0 else (start_index + 1) / self.prestress_steps]
-                prestress_opts = attrs.evolve(opts, atol=1e3 * opts.atol, max_iter=2 * self.max_iterations)
-
-                def on_prestress(i: int, t: float, res) -> None:
-                    nonlocal q
-                    q = res.x
-                    idx = int(round(t * self.prestress_steps)) - 1
-                    after("prestress", idx, q, f"pre-stress {idx + 1}/{self.prestress_steps}", idx + 1)
-
-                continuation(solve_prestress, q, list(targets), t0=t_prestress[0],
-                             min_fraction=self.min_step_fraction, on_target=on_prestress)
-                energy.dk, energy.kappa0 = dk_full, None
-                start_phase, start_index = "load", -1
-            elif energy.law is not None and start_phase == "prestress":
+                    state["dk0"] = min(self.initial_radius * dk_full, 0.95 * d_min)
+                    starts = ["straight", "knitted"] if self.prestress_start == "auto" else [self.prestress_start]
+                for k, start in enumerate(starts):
+                    state["start"] = start
+                    try:
+                        q = run_prestress(start, q, int(state["target"]) + 1)
+                        break
+                    except NumericalError as e:
+                        if k + 1 == len(starts):
+                            raise
+                        notes.append(f"pre-stress from the straight yarn failed, used the knitted start ({e})")
+                        q, state["target"] = np.zeros(model.n_dof), -1
+                state.update(phase="load", target=-1)
+            elif energy.law is not None and state["phase"] == "prestress":
                 E0 = energy(q, 0)[0]
                 if not np.isfinite(E0):
                     d_min = float(energy.pairs(q).distance.min(initial=cell.dk))
                     raise NumericalError(
                         f"rod: the knitted centerlines overlap (closest centre distance {d_min:.4g} mm < "
                         f"{getattr(energy.law, 'core', 0) * cell.dk:.4g} mm); add 'prestress' to scene.effects")
-                start_phase, start_index = "load", -1
+                state.update(phase="load", target=-1)
+            start_phase, start_index = state["phase"], int(state["target"])
 
             # ---- relaxation: the course and wale stretches are free (zero tension), shear stays zero
-            if self.relax and start_phase == "load" and start_index < 0 and not rows:
-                free = base_free.copy()
-                pres, _ = lat.constraints(None, None)
-                free[3 * n:] = ~pres
-                # one long Newton solve: the lattice may move far, in steps capped by max_step
-                q = newton(q, free, attrs.evolve(opts, max_iter=10 * self.max_iterations)).x
-            if lam_ref is None:  # the lattice the stretches are measured from (saved with every load step)
-                lam_ref = (1.0 + q[3 * n + macro_index(0, 0)], 1.0 + q[3 * n + macro_index(1, 1)])
+            offset = total - n_load
+            if state["lam_ref"] is None:  # the lattice the stretches are measured from
+                if self.relax:
+                    free = base_free.copy()
+                    pres, _ = lat.constraints(None, None)
+                    free[3 * n:] = ~pres
+                    q = relax_lattice(q, free)
+                state["lam_ref"] = [1.0 + q[3 * n + macro_index(0, 0)], 1.0 + q[3 * n + macro_index(1, 1)]]
+                state["relaxed_energy"] = float(energy(q, 0)[0])
+                after("load", -1, q, "relaxed lattice" if self.relax else "start of the load path", offset)
+            lam_ref = state["lam_ref"]
 
             # ---- load path
             lam1_path = None if lam1 is None else np.concatenate([[1.0], lam1])
             lam2_path = None if lam2 is None else np.concatenate([[1.0], lam2])
-            offset = total - n_load
 
             def prescribed(tau: float):
                 l1 = None if lam1_path is None else float(np.interp(tau, np.arange(n_load + 1), lam1_path))
@@ -356,11 +413,13 @@ class RodSolver:
         sl = fabric.stitch_length if fabric.stitch_length is not None else fabric.arc_length
         prov = Provenance(
             kind="simulation", source=f"rod {fabric.pattern}", solver=self.name,
-            mesh=f"{model.n_nodes} nodes, {len(model.edges)} segments ({self.segments_per_stitch}/stitch)",
+            mesh=f"{model.n_nodes} nodes, {len(model.edges)} segments ({self.segments(cell)}/stitch)",
             wall_time=time.perf_counter() - t_start, converged=converged, notes="; ".join(notes),
             extra={"EA_N": energy.EA, "EI_Nmm2": energy.EI, "k_line_N_per_mm2": energy.k_line,
                    "dk_mm": cell.dk, "L1_mm": lat.L1.tolist(), "L2_mm": lat.L2.tolist(),
-                   "effects": sorted(scene.effects), "options": attrs.asdict(self)},
+                   "effects": sorted(scene.effects), "options": attrs.asdict(self),
+                   "prestress_start": state["start"], "relaxed_stretch": state["lam_ref"],
+                   "relaxed_energy_Nmm": state["relaxed_energy"]},
         )
         return Response(arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3], load=key,
                         label=f"rod {fabric.pattern} SL{sl:g} {fabric.yarn.name}", provenance=prov)

@@ -95,6 +95,10 @@ class YarnLaw:
         """A_iJkL = ∂P_iJ/∂F_kL (3, 3, 3, 3, n_el, n_qp), MPa."""
         return self._evaluate(F, a)[2]
 
+    def evaluate(self, F: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(Ψ, P, A) at once (the yarn model computes them together)."""
+        return self._evaluate(F, a)
+
 
 def fibre_at_quadrature(basis: Any, node_tangent: np.ndarray) -> np.ndarray:
     """Unit fibre directions a (3, n_el, n_qp): nodal tangents interpolated with the basis, normalised."""
@@ -221,13 +225,6 @@ class SolidForms:
             [self._stress(self.deformation_gradient(u, sl), self.fibre[:, sl], s, sl) for sl in self._chunks()], axis=2
         )
 
-    def _tangent_moduli(self, F: np.ndarray, a: np.ndarray, s: float, sl: slice) -> np.ndarray:
-        if s == 1.0:
-            return self.law.tangent(F, a)
-        Ti, Jt = self._eigen(s, sl)
-        Fe = np.einsum("iMeq,MJeq->iJeq", F, Ti)
-        return Jt * np.einsum("iMkNeq,JMeq,LNeq->iJkLeq", self.law.tangent(Fe, a), Ti, Ti, optimize=True)
-
     def pattern(self) -> tuple[sp.csr_matrix, np.ndarray]:
         """CSR sparsity pattern of the tangent and the map from element-matrix entries to its data."""
         if self._pattern is None:
@@ -246,18 +243,48 @@ class SolidForms:
 
     def tangent(self, u: np.ndarray, s: float = 1.0) -> sp.csr_matrix:
         """Tangent stiffness K = ∂R/∂u (3N, 3N) as CSR, N/mm."""
-        K0, where = self.pattern()
-        data = np.zeros(K0.nnz)
+        return self.evaluate(u, s, 2)[2]
+
+    def evaluate(self, u: np.ndarray, s: float = 1.0, order: int = 2
+                 ) -> tuple[float, np.ndarray | None, sp.csr_matrix | None]:
+        """(W, R, K) in one pass over the elements: the law is evaluated once per chunk.
+
+        ``order`` 0 gives W only (+inf for an inverted element), 1 adds R, 2 adds K.
+        """
+        if order == 0:
+            return self.energy(u, s), None, None
+        K0, where = self.pattern() if order == 2 else (None, None)
+        data = np.zeros(K0.nnz) if order == 2 else None
+        R = np.zeros(self.ndof)
+        W = 0.0
         m = self.vdofs.shape[0]
         for sl in self._chunks():
             F = self.deformation_gradient(u, sl)
             self._check(F, sl)
-            A = self._tangent_moduli(F, self.fibre[:, sl], s, sl)
+            a = self.fibre[:, sl]
             G = self.grad[:, :, sl]
-            T = np.einsum("aJeq,iJkLeq->aikLeq", G, A, optimize=True)
-            Ke = np.einsum("aikLeq,bLeq,eq->eaibk", T, G, self.dx[sl], optimize=True)
-            lo, hi = sl.start * m * m, sl.stop * m * m
-            data += np.bincount(where[lo:hi], Ke.ravel(), minlength=K0.nnz)
-        K = K0.copy()
-        K.data = data
-        return K
+            Jt, Ti = 1.0, None
+            if s != 1.0:
+                Ti, Jt = self._eigen(s, sl)
+                F = np.einsum("iMeq,MJeq->iJeq", F, Ti)
+            if hasattr(self.law, "evaluate"):
+                Psi, P, A = self.law.evaluate(F, a)
+            else:
+                Psi, P, A = self.law.energy(F, a), self.law.stress(F, a), self.law.tangent(F, a) if order == 2 else None
+            W += float(np.sum(Jt * Psi * self.dx[sl]))
+            if Ti is not None:
+                P = Jt * np.einsum("iMeq,JMeq->iJeq", P, Ti)
+            Re = np.einsum("iJeq,lJeq,eq->lie", P, G, self.dx[sl])
+            R += np.bincount(self.vdofs[:, sl].ravel(), Re.reshape(-1, Re.shape[-1]).ravel(), minlength=self.ndof)
+            if order == 2:
+                if Ti is not None:
+                    A = Jt * np.einsum("iMkNeq,JMeq,LNeq->iJkLeq", A, Ti, Ti, optimize=True)
+                T = np.einsum("aJeq,iJkLeq->aikLeq", G, A, optimize=True)
+                Ke = np.einsum("aikLeq,bLeq,eq->eaibk", T, G, self.dx[sl], optimize=True)
+                lo, hi = sl.start * m * m, sl.stop * m * m
+                data += np.bincount(where[lo:hi], Ke.ravel(), minlength=K0.nnz)
+        K = None
+        if order == 2:
+            K = K0.copy()
+            K.data = data
+        return W, R, K

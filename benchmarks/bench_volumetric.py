@@ -1,0 +1,171 @@
+"""Benchmark of the volumetric solver on jersey SL11 cotton: meshing, Newton-iteration costs, solvers, full runs.
+
+Usage::
+
+    python benchmarks/bench_volumetric.py mesh                  # mesh sizes and times, P1/P2, several seeds
+    python benchmarks/bench_volumetric.py iteration --order 2   # one Newton iteration: assembly, contact, direct vs amg
+    python benchmarks/bench_volumetric.py run --order 1 --seed 0.6 --steps 6   # pre-stress + equibiaxial 0→30 %
+
+Each command prints a table (and ``--json`` writes the numbers). Peak memory is the process's
+maximum resident set size (``resource.getrusage``), so run one command per process.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import sys
+import time
+
+import numpy as np
+
+
+def peak_mb() -> float:
+    """Peak resident memory of this process, MB."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def fabric():
+    from knitframe.plugins import get_registry
+    from knitframe.records import Fabric
+
+    return Fabric(pattern="jersey", yarn=get_registry()["yarn"]["cotton"], stitch_length=11)
+
+
+def scene(steps: int):
+    from knitframe.records import LoadPath, Scene
+
+    return Scene(load=LoadPath(kind="equibiaxial", max_strain=0.3, steps=steps),
+                 effects={"large_deformation", "bending", "contact", "prestress", "anisotropy"})
+
+
+def bench_mesh(args) -> list[dict]:
+    from knitframe.geometry import unit_cell
+    from knitframe.mesh import cell_mesh, mesh_quality
+
+    cell = unit_cell(fabric())
+    rows = []
+    for order in (1, 2):
+        for seed in (0.6, 1 / 3, 0.25):
+            t0 = time.perf_counter()
+            cm = cell_mesh(cell, seed=seed, order=order)
+            t = time.perf_counter() - t0
+            q = mesh_quality(cm)
+            rows.append({"order": order, "seed_r": round(1 / seed, 2), "elements": cm.n_elements, "dofs": 3 * cm.n_nodes,
+                         "mesh_s": round(t, 2), "min_dihedral": round(q["min_dihedral_deg"], 1),
+                         "max_aspect": round(q["max_aspect_ratio"], 2), "min_jac": round(q["min_jacobian_ratio"], 3),
+                         "volume_err": f"{q['volume_error']:.2e}"})
+    return rows
+
+
+def bench_iteration(args) -> list[dict]:
+    """One Newton iteration at the first pre-stress increment: assembly, contact, transforms, solves."""
+    from knitframe.plugins import get_registry
+    from knitframe_linsolvers.amg import amg, rigid_body_modes
+    from knitframe_linsolvers.direct import direct
+
+    from knitframe_solvers.volumetric import VolumetricSolver
+
+    solver = VolumetricSolver(order=args.order, seed=args.seed, contact_law=args.contact)
+    t0 = time.perf_counter()
+    model = solver.setup(fabric(), scene(6), get_registry())
+    t_setup = time.perf_counter() - t0
+    r = model.cm.radius
+    s0 = min(solver.initial_radius, 0.95 * model.cm.clearance.minimum / (2 * r))
+    q = model.shrunk(s0)
+    # half-way through the pre-stress: the yarns are in contact
+    s = 0.5 * (s0 + 1.0)
+    q = q + model.shrunk(s) - model.shrunk(s0)
+    model.s = s
+    model.anchor(q)
+    model(q, 2)  # warm-up: sparsity pattern, caches
+    for k in model.timings:
+        model.timings[k] = 0.0 if k != "mesh" else model.timings[k]
+    t0 = time.perf_counter()
+    E, g, H, info = model(q, 2)
+    t_eval = time.perf_counter() - t0
+    n_ind = 3 * len(model.independent)
+    free = np.ones(H.shape[0], bool)
+    free[:3] = False
+    free[n_ind:] = False
+    A = H[free][:, free].tocsc()
+    b = -g[free]
+    rows = [{"what": "setup (mesh, forms, periodic map)", "s": round(t_setup, 2)},
+            {"what": "material energy+residual+tangent", "s": round(model.timings["material"], 2)},
+            {"what": f"contact ({args.contact}, {info['active']} active)", "s": round(model.timings["contact"], 2)},
+            {"what": "periodic transforms", "s": round(model.timings["transform"], 2)},
+            {"what": "whole evaluation (order 2)", "s": round(t_eval, 2)}]
+    for name, factory in (("direct (SuperLU)", lambda: direct("superlu")), ("amg (SA + rigid modes)", lambda: amg())):
+        if name.startswith("amg"):
+            B = rigid_body_modes(model.X_ind)
+            Bq = np.zeros((H.shape[0], 6))
+            Bq[:n_ind] = B
+            solve_fn = factory()
+
+            def run(A=A, b=b, B=Bq[free]):
+                return solve_fn(A, b, near_null_space=B)
+        else:
+            solve_fn = factory()
+
+            def run(A=A, b=b):
+                return solve_fn(A, b)
+        t0 = time.perf_counter()
+        try:
+            x = run()
+            res = float(np.linalg.norm(A @ x - b) / np.linalg.norm(b))
+            rows.append({"what": f"linear solve {name}", "s": round(time.perf_counter() - t0, 2), "residual": f"{res:.1e}"})
+        except Exception as e:  # report, do not hide, a failing solver
+            rows.append({"what": f"linear solve {name}", "s": round(time.perf_counter() - t0, 2),
+                         "residual": f"failed: {type(e).__name__}: {str(e)[:80]}"})
+    rows.append({"what": f"DOFs {A.shape[0]}, nnz {A.nnz}, peak RSS MB", "s": round(peak_mb())})
+    return rows
+
+
+def bench_run(args) -> list[dict]:
+    from knitframe_solvers.volumetric import VolumetricSolver
+
+    solver = VolumetricSolver(order=args.order, seed=args.seed, contact_law=args.contact, prestress_steps=args.prestress)
+    t0 = time.perf_counter()
+
+    def progress(done, total, message):
+        print(f"  {time.perf_counter() - t0:8.1f} s  {done}/{total}  {message}", file=sys.stderr, flush=True)
+
+    resp = solver.simulate(fabric(), scene(args.steps), progress=progress)
+    wall = time.perf_counter() - t0
+    prov = resp.provenance
+    rows = [{"lambda": round(float(l1), 3), "T1_N_per_mm": round(float(t1), 5), "T2_N_per_mm": round(float(t2), 5)}
+            for l1, t1, t2 in zip(resp.lambda1, resp.T1, resp.T2)]
+    rows.append({"lambda": "wall s", "T1_N_per_mm": round(wall, 1), "T2_N_per_mm": prov.mesh})
+    rows.append({"lambda": "split s", "T1_N_per_mm": json.dumps(prov.extra["timings_s"]),
+                 "T2_N_per_mm": json.dumps(prov.extra["newton_evaluations"])})
+    rows.append({"lambda": "peak RSS MB", "T1_N_per_mm": round(peak_mb()), "T2_N_per_mm": ""})
+    return rows
+
+
+def table(rows: list[dict]) -> str:
+    keys = list(dict.fromkeys(k for r in rows for k in r))
+    out = ["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
+    out += ["| " + " | ".join(str(r.get(k, "")) for k in keys) + " |" for r in rows]
+    return "\n".join(out)
+
+
+def main(argv=None) -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("what", choices=["mesh", "iteration", "run"])
+    p.add_argument("--order", type=int, default=2)
+    p.add_argument("--seed", type=float, default=1 / 3)
+    p.add_argument("--contact", default="mortar")
+    p.add_argument("--steps", type=int, default=6)
+    p.add_argument("--prestress", type=int, default=4)
+    p.add_argument("--json")
+    args = p.parse_args(argv)
+    rows = {"mesh": bench_mesh, "iteration": bench_iteration, "run": bench_run}[args.what](args)
+    print(table(rows))
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(rows, fh, indent=1)
+
+
+if __name__ == "__main__":
+    main()

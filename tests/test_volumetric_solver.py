@@ -1,0 +1,126 @@
+"""Solver ``volumetric``: periodic cell, macro reactions, outputs, checkpoint/resume (straight-yarn cell)."""
+
+from __future__ import annotations
+
+import sys
+from typing import ClassVar
+
+import attrs
+import numpy as np
+import pytest
+
+from knitframe import hookimpl
+from knitframe.errors import GeometryError, NumericalError
+from knitframe.geometry import Centerline, UnitCell
+from knitframe.plugins import get_registry, load_registry, reset_registry
+from knitframe.records import Fabric, LoadPath, Scene, Yarn
+from knitframe_solvers.volumetric import VolumetricSolver
+
+L1, L2, R = 1.2, 1.0, 0.1
+
+
+def _row(name: str, y: float) -> Centerline:
+    return Centerline(name, lambda t: np.stack([t, y + 0 * t, 0 * t], 1), lambda t: np.stack([1 + 0 * t, 0 * t, 0 * t], 1),
+                      0.0, L1, [L1, 0, 0])
+
+
+@attrs.frozen
+class StraightRows:
+    """Test pattern: two straight yarns along the course, half a wale apart, far from touching."""
+
+    name: ClassVar[str] = "straight-rows"
+    description: ClassVar[str] = "two straight rows (tests)"
+
+    def cell(self, fabric: Fabric) -> UnitCell:
+        return UnitCell("straight-rows", (_row("row0", 0.25 * L2), _row("row1", 0.75 * L2)), [L1, 0, 0], [0, L2, 0],
+                        0.5 * fabric.yarn.dk, ((0, 0), (1, 1)), (("k",), ("k",)), L1, L1, 0.5 * L2)
+
+
+@hookimpl
+def register_patterns(register):
+    register(StraightRows)
+
+
+@pytest.fixture(autouse=True)
+def registry_with_straight_rows():
+    """The process registry plus this module's test pattern (after the suite's fresh-registry fixture)."""
+    reset_registry(load_registry(extra={"straight_rows_test": sys.modules[__name__]}))
+    yield get_registry()
+    reset_registry(None)
+
+
+YARN = Yarn(name="test", d0=2 * R, dk=2 * R, E_axial=1000.0, E_transverse=10.0, nu=0.3)
+FABRIC = Fabric(pattern="straight-rows", yarn=YARN, arc_length=L1)
+STRETCH = Scene(load=LoadPath(kind="uniaxial", direction="course", max_strain=0.002, steps=2),
+                effects={"large_deformation", "anisotropy"})
+
+
+def test_solver_is_registered_with_its_effects():
+    """The solver plugin declares the effects and loads it models."""
+    cls = get_registry()["solver"]["volumetric"]
+    assert cls is VolumetricSolver
+    assert {"contact", "prestress", "large_deformation", "self_contact"} <= cls.effects
+    assert "friction" not in cls.effects
+    assert "uniaxial-course" in cls.loads
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_course_tension_of_straight_yarns(order):
+    """Stretching straight yarns along the course gives T1 = 2 E_A ε π r² / |L2| (two yarns per wale period)."""
+    from knitframe.mesh import cell_mesh, mesh_quality
+
+    r = VolumetricSolver(order=order, seed=0.75).simulate(FABRIC, STRETCH)
+    eps = r.lambda1 - 1.0
+    # the meshed section: a polygon for P1, curved for P2
+    section = mesh_quality(cell_mesh(StraightRows().cell(FABRIC), seed=0.75, order=order))["volume"] / (2 * L1)
+    expected = 2 * YARN.E_axial * eps * section / L2
+    assert np.allclose(r.T1, expected, rtol=0.01)
+    assert np.allclose(r.T2, 0.0, atol=1e-6 * r.T1.max())  # free side
+    assert r.lambda2[-1] == pytest.approx(1.0)  # nothing ties the rows along the wale
+    assert r.provenance.converged and r.provenance.solver == "volumetric"
+
+
+def test_vtu_output_per_step(tmp_path):
+    """Each converged step writes a VTU with displacement, contact pressure and max principal stress."""
+    import meshio
+
+    scene = attrs.evolve(STRETCH, outputs=frozenset({"response", "vtu"}))
+    VolumetricSolver(order=1, seed=0.75).simulate(FABRIC, scene, output_dir=tmp_path)
+    files = sorted(tmp_path.glob("solid-*.vtu"))
+    assert len(files) == 2 and (tmp_path / "solid.pvd").exists()
+    m = meshio.read(files[-1])
+    assert {"displacement", "contact_pressure"} <= set(m.point_data)
+    smax = m.cell_data["max_principal_stress"][0]
+    assert smax.max() == pytest.approx(YARN.E_axial * 0.002, rel=0.05)
+
+
+def test_killed_run_resumes_to_the_same_result(tmp_path):
+    """A run stopped after its first step resumes from the checkpoint and ends where an uninterrupted run ends."""
+    solver = VolumetricSolver(order=1, seed=0.75)
+    full = solver.simulate(FABRIC, STRETCH)
+
+    class Kill(Exception):
+        pass
+
+    def killer(done, total, message):
+        if done >= 1:
+            raise Kill
+
+    with pytest.raises(Kill):
+        solver.simulate(FABRIC, STRETCH, checkpoint_dir=tmp_path, progress=killer)
+    assert list(tmp_path.glob("step-*.npz"))
+    seen = []
+    resumed = solver.simulate(FABRIC, STRETCH, checkpoint_dir=tmp_path, progress=lambda d, t, m: seen.append(m))
+    assert seen == ["load step 2/2"]  # only the missing step was computed
+    assert np.allclose(resumed.T1, full.T1, rtol=1e-9) and np.allclose(resumed.lambda1, full.lambda1)
+
+
+def test_overlapping_yarns_without_prestress_stop_with_a_diagnostic():
+    """Yarns that overlap in the knitted state and no pre-stress: a one-line NumericalError, not NaN."""
+
+    yarn = attrs.evolve(YARN, d0=0.7 * L2, dk=0.7 * L2)  # rows 0.5 L2 apart, diameter 0.7 L2
+    fabric = attrs.evolve(FABRIC, yarn=yarn)
+    scene = attrs.evolve(STRETCH, effects=frozenset({"large_deformation", "contact"}))
+    with pytest.raises((NumericalError, GeometryError)) as err:
+        VolumetricSolver(order=1, seed=0.75).simulate(fabric, scene)
+    assert "\n" not in str(err.value)
