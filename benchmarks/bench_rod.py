@@ -50,11 +50,11 @@ def run(fab: Fabric, load: LoadPath, checkpoint_dir=None, **options):
 PATHS = [{"prestress_start": start, "prestress_steps": steps} for start in ("straight", "knitted") for steps in (8, 12)]
 
 
-def lowest(fab: Fabric, load: LoadPath):
-    """The run of lowest relaxed energy over :data:`PATHS`, and how many distinct relaxed lattices they reached.
+def branches(fab: Fabric, load: LoadPath) -> tuple[list, int]:
+    """The distinct relaxed states reached over :data:`PATHS`, lowest relaxed energy first, and the number of paths that converged.
 
-    Like repeating a minimisation from several starts and keeping the lowest minimum (Singal et
-    al. 2024 do the same): the relaxed state is the one every curve is measured from.
+    Like repeating a minimisation from several starts (Singal et al. 2024 do the same): the
+    relaxed state is what every curve is measured from, and stiff yarns make the cell multistable.
     """
     from knitframe.errors import NumericalError
 
@@ -64,17 +64,27 @@ def lowest(fab: Fabric, load: LoadPath):
             r = run(fab, load, **opts)
         except NumericalError:
             continue
-        if len(r):
+        if r.provenance.converged:
             runs.append(r)
-    if not runs:
-        raise SystemExit(f"no pre-stress path converged for {fab.pattern} {fab.yarn.name}")
-    lattices = []
+    runs.sort(key=lambda r: r.provenance.extra["relaxed_energy_Nmm"])
+    def same(a, b) -> bool:  # one branch: relaxed lattices within 2 % and energies within 1 %
+        ea, eb = a.provenance.extra, b.provenance.extra
+        return (np.abs(np.subtract(ea["relaxed_stretch"], eb["relaxed_stretch"])).max() < 0.02
+                and abs(ea["relaxed_energy_Nmm"] - eb["relaxed_energy_Nmm"]) < 0.01 * abs(eb["relaxed_energy_Nmm"]))
+
+    distinct = []
     for r in runs:
-        lam = np.array(r.provenance.extra["relaxed_stretch"])
-        if all(np.abs(lam - other).max() > 1e-3 for other in lattices):
-            lattices.append(lam)
-    best = min(runs, key=lambda r: (not r.provenance.converged, r.provenance.extra["relaxed_energy_Nmm"]))
-    return best, len(lattices), len(runs)
+        if not any(same(r, o) for o in distinct):
+            distinct.append(r)
+    return distinct, len(runs)
+
+
+def branch_label(r, first) -> str:
+    """`lowest` or the relaxed energy above the lowest, with the relaxed lattice."""
+    E, E0 = r.provenance.extra["relaxed_energy_Nmm"], first.provenance.extra["relaxed_energy_Nmm"]
+    lam = r.provenance.extra["relaxed_stretch"]
+    name = "lowest" if r is first else f"+{100 * (E - E0) / abs(E0):.0f} %"
+    return f"{name} (λ {lam[0]:.2f}, {lam[1]:.2f})"
 
 
 def bench(repeats: int, cli: bool) -> None:
@@ -109,11 +119,6 @@ def at(strain, values, x):
     """values at strain x, or NaN outside the simulated or measured range."""
     inside = strain.min() - 1e-9 <= x <= strain.max() + 1e-9
     return float(np.interp(x, strain, values)) if inside else float("nan")
-
-
-def relaxed(r) -> str:
-    lam = r.provenance.extra["relaxed_stretch"]
-    return f"{lam[0]:.3f}, {lam[1]:.3f}"
 
 
 def fmt(values, digits=3):
@@ -173,45 +178,49 @@ def singal(directory: Path | None, pattern: str, direction: str):
 
 def science(singal_dir: Path | None) -> None:
     print("### Jersey, cotton, equibiaxial 0→30 %: stitch length\n")
-    print("| SL | T1 at 10/20/30 %, N/mm | T2 at 10/20/30 %, N/mm | hgo a, N/mm | hgo b | hgo θ, deg | NRMSE | "
-          "relaxed λ1, λ2 | branches / paths |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| SL | relaxed state (energy, λ1, λ2) | T1 at 10/20/30 %, N/mm | T2 at 10/20/30 %, N/mm | hgo a, N/mm | "
+          "hgo b | hgo θ, deg | NRMSE |")
+    print("|---|---|---|---|---|---|---|---|")
     for sl in (10, 11, 12):
-        r, branches, paths = lowest(fabric("jersey", "cotton", sl), EQUIBIAXIAL)
-        p, res = fit_hgo([r])
-        pick = [i for i in (2, 5, 9) if i < len(r)]
-        print(f"| {sl} | {fmt(r.T1[pick])} | {fmt(r.T2[pick])} | {p['a']:.4g} | {p['b']:.3g} | "
-              f"{np.degrees(p['theta']):.1f} | {res.nrmse['overall']:.3f} | {relaxed(r)} | {branches} / {paths} |")
+        found, paths = branches(fabric("jersey", "cotton", sl), EQUIBIAXIAL)
+        for r in found:
+            p, res = fit_hgo([r])
+            pick = [i for i in (2, 5, 9) if i < len(r)]
+            print(f"| {sl} | {branch_label(r, found[0])} | {fmt(r.T1[pick])} | {fmt(r.T2[pick])} | {p['a']:.4g} | "
+                  f"{p['b']:.3g} | {np.degrees(p['theta']):.1f} | {res.nrmse['overall']:.3f} |")
+        print(f"|  | ({paths} of {len(PATHS)} pre-stress paths converged) | | | | | | |")
 
     print("\n### Patterns at SL11, cotton, equibiaxial 0→30 %\n")
-    print("| pattern | T1 / T2 at 30 %, N/mm | T1/T2 | hgo θ, deg | hgo a, N/mm | hgo b | NRMSE | relaxed λ1, λ2 | "
-          "branches / paths |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| pattern | relaxed state (energy, λ1, λ2) | T1 / T2 at 30 %, N/mm | T1/T2 | hgo θ, deg | hgo a, N/mm | "
+          "hgo b | NRMSE |")
+    print("|---|---|---|---|---|---|---|---|")
     for pat in PATTERNS:
-        r, branches, paths = lowest(fabric(pat, "cotton", 11), EQUIBIAXIAL)
-        p, res = fit_hgo([r])
-        print(f"| {pat} | {r.T1[-1]:.3g} / {r.T2[-1]:.3g} | {r.T1[-1] / r.T2[-1]:.3g} | {np.degrees(p['theta']):.1f} | "
-              f"{p['a']:.4g} | {p['b']:.3g} | {res.nrmse['overall']:.3f} | {relaxed(r)} | {branches} / {paths} |")
+        found, paths = branches(fabric(pat, "cotton", 11), EQUIBIAXIAL)
+        for r in found:
+            p, res = fit_hgo([r])
+            print(f"| {pat} | {branch_label(r, found[0])} | {r.T1[-1]:.3g} / {r.T2[-1]:.3g} | {r.T1[-1] / r.T2[-1]:.3g} | "
+                  f"{np.degrees(p['theta']):.1f} | {p['a']:.4g} | {p['b']:.3g} | {res.nrmse['overall']:.3f} |")
 
     cases = [("cotton", {"sl": 11}, "cotton SL11 (paper's yarn)")]
     cases += [("pearl-cotton", {"arc": arc}, f"pearl cotton, {arc:g} mm/stitch") for arc in PEARL_ARC]
     for yarn, size, title in cases:
         print(f"\n### Free-sides uniaxial 0→30 %, {title}, against Singal et al. 2024 (pearl cotton)\n")
-        print("| pattern | pull | simulated T at 10/20/30 %, N/mm | measured | simulated lateral stretch at 30 % | "
-              "measured | branches / paths |")
+        print("| pattern | pull | relaxed state (energy, λ1, λ2) | simulated T at 10/20/30 %, N/mm | measured | "
+              "simulated lateral stretch at 30 % | measured |")
         print("|---|---|---|---|---|---|---|")
         for pat in PATTERNS:
             for d in ("course", "wale"):
-                r, branches, paths = lowest(fabric(pat, yarn, **size),
-                                            LoadPath(kind="uniaxial", direction=d, max_strain=0.3, steps=10))
-                T, lat = (r.T1, r.lambda2) if d == "course" else (r.T2, r.lambda1)
-                strain = (r.lambda1 if d == "course" else r.lambda2) - 1.0
-                sim = [at(strain, T, x) for x in (0.1, 0.2, 0.3)]
+                found, paths = branches(fabric(pat, yarn, **size),
+                                        LoadPath(kind="uniaxial", direction=d, max_strain=0.3, steps=10))
                 meas = singal(singal_dir, pat, d)
                 m_T = [at(meas[0], meas[1], x) for x in (0.1, 0.2, 0.3)] if meas else [float("nan")] * 3
                 m_lat = at(meas[0], meas[2], 0.3) if meas else float("nan")
-                print(f"| {pat} | {d} | {fmt(sim)} | {fmt(m_T)} | {fmt([at(strain, lat, 0.3)])} | {fmt([m_lat])} | "
-                      f"{branches} / {paths}{'' if r.provenance.converged else ', stopped early'} |")
+                for r in found:
+                    T, lat = (r.T1, r.lambda2) if d == "course" else (r.T2, r.lambda1)
+                    strain = (r.lambda1 if d == "course" else r.lambda2) - 1.0
+                    sim = [at(strain, T, x) for x in (0.1, 0.2, 0.3)]
+                    print(f"| {pat} | {d} | {branch_label(r, found[0])} | {fmt(sim)} | {fmt(m_T)} | "
+                          f"{fmt([at(strain, lat, 0.3)])} | {fmt([m_lat])} |")
 
     print("\n### Where the energy goes: jersey, free-sides uniaxial along the course\n")
     print("| yarn | state | stretching, N·mm | bending | contact penalty | contact core | mean yarn strain | "
@@ -219,7 +228,7 @@ def science(singal_dir: Path | None) -> None:
     print("|---|---|---|---|---|---|---|---|---|")
     course = LoadPath(kind="uniaxial", direction="course", max_strain=0.3, steps=10)
     for yarn, size, title in cases:
-        best, _, _ = lowest(fabric("jersey", yarn, **size), course)
+        best = branches(fabric("jersey", yarn, **size), course)[0][0]
         path = {k: best.provenance.extra["options"][k] for k in ("prestress_start", "prestress_steps")}
         for label, e in zip(("relaxed", "30 %"), energy_split(fabric("jersey", yarn, **size), course, **path)):
             print(f"| {title} | {label} | {e['stretch']:.4g} | {e['bend']:.4g} | {e['penalty']:.3g} | {e['core']:.3g} | "

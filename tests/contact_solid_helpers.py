@@ -62,7 +62,7 @@ def solve(forms: SolidForms, law, surf: SolidSurface, u0: np.ndarray, free: np.n
             return E + Ec, g, None, info
         return E + Ec, g, forms.tangent(u) + Hc[:n, :n], info
 
-    res = minimise(fun, u0, free, solve=direct(), options=NewtonOptions(atol=1e-10, rtol=1e-9, max_iter=80))
+    res = minimise(fun, u0, free, solve=direct(), options=NewtonOptions(atol=1e-10, rtol=1e-8, max_iter=60, xtol=1e-12))
     return res.x, fun(res.x, 1)[3]
 
 

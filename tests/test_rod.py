@@ -303,6 +303,22 @@ def test_stabilisation_does_not_change_the_converged_answer(monkeypatch):
         assert np.allclose(c, curves[0], rtol=1e-7, atol=0)
 
 
+def test_knitted_rest_curvature_makes_the_generated_cell_stress_free():
+    """With its own curvature as rest shape (where the pre-stress starts) a jersey cell stores no energy and feels no force."""
+    from knitframe import get_registry
+    from knitframe.geometry import unit_cell
+    from knitframe.records import Fabric
+
+    cell = unit_cell(Fabric(pattern="jersey", yarn=get_registry()["yarn"]["cotton"], stitch_length=11))
+    model = from_cell(cell, 16)
+    q = np.zeros(model.n_dof)
+    en = RodEnergy(model, EA, EI, kappa0=model.curvature(q))
+    E, g, _, _ = en(q, 1)
+    assert E < 1e-20 and np.abs(g).max() < 1e-12
+    en.kappa0 = None  # a straight yarn bent into the knitted shape
+    assert en(q, 0)[0] > 1.0
+
+
 # ---------------------------------------------------------------------------------------- effects
 def test_terms_not_asked_for_are_never_evaluated(monkeypatch):
     """Without 'contact' no contact search runs; without 'friction' no friction state exists or is evaluated."""

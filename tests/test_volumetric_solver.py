@@ -124,3 +124,31 @@ def test_overlapping_yarns_without_prestress_stop_with_a_diagnostic():
     with pytest.raises((NumericalError, GeometryError)) as err:
         VolumetricSolver(order=1, seed=0.75).simulate(fabric, scene)
     assert "\n" not in str(err.value)
+
+
+def test_pipeline_resume_after_a_kill(tmp_path, monkeypatch):
+    """``knitframe.run(..., resume=True)`` (the API twin of ``knitframe run --resume``) finishes a killed run identically."""
+    import knitframe
+    from knitframe.newton import StepCheckpoints
+
+    config = {
+        "solver": {"kind": "volumetric", "order": 1, "seed": 0.75},
+        "fabric": {"pattern": "straight-rows", "arc_length": L1,
+                   "yarn": {"name": "test", "d0": 2 * R, "dk": 2 * R, "E_axial": 1000.0, "E_transverse": 10.0}},
+        "scene": {"effects": ["large_deformation", "anisotropy"],
+                  "load": {"kind": "uniaxial", "direction": "course", "max_strain": 0.002, "steps": 2}},
+    }
+    reference = knitframe.run(config, tmp_path / "ref").responses[0]
+    save = StepCheckpoints.save
+
+    def save_then_die(self, index, arrays, meta):
+        save(self, index, arrays, meta)
+        raise KeyboardInterrupt  # killed right after the first checkpoint was written
+
+    monkeypatch.setattr(StepCheckpoints, "save", save_then_die)
+    with pytest.raises(KeyboardInterrupt):
+        knitframe.run(config, tmp_path / "out")
+    assert list((tmp_path / "out.partial" / "checkpoints").rglob("step-*.npz"))
+    monkeypatch.setattr(StepCheckpoints, "save", save)
+    resumed = knitframe.run(config, tmp_path / "out", resume=True).responses[0]
+    assert np.allclose(resumed.T1, reference.T1, rtol=1e-9) and np.allclose(resumed.lambda1, reference.lambda1)

@@ -86,11 +86,14 @@ class SolidMortar:
         if quadratic:
             g_c, _, dist = facet_gap(p, Xm, order=0)
             nm = project_p2(p, Xm)[2]
+            inside = np.abs(dist - np.abs(g_c)) <= 1e-9 * reach  # the closest point is not on the facet's rim
         else:
-            dist, _ = point_triangle_distance(p, Xm[:, 0], Xm[:, 1], Xm[:, 2])
+            dist, inside = point_triangle_distance(p, Xm[:, 0], Xm[:, 1], Xm[:, 2])
             nm = np.cross(Xm[:, 1] - Xm[:, 0], Xm[:, 2] - Xm[:, 0])
         ok = (np.einsum("ij,ij->i", nm, ns_q[cand.point]) < 0) & (dist < reach)
-        rows = np.flatnonzero(ok)[nearest(cand.point[ok], dist[ok])]
+        # prefer a facet the point projects into: switching between those keeps the gap continuous
+        rank = dist + np.where(inside, 0.0, 2.0 * reach)
+        rows = np.flatnonzero(ok)[nearest(cand.point[ok], rank[ok])]
         point, tri_m, img, Xm = cand.point[rows], cand.triangle[rows], cand.image[rows], Xm[rows]
         if quadratic:
             g, dgm, _ = facet_gap(xq[point], Xm, order=min(order, 1))

@@ -55,11 +55,13 @@ class SolidPenalty:
         tri = surface.triangles[cand.triangle]
         A, B, C = (x[tri[:, k]] + cand.shift for k in range(3))
         p = x[slave[cand.point]]
-        dist, _ = point_triangle_distance(p, A, B, C)
+        dist, inside = point_triangle_distance(p, A, B, C)
         nm = np.cross(B - A, C - A)
         ns = node_normals(x, surface.triangles[surface.tri_slave])[slave[cand.point]]
         ok = (np.einsum("ij,ij->i", nm, ns) < 0) & (dist < reach)
-        rows = np.flatnonzero(ok)[nearest(cand.point[ok], dist[ok])]
+        # prefer a triangle the node projects into: switching between those keeps the gap continuous
+        rank = dist + np.where(inside, 0.0, 2.0 * reach)
+        rows = np.flatnonzero(ok)[nearest(cand.point[ok], rank[ok])]
         return {"node": slave[cand.point[rows]], "triangle": cand.triangle[rows], "image": cand.image[rows]}
 
     def evaluate(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, order: int, *,

@@ -1,26 +1,28 @@
 """Solver ``rod``: discrete elastic rods on the periodic 2x2 unit cell, with yarn-yarn contact.
 
 The fast rung of the accuracy ladder. Each yarn centerline of the pattern's cell is a chain of
-straight segments (:mod:`knitframe_solvers.rod_model`) with stretching EA and bending EI from
-the yarn model (straight rest shape, no twist: see :mod:`knitframe_solvers.rod_terms`). Yarns
-touch each other, their periodic images under the current F̄ and (with ``self_contact``)
-themselves through a rod contact-law plugin, whose energy density is integrated over both
-centerlines (:mod:`knitframe_solvers.rod_contact`) and scaled so that two parallel yarns have
-the yarn model's transverse line-contact stiffness (:func:`rod_stiffness`). F̄ enters through
-the macro DOFs of :mod:`knitframe.periodic`; the course and wale tensions per unit width are the
-macro reactions divided by the cell area.
+straight segments no longer than dk/2 by default (:mod:`knitframe_solvers.rod_model`) with
+stretching EA and bending EI from the yarn model (straight rest shape, no twist: see
+:mod:`knitframe_solvers.rod_terms`). Yarns touch each other, their periodic images under the
+current F̄ and (with ``self_contact``) themselves through a rod contact-law plugin, whose energy
+density is integrated over both centerlines (:mod:`knitframe_solvers.rod_contact`) and scaled
+so that two parallel yarns have the yarn model's transverse line-contact stiffness
+(:func:`rod_stiffness`). F̄ enters through the macro DOFs of :mod:`knitframe.periodic`; the
+course and wale tensions per unit width are the macro reactions divided by the cell area.
 
 A run is
 
 1. pre-stress (scene effect ``prestress``): the contact distance grows geometrically from an
    undersized value — small enough that the knitted centerlines do not overlap — to dk, at
-   F̄ = I and constant yarn length (rest lengths are those of the geometry). The yarns start
-   stress-free in their knitted shape, like the paper's volumetric cell: the rest curvature
-   is released linearly to the straight yarn over the same steps, so contact takes over from
-   the rest shape gradually. Intermediate steps are solved to 1000× the tolerance (they are
-   a path); the last one, at dk and straight rest shape, to the full tolerance;
-2. with ``relax``, the course and wale stretches are freed until both tensions vanish; the
-   stretches of the load path are measured from this relaxed lattice;
+   F̄ = I and constant yarn length (rest lengths are those of the geometry). The yarn is
+   straight at rest throughout (``prestress_start = "straight"``), or starts stress-free in its
+   knitted shape, like the paper's volumetric cell, whose rest curvature is released linearly to
+   straight over the same steps (``"knitted"``); ``"auto"`` tries the first and falls back to the
+   second. Intermediate steps are solved to 1000× the tolerance (they are a path); the last
+   one, at dk with the straight yarn, to the full tolerance;
+2. with ``relax``, the course and wale stretches are freed until both tensions vanish: springs
+   holding them are released decade by decade, so the cell follows the nearest branch of
+   equilibria. The stretches of the load path are measured from this relaxed lattice;
 3. the scene's load path: equibiaxial, uniaxial with the other side free (its macro DOF is
    solved for, so its tension is zero) or a general λ1(t), λ2(t), in the scene's steps, each cut
    back adaptively on failure (:func:`knitframe.newton.continuation`); each increment starts
@@ -29,7 +31,11 @@ A run is
 Every step is solved by Newton with an Armijo line search (:func:`knitframe.newton.minimise`);
 the rigid modes of yarns that no contact holds yet are stabilised by a Hessian shift, which does
 not change the converged state. One node is pinned to remove the cell's free translation.
-Converged steps are checkpointed; the stretches, tensions and relaxed lattice travel with them.
+Every converged step (pre-stress, relaxed lattice, load) is checkpointed with what a resumed
+run needs to retrace the same path; the provenance reports the relaxed lattice and its energy.
+
+Stiff yarns in tight cells can be multistable: different pre-stress paths may relax to
+different states (compare ``relaxed_energy_Nmm`` and ``relaxed_stretch``).
 """
 
 from __future__ import annotations
@@ -302,11 +308,9 @@ class RodSolver:
                 energy.dk = dk0 * (dk_full / dk0) ** t
                 if start == "knitted":
                     energy.kappa0 = (1.0 - t) * kappa_knitted
-                    # the intermediate states are only a path to t = 1: near the stress-free start
-                    # the contacts barely touch, where the smooth onset of the law makes Newton
-                    # converge linearly, so they are solved to a looser tolerance
-                    return newton(x0, free, loose if t < 1.0 - 1e-12 else opts)
-                return newton(x0, free)
+                # the intermediate states are only a path to t = 1; where contacts barely touch, the
+                # smooth onset of the law makes Newton converge linearly, so they get a looser tolerance
+                return newton(x0, free, loose if t < 1.0 - 1e-12 else opts)
 
             def on_prestress(i: int, t: float, res) -> None:
                 idx = int(round(t * self.prestress_steps)) - 1
@@ -410,7 +414,7 @@ class RodSolver:
         arr = np.array(rows, dtype=np.float64).reshape(-1, 4)
         load = scene.load
         key = f"uniaxial-{load.direction}" if load.kind == "uniaxial" else load.kind
-        sl = fabric.stitch_length if fabric.stitch_length is not None else fabric.arc_length
+        size = f"SL{fabric.stitch_length:g}" if fabric.stitch_length is not None else f"{fabric.arc_length:g} mm/stitch"
         prov = Provenance(
             kind="simulation", source=f"rod {fabric.pattern}", solver=self.name,
             mesh=f"{model.n_nodes} nodes, {len(model.edges)} segments ({self.segments(cell)}/stitch)",
@@ -422,7 +426,7 @@ class RodSolver:
                    "relaxed_energy_Nmm": state["relaxed_energy"]},
         )
         return Response(arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3], load=key,
-                        label=f"rod {fabric.pattern} SL{sl:g} {fabric.yarn.name}", provenance=prov)
+                        label=f"rod {fabric.pattern} {size} {fabric.yarn.name}", provenance=prov)
 
 
 @hookimpl

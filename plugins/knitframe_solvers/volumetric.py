@@ -140,12 +140,12 @@ class VolumetricSolver:
     contact_modulus: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: modulus scaling the penalty, MPa; default the yarn's E_transverse
     reach: float = attrs.field(default=0.5, validator=v.positive)  #: contact search distance / yarn radius, -
     self_contact_exclusion: float = attrs.field(default=np.pi, validator=v.positive)  #: same-strand pairs closer than this × dk along the yarn are the yarn itself, -
-    prestress_steps: int = attrs.field(default=4, validator=v.in_range(1, 1000))  #: steps of the radial pre-stress, -
+    prestress_steps: int = attrs.field(default=8, validator=v.in_range(1, 1000))  #: steps of the radial pre-stress, -
     initial_radius: float = attrs.field(default=0.9, validator=v.in_range(0.05, 1.0))  #: largest start radius of the pre-stress / r, -
     tolerance: float = attrs.field(default=1e-6, validator=v.positive)  #: Newton residual tolerance / (E_axial r²), -
     max_step: float = attrs.field(default=0.25, validator=v.positive)  #: largest node move per Newton step / yarn radius, -
     min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))  #: smallest cut-back increment / step, -
-    max_iterations: int = attrs.field(default=40, validator=v.in_range(1, 10000))  #: Newton iterations per increment, -
+    max_iterations: int = attrs.field(default=25, validator=v.in_range(1, 10000))  #: Newton iterations per increment, -
     intorder: int = attrs.field(default=2, validator=v.in_range(1, 6))  #: quadrature order of the solid (2: 4 points), -
     stabilisation: float = attrs.field(default=1e-4, validator=v.non_negative)  #: weak foundation on each increment's displacement / (E_transverse / h²), -
     on_failure: Literal["raise", "truncate"] = "raise"  #: "truncate" returns the converged steps (converged = false)
@@ -214,8 +214,9 @@ class VolumetricSolver:
         total = n_load + (self.prestress_steps if prestress else 0)
         report = progress or (lambda done, tot, msg: None)
         r = model.cm.radius
+        # few backtracks: at a contact-switching kink a cut-back of the load step helps more than α → 0
         opts = NewtonOptions(atol=self.tolerance * fabric.yarn.E_axial * r * r, rtol=1e-10, max_iter=self.max_iterations,
-                             max_step=self.max_step, xtol=1e-10 * r)
+                             max_step=self.max_step, xtol=1e-10 * r, max_backtracks=12)
         n_ind = 3 * len(model.independent)
         base_free = np.ones(n_ind + N_MACRO, bool)
         base_free[:3] = False  # pin one node: the cell's free translation

@@ -1,0 +1,42 @@
+"""Hard cases of the volumetric solver on the jersey cell: converge, or stop with a one-line diagnostic; never NaN."""
+
+from __future__ import annotations
+
+import attrs
+import numpy as np
+import pytest
+
+from knitframe.errors import NumericalError
+from knitframe.plugins import get_registry
+from knitframe.records import Fabric, LoadPath, Scene
+from knitframe_solvers.volumetric import VolumetricSolver
+
+pytestmark = pytest.mark.slow
+
+SCENE = Scene(load=LoadPath(kind="equibiaxial", max_strain=0.1, steps=2),
+              effects={"large_deformation", "bending", "contact", "prestress", "anisotropy"})
+
+
+def cases():
+    yarns = get_registry()["yarn"]
+    cotton, pet = yarns["cotton"], yarns["pet"]
+    soft = attrs.evolve(cotton, name="cotton-nu0.49", nu=0.49, E_transverse=cotton.E_axial)
+    return {
+        "SL10 tight cotton": Fabric(pattern="jersey", yarn=cotton, stitch_length=10),
+        "stiff PET": Fabric(pattern="jersey", yarn=pet, stitch_length=11),
+        "near-incompressible": Fabric(pattern="jersey", yarn=soft, stitch_length=11),
+    }
+
+
+@pytest.mark.parametrize("name", ["SL10 tight cotton", "stiff PET", "near-incompressible"])
+def test_hard_case_converges_or_stops_cleanly(name):
+    """The run returns finite tensions, or raises NumericalError with a one-line diagnostic."""
+    fabric = cases()[name]
+    solver = VolumetricSolver(order=1, seed=0.6, contact_law="penalty", on_failure="truncate")
+    try:
+        r = solver.simulate(fabric, SCENE)
+    except NumericalError as e:
+        assert "\n" not in str(e) and "volumetric" in str(e)
+        return
+    assert np.all(np.isfinite(r.T1)) and np.all(np.isfinite(r.T2))
+    assert r.provenance.converged or "stopped after" in r.provenance.notes
