@@ -30,3 +30,20 @@ def test_architecture_doc_lists_every_kind():
 
     text = (ROOT / "docs" / "architecture.md").read_text()
     assert all(f"`{hook}`" in text for hook in KINDS.values())
+
+
+def test_readme_config_runs(tmp_path, singal_file):
+    """The config shown in the README runs end to end and ends with a fit of the simulation."""
+    import json
+
+    import knitframe
+
+    block = re.findall(r"```toml\n(.*?)\n```", (ROOT / "README.md").read_text(), re.S)[0]
+    for name in ("cotton-stockinette-x.csv", "cotton-stockinette-y.csv"):
+        (tmp_path / name).write_bytes(singal_file(name).read_bytes())
+    (tmp_path / "readme.toml").write_text(block)
+    res = knitframe.run(tmp_path / "readme.toml", tmp_path / "out")
+    assert [s["stage"] for s in res.summary["stages"]] == ["data", "simulate", "fit:simulated"]
+    params = json.loads((tmp_path / "out" / "simulated-params.json").read_text())
+    assert params["model"] == "hgo" and 0 <= params["theta_deg"] <= 90
+    assert [r.provenance.kind for r in res.responses].count("simulation") == 1
