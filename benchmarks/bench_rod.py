@@ -227,12 +227,17 @@ def science(singal_dir: Path | None) -> None:
           "closest d/dk | pairs in the core band |")
     print("|---|---|---|---|---|---|---|---|---|")
     course = LoadPath(kind="uniaxial", direction="course", max_strain=0.3, steps=10)
+    energy_table(cases, course)
+
+
+def energy_table(cases, load: LoadPath) -> None:
     for yarn, size, title in cases:
-        best = branches(fabric("jersey", yarn, **size), course)[0][0]
-        path = {k: best.provenance.extra["options"][k] for k in ("prestress_start", "prestress_steps")}
-        for label, e in zip(("relaxed", "30 %"), energy_split(fabric("jersey", yarn, **size), course, **path)):
-            print(f"| {title} | {label} | {e['stretch']:.4g} | {e['bend']:.4g} | {e['penalty']:.3g} | {e['core']:.3g} | "
-                  f"{e['strain']:.4f} | {e['d_min']:.3f} | {e['core_pairs']} |")
+        found, _ = branches(fabric("jersey", yarn, **size), load)
+        for r in found:
+            path = {k: r.provenance.extra["options"][k] for k in ("prestress_start", "prestress_steps")}
+            for label, e in zip(("relaxed", "30 %"), energy_split(fabric("jersey", yarn, **size), load, **path)):
+                print(f"| {title}, {branch_label(r, found[0])} | {label} | {e['stretch']:.4g} | {e['bend']:.4g} | "
+                      f"{e['penalty']:.3g} | {e['core']:.3g} | {e['strain']:.4f} | {e['d_min']:.3f} | {e['core_pairs']} |")
 
 
 def main() -> None:

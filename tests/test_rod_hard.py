@@ -25,7 +25,8 @@ def outcome(pattern, sl, yarn, load, **options):
     for arr in (r.lambda1, r.lambda2, r.T1, r.T2):
         assert np.all(np.isfinite(arr))
     print(f"{pattern} SL{sl} {yarn} {load.kind} {load.direction if load.kind == 'uniaxial' else ''}: {len(r)} steps, λ = ({r.lambda1[-1]:.3f}, "
-          f"{r.lambda2[-1]:.3f}), T = ({r.T1[-1]:.4g}, {r.T2[-1]:.4g}) N/mm, {r.provenance.wall_time:.1f} s")
+          f"{r.lambda2[-1]:.3f}), T = ({r.T1[-1]:.4g}, {r.T2[-1]:.4g}) N/mm, {r.provenance.extra['prestress_start']} "
+          f"pre-stress start, {r.provenance.wall_time:.1f} s")
     return r
 
 
@@ -71,6 +72,18 @@ def test_a_run_that_cannot_converge_stops_with_a_diagnostic_or_returns_its_conve
                 on_failure="truncate", min_step_fraction=0.25)
     assert r is not None and not r.provenance.converged and "stopped after 1 of 2 load steps" in r.provenance.notes
     assert len(r) == 1 and r.T1[0] > 0
+
+
+def test_auto_prestress_tries_the_knitted_start_after_the_straight_one_fails():
+    """With prestress_start = "auto" a failed pre-stress from the straight yarn is tried again from the knitted shape."""
+    reg = get_registry()
+    fabric = Fabric(pattern="jersey", yarn=reg["yarn"]["cotton"], stitch_length=10)
+    scene = Scene(load=LoadPath(kind="equibiaxial", max_strain=0.05, steps=1), effects=EFFECTS)
+    hurried = {"prestress_steps": 2, "min_step_fraction": 0.25}  # too few steps for this tight cell
+    with pytest.raises(NumericalError, match=r"rod solver \(jersey, cotton\): pre-stress \(contact distance"):
+        reg["solver"]["rod"](prestress_start="straight", **hurried).simulate(fabric, scene)
+    with pytest.raises(NumericalError, match=r"rod solver \(jersey, cotton\): pre-stress \(knitted start\)"):
+        reg["solver"]["rod"](prestress_start="auto", **hurried).simulate(fabric, scene)
 
 
 @pytest.mark.slow

@@ -99,7 +99,7 @@ def write_solid_vtu(path: Path, forms: SolidForms, u: np.ndarray, s: float, pres
 
     mesh = forms.mesh
     X = (mesh.doflocs if forms.edofs.shape[0] == 10 else mesh.p).T
-    F = np.concatenate([forms.deformation_gradient(u, sl) for sl in forms._chunks()], axis=2)
+    F = forms.deformation_gradient(u)
     P = forms.stress(u, s)
     J = np.linalg.det(np.moveaxis(F, (0, 1), (-2, -1)))
     sigma = np.einsum("iJeq,kJeq->ikeq", P, F) / J
@@ -243,15 +243,17 @@ class VolumetricSolver:
         q = model.shrunk(s0)
         rows: list[tuple[float, float, float, float]] = []
         start_phase, start_index = "prestress", -1
+        next_checkpoint = 0
         if ckpt is not None and (saved := ckpt.latest()) is not None:
-            _, arrays, meta = saved
+            last, arrays, meta = saved
+            next_checkpoint = last + 1
             q = arrays["q"]
             rows = [tuple(x) for x in arrays["rows"].tolist()]
             start_phase, start_index = meta["phase"], int(meta["target"])
             s0 = float(meta["s0"])
         notes: list[str] = []
         converged = True
-        step_counter = [0 if start_index < 0 and start_phase == "prestress" else int(ckpt.latest()[0]) + 1]
+        step_counter = [next_checkpoint]
 
         def after(phase: str, index: int, qv: np.ndarray, message: str, done: int) -> None:
             if ckpt is not None:
