@@ -344,9 +344,11 @@ class RodSolver:
                         break
                     except NumericalError as e:
                         if k + 1 == len(starts):
-                            raise
-                        notes.append(f"pre-stress from the straight yarn failed, used the knitted start ({e})")
+                            raise NumericalError("; after that ".join(notes + [str(e)])) from None
+                        notes.append(str(e))
                         q, state["target"] = np.zeros(model.n_dof), -1
+                if notes:
+                    notes[-1] = f"{notes[-1]}; converged from the knitted shape instead"
                 state.update(phase="load", target=-1)
             elif energy.law is not None and state["phase"] == "prestress":
                 E0 = energy(q, 0)[0]
