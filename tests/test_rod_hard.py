@@ -31,15 +31,20 @@ def outcome(pattern, sl, yarn, load, **options):
 
 
 def check_physical(r, load, monotonic=True):
-    """Stretched sides pull (harder and harder when ``monotonic``), a free side carries no tension."""
+    """Stretched sides pull (harder and harder when ``monotonic``), a free side carries no tension.
+
+    Without ``monotonic`` a pulled side may end slack: a loose knit of a thin yarn can open its
+    loops by 50 % for a tension of 1e-5 EA per mm.
+    """
     pulled = [r.T1, r.T2] if load.kind == "equibiaxial" else [r.T1 if load.direction == "course" else r.T2]
     for T in pulled:
-        assert T[-1] > 0
+        assert T[-1] > (0.0 if monotonic else -1e-5 * r.provenance.extra["EA_N"])
         if monotonic:
             assert np.all(T > 0) and np.all(np.diff(T) > 0)
     if load.kind == "uniaxial":
         free = r.T2 if load.direction == "course" else r.T1
-        assert np.abs(free).max() < 1e-6 * np.abs(pulled[0]).max()
+        # the Newton tolerance (1e-9 EA on the reactions) is the floor when the pulled side is slack
+        assert np.abs(free).max() < 1e-6 * np.abs(pulled[0]).max() + 1e-9 * r.provenance.extra["EA_N"]
 
 
 CASES = [
