@@ -39,6 +39,20 @@ class JobCache:
         with open(p, "rb") as fh:
             return True, pickle.load(fh)
 
+    def split(self, fn: Callable[..., Any], jobs: list[Mapping[str, Any]]) -> tuple[list[str], list[Any], list[int]]:
+        """``(keys, results, todo)``: each job's key, cached results in place (None elsewhere), and
+        the indices of the jobs still to run."""
+        keys = [job_key(fn, j) for j in jobs]
+        results: list[Any] = [None] * len(jobs)
+        todo = []
+        for i, k in enumerate(keys):
+            hit, value = self.get(k)
+            if hit:
+                results[i] = value
+            else:
+                todo.append(i)
+        return keys, results, todo
+
     def put(self, key: str, value: Any) -> None:
         if self.directory is None:
             return

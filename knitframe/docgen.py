@@ -71,7 +71,8 @@ def schema_table(cls: type) -> str:
         if not f.init:
             continue
         name = f.alias or f.name
-        rows.append(f"| `{name}` | {type_name(hints.get(f.name, Any))} | {_default(f)} | {docs.get(f.name, '')} |")
+        cells = (type_name(hints.get(f.name, Any)), _default(f), docs.get(f.name, ""))
+        rows.append(f"| `{name}` | " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
     return "\n".join(rows)
 
 

@@ -13,7 +13,7 @@ from typing import Any, Callable, ClassVar
 import attrs
 
 from knitframe import hookimpl, validators as v
-from knitframe.cache import JobCache, job_key
+from knitframe.cache import JobCache
 from knitframe.errors import PluginError
 
 
@@ -46,15 +46,7 @@ class DaskExecutor:
         from distributed import as_completed
 
         cache = JobCache(self.cache_dir)
-        keys = [job_key(fn, j) for j in jobs]
-        results: list[Any] = [None] * len(jobs)
-        todo = []
-        for i, k in enumerate(keys):
-            hit, value = cache.get(k)
-            if hit:
-                results[i] = value
-            else:
-                todo.append(i)
+        keys, results, todo = cache.split(fn, jobs)
         if not todo:
             return results
         client, cluster = _client(self.address, self.workers)

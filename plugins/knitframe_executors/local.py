@@ -9,7 +9,7 @@ from typing import Any, Callable, ClassVar
 import attrs
 
 from knitframe import hookimpl, validators as v
-from knitframe.cache import JobCache, job_key
+from knitframe.cache import JobCache
 
 
 @attrs.frozen
@@ -24,15 +24,7 @@ class LocalExecutor:
 
     def map(self, fn: Callable[[Mapping[str, Any]], Any], jobs: list[Mapping[str, Any]]) -> list[Any]:
         cache = JobCache(self.cache_dir)
-        keys = [job_key(fn, j) for j in jobs]
-        results: list[Any] = [None] * len(jobs)
-        todo = []
-        for i, k in enumerate(keys):
-            hit, value = cache.get(k)
-            if hit:
-                results[i] = value
-            else:
-                todo.append(i)
+        keys, results, todo = cache.split(fn, jobs)
         if self.workers == 1 or len(todo) <= 1:
             for i in todo:
                 results[i] = fn(jobs[i])

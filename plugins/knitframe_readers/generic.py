@@ -45,7 +45,7 @@ from knitframe import hookimpl, validators as v
 from knitframe.csvio import Table, read_table
 from knitframe.errors import DataError
 from knitframe.records import Provenance, Response
-from knitframe_readers.singal2024 import Singal2024Reader, average_repeats
+from knitframe.curves import average_repeats, uniaxial_response
 
 _DIRECTIONS = {"course": "uniaxial-course", "x": "uniaxial-course", "wale": "uniaxial-wale", "y": "uniaxial-wale"}
 
@@ -175,7 +175,7 @@ class GenericReader:
 
 def _response(d, lam, lat, tension, lat_sd, ten_sd, n, label, load, prov) -> Response:
     """The same Response layout as the Singal et al. reader (loaded side measured, free side T = 0)."""
-    return Singal2024Reader._response(load, lam - 1.0, lat - 1.0, tension, lat_sd, ten_sd, n, label, prov)
+    return uniaxial_response(load, lam - 1.0, lat - 1.0, tension, lat_sd, ten_sd, n, label, prov)
 
 
 @hookimpl

@@ -15,34 +15,11 @@ import numpy as np
 
 from knitframe import hookimpl, validators as v
 from knitframe.csvio import read_table
+from knitframe.curves import average_repeats, uniaxial_response  # noqa: F401  (average_repeats re-exported)
 from knitframe.errors import DataError
 from knitframe.records import Provenance, Response
 
 COLUMNS = ("video", "frame", "strain_axial", "strain_transverse", "tension_N_per_mm")
-
-
-def average_repeats(
-    strain: list[np.ndarray], lateral: list[np.ndarray], tension: list[np.ndarray], points: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Mean and sd of lateral strain and tension over repeats on a common axial-strain grid.
-
-    Each repeat is sorted by axial strain and interpolated linearly onto ``points`` strains
-    spanning the range every repeat covers. Returns ``(grid, lat_mean, lat_sd, T_mean, T_sd)``;
-    the sd is the sample standard deviation (ddof = 1), zero for a single repeat.
-    """
-    lo = max(s.min() for s in strain)
-    hi = min(s.max() for s in strain)
-    if not hi > lo:
-        raise ValueError("repeats share no strain range")
-    grid = np.linspace(lo, hi, points)
-    lat = np.empty((len(strain), points))
-    ten = np.empty((len(strain), points))
-    for k, (s, l, t) in enumerate(zip(strain, lateral, tension)):
-        order = np.argsort(s, kind="stable")
-        lat[k] = np.interp(grid, s[order], l[order])
-        ten[k] = np.interp(grid, s[order], t[order])
-    ddof = 1 if len(strain) > 1 else 0
-    return grid, lat.mean(0), lat.std(0, ddof=ddof), ten.mean(0), ten.std(0, ddof=ddof)
 
 
 @attrs.frozen
@@ -82,7 +59,7 @@ class Singal2024Reader:
         base = path.stem
         if not self.average:
             return [
-                self._response(load, axial[g], lateral[g], tension[g], None, None, 1, f"{base}/{k}", prov)
+                uniaxial_response(load, axial[g], lateral[g], tension[g], None, None, 1, f"{base}/{k}", prov)
                 for k, g in zip(ids, groups)
             ]
         try:
@@ -91,16 +68,7 @@ class Singal2024Reader:
             )
         except ValueError as e:
             raise DataError(path, str(e)) from None
-        return [self._response(load, grid, lat, ten, lat_sd, ten_sd, len(ids), base, prov)]
-
-    @staticmethod
-    def _response(load, axial, lateral, tension, lat_sd, ten_sd, n, label, prov) -> Response:
-        zero = np.zeros_like(tension)
-        if load == "uniaxial-course":
-            return Response(1 + axial, 1 + lateral, tension, zero, load=load, label=label, n_samples=n,
-                            T1_sd=ten_sd, lambda2_sd=lat_sd, provenance=prov)
-        return Response(1 + lateral, 1 + axial, zero, tension, load=load, label=label, n_samples=n,
-                        T2_sd=ten_sd, lambda1_sd=lat_sd, provenance=prov)
+        return [uniaxial_response(load, grid, lat, ten, lat_sd, ten_sd, len(ids), base, prov)]
 
 
 @hookimpl

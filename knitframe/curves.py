@@ -1,0 +1,48 @@
+"""Shared operations on measured curves: averaging repeats and building uniaxial Responses."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from knitframe.records import Provenance, Response
+
+__all__ = ["average_repeats", "uniaxial_response"]
+
+
+def average_repeats(
+    strain: list[np.ndarray], lateral: list[np.ndarray], tension: list[np.ndarray], points: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Mean and sd of lateral strain and tension over repeats on a common axial-strain grid.
+
+    Each repeat is sorted by axial strain and interpolated linearly onto ``points`` strains
+    spanning the range every repeat covers. Returns ``(grid, lat_mean, lat_sd, T_mean, T_sd)``;
+    the sd is the sample standard deviation (ddof = 1), zero for a single repeat.
+    """
+    lo = max(s.min() for s in strain)
+    hi = min(s.max() for s in strain)
+    if not hi > lo:
+        raise ValueError("repeats share no strain range")
+    grid = np.linspace(lo, hi, points)
+    lat = np.empty((len(strain), points))
+    ten = np.empty((len(strain), points))
+    for k, (s, l, t) in enumerate(zip(strain, lateral, tension)):
+        order = np.argsort(s, kind="stable")
+        lat[k] = np.interp(grid, s[order], l[order])
+        ten[k] = np.interp(grid, s[order], t[order])
+    ddof = 1 if len(strain) > 1 else 0
+    return grid, lat.mean(0), lat.std(0, ddof=ddof), ten.mean(0), ten.std(0, ddof=ddof)
+
+
+def uniaxial_response(load: str, axial: np.ndarray, lateral: np.ndarray, tension: np.ndarray,
+                      lat_sd: np.ndarray | None, ten_sd: np.ndarray | None, n: int, label: str,
+                      prov: Provenance) -> Response:
+    """Response of a free-sides uniaxial test from engineering strains and tension (N/mm).
+
+    ``load`` is ``uniaxial-course`` (λ1 = 1 + axial, λ2 = 1 + lateral, T2 = 0) or ``uniaxial-wale``.
+    """
+    zero = np.zeros_like(tension)
+    if load == "uniaxial-course":
+        return Response(1 + axial, 1 + lateral, tension, zero, load=load, label=label, n_samples=n,
+                        T1_sd=ten_sd, lambda2_sd=lat_sd, provenance=prov)
+    return Response(1 + lateral, 1 + axial, zero, tension, load=load, label=label, n_samples=n,
+                    T2_sd=ten_sd, lambda1_sd=lat_sd, provenance=prov)
