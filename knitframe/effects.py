@@ -22,11 +22,6 @@ def solvers_supporting(registry: Registry, effect: str) -> list[str]:
     return [name for name in kind if effect in getattr(kind[name], "effects", frozenset())]
 
 
-def _load_key(scene: Scene) -> str:
-    load = scene.load
-    return f"uniaxial-{load.direction}" if load.kind == "uniaxial" else load.kind
-
-
 def require_effects(scene: Scene, solver: Any, registry: Registry, *, name: str | None = None) -> None:
     """Raise if ``solver`` (class or instance) cannot model every effect and the load of ``scene``.
 
@@ -38,7 +33,7 @@ def require_effects(scene: Scene, solver: Any, registry: Registry, *, name: str 
         if effect not in supported:
             raise UnsupportedEffectError(effect, solver_name, solvers_supporting(registry, effect))
     loads = getattr(solver, "loads", None)
-    key = _load_key(scene)
+    key = scene.load.response_kind
     if loads is not None and key not in loads and scene.load.kind not in loads:
         kind = registry["solver"]
         others = [n for n in kind if key in getattr(kind[n], "loads", ()) or scene.load.kind in getattr(kind[n], "loads", ())]

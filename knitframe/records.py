@@ -149,6 +149,11 @@ class LoadPath(Record):
             if min(self.lambda1 + self.lambda2) <= 0:
                 raise FieldError("lambda1", "stretches must be > 0")
 
+    @property
+    def response_kind(self) -> str:
+        """The ``Response.load`` this path produces: ``equibiaxial``, ``uniaxial-course``, ``uniaxial-wale`` or ``general``."""
+        return f"uniaxial-{self.direction}" if self.kind == "uniaxial" else self.kind
+
     def stretches(self) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         """Prescribed stretches per step, excluding the undeformed state.
 

@@ -50,6 +50,7 @@ import attrs
 import numpy as np
 import scipy.sparse as sp
 
+from knitframe.report import write_pvd
 from knitframe.geometry import unit_cell
 from knitframe import hookimpl, validators as v
 from knitframe.config import instantiate
@@ -116,12 +117,6 @@ def write_rod_vtu(path: Path, model: RodModel, q: np.ndarray, radius: float, cel
         cell_data={k: [np.asarray(v_, dtype=np.float64)] for k, v_ in (cell_data or {}).items()},
     ))
     return path
-
-
-def _write_pvd(path: Path, files: list[tuple[float, str]]) -> None:
-    rows = "\n".join(f'    <DataSet timestep="{t:.10g}" file="{f}"/>' for t, f in files)
-    path.write_text(f'<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n{rows}\n'
-                    "  </Collection>\n</VTKFile>\n")
 
 
 @attrs.frozen
@@ -290,7 +285,7 @@ class RodSolver:
                 name = f"rod-{step_counter[0]:04d}.vtu"
                 write_rod_vtu(out_dir / name, model, qv, 0.5 * energy.dk)
                 vtu_files.append((float(step_counter[0]), name))
-                _write_pvd(out_dir / "rod.pvd", vtu_files)
+                write_pvd(out_dir / "rod.pvd", vtu_files)
             step_counter[0] += 1
             report(done, total, message)
 
@@ -358,7 +353,7 @@ class RodSolver:
                         f"rod: the knitted centerlines overlap (closest centre distance {d_min:.4g} mm < "
                         f"{getattr(energy.law, 'core', 0) * cell.dk:.4g} mm); add 'prestress' to scene.effects")
                 state.update(phase="load", target=-1)
-            start_phase, start_index = state["phase"], int(state["target"])
+            start_index = int(state["target"])
 
             # ---- relaxation: the course and wale stretches are free (zero tension), shear stays zero
             offset = total - n_load
@@ -415,7 +410,7 @@ class RodSolver:
             notes.append(f"stopped after {len(rows)} of {n_load} load steps: {e}")
         arr = np.array(rows, dtype=np.float64).reshape(-1, 4)
         load = scene.load
-        key = f"uniaxial-{load.direction}" if load.kind == "uniaxial" else load.kind
+        key = load.response_kind
         size = f"SL{fabric.stitch_length:g}" if fabric.stitch_length is not None else f"{fabric.arc_length:g} mm/stitch"
         prov = Provenance(
             kind="simulation", source=f"rod {fabric.pattern}", solver=self.name,

@@ -38,6 +38,7 @@ import attrs
 import numpy as np
 import scipy.sparse as sp
 
+from knitframe.report import write_pvd
 from knitframe.geometry import unit_cell
 from knitframe import hookimpl, validators as v
 from knitframe.config import instantiate
@@ -115,12 +116,6 @@ def write_solid_vtu(path: Path, forms: SolidForms, u: np.ndarray, s: float, pres
     )
     out.write(str(path))
     return Path(path)
-
-
-def _write_pvd(path: Path, files: list[tuple[float, str]]) -> None:
-    rows = "\n".join(f'    <DataSet timestep="{t:g}" file="{f}"/>' for t, f in files)
-    path.write_text(f'<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n{rows}\n'
-                    "  </Collection>\n</VTKFile>\n")
 
 
 @attrs.frozen
@@ -265,7 +260,7 @@ class VolumetricSolver:
                 _, _, _, info = model(qv, 0)
                 write_solid_vtu(out_dir / name, model.forms, u, model.s, info.get("pressure", np.zeros(model.cm.n_nodes)))
                 vtu_files.append((float(step_counter[0]), name))
-                _write_pvd(out_dir / "solid.pvd", vtu_files)
+                write_pvd(out_dir / "solid.pvd", vtu_files)
             step_counter[0] += 1
             report(done, total, message)
 
@@ -340,7 +335,7 @@ class VolumetricSolver:
             notes.append(f"stopped after {len(rows)} of {n_load} load steps: {e}")
         arr = np.array(rows, dtype=np.float64).reshape(-1, 4)
         load = scene.load
-        key = f"uniaxial-{load.direction}" if load.kind == "uniaxial" else load.kind
+        key = load.response_kind
         sl = fabric.stitch_length if fabric.stitch_length is not None else fabric.arc_length
         prov = Provenance(
             kind="simulation", source=f"volumetric {fabric.pattern}", solver=self.name, mesh=model.cm.summary(),
