@@ -9,7 +9,11 @@ reports the number of active contacts there). An energy of ``inf`` marks an inad
 :func:`minimise` solves g_f(x) = 0 on the free DOFs by Newton steps H_ff·dx = −g_f through a
 linear-solver plugin, with
 
-* a backtracking Armijo line search on E: E(x + α dx) ≤ E(x) + c·α·g·dx;
+* a backtracking Armijo line search on E: E(x + α dx) ≤ E(x) + c·α·g·dx. Where the energy
+  is only piecewise smooth (a contact pairing switches facets inside the step) or flat to
+  round-off, no α may pass that test although the step is good; the search then falls back to
+  the residual, accepting the longest α with |g_f(x + α dx)|₂ ≤ (1 − c·α)·|g_f(x)|₂ (the
+  merit function of residual-based line searches in implicit FE codes);
 * a Levenberg shift μ·mean|diag H| added to H_ff when the factorisation fails or dx is not a
   descent direction, and (the rigid-mode stabilisation) while ``stabilise(info)`` is true.
   Convergence is always tested on the unshifted gradient, so the shift changes the path, not
@@ -54,6 +58,7 @@ class NewtonOptions:
     max_iter: int = 60
     armijo: float = 1e-4  #: sufficient-decrease constant c
     max_backtracks: int = 40
+    residual_backtracks: int = 6  #: trials of the residual-decrease fallback when no step lowers the energy (0: off)
     stabilisation: float = 1e-6  #: relative Hessian shift while stabilise(info) is true
     max_shift_increases: int = 12
     max_step: float = math.inf  #: cap on step_norm(dx)
@@ -146,7 +151,7 @@ def minimise(
             dx_f = None
             try:
                 with np.errstate(all="ignore"):
-                    dx_f = np.asarray(solve(A, -gf), dtype=np.float64)
+                    dx_f = np.atleast_1d(np.asarray(solve(A, -gf), dtype=np.float64))
             except (RuntimeError, np.linalg.LinAlgError, NumericalError, ValueError):
                 dx_f = None
             slope = float(gf @ dx_f) if dx_f is not None and np.all(np.isfinite(dx_f)) else math.nan
@@ -158,7 +163,7 @@ def minimise(
                     if size > options.max_step:
                         dx *= options.max_step / size
                         slope *= options.max_step / size
-                step = _line_search(fun, x, E, g, dx, slope, options)
+                step = _line_search(fun, x, E, g, dx, slope, options, free)
                 if step is not None:
                     alpha, x_new, E_new = step
                     accepted = True
@@ -183,8 +188,13 @@ def minimise(
 
 
 def _line_search(fun: Problem, x: np.ndarray, E: float, g: np.ndarray, dx: np.ndarray, slope: float,
-                 options: NewtonOptions) -> tuple[float, np.ndarray, float] | None:
-    """Backtracking Armijo search; near round-off level it accepts a step that lowers |g|."""
+                 options: NewtonOptions, free: np.ndarray | None = None) -> tuple[float, np.ndarray, float] | None:
+    """Backtracking Armijo search on E, then (if no step lowers E) a residual-decrease fallback.
+
+    Near round-off level a step that lowers |g| is accepted directly. The fallback tries
+    α = 1, ½, … (``options.residual_backtracks`` values) and accepts the first admissible one with
+    |g_f(x + α dx)|₂ ≤ (1 − c·α)|g_f(x)|₂, c = ``options.armijo``.
+    """
     alpha = 1.0
     g_norm = float(np.linalg.norm(g))
     for _ in range(options.max_backtracks):
@@ -198,6 +208,16 @@ def _line_search(fun: Problem, x: np.ndarray, E: float, g: np.ndarray, dx: np.nd
                 g_new = fun(x_new, 1)[1]
                 if np.linalg.norm(g_new) < g_norm:
                     return alpha, x_new, E_new
+        alpha *= 0.5
+    mask = slice(None) if free is None else free
+    gf_norm = float(np.linalg.norm(g[mask]))
+    alpha = 1.0
+    for _ in range(options.residual_backtracks):
+        x_new = x + alpha * dx
+        E_new, g_new, _, _ = fun(x_new, 1)
+        if np.isfinite(E_new) and g_new is not None and np.all(np.isfinite(g_new[mask])):
+            if float(np.linalg.norm(g_new[mask])) <= (1.0 - options.armijo * alpha) * gf_norm:
+                return alpha, x_new, E_new
         alpha *= 0.5
     return None
 

@@ -211,7 +211,8 @@ class VolumetricSolver:
         r = model.cm.radius
         # few backtracks: at a contact-switching kink a cut-back of the load step helps more than α → 0
         opts = NewtonOptions(atol=self.tolerance * fabric.yarn.E_axial * r * r, rtol=1e-10, max_iter=self.max_iterations,
-                             max_step=self.max_step, xtol=1e-10 * r, max_backtracks=12)
+                             max_step=self.max_step, xtol=1e-10 * r, max_backtracks=12,
+                             max_shift_increases=4)
         n_ind = 3 * len(model.independent)
         base_free = np.ones(n_ind + N_MACRO, bool)
         base_free[:3] = False  # pin one node: the cell's free translation

@@ -77,27 +77,41 @@ class YarnLaw:
         reg = registry or get_registry()
         return cls(reg["yarn_model"][yarn.model].from_yarn(yarn))
 
-    def _evaluate(self, F: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        W, P, A = self.model.evaluate(np.moveaxis(F, (0, 1), (-2, -1)), np.moveaxis(a, 0, -1))
-        return W, np.moveaxis(P, (-2, -1), (0, 1)), np.moveaxis(A, (-4, -3, -2, -1), (0, 1, 2, 3))
+    def _evaluate(self, F: np.ndarray, a: np.ndarray, order: int = 2) -> tuple[np.ndarray, Any, Any]:
+        Fm, am = np.moveaxis(F, (0, 1), (-2, -1)), np.moveaxis(a, 0, -1)
+        if self._takes_order():
+            W, P, A = self.model.evaluate(Fm, am, order=order)
+        else:  # a yarn model without the ``order`` keyword computes everything
+            W, P, A = self.model.evaluate(Fm, am)
+        P = None if P is None or order < 1 else np.moveaxis(P, (-2, -1), (0, 1))
+        A = None if A is None or order < 2 else np.moveaxis(A, (-4, -3, -2, -1), (0, 1, 2, 3))
+        return W, P, A
+
+    def _takes_order(self) -> bool:
+        import inspect
+
+        try:
+            return "order" in inspect.signature(self.model.evaluate).parameters
+        except (TypeError, ValueError):
+            return False
 
     def energy(self, F: np.ndarray, a: np.ndarray) -> np.ndarray:
         """Ψ (n_el, n_qp), MPa; +inf everywhere if any point is inverted."""
         if np.any(~(_inv_det(F)[1] > 0)):
             return np.full(F.shape[2:], np.inf)
-        return self._evaluate(F, a)[0]
+        return self._evaluate(F, a, 0)[0]
 
     def stress(self, F: np.ndarray, a: np.ndarray) -> np.ndarray:
         """First Piola-Kirchhoff stress P (3, 3, n_el, n_qp), MPa."""
-        return self._evaluate(F, a)[1]
+        return self._evaluate(F, a, 1)[1]
 
     def tangent(self, F: np.ndarray, a: np.ndarray) -> np.ndarray:
         """A_iJkL = ∂P_iJ/∂F_kL (3, 3, 3, 3, n_el, n_qp), MPa."""
-        return self._evaluate(F, a)[2]
+        return self._evaluate(F, a, 2)[2]
 
-    def evaluate(self, F: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(Ψ, P, A) at once (the yarn model computes them together)."""
-        return self._evaluate(F, a)
+    def evaluate(self, F: np.ndarray, a: np.ndarray, order: int = 2) -> tuple[np.ndarray, Any, Any]:
+        """(Ψ, P, A) at once (the yarn model computes them together); ``order`` < 2 skips A, < 1 skips P."""
+        return self._evaluate(F, a, order)
 
 
 def fibre_at_quadrature(basis: Any, node_tangent: np.ndarray) -> np.ndarray:
@@ -268,7 +282,7 @@ class SolidForms:
                 Ti, Jt = self._eigen(s, sl)
                 F = np.einsum("iMeq,MJeq->iJeq", F, Ti)
             if hasattr(self.law, "evaluate"):
-                Psi, P, A = self.law.evaluate(F, a)
+                Psi, P, A = self.law.evaluate(F, a, order)
             else:
                 Psi, P, A = self.law.energy(F, a), self.law.stress(F, a), self.law.tangent(F, a) if order == 2 else None
             W += float(np.sum(Jt * Psi * self.dx[sl]))

@@ -60,9 +60,15 @@ def constants(E_A: float, E_T: float, G_A: float, nu: float) -> dict[str, float]
     return {"mu": mu, "lam": lam, "alpha": alpha, "beta": beta, "gamma": gamma}
 
 
+def _outer(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) ⊗ (..., 3, 3) -> (..., 3, 3, 3, 3): X_iJ Y_kL."""
+    return X[..., :, :, None, None] * Y[..., None, None, :, :]
+
+
 def invariant_law(
-    F: np.ndarray, a: np.ndarray | None, mu: float, lam: float, alpha: float = 0.0, beta: float = 0.0, gamma: float = 0.0
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    F: np.ndarray, a: np.ndarray | None, mu: float, lam: float, alpha: float = 0.0, beta: float = 0.0,
+    gamma: float = 0.0, order: int = 2,
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """Energy density, first Piola stress and tangent of the Bonet-Burton law (see module docstring).
 
     Parameters
@@ -71,12 +77,19 @@ def invariant_law(
     a : (..., 3) unit fibre directions in the reference configuration (None for isotropic).
     mu, lam, alpha, beta, gamma : float
         Constants, MPa.
+    order : 0 returns W only, 1 adds P, 2 adds A (the others are None).
 
     Returns
     -------
     W : (...,) MPa;  P : (..., 3, 3) MPa, P = F S;
     A : (..., 3, 3, 3, 3) MPa, A_iJkL = ∂P_iJ/∂F_kL = δ_ik S_LJ + F_iI F_kK ℂ_IJKL,
-        with S = 2∂W/∂C and ℂ = 4∂²W/∂C².
+        with S = 2∂W/∂C and ℂ = 4∂²W/∂C². ℂ is a sum of dyads X ⊗ Y of symmetric tensors built
+        from C⁻¹, A = a ⊗ a and I, so its push-forward is assembled from the dyads of F·X
+        directly, F_iI F_kK X_IJ Y_KL = (FX)_iJ (FY)_kL, without forming ℂ:
+
+        ℂ = λ C⁻¹⊗C⁻¹ + 2c₁ C⁻¹⊙C⁻¹ + 2β (C⁻¹⊗A + A⊗C⁻¹) + 8γ A⊗A
+            − α (A_IL δ_JK + A_IK δ_JL + A_JL δ_IK + A_JK δ_IL),
+        c₁ = μ − λ ln J − β (I4 − 1),  (C⁻¹⊙C⁻¹)_IJKL = ½ (C⁻¹_IK C⁻¹_JL + C⁻¹_IL C⁻¹_JK).
     """
     F = np.asarray(F, dtype=np.float64)
     J = np.linalg.det(F)
@@ -84,41 +97,56 @@ def invariant_law(
         bad = np.unravel_index(int(np.argmin(np.where(np.isfinite(J), J, -np.inf))), J.shape)
         raise NumericalError(f"yarn law: det F = {J[bad]:.3g} <= 0 at index {tuple(int(i) for i in bad)}")
     C = np.einsum("...ki,...kj->...ij", F, F)
-    Ci = np.linalg.inv(C)
     lnJ = np.log(J)
-    eye = np.broadcast_to(np.eye(3), C.shape)
     I1 = np.trace(C, axis1=-2, axis2=-1)
     W = 0.5 * mu * (I1 - 3.0) - mu * lnJ + 0.5 * lam * lnJ**2
-    S = mu * (eye - Ci) + lam * lnJ[..., None, None] * Ci
-    c1 = mu - lam * lnJ  # coefficient of the symmetric C⁻¹ ⊙ C⁻¹ product below
-    Cm = lam * np.einsum("...ij,...kl->...ijkl", Ci, Ci)
-    if a is not None and (alpha or beta or gamma):
+    fibre = a is not None and bool(alpha or beta or gamma)
+    if fibre:
         a = np.broadcast_to(np.asarray(a, dtype=np.float64), C.shape[:-1])
         Ca = np.einsum("...ij,...j->...i", C, a)
         I4 = np.einsum("...i,...i->...", a, Ca)
         I5 = np.einsum("...i,...i->...", Ca, Ca)
         e4 = I4 - 1.0
         W = W + (alpha + beta * lnJ + gamma * e4) * e4 - 0.5 * alpha * (I5 - 1.0)
-        A_ = np.einsum("...i,...j->...ij", a, a)
-        aCa = np.einsum("...i,...j->...ij", a, Ca)
+    if not np.all(np.isfinite(W)):
+        raise NumericalError("yarn law: non-finite energy")
+    if order == 0:
+        return W, None, None
+    Ci = np.linalg.inv(C)
+    eye = np.broadcast_to(np.eye(3), C.shape)
+    S = mu * (eye - Ci) + lam * lnJ[..., None, None] * Ci
+    c1 = mu - lam * lnJ
+    if fibre:
+        A_ = a[..., :, None] * a[..., None, :]
+        aCa = a[..., :, None] * Ca[..., None, :]
         S = S + (beta * e4)[..., None, None] * Ci + 2.0 * (alpha + beta * lnJ + 2.0 * gamma * e4)[..., None, None] * A_
         S = S - alpha * (aCa + np.swapaxes(aCa, -1, -2))
         c1 = c1 - beta * e4
-        Cm = Cm + 2.0 * beta * (np.einsum("...ij,...kl->...ijkl", Ci, A_) + np.einsum("...ij,...kl->...ijkl", A_, Ci))
-        Cm = Cm + 8.0 * gamma * np.einsum("...ij,...kl->...ijkl", A_, A_)
-        Cm = Cm - alpha * (
-            np.einsum("...il,...jk->...ijkl", A_, eye)
-            + np.einsum("...ik,...jl->...ijkl", A_, eye)
-            + np.einsum("...jl,...ik->...ijkl", A_, eye)
-            + np.einsum("...jk,...il->...ijkl", A_, eye)
-        )
-    # -∂C⁻¹/∂C, symmetrised: ½(C⁻¹_IK C⁻¹_JL + C⁻¹_IL C⁻¹_JK)
-    sym = 0.5 * (np.einsum("...ik,...jl->...ijkl", Ci, Ci) + np.einsum("...il,...jk->...ijkl", Ci, Ci))
-    Cm = Cm + 2.0 * c1[..., None, None, None, None] * sym
-    P = np.einsum("...ik,...kj->...ij", F, S)
-    A = np.einsum("...ik,...lj->...ijkl", eye, S) + np.einsum("...iI,...kK,...IJKL->...iJkL", F, F, Cm)
-    if not (np.all(np.isfinite(W)) and np.all(np.isfinite(P))):
-        raise NumericalError("yarn law: non-finite energy or stress")
+    P = F @ S
+    if not np.all(np.isfinite(P)):
+        raise NumericalError("yarn law: non-finite stress")
+    if order == 1:
+        return W, P, None
+    FC = F @ Ci  # (F C⁻¹)_iJ
+    b = FC @ np.swapaxes(F, -1, -2)  # F C⁻¹ Fᵀ = I, kept general for round-off consistency
+    A = lam * _outer(FC, FC)
+    # 2c₁ C⁻¹⊙C⁻¹ pushed forward: c₁ (b_ik C⁻¹_JL + (FC⁻¹)_iL (FC⁻¹)_kJ)
+    A = A + c1[..., None, None, None, None] * (
+        b[..., :, None, :, None] * Ci[..., None, :, None, :] + FC[..., :, None, None, :] * np.swapaxes(FC, -1, -2)[..., None, :, :, None]
+    )
+    # geometric term δ_ik S_LJ
+    A = A + eye[..., :, None, :, None] * S[..., None, :, None, :]
+    if fibre:
+        Fa = np.einsum("...iI,...I->...i", F, a)
+        FA = Fa[..., :, None] * a[..., None, :]  # (F A)_iJ = (Fa)_i a_J
+        A = A + 2.0 * beta * (_outer(FC, FA) + _outer(FA, FC)) + 8.0 * gamma * _outer(FA, FA)
+        # −α pushed forward: (Fa)_i a_L F_kJ + (Fa)_i (Fa)_k δ_JL + (FFᵀ)_ik a_J a_L + F_iL a_J (Fa)_k
+        FFt = F @ np.swapaxes(F, -1, -2)
+        t1 = FA[..., :, None, None, :] * np.swapaxes(F, -1, -2)[..., None, :, :, None]
+        t2 = (Fa[..., :, None] * Fa[..., None, :])[..., :, None, :, None] * eye[..., None, :, None, :]
+        t3 = FFt[..., :, None, :, None] * A_[..., None, :, None, :]
+        t4 = F[..., :, None, None, :] * (a[..., :, None] * Fa[..., None, :])[..., None, :, :, None]
+        A = A - alpha * (t1 + t2 + t3 + t4)
     return W, P, A
 
 

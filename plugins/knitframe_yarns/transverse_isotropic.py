@@ -7,7 +7,7 @@ modulus E_A, transverse modulus E_T, axial shear modulus G_A and Poisson ratio �
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import attrs
 import numpy as np
@@ -49,12 +49,15 @@ class TransverseIsotropic(YarnModelBase):
         """Bonet-Burton constants μ, λ, α, β, γ (MPa)."""
         return constants(self.E_axial, self.E_transverse, self.shear_modulus, self.nu)
 
-    def evaluate(self, F: np.ndarray, fibre: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(W, P, A) at F (..., 3, 3) with unit reference fibre directions ``fibre`` (..., 3), MPa."""
+    def evaluate(self, F: np.ndarray, fibre: np.ndarray | None = None, order: int = 2) -> tuple[np.ndarray, Any, Any]:
+        """(W, P, A) at F (..., 3, 3) with unit reference fibre directions ``fibre`` (..., 3), MPa.
+
+        ``order`` 0 computes W only, 1 adds P (the others are None).
+        """
         if fibre is None:
             raise FieldError("fibre", "the transversely isotropic law needs the fibre (yarn tangent) direction")
         c = self.constants
-        return invariant_law(F, fibre, c["mu"], c["lam"], c["alpha"], c["beta"], c["gamma"])
+        return invariant_law(F, fibre, c["mu"], c["lam"], c["alpha"], c["beta"], c["gamma"], order=order)
 
     @classmethod
     def from_yarn(cls, yarn: Yarn) -> "TransverseIsotropic":
