@@ -44,9 +44,25 @@ def surface(mesh, body: np.ndarray, slave_facets: np.ndarray, master_facets: np.
                               topo, exclusion=1.0)
 
 
+def stacked_blocks(order: int):
+    """Block z ∈ [0, 0.5] (body 0, 3×3×2 cells) under a block z ∈ [0.5, 1] (body 1, 5×4×2 cells), unit square.
+
+    Returns (mesh, body, surface with the upper block's bottom as slave and the lower's top as
+    master, number of lower-block tetrahedra).
+    """
+    lo = skfem.MeshTet1.init_tensor(np.linspace(0, 1, 4), np.linspace(0, 1, 4), np.linspace(0, 0.5, 3))
+    hi = skfem.MeshTet1.init_tensor(np.linspace(0, 1, 6), np.linspace(0, 1, 5), np.linspace(0.5, 1, 3))
+    mesh, body = join([lo, hi], order)
+    X = nodes(mesh)
+    bf = mesh.boundary_facets()
+    fz, vb = X[mesh.facets[:, bf], 2], body[mesh.facets[0, bf]]
+    at = np.all(np.isclose(fz, 0.5), axis=0)
+    return mesh, body, surface(mesh, body, bf[(vb == 1) & at], bf[(vb == 0) & at]), lo.t.shape[1]
+
+
 def solve(forms: SolidForms, law, surf: SolidSurface, u0: np.ndarray, free: np.ndarray, stiffness: float,
-          reach: float):
-    """Equilibrium of elasticity + contact by the shared Newton driver; returns (u, contact info)."""
+          reach: float, friction_state=None):
+    """Equilibrium of elasticity + contact (+ lagged friction) by the shared Newton driver; returns (u, contact info)."""
     X = nodes(forms.mesh)
     n = forms.ndof
 
@@ -54,7 +70,8 @@ def solve(forms: SolidForms, law, surf: SolidSurface, u0: np.ndarray, free: np.n
         E = forms.energy(u)
         if not np.isfinite(E):
             return np.inf, None, None, {}
-        Ec, gc, Hc, info = law.evaluate(surf, X + u.reshape(-1, 3), None, order, stiffness=stiffness, reach=reach)
+        Ec, gc, Hc, info = law.evaluate(surf, X + u.reshape(-1, 3), None, order, stiffness=stiffness, reach=reach,
+                                        friction_state=friction_state)
         if order == 0:
             return E + Ec, None, None, info
         g = forms.residual(u) + gc[:n]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import skfem
 
-from contact_solid_helpers import iso, join, nodes, quarter_cylinder_on_flat, solve, surface
+from contact_solid_helpers import iso, nodes, quarter_cylinder_on_flat, solve, stacked_blocks, surface
 from knitframe.contact_search import SegmentTopology
 from knitframe.geometry import Centerline, UnitCell
 from knitframe.mesh import cell_mesh, surface_facets
@@ -14,7 +14,7 @@ from knitframe.periodic import Lattice
 from knitframe.plugins import get_registry
 from knitframe_contact.mortar import SolidMortar
 from knitframe_contact.penalty import SolidPenalty
-from knitframe_contact.solid_geometry import SolidSurface, facet_gap, plane_gap
+from knitframe_contact.solid_geometry import SolidSurface, facet_gap, p2_shape, plane_gap, project_p2
 from knitframe_solvers.volumetric_material import SolidForms
 from knitframe_yarns.law import line_contact_approach
 
@@ -43,14 +43,16 @@ def test_plane_gap_derivatives():
             assert np.allclose((dgp - dgm) / (2 * eps), H[:, :, :, k, i], atol=1e-6)
 
 
-def test_quadratic_facet_gap_gradient():
-    """The gap to a curved quadratic facet has the gradient n, −N_i n of its closest point."""
+def test_quadratic_facet_gap_derivatives():
+    """The gap to a curved quadratic facet has the gradient n, −N_i n of its closest point and the exact Hessian."""
     rng = np.random.default_rng(1)
     corners = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]])
     mids = 0.5 * (corners[[0, 1, 2]] + corners[[1, 2, 0]]) + np.array([0, 0, 0.05])
     Xf = np.tile(np.vstack([corners, mids]), (5, 1, 1)) + 0.01 * rng.normal(size=(5, 6, 3))
     p = np.array([0.25, 0.25, 0.02]) + 0.02 * rng.normal(size=(5, 3))
-    g, dg, _ = facet_gap(p, Xf)
+    p[0, 2] = -0.2  # deep below the facet: the curvature terms of the projection matter
+    g, dg, Hg, _ = facet_gap(p, Xf, 2)
+    assert np.all(project_p2(p, Xf).interior)
     eps = 1e-7
     for k in range(7):
         for i in range(3):
@@ -62,8 +64,29 @@ def test_quadratic_facet_gap_gradient():
             else:
                 Xp[:, k - 1, i] += eps
                 Xm[:, k - 1, i] -= eps
-            fd = (facet_gap(pp, Xp, 0)[0] - facet_gap(pm, Xm, 0)[0]) / (2 * eps)
-            assert np.allclose(fd, dg[:, k, i], atol=1e-6)
+            fp, fm = facet_gap(pp, Xp, 1), facet_gap(pm, Xm, 1)
+            assert np.allclose((fp[0] - fm[0]) / (2 * eps), dg[:, k, i], atol=1e-6)
+            assert np.allclose((fp[1] - fm[1]) / (2 * eps), Hg[:, :, :, k, i], atol=1e-5)
+    assert np.abs(Hg[0]).max() > 0.1  # the second derivative is not the zero of a flat facet
+
+
+def test_quadratic_projection_finds_the_closest_point():
+    """Projected Newton reaches the closest point of a curved facet inside, along an edge and at a corner."""
+    corners = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]])
+    mids = 0.5 * (corners[[0, 1, 2]] + corners[[1, 2, 0]]) + np.array([0, 0, 0.1])
+    Xf = np.tile(np.vstack([corners, mids]), (3, 1, 1))
+    p = np.array([[0.3, 0.2, 0.3], [0.5, -0.3, 0.1], [-0.2, -0.3, 0.0]])  # inside, beyond edge 01, beyond corner 0
+    pr = project_p2(p, Xf)
+    grid = np.linspace(0, 1, 401)
+    S, T = np.meshgrid(grid, grid)
+    keep = S + T <= 1
+    N, _ = p2_shape(np.column_stack([S[keep], T[keep]]))
+    pts = N @ Xf[0]
+    sampled = np.linalg.norm(pts[None] - p[:, None], axis=2).min(axis=1)
+    assert np.all(pr.dist <= sampled + 1e-12)
+    assert np.all(pr.dist > sampled - 1e-4)
+    assert pr.interior.tolist() == [True, False, False]
+    assert pr.xi[1, 1] == 0.0 and np.allclose(pr.xi[2], 0.0)
 
 
 @pytest.fixture(scope="module", params=[1, 2])
@@ -75,18 +98,13 @@ def cylinder(request):
 
 @pytest.mark.parametrize("law", [SolidPenalty(), SolidMortar()], ids=["penalty", "mortar"])
 def test_contact_derivatives_match_finite_differences(cylinder, law):
-    """Contact gradient = FD of the energy; Hessian = FD of the gradient (exact for linear facets).
-
-    On quadratic facets the mortar Hessian is Gauss-Newton (the terms proportional to the gap are
-    dropped), so it is checked at a shallow penetration, where those terms are small.
-    """
+    """Contact gradient = FD of the energy; Hessian = FD of the gradient (exact, on curved P2 facets too)."""
     mesh, body, surf = cylinder
     X = nodes(mesh)
     n = 3 * len(X)
     rng = np.random.default_rng(0)
-    exact_hessian = not (isinstance(law, SolidMortar) and isinstance(mesh, skfem.MeshTet2))
     u = np.zeros(n)
-    u[1::3] = -(0.01 if exact_hessian else 0.001) * (body == 0)
+    u[1::3] = -0.01 * (body == 0)
     u += 1e-4 * rng.normal(size=n)
     du = rng.normal(size=n) * np.repeat(body == 0, 3)
 
@@ -99,8 +117,7 @@ def test_contact_derivatives_match_finite_differences(cylinder, law):
     fd_g = (f(u + h * du, 0)[0] - f(u - h * du, 0)[0]) / (2 * h)
     fd_H = (f(u + h * du, 1)[1] - f(u - h * du, 1)[1])[:n] / (2 * h)
     assert abs(g[:n] @ du - fd_g) < 1e-6 * abs(fd_g)
-    tol = 1e-6 if exact_hessian else 0.1
-    assert np.linalg.norm(H[:n, :n] @ du - fd_H) < tol * np.linalg.norm(fd_H)
+    assert np.linalg.norm(H[:n, :n] @ du - fd_H) < 1e-6 * np.linalg.norm(fd_H)
 
 
 @pytest.mark.parametrize("law", [SolidPenalty(), SolidMortar()], ids=["penalty", "mortar"])
@@ -124,17 +141,6 @@ def test_hertz_cylinder_on_flat(cylinder, law):
     f = -2 * reaction[sym, 1].sum() / t  # line load on the whole cylinder, N/mm
     assert 2 * info["force"] / t == pytest.approx(f, rel=1e-6)
     assert d / line_contact_approach(np.array([f]), R, E, nu, rigid_partner=True)[0] == pytest.approx(1.0, abs=0.05)
-
-
-def stacked_blocks(order: int):
-    lo = skfem.MeshTet1.init_tensor(np.linspace(0, 1, 4), np.linspace(0, 1, 4), np.linspace(0, 0.5, 3))
-    hi = skfem.MeshTet1.init_tensor(np.linspace(0, 1, 6), np.linspace(0, 1, 5), np.linspace(0.5, 1, 3))
-    mesh, body = join([lo, hi], order)
-    X = nodes(mesh)
-    bf = mesh.boundary_facets()
-    fz, vb = X[mesh.facets[:, bf], 2], body[mesh.facets[0, bf]]
-    at = np.all(np.isclose(fz, 0.5), axis=0)
-    return mesh, body, surface(mesh, body, bf[(vb == 1) & at], bf[(vb == 0) & at]), lo.t.shape[1]
 
 
 @pytest.mark.parametrize("order,law,tol", [

@@ -1,7 +1,7 @@
 """Contact law ``mortar``: segment-to-segment penalty contact integrated over the slave surface.
 
-The gap is measured at the quadrature points of every slave triangle, x_q = Σ_i N_i(ξ_q) x_i, to
-the nearest opposing master triangle (another yarn, a periodic image, or a distant part of the
+The gap is measured at the quadrature points of every slave facet, x_q = Σ_i N_i(ξ_q) x_i, to
+the nearest opposing master facet (another yarn, a periodic image, or a distant part of the
 same yarn), and the penalty energy is integrated over the slave surface::
 
     W = ∫_Γs ½ ε ⟨−g(x)⟩² dA ≈ Σ_f Σ_q ½ ε w_q A_f ⟨−g(x_q)⟩²
@@ -9,10 +9,29 @@ same yarn), and the penalty energy is integrated over the slave surface::
 so the contact traction ε⟨−g⟩ is a field on the slave surface, not a set of nodal forces: a
 uniform pressure is transmitted as a uniform pressure (contact patch test), and the force on
 the master side is integrated consistently through the master's shape functions at the
-projection points. The gradient and Hessian are exact for the current pairing (Gauss-point-to-
-segment form of the penalty mortar method; the integration is by quadrature on the slave
-triangles rather than by clipping against the master segments, which is exact for flat contact
-and converges with ``quadrature`` otherwise).
+projection points. On linear facets g is the distance to the master triangle's plane; on
+quadratic facets it is n·(x_q − x(ξ*)) at the closest point ξ* of the curved master facet, or
+of its polynomial continuation when the point lies beyond the facet's rim (the curved
+counterpart of the plane; :func:`knitframe_contact.solid_geometry.select_pairs`). The gradient
+and Hessian are exact for the current pairing, including the second derivative of the
+closest-point projection on curved facets
+(:func:`knitframe_contact.solid_geometry.p2_gap_derivatives`; Gauss-Newton only where the
+continuation has no closest point near the facet). This is the Gauss-point-to-segment form of
+the penalty mortar method; the integration is by quadrature on the slave facets rather than by
+clipping against the master segments, which is exact for flat contact and converges with
+``quadrature`` otherwise.
+
+Friction (only when the solver passes a ``friction_state``): regularised Coulomb friction with
+the normal force lagged from the last converged state. :meth:`SolidMortar.friction_state`
+freezes the active quadrature points with their normal force λ_q = ε w_q A_f ⟨−g_q⟩, the master
+normal n and the master's material point ξ* under them; :meth:`SolidMortar.evaluate` then adds::
+
+    D = Σ_q μ λ_q ε_s f0(|u_T,q| / ε_s),   u_T = (I − n nᵀ)[(x_q − x_m(ξ*)) − (x_q − x_m(ξ*))₀]
+    f0(y) = y² − y³/3 (y < 1),  y − 1/3 (y ≥ 1)
+
+(the slip of the slave point against the same material point of the master, x_m including the
+image shift F̄·S_k; ε_s = ``slip`` × the slave facet's size), whose tangential force rises
+smoothly to μ λ_q at the slip ε_s (:func:`knitframe_contact.solid_geometry.friction_terms`).
 """
 
 from __future__ import annotations
@@ -23,10 +42,10 @@ import attrs
 import numpy as np
 
 from knitframe import hookimpl, validators as v
-from knitframe.periodic import PointMap
 from knitframe_contact.penalty import default_stiffness
 from knitframe_contact.solid_geometry import (
-    SolidSurface, facet_gap, nearest, p2_shape, penalty_terms, plane_gap, point_triangle_distance, project_p2, scatter,
+    FrictionState, P2Projection, SolidSurface, assemble, barycentric, combine, facet_size, friction_terms,
+    p2_gap_derivatives, p2_shape, penalty_terms, plane_gap, select_pairs,
 )
 
 
@@ -37,6 +56,10 @@ def triangle_rule(order: int) -> tuple[np.ndarray, np.ndarray]:
 
     X, W = get_quadrature(RefTri, order)
     return np.column_stack([1.0 - X[0] - X[1], X[0], X[1]]), W / W.sum()
+
+
+def _take(pr: P2Projection, rows: np.ndarray) -> P2Projection:
+    return P2Projection(*(getattr(pr, f.name)[rows] for f in attrs.fields(P2Projection)))
 
 
 @attrs.frozen
@@ -50,14 +73,16 @@ class SolidMortar:
     stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: ε, N/mm³; default factor·E/h
     factor: float = attrs.field(default=10.0, validator=v.positive)  #: ε = factor · E / h when stiffness is not given, -
     quadrature: int = attrs.field(default=4, validator=v.in_range(1, 19))  #: polynomial order of the slave-triangle rule, -
+    friction: float = attrs.field(default=0.3, validator=v.non_negative)  #: Coulomb coefficient μ (used only with a friction state), -
+    slip: float = attrs.field(default=0.05, validator=v.positive)  #: regularisation slip ε_s / slave facet size (mean corner-edge length), -
 
     def penalty(self, modulus: float, size: float) -> float:
         """Penalty stiffness ε (N/mm³) for contact modulus E (MPa) and element size h (mm)."""
         return default_stiffness(self.stiffness, self.factor, modulus, size)
 
-    def evaluate(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, order: int, *,
-                 stiffness: float, reach: float) -> tuple[float, Any, Any, dict[str, Any]]:
-        """Energy (N·mm), gradient and Hessian in q = [u (3N), h (6)], and diagnostics (see ``penalty``)."""
+    def _pairs(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, reach: float,
+               order: int) -> dict[str, Any]:
+        """Active quadrature-point pairs of state x: gaps (and their derivatives up to ``order``)."""
         quadratic = surface.facets.shape[1] == 6
         lam, w = triangle_rule(self.quadrature)
         if quadratic:
@@ -79,62 +104,118 @@ class SolidMortar:
             ns_q = np.repeat(np.cross(xs[:, 1] - xs[:, 0], xs[:, 2] - xs[:, 0]), nq, axis=0)
         face = np.repeat(np.arange(len(sf)), nq)
         qidx = np.tile(np.arange(nq), len(sf))
-        cand = surface.candidates(xq, sf[face, 0], x, h, reach, quadratic=quadratic)
-        mel = surface.facets[cand.triangle]
-        Xm = x[mel] + cand.shift[:, None, :]
-        p = xq[cand.point]
-        if quadratic:
-            g_c, _, dist = facet_gap(p, Xm, order=0)
-            nm = project_p2(p, Xm)[2]
-            inside = np.abs(dist - np.abs(g_c)) <= 1e-9 * reach  # the closest point is not on the facet's rim
-        else:
-            dist, inside = point_triangle_distance(p, Xm[:, 0], Xm[:, 1], Xm[:, 2])
-            nm = np.cross(Xm[:, 1] - Xm[:, 0], Xm[:, 2] - Xm[:, 0])
-        ok = (np.einsum("ij,ij->i", nm, ns_q[cand.point]) < 0) & (dist < reach)
-        # prefer a facet the point projects into: switching between those keeps the gap continuous
-        rank = dist + np.where(inside, 0.0, 2.0 * reach)
-        rows = np.flatnonzero(ok)[nearest(cand.point[ok], rank[ok])]
-        point, tri_m, img, Xm = cand.point[rows], cand.triangle[rows], cand.image[rows], Xm[rows]
-        if quadratic:
-            g, dgm, _ = facet_gap(xq[point], Xm, order=min(order, 1))
-            Hg = None
-        else:
-            g, dgm, Hg = plane_gap(xq[point], Xm[:, 0], Xm[:, 1], Xm[:, 2], order=order)
+        cand = surface.candidates(xq, sf[face, 0], x, h, reach, quadratic=quadratic, group=nq)
+        elements = surface.facets if quadratic else surface.triangles
+        Xm = x[elements[cand.triangle]] + cand.shift[:, None, :]
+        chosen = select_pairs(xq[cand.point], cand.point, cand.triangle, Xm, ns_q[cand.point], reach)
+        rows, g = chosen.rows, chosen.g
+        point, Xm = cand.point[rows], Xm[rows]
         sel = np.flatnonzero((g < 0) & (g > -reach))
-        f, q, g = face[point[sel]], qidx[point[sel]], g[sel]
+        point, Xm, g = point[sel], Xm[sel], g[sel]
+        f, q = face[point], qidx[point]
         N = N_q[q]  # (m, k) slave shape functions at the points
-        weight = w[q] * dA[point[sel]]
-        k = N.shape[1]
-        dg = None
-        if order >= 1:
-            dgp = dgm[sel]
-            # chain rule: the slave point moves with its facet's nodes, x_q = Σ N_i x_i
-            dg = np.concatenate([N[:, :, None] * dgp[:, None, 0, :], dgp[:, 1:]], axis=1)
-        Hfull = None
-        if order == 2 and Hg is not None:
-            H = Hg[sel]
-            Hfull = np.zeros((len(sel), 2 * k, 3, 2 * k, 3))
-            Hfull[:, :k, :, :k, :] = np.einsum("mi,mj,mkl->mikjl", N, N, H[:, 0, :, 0, :])
-            Hfull[:, :k, :, k:, :] = np.einsum("mi,mkbl->mikbl", N, H[:, 0, :, 1:, :])
-            Hfull[:, k:, :, :k, :] = np.einsum("mj,makl->makjl", N, H[:, 1:, :, 0, :])
-            Hfull[:, k:, :, k:, :] = H[:, 1:, :, 1:, :]
-        E, grad, hess = penalty_terms(g, dg, Hfull, weight, stiffness, order)
-        nodes = np.column_stack([sf[f], surface.facets[tri_m[sel]]])
+        out = {"quadratic": quadratic, "f": f, "q": q, "N": N, "g": g, "Xm": Xm, "p": xq[point],
+               "master": cand.triangle[rows[sel]], "image": cand.image[rows[sel]],
+               "weight": w[q] * dA[point], "sf": sf, "nq": nq, "dA": dA, "w": w, "qidx": qidx}
+        if quadratic:
+            pr = _take(chosen.projection, sel)
+            out["xi"], out["normal"] = pr.xi, pr.n
+            if order >= 1:
+                out["dg"], out["Hg"] = p2_gap_derivatives(pr, Xm, N, order)
+        else:
+            A, B, C = Xm[:, 0], Xm[:, 1], Xm[:, 2]
+            out["xi"] = barycentric(out["p"], A, B, C)[:, 1:]
+            nrm = np.cross(B - A, C - A)
+            out["normal"] = nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
+            if order >= 1:
+                _, dgm, H = plane_gap(out["p"], A, B, C, order=order)
+                k = N.shape[1]
+                # chain rule: the slave point moves with its facet's nodes, x_q = Σ N_i x_i
+                out["dg"] = np.concatenate([N[:, :, None] * dgm[:, None, 0, :], dgm[:, 1:]], axis=1)
+                Hfull = None
+                if order == 2:
+                    Hfull = np.zeros((len(sel), 2 * k, 3, 2 * k, 3))
+                    Hfull[:, :k, :, :k, :] = np.einsum("mi,mj,mkl->mikjl", N, N, H[:, 0, :, 0, :])
+                    Hfull[:, :k, :, k:, :] = np.einsum("mi,mkbl->mikbl", N, H[:, 0, :, 1:, :])
+                    Hfull[:, k:, :, :k, :] = np.einsum("mj,makl->makjl", N, H[:, 1:, :, 0, :])
+                    Hfull[:, k:, :, k:, :] = H[:, 1:, :, 1:, :]
+                out["Hg"] = Hfull
+        return out
+
+    def friction_state(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, *, stiffness: float,
+                       reach: float) -> FrictionState:
+        """Freeze the active quadrature-point pairs of the converged state x for the next increment's friction.
+
+        Each pair keeps its slave facet and quadrature point, master facet (linear triangle on
+        P1 surfaces) and image, the master's parametric point ξ* of the projection, the normal
+        force λ = ε w_q A_f ⟨−g⟩ (N), the unit master normal, and the relative position
+        c₀ = x_q − x_m(ξ*) of the two material points (see the module docstring).
+        """
+        pr = self._pairs(surface, x, h, reach, 0)
+        quadratic = pr["quadratic"]
+        Nm = p2_shape(pr["xi"])[0] if quadratic else np.column_stack([1.0 - pr["xi"].sum(axis=1), pr["xi"]])
+        elements = surface.facets if quadratic else surface.triangles
+        nodes = np.column_stack([pr["sf"][pr["f"]], elements[pr["master"]]])
+        k = pr["N"].shape[1]
+        images = np.zeros((len(nodes), nodes.shape[1], 2), np.int64)
+        images[:, k:] = pr["image"][:, None, :]
+        weights = np.column_stack([pr["N"], -Nm])
+        c0 = pr["p"] - np.einsum("mk,mki->mi", Nm, pr["Xm"])
+        slave = surface.slave[pr["f"]]
+        return FrictionState(slave, pr["q"], pr["master"], pr["image"], pr["xi"], stiffness * pr["weight"] * (-pr["g"]),
+                             pr["normal"], facet_size(surface)[slave], nodes, images, weights, c0)
+
+    def evaluate(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, order: int, *,
+                 stiffness: float, reach: float, friction_state: FrictionState | None = None
+                 ) -> tuple[float, Any, Any, dict[str, Any]]:
+        """Energy (N·mm), gradient and Hessian in q = [u (3N), h (6)], and diagnostics (see ``penalty``).
+
+        With ``friction_state`` (from :meth:`friction_state` at the last converged state) the
+        lagged regularised Coulomb friction of those pairs is added (module docstring).
+        """
+        pr = self._pairs(surface, x, h, reach, order)
+        quadratic = pr["quadratic"]
+        g, f, weight, sf = pr["g"], pr["f"], pr["weight"], pr["sf"]
+        E, grad, hess = penalty_terms(g, pr.get("dg"), pr.get("Hg"), weight, stiffness, order)
+        elements = surface.facets if quadratic else surface.triangles
+        nodes = np.column_stack([sf[f], elements[pr["master"]]])
+        k = pr["N"].shape[1]
         images = np.zeros((len(nodes), 2 * k, 2), np.int64)
-        images[:, k:] = img[sel][:, None, :]
-        E, G, Hm = scatter(PointMap(surface.n_nodes, nodes, images, surface.lattice), E, grad, hess, order)
+        images[:, k:] = pr["image"][:, None, :]
+        # the quadrature points of one slave facet on one master element (and image), with or
+        # without friction, form one element: summed before the assembly
+        img = pr["image"]
+        key = (surface.slave[f] * len(elements) + pr["master"]) * 9 + 3 * (img[:, 0] + 1) + img[:, 1] + 1
+        info: dict[str, Any] = {}
+        if friction_state is not None and self.friction > 0 and len(friction_state):
+            Ef, gf, Hf, info = friction_terms(friction_state, x, h, surface.lattice, self.friction, self.slip, order)
+            E += Ef
+            info["friction_energy"] = Ef
+            fs = friction_state
+            key = np.concatenate([key, (fs.slave * len(elements) + fs.master) * 9 + 3 * (fs.image[:, 0] + 1)
+                                  + fs.image[:, 1] + 1])
+            nodes, images = np.concatenate([nodes, fs.nodes]), np.concatenate([images, fs.images])
+            grads, hesses = [grad, gf], [hess, Hf]
+        else:
+            grads, hesses = [grad], [hess]
+        terms = []
+        if order >= 1:
+            first, grad, hess = combine(key, grads, hesses if order == 2 else None)
+            terms.append((nodes[first], images[first], grad, hess))
+        E, G, Hm = assemble(surface.n_nodes, surface.lattice, E, terms, order)
         # nodal pressure for output: area-weighted mean of ε⟨−g⟩ over the points of the node's facets
+        nq, dA, w = pr["nq"], pr["dA"], pr["w"]
         num, den = np.zeros(surface.n_nodes), np.zeros(surface.n_nodes)
-        wq = w[qidx] * dA
+        wq = w[pr["qidx"]] * dA
         np.add.at(den, np.repeat(sf, nq, axis=0).ravel(), np.repeat(wq, k))
         np.add.at(num, sf[f].ravel(), np.repeat(weight * stiffness * (-g), k))
         pressure = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
-        info = {
-            "active": int(sel.size),
-            "max_penetration": float(-g.min()) if sel.size else 0.0,
+        info.update({
+            "active": int(g.size),
+            "max_penetration": float(-g.min()) if g.size else 0.0,
             "pressure": pressure,
             "force": float(np.sum(weight * stiffness * (-g))),
-        }
+        })
         return E, G, Hm, info
 
 

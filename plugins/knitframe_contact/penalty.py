@@ -12,6 +12,20 @@ solver's contact modulus E and element size h). The gradient and the Hessian are
 current pairing, including the rotation of the master plane. Node pressure ε⟨−g⟩ is reported for
 output. Pairs are only kept when the slave node normal opposes the master normal, and when the
 penetration is shallower than the search reach (deeper pairs are the far side of a body).
+
+Friction (only when the solver passes a ``friction_state``): regularised Coulomb friction with
+the normal force lagged from the last converged state. :meth:`SolidPenalty.friction_state`
+freezes the active nodes with their normal force λ_s = ε A_s ⟨−g_s⟩, the master triangle's
+unit normal n and the barycentric point ξ of the node's projection on it;
+:meth:`SolidPenalty.evaluate` then adds::
+
+    D = Σ_s μ λ_s ε_s f0(|u_T,s| / ε_s),   u_T = (I − n nᵀ)[(x_s − x_m(ξ)) − (x_s − x_m(ξ))₀]
+    f0(y) = y² − y³/3 (y < 1),  y − 1/3 (y ≥ 1)
+
+(the slip of the node against the same material point x_m(ξ) = Σ ξ_i x_i of the master
+triangle, with its image shift F̄·S_k; ε_s = ``slip`` × the mean size of the node's slave
+facets), whose tangential force rises smoothly to μ λ_s at the slip ε_s
+(:func:`knitframe_contact.solid_geometry.friction_terms`).
 """
 
 from __future__ import annotations
@@ -22,9 +36,9 @@ import attrs
 import numpy as np
 
 from knitframe import hookimpl, validators as v
-from knitframe.periodic import PointMap
 from knitframe_contact.solid_geometry import (
-    SolidSurface, nearest, node_normals, penalty_terms, plane_gap, point_triangle_distance, scatter,
+    FrictionState, SolidSurface, assemble, barycentric, facet_size, friction_terms, node_normals, penalty_terms,
+    plane_gap, select_pairs,
 )
 
 
@@ -43,29 +57,67 @@ class SolidPenalty:
 
     stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: ε, N/mm³; default factor·E/h
     factor: float = attrs.field(default=10.0, validator=v.positive)  #: ε = factor · E / h when stiffness is not given, -
+    friction: float = attrs.field(default=0.3, validator=v.non_negative)  #: Coulomb coefficient μ (used only with a friction state), -
+    slip: float = attrs.field(default=0.05, validator=v.positive)  #: regularisation slip ε_s / slave facet size (mean corner-edge length), -
 
     def penalty(self, modulus: float, size: float) -> float:
         """Penalty stiffness ε (N/mm³) for contact modulus E (MPa) and element size h (mm)."""
         return default_stiffness(self.stiffness, self.factor, modulus, size)
 
     def pairs(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, reach: float) -> dict[str, np.ndarray]:
-        """Slave node → nearest opposing master triangle within ``reach`` (mm), with its image."""
+        """Slave node → nearest opposing master triangle within ``reach`` (mm), with its image (see
+        :func:`knitframe_contact.solid_geometry.select_pairs`)."""
         slave = surface.slave_nodes
         cand = surface.candidates(x[slave], slave, x, h, reach)
-        tri = surface.triangles[cand.triangle]
-        A, B, C = (x[tri[:, k]] + cand.shift for k in range(3))
-        p = x[slave[cand.point]]
-        dist, inside = point_triangle_distance(p, A, B, C)
-        nm = np.cross(B - A, C - A)
-        ns = node_normals(x, surface.triangles[surface.tri_slave])[slave[cand.point]]
-        ok = (np.einsum("ij,ij->i", nm, ns) < 0) & (dist < reach)
-        # prefer a triangle the node projects into: switching between those keeps the gap continuous
-        rank = dist + np.where(inside, 0.0, 2.0 * reach)
-        rows = np.flatnonzero(ok)[nearest(cand.point[ok], rank[ok])]
+        Xm = x[surface.triangles[cand.triangle]] + cand.shift[:, None, :]
+        ns = node_normals(x, surface.triangles[surface.tri_slave])[slave]
+        rows = select_pairs(x[slave[cand.point]], cand.point, cand.triangle, Xm, ns[cand.point], reach).rows
         return {"node": slave[cand.point[rows]], "triangle": cand.triangle[rows], "image": cand.image[rows]}
 
+    def _active(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, reach: float, order: int):
+        """Active pairs: nodes (m, 4) and images (m, 4, 2) of (s, a, b, c), their points, gaps and derivatives."""
+        pr = self.pairs(surface, x, h, reach)
+        tri = surface.triangles[pr["triangle"]]
+        nodes = np.column_stack([pr["node"], tri])
+        images = np.zeros((len(nodes), 4, 2), np.int64)
+        images[:, 1:] = pr["image"][:, None, :]
+        p = x[nodes]
+        if surface.lattice is not None:
+            p = p + surface.lattice.shift(images, np.zeros(6) if h is None else h)
+        g = plane_gap(p[:, 0], p[:, 1], p[:, 2], p[:, 3], order=0)[0]
+        sel = np.flatnonzero((g < 0) & (g > -reach))
+        p = p[sel]
+        g, dg, Hg = plane_gap(p[:, 0], p[:, 1], p[:, 2], p[:, 3], order=order)
+        return {"node": pr["node"][sel], "triangle": pr["triangle"][sel], "image": pr["image"][sel],
+                "nodes": nodes[sel], "images": images[sel], "p": p, "g": g, "dg": dg, "Hg": Hg}
+
+    def friction_state(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, *, stiffness: float,
+                       reach: float) -> FrictionState:
+        """Freeze the active node pairs of the converged state x for the next increment's friction.
+
+        Each pair keeps its slave node, master triangle and image, the barycentric point ξ of the
+        node's projection on the master's plane, the normal force λ = ε A_s ⟨−g⟩ (N), the unit
+        master normal, and the relative position c₀ = x_s − x_m(ξ) (see the module docstring).
+        """
+        a = self._active(surface, x, h, reach, 0)
+        p = a["p"]
+        lam = barycentric(p[:, 0], p[:, 1], p[:, 2], p[:, 3])
+        weights = np.column_stack([np.ones(len(lam)), -lam])
+        nrm = np.cross(p[:, 2] - p[:, 1], p[:, 3] - p[:, 1])
+        # element size of a node: the mean size of the slave facets around it
+        sf = surface.facets[surface.slave]
+        num, den = np.zeros(surface.n_nodes), np.zeros(surface.n_nodes)
+        np.add.at(num, sf.ravel(), np.repeat(facet_size(surface)[surface.slave], sf.shape[1]))
+        np.add.at(den, sf.ravel(), 1.0)
+        size = num[a["node"]] / den[a["node"]]
+        force = stiffness * surface.tributary[a["node"]] * (-a["g"])
+        return FrictionState(a["node"], np.full(len(lam), -1), a["triangle"], a["image"], lam[:, 1:], force,
+                             nrm / np.linalg.norm(nrm, axis=1, keepdims=True), size, a["nodes"], a["images"], weights,
+                             np.einsum("mk,mki->mi", weights, p))
+
     def evaluate(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, order: int, *,
-                 stiffness: float, reach: float) -> tuple[float, Any, Any, dict[str, Any]]:
+                 stiffness: float, reach: float, friction_state: FrictionState | None = None
+                 ) -> tuple[float, Any, Any, dict[str, Any]]:
         """Energy (N·mm), gradient and Hessian in q = [u (3N), h (6)], and diagnostics.
 
         Parameters
@@ -73,30 +125,29 @@ class SolidPenalty:
         surface : the contact surface (reference areas set).
         x : (N, 3) current node coordinates, mm.  h : (6,) macro DOFs or None.
         order : 0, 1 or 2.  stiffness : ε, N/mm³.  reach : search distance, mm.
+        friction_state : pairs frozen by :meth:`friction_state` at the last converged state;
+            their lagged regularised Coulomb friction is added (module docstring).
         """
-        pr = self.pairs(surface, x, h, reach)
-        tri = surface.triangles[pr["triangle"]]
-        nodes = np.column_stack([pr["node"], tri])
-        images = np.zeros((len(nodes), 4, 2), np.int64)
-        images[:, 1:] = pr["image"][:, None, :]
-        pm = PointMap(surface.n_nodes, nodes, images, surface.lattice)
-        pts = pm.points(x, h)
-        g, dg, Hg = plane_gap(pts[:, 0], pts[:, 1], pts[:, 2], pts[:, 3], order=order)
-        keep = (g < 0) & (g > -reach)
-        weight = surface.tributary[pr["node"]]
-        sel = np.flatnonzero(keep)
-        E, grad, hess = penalty_terms(g[sel], None if dg is None else dg[sel], None if Hg is None else Hg[sel],
-                                      weight[sel], stiffness, order)
-        pm_act = PointMap(surface.n_nodes, nodes[sel], images[sel], surface.lattice)
-        E, G, H = scatter(pm_act, E, grad, hess, order)
+        a = self._active(surface, x, h, reach, order)
+        g = a["g"]
+        weight = surface.tributary[a["node"]]
+        E, grad, hess = penalty_terms(g, a["dg"], a["Hg"], weight, stiffness, order)
+        terms = [(a["nodes"], a["images"], grad, hess)]
+        info: dict[str, Any] = {}
+        if friction_state is not None and self.friction > 0 and len(friction_state):
+            Ef, gf, Hf, info = friction_terms(friction_state, x, h, surface.lattice, self.friction, self.slip, order)
+            E += Ef
+            info["friction_energy"] = Ef
+            terms.append((friction_state.nodes, friction_state.images, gf, Hf))
+        E, G, H = assemble(surface.n_nodes, surface.lattice, E, terms, order)
         pressure = np.zeros(surface.n_nodes)
-        pressure[pr["node"][sel]] = -stiffness * g[sel]
-        info = {
-            "active": int(sel.size),
-            "max_penetration": float(-g[sel].min()) if sel.size else 0.0,
+        pressure[a["node"]] = -stiffness * g
+        info.update({
+            "active": int(g.size),
+            "max_penetration": float(-g.min()) if g.size else 0.0,
             "pressure": pressure,
-            "force": float(np.sum(weight[sel] * pressure[pr["node"][sel]])),
-        }
+            "force": float(np.sum(weight * pressure[a["node"]])),
+        })
         return E, G, H, info
 
 
