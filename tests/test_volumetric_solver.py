@@ -60,7 +60,7 @@ def test_solver_is_registered_with_its_effects():
     cls = get_registry()["solver"]["volumetric"]
     assert cls is VolumetricSolver
     assert {"contact", "prestress", "large_deformation", "self_contact"} <= cls.effects
-    assert "friction" not in cls.effects
+    assert "friction" in cls.effects
     assert "uniaxial-course" in cls.loads
 
 
@@ -152,3 +152,33 @@ def test_pipeline_resume_after_a_kill(tmp_path, monkeypatch):
     monkeypatch.setattr(StepCheckpoints, "save", save)
     resumed = knitframe.run(config, tmp_path / "out", resume=True).responses[0]
     assert np.allclose(resumed.T1, reference.T1, rtol=1e-9) and np.allclose(resumed.lambda1, reference.lambda1)
+
+
+@pytest.mark.parametrize("law", ["mortar", "penalty"])
+def test_contact_without_touching_pairs_changes_nothing(law):
+    """Contact on, but the rows never touch: the laws see no pairs and the tension is that of the bare yarns."""
+    bare = VolumetricSolver(order=1, seed=0.75).simulate(FABRIC, STRETCH)
+    scene = attrs.evolve(STRETCH, effects=frozenset({"large_deformation", "anisotropy", "contact"}))
+    with_contact = VolumetricSolver(order=1, seed=0.75, contact_law=law).simulate(FABRIC, scene)
+    assert np.allclose(with_contact.T1, bare.T1, rtol=1e-9)
+
+
+def test_friction_is_frozen_per_increment_only_when_asked(monkeypatch):
+    """With the scene effect 'friction' the law's contact pairs are frozen at the start of every increment;
+    without it the friction state is never computed."""
+    from knitframe_contact.mortar import SolidMortar
+
+    calls = []
+    original = SolidMortar.friction_state
+
+    def counting(self, *args, **kwargs):
+        calls.append(1)
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(SolidMortar, "friction_state", counting)
+    effects = {"large_deformation", "anisotropy", "contact"}
+    solver = VolumetricSolver(order=1, seed=0.75, contact_law="mortar")
+    solver.simulate(FABRIC, attrs.evolve(STRETCH, effects=frozenset(effects)))
+    assert calls == []
+    r = solver.simulate(FABRIC, attrs.evolve(STRETCH, effects=frozenset(effects | {"friction"})))
+    assert len(calls) >= STRETCH.load.steps and r.provenance.converged

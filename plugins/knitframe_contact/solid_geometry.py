@@ -697,12 +697,12 @@ def combine(key: np.ndarray, grad: list[np.ndarray] | None, hess: list[np.ndarra
     def total(parts):
         if parts is None:
             return None
-        out, off = None, 0
+        out, off = np.zeros((len(first), int(np.prod(parts[0].shape[1:])))), 0
         for a in parts:
             m = len(a)
-            A = sp.csr_matrix((np.ones(m), (inv[off:off + m], np.arange(m))), shape=(len(first), m))
-            r = A @ a.reshape(m, -1)
-            out = r if out is None else out + r
+            if m:
+                A = sp.csr_matrix((np.ones(m), (inv[off:off + m], np.arange(m))), shape=(len(first), m))
+                out = out + A @ a.reshape(m, -1)
             off += m
         return out.reshape((len(first),) + parts[0].shape[1:])
 

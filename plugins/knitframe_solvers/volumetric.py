@@ -5,7 +5,9 @@ a swept tetrahedral tube (:mod:`knitframe.mesh`, P1 or isoparametric P2, seed r/
 made of the yarn model's hyperelastic law in total-Lagrangian large deformation, with the fibre
 along the centerline (:mod:`knitframe_solvers.volumetric_material`). Yarns touch each other,
 their periodic images under the current F̄ and (with ``self_contact``) distant parts of
-themselves through a solid contact-law plugin (``mortar`` or ``penalty``).
+themselves through a solid contact-law plugin (``mortar`` or ``penalty``). With the scene effect
+``friction`` the contact pairs of the start of each increment are frozen (normal force, master
+material point) and the law adds its regularised Coulomb friction on the slip from there.
 
 Periodicity is the shared macro-DOF mechanism of :mod:`knitframe.periodic`: the end faces of
 each yarn at the course boundary are images of the start faces of their paired yarn,
@@ -125,7 +127,7 @@ class VolumetricSolver:
     name: ClassVar[str] = "volumetric"
     description: ClassVar[str] = "paper-fidelity unit-cell solver: P2 tetrahedral yarn solids, solid contact, pre-stress"
     effects: ClassVar[frozenset[str]] = frozenset(
-        {"large_deformation", "bending", "contact", "self_contact", "prestress", "anisotropy"})
+        {"large_deformation", "bending", "contact", "self_contact", "friction", "prestress", "anisotropy"})
     loads: ClassVar[frozenset[str]] = frozenset({"equibiaxial", "uniaxial-course", "uniaxial-wale", "general"})
 
     order: int = attrs.field(default=2, validator=v.in_range(1, 2))  #: polynomial order of the tetrahedra (1 or 2), -
@@ -181,8 +183,10 @@ class VolumetricSolver:
         stiffness = law.penalty(modulus, h) if law is not None else 0.0
         vol = float(forms.dx.sum())
         damping = self.stabilisation * fabric.yarn.E_transverse / h**2 * vol / cm.n_nodes
-        return VolumetricModel(cell, cm, forms, lattice, T.tocsr(), independent, law, surface, stiffness,
-                               self.reach * cm.radius, t_mesh, damping)
+        model = VolumetricModel(cell, cm, forms, lattice, T.tocsr(), independent, law, surface, stiffness,
+                                self.reach * cm.radius, t_mesh, damping)
+        model.friction = law is not None and "friction" in scene.effects
+        return model
 
     def simulate(self, fabric: Fabric, scene: Scene, *, progress=None, output_dir: str | Path | None = None,
                  checkpoint_dir: str | Path | None = None) -> Response:
@@ -390,6 +394,8 @@ class VolumetricModel:
         self.TtT = (self.TT @ T).tocsr()
         self.timings = {"mesh": t_mesh, "material": 0.0, "contact": 0.0, "transform": 0.0}
         self.stabilisation_energy = 0.0
+        self.friction = False  # lagged Coulomb friction (scene effect "friction")
+        self.friction_state = None
         self.evaluations = {"energy": 0, "gradient": 0, "hessian": 0}
 
     def shrunk(self, s0: float) -> np.ndarray:
@@ -400,8 +406,14 @@ class VolumetricModel:
         return q
 
     def anchor(self, q0: np.ndarray) -> None:
-        """Start a load increment at q0: the foundation pulls towards this state."""
+        """Start a load increment at q0: the foundation pulls towards this state, and with friction the
+        contact pairs of q0 (normal forces, master points) are frozen for the increment's slip."""
         self.u0 = self.T @ q0
+        self.friction_state = None
+        if self.friction:
+            x = self.cm.nodes + self.u0.reshape(-1, 3)
+            self.friction_state = self.law.friction_state(self.surface, x, q0[-N_MACRO:], stiffness=self.stiffness,
+                                                          reach=self.reach)
 
     def __call__(self, q: np.ndarray, order: int) -> tuple[float, Any, Any, dict]:
         self.evaluations[("energy", "gradient", "hessian")[order]] += 1
@@ -424,7 +436,9 @@ class VolumetricModel:
         if self.law is not None:
             t0 = time.perf_counter()
             x = self.cm.nodes + u.reshape(-1, 3)
-            Ec, gc, Hc, info = self.law.evaluate(self.surface, x, h, order, stiffness=self.stiffness, reach=self.reach)
+            kw = {"friction_state": self.friction_state} if self.friction_state is not None else {}
+            Ec, gc, Hc, info = self.law.evaluate(self.surface, x, h, order, stiffness=self.stiffness, reach=self.reach,
+                                                 **kw)
             E += Ec
             self.timings["contact"] += time.perf_counter() - t0
         du = u - self.u0
