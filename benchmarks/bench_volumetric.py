@@ -4,7 +4,7 @@ Usage::
 
     python benchmarks/bench_volumetric.py mesh                  # mesh sizes and times, P1/P2, several seeds
     python benchmarks/bench_volumetric.py iteration --order 2   # one Newton iteration: assembly, contact, direct vs amg
-    python benchmarks/bench_volumetric.py iteration --order 2 --solvers amg   # skip SuperLU (its fill-in explodes on P2)
+    python benchmarks/bench_volumetric.py iteration --order 2 --solvers pardiso,amg   # skip SuperLU (its fill-in explodes on P2)
     python benchmarks/bench_volumetric.py run --order 1 --seed 0.6 --steps 6   # pre-stress + equibiaxial 0→30 %
 
 Each command prints a table (and ``--json`` writes the numbers). Peak memory is the process's
@@ -19,6 +19,7 @@ import resource
 import sys
 import time
 
+import attrs
 import numpy as np
 
 
@@ -97,7 +98,9 @@ def bench_iteration(args) -> list[dict]:
             {"what": f"contact ({args.contact}, {info['active']} active)", "s": round(model.timings["contact"], 2)},
             {"what": "periodic transforms", "s": round(model.timings["transform"], 2)},
             {"what": "whole evaluation (order 2)", "s": round(t_eval, 2)}]
-    chosen = {"direct": ("direct (SuperLU)", lambda: direct("superlu")), "amg": ("amg (SA + rigid modes)", lambda: amg())}
+    chosen = {"direct": ("direct (SuperLU)", lambda: direct("superlu")),
+              "pardiso": ("direct (PARDISO)", lambda: direct("pardiso")),
+              "amg": ("amg (SA + rigid modes)", lambda: amg())}
     for name, factory in (chosen[k] for k in args.solvers.split(",")):
         if name.startswith("amg"):
             B = rigid_body_modes(model.X_ind)
@@ -128,12 +131,13 @@ def bench_run(args) -> list[dict]:
     from knitframe_solvers.volumetric import VolumetricSolver
 
     solver = VolumetricSolver(order=args.order, seed=args.seed, contact_law=args.contact, prestress_steps=args.prestress)
+    fab = attrs.evolve(fabric(), stitch_length=args.stitch_length)
     t0 = time.perf_counter()
 
     def progress(done, total, message):
         print(f"  {time.perf_counter() - t0:8.1f} s  {done}/{total}  {message}", file=sys.stderr, flush=True)
 
-    resp = solver.simulate(fabric(), scene(args.steps), progress=progress)
+    resp = solver.simulate(fab, scene(args.steps), progress=progress)
     wall = time.perf_counter() - t0
     prov = resp.provenance
     rows = [{"lambda": round(float(l1), 3), "T1_N_per_mm": round(float(t1), 5), "T2_N_per_mm": round(float(t2), 5)}
@@ -159,8 +163,9 @@ def main(argv=None) -> None:
     p.add_argument("--seed", type=float, default=1 / 3)
     p.add_argument("--contact", default="mortar")
     p.add_argument("--steps", type=int, default=6)
+    p.add_argument("--stitch-length", type=float, default=11.0, help="jersey stitch length of 'run' (10, 11, 12)")
     p.add_argument("--prestress", type=int, default=4)
-    p.add_argument("--solvers", default="direct,amg", help="linear solvers to time in 'iteration': direct,amg")
+    p.add_argument("--solvers", default="direct,amg", help="linear solvers to time in 'iteration': direct,pardiso,amg")
     p.add_argument("--json")
     args = p.parse_args(argv)
     rows = {"mesh": bench_mesh, "iteration": bench_iteration, "run": bench_run}[args.what](args)

@@ -139,8 +139,8 @@ class VolumetricSolver:
     self_contact_exclusion: float = attrs.field(default=np.pi, validator=v.positive)  #: same-strand pairs closer than this × dk along the yarn are the yarn itself, -
     prestress_steps: int = attrs.field(default=8, validator=v.in_range(1, 1000))  #: steps of the radial pre-stress, -
     initial_radius: float = attrs.field(default=0.9, validator=v.in_range(0.05, 1.0))  #: largest start radius of the pre-stress / r, -
-    tolerance: float = attrs.field(default=3e-6, validator=v.positive)  #: Newton residual tolerance (largest nodal force) / (E_axial r²), -
-    path_tolerance_factor: float = attrs.field(default=30.0, validator=v.in_range(1.0, 1e6))  #: tolerance of the intermediate pre-stress states / tolerance, -
+    tolerance: float = attrs.field(default=1e-3, validator=v.positive)  #: Newton residual tolerance (largest nodal force) / (E_transverse r²), -
+    path_tolerance_factor: float = attrs.field(default=10.0, validator=v.in_range(1.0, 1e6))  #: tolerance of the intermediate pre-stress states / tolerance, -
     max_step: float = attrs.field(default=0.25, validator=v.positive)  #: largest node move per Newton step / yarn radius, -
     min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))  #: smallest cut-back increment / step, -
     max_iterations: int = attrs.field(default=40, validator=v.in_range(1, 10000))  #: Newton iterations per increment, -
@@ -215,7 +215,8 @@ class VolumetricSolver:
         report = progress or (lambda done, tot, msg: None)
         r = model.cm.radius
         # few backtracks: at a contact-switching kink a cut-back of the load step helps more than α → 0
-        opts = NewtonOptions(atol=self.tolerance * fabric.yarn.E_axial * r * r, rtol=1e-10, max_iter=self.max_iterations,
+        # the contact forces that resolve the pre-stress scale with the soft transverse modulus, so does the tolerance
+        opts = NewtonOptions(atol=self.tolerance * fabric.yarn.E_transverse * r * r, rtol=1e-10, max_iter=self.max_iterations,
                              max_step=self.max_step, xtol=1e-10 * r, max_backtracks=12,
                              max_shift_increases=4)
         n_ind = 3 * len(model.independent)
