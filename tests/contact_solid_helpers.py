@@ -146,3 +146,40 @@ def quarter_cylinder_on_flat(R: float, h_contact: float, h_far: float, thickness
                & ~np.all(np.isclose(fx[..., 2], fx[0:1, :, 2]), axis=0)]
     top_f = bf[(vb == 1) & np.all(np.isclose(fx[..., 1], -R), axis=0)]
     return mesh, body, arc_f, top_f
+
+
+def image_blocks():
+    """A 1 x 1 x 0.5 block whose right face (slave) meets the left face (master) of its own periodic image.
+
+    The lattice is offset sideways so that no slave node projects onto a master edge. Returns
+    (X, surface, n_nodes).
+    """
+    import skfem
+
+    from knitframe.contact_search import SegmentTopology
+    from knitframe.mesh import surface_facets
+    from knitframe.periodic import Lattice
+    from knitframe_contact.solid_geometry import SolidSurface
+
+    m = skfem.MeshTet1.init_tensor(np.linspace(0, 1, 4), np.linspace(0, 1, 3), np.linspace(0, 0.5, 2))
+    X = m.p.T
+    bf = m.boundary_facets()
+    fx = X[m.facets[:, bf], 0]
+    right, left = bf[np.all(np.isclose(fx, 1), axis=0)], bf[np.all(np.isclose(fx, 0), axis=0)]
+    facets = np.vstack([surface_facets(m, right), surface_facets(m, left)])
+    n = len(X)
+    topo = SegmentTopology(np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n), np.zeros(1, np.int64), np.zeros(1))
+    lattice = Lattice([0.98, 0.0731, 0], [0, 3.0, 0])
+    surf = SolidSurface.build(X, facets, np.arange(len(right)), np.arange(len(right), len(facets)), topo, 1.0, lattice)
+    return X, surf, n
+
+
+def assert_derivatives(f, u, du, n):
+    """Central differences of ``f(v, order) -> (E, g, H, info)`` along du match g·du and H·du on the n node DOFs."""
+    E, g, H, info = f(u, 2)
+    h = 1e-7
+    fd_g = (f(u + h * du, 0)[0] - f(u - h * du, 0)[0]) / (2 * h)
+    fd_H = (f(u + h * du, 1)[1] - f(u - h * du, 1)[1])[:n] / (2 * h)
+    assert abs(g[:n] @ du - fd_g) < 1e-6 * abs(fd_g)
+    assert np.linalg.norm(H[:n, :n] @ du - fd_H) < 1e-6 * np.linalg.norm(fd_H)
+    return info

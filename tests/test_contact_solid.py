@@ -6,15 +6,13 @@ import numpy as np
 import pytest
 import skfem
 
-from contact_solid_helpers import iso, nodes, quarter_cylinder_on_flat, solve, stacked_blocks, surface
-from knitframe.contact_search import SegmentTopology
+from contact_solid_helpers import assert_derivatives, image_blocks, iso, nodes, quarter_cylinder_on_flat, solve, stacked_blocks, surface
 from knitframe.geometry import Centerline, UnitCell
-from knitframe.mesh import cell_mesh, surface_facets
-from knitframe.periodic import Lattice
+from knitframe.mesh import cell_mesh
 from knitframe.plugins import get_registry
 from knitframe_contact.mortar import SolidMortar
 from knitframe_contact.penalty import SolidPenalty
-from knitframe_contact.solid_geometry import SolidSurface, facet_gap, p2_shape, plane_gap, project_p2
+from knitframe_contact.solid_geometry import facet_gap, p2_shape, plane_gap, project_p2
 from knitframe_solvers.volumetric_material import SolidForms
 from knitframe_yarns.law import line_contact_approach
 
@@ -111,13 +109,8 @@ def test_contact_derivatives_match_finite_differences(cylinder, law):
     def f(v, order):
         return law.evaluate(surf, X + v.reshape(-1, 3), None, order, stiffness=1e3, reach=0.1)
 
-    E, g, H, info = f(u, 2)
+    info = assert_derivatives(f, u, du, n)
     assert info["active"] > 0
-    h = 1e-7
-    fd_g = (f(u + h * du, 0)[0] - f(u - h * du, 0)[0]) / (2 * h)
-    fd_H = (f(u + h * du, 1)[1] - f(u - h * du, 1)[1])[:n] / (2 * h)
-    assert abs(g[:n] @ du - fd_g) < 1e-6 * abs(fd_g)
-    assert np.linalg.norm(H[:n, :n] @ du - fd_H) < 1e-6 * np.linalg.norm(fd_H)
 
 
 @pytest.mark.parametrize("law", [SolidPenalty(), SolidMortar()], ids=["penalty", "mortar"])
@@ -183,16 +176,7 @@ def test_contact_with_periodic_image_moves_with_macro_dofs():
     The image is offset sideways so that no slave node projects onto a master edge (where the
     nearest-facet choice, and with it the Hessian, would be ambiguous).
     """
-    m = skfem.MeshTet1.init_tensor(np.linspace(0, 1, 4), np.linspace(0, 1, 3), np.linspace(0, 0.5, 2))
-    X = m.p.T
-    bf = m.boundary_facets()
-    fx = X[m.facets[:, bf], 0]
-    right, left = bf[np.all(np.isclose(fx, 1), axis=0)], bf[np.all(np.isclose(fx, 0), axis=0)]
-    facets = np.vstack([surface_facets(m, right), surface_facets(m, left)])
-    n = len(X)
-    topo = SegmentTopology(np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n), np.zeros(1, np.int64), np.zeros(1))
-    lattice = Lattice([0.98, 0.0731, 0], [0, 3.0, 0])
-    surf = SolidSurface.build(X, facets, np.arange(len(right)), np.arange(len(right), len(facets)), topo, 1.0, lattice)
+    X, surf, n = image_blocks()
     hdofs = np.zeros(6)
     for law in (SolidPenalty(), SolidMortar()):
         E, g, H, info = law.evaluate(surf, X, hdofs, 2, stiffness=100.0, reach=0.1)

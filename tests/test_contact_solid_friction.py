@@ -5,15 +5,11 @@ from __future__ import annotations
 import attrs
 import numpy as np
 import pytest
-import skfem
 
-from contact_solid_helpers import iso, nodes, quarter_cylinder_on_flat, solve, stacked_blocks, surface
-from knitframe.contact_search import SegmentTopology
-from knitframe.mesh import surface_facets
-from knitframe.periodic import Lattice
+from contact_solid_helpers import assert_derivatives, image_blocks, iso, nodes, quarter_cylinder_on_flat, solve, stacked_blocks, surface
 from knitframe_contact.mortar import SolidMortar
 from knitframe_contact.penalty import SolidPenalty
-from knitframe_contact.solid_geometry import SolidSurface, friction_potential
+from knitframe_contact.solid_geometry import friction_potential
 from knitframe_solvers.volumetric_material import SolidForms
 
 LAWS = [SolidPenalty(friction=0.4, slip=0.05), SolidMortar(friction=0.4, slip=0.05)]
@@ -71,29 +67,15 @@ def test_friction_derivatives_match_finite_differences(cylinder, law):
     def f(v, order):
         return law.evaluate(surf, X + v.reshape(-1, 3), None, order, stiffness=1e3, reach=0.1, friction_state=state)
 
-    E, g, H, info = f(u, 2)
+    info = assert_derivatives(f, u, du, n)
     assert 0 < info["slipping"] < len(state)  # both regimes of the regularised law are exercised
     assert info["friction_energy"] > 0
-    h = 1e-7
-    fd_g = (f(u + h * du, 0)[0] - f(u - h * du, 0)[0]) / (2 * h)
-    fd_H = (f(u + h * du, 1)[1] - f(u - h * du, 1)[1])[:n] / (2 * h)
-    assert abs(g[:n] @ du - fd_g) < 1e-6 * abs(fd_g)
-    assert np.linalg.norm(H[:n, :n] @ du - fd_H) < 1e-6 * np.linalg.norm(fd_H)
 
 
 @pytest.mark.parametrize("law", LAWS, ids=IDS)
 def test_friction_with_periodic_image_macro_derivatives(law):
     """Friction against a periodic image: the slip includes the image shift F̄·S_k, with exact h-derivatives."""
-    m = skfem.MeshTet1.init_tensor(np.linspace(0, 1, 4), np.linspace(0, 1, 3), np.linspace(0, 0.5, 2))
-    X = m.p.T
-    bf = m.boundary_facets()
-    fx = X[m.facets[:, bf], 0]
-    right, left = bf[np.all(np.isclose(fx, 1), axis=0)], bf[np.all(np.isclose(fx, 0), axis=0)]
-    facets = np.vstack([surface_facets(m, right), surface_facets(m, left)])
-    n = len(X)
-    topo = SegmentTopology(np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n), np.zeros(1, np.int64), np.zeros(1))
-    surf = SolidSurface.build(X, facets, np.arange(len(right)), np.arange(len(right), len(facets)), topo, 1.0,
-                              Lattice([0.98, 0.0731, 0], [0, 3.0, 0]))
+    X, surf, n = image_blocks()
     state = law.friction_state(surf, X, np.zeros(6), stiffness=100.0, reach=0.1)
     assert len(state) > 0 and np.any(state.image != 0)
     # shear the lattice: the image slides past the slave face

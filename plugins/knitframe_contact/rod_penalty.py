@@ -35,6 +35,7 @@ import attrs
 import numpy as np
 
 from knitframe import hookimpl, validators as v
+from knitframe_contact.solid_geometry import friction_potential
 
 
 @attrs.frozen
@@ -103,23 +104,8 @@ class RodPenalty:
 
         ``lam`` (m,) is the lagged normal force, N.
         """
-        eps = self.slip * dk
-        mu_l = self.friction * np.asarray(lam, dtype=np.float64)
-        n = np.linalg.norm(u, axis=1)
-        y = n / eps
-        stick = y < 1.0
-        D = mu_l * eps * np.where(stick, y**2 - y**3 / 3.0, y - 1.0 / 3.0)
-        safe = np.where(n > 0, n, 1.0)
-        uh = u / safe[:, None]
-        # stick: ∇D = μλ (2 − y) u/ε; slip: ∇D = μλ û
-        coef = np.where(stick, mu_l * (2.0 - y) / eps, mu_l / safe)
-        g = coef[:, None] * u
-        eye = np.eye(3)
-        uu = uh[:, :, None] * uh[:, None, :]
-        H_stick = (mu_l / eps)[:, None, None] * ((2.0 - y)[:, None, None] * eye - y[:, None, None] * uu)
-        H_slip = (mu_l / safe)[:, None, None] * (eye - uu)
-        H = np.where(stick[:, None, None], H_stick, H_slip)
-        return D, g, H
+        eps = np.full(len(u), self.slip * dk)
+        return friction_potential(u, self.friction * np.asarray(lam, dtype=np.float64), eps)
 
 
 @hookimpl
