@@ -14,7 +14,8 @@ os.environ.setdefault("KNITFRAME_DISABLE_EXTERNAL_PLUGINS", "1")
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 ROOT = Path(__file__).resolve().parents[1]
-SHARED_DATA = ROOT.parent / "shared" / "data" / "knit-uniaxial-singal2024"
+#: copies of real Singal et al. 2024 test files (attribution in the folder's README)
+TEST_DATA = ROOT / "tests" / "data" / "singal2024"
 EXAMPLE_DATA = ROOT / "knitframe" / "examples" / "data"
 #: the example third-party plugin package shipped with the docs, its distribution name and version
 PLUGIN_DIR = ROOT / "docs" / "example-plugin"
@@ -64,10 +65,10 @@ def installed_plugin():
 
 @pytest.fixture
 def singal_file():
-    """Path of a real Singal et al. 2024 test file (shared data if present, else the packaged copy)."""
+    """Path of a real Singal et al. 2024 test file: the tests' copy, else the package's example copy."""
 
     def get(name: str) -> Path:
-        p = SHARED_DATA / name
+        p = TEST_DATA / name
         return p if p.exists() else EXAMPLE_DATA / name
 
     return get
