@@ -42,7 +42,7 @@ import attrs
 import numpy as np
 
 from knitframe import hookimpl, validators as v
-from knitframe_contact.penalty import default_stiffness
+from knitframe_contact.penalty import SolidContactLaw
 from knitframe_contact.solid_geometry import (
     FrictionState, P2Projection, SolidSurface, assemble, barycentric, combine, facet_size, friction_terms,
     p2_gap_derivatives, p2_shape, penalty_terms, plane_gap, select_pairs,
@@ -63,22 +63,13 @@ def _take(pr: P2Projection, rows: np.ndarray) -> P2Projection:
 
 
 @attrs.frozen
-class SolidMortar:
+class SolidMortar(SolidContactLaw):
     """Segment-to-segment penalty contact integrated over the slave surface (solid meshes)."""
 
     name: ClassVar[str] = "mortar"
     description: ClassVar[str] = "segment-to-segment penalty contact integrated over the slave surface (solid)"
-    discretisation: ClassVar[str] = "solid"
 
-    stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: ε, N/mm³; default factor·E/h
-    factor: float = attrs.field(default=10.0, validator=v.positive)  #: ε = factor · E / h when stiffness is not given, -
     quadrature: int = attrs.field(default=4, validator=v.in_range(1, 19))  #: polynomial order of the slave-triangle rule, -
-    friction: float = attrs.field(default=0.3, validator=v.non_negative)  #: Coulomb coefficient μ (used only with a friction state), -
-    slip: float = attrs.field(default=0.05, validator=v.positive)  #: regularisation slip ε_s / slave facet size (mean corner-edge length), -
-
-    def penalty(self, modulus: float, size: float) -> float:
-        """Penalty stiffness ε (N/mm³) for contact modulus E (MPa) and element size h (mm)."""
-        return default_stiffness(self.stiffness, self.factor, modulus, size)
 
     def _pairs(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, reach: float,
                order: int) -> dict[str, Any]:

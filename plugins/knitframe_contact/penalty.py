@@ -42,17 +42,10 @@ from knitframe_contact.solid_geometry import (
 )
 
 
-def default_stiffness(stiffness: float | None, factor: float, modulus: float, size: float) -> float:
-    """ε in N/mm³: the given stiffness, else factor · E / h."""
-    return float(stiffness) if stiffness is not None else factor * modulus / size
-
-
 @attrs.frozen
-class SolidPenalty:
-    """Node-to-surface penalty contact for solid meshes, with periodic images and self-contact."""
+class SolidContactLaw:
+    """Fields and penalty stiffness shared by the solid contact laws (``penalty``, ``mortar``)."""
 
-    name: ClassVar[str] = "penalty"
-    description: ClassVar[str] = "node-to-surface penalty contact between tetrahedral yarn surfaces (solid)"
     discretisation: ClassVar[str] = "solid"
 
     stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: ε, N/mm³; default factor·E/h
@@ -61,8 +54,17 @@ class SolidPenalty:
     slip: float = attrs.field(default=0.05, validator=v.positive)  #: regularisation slip ε_s / slave facet size (mean corner-edge length), -
 
     def penalty(self, modulus: float, size: float) -> float:
-        """Penalty stiffness ε (N/mm³) for contact modulus E (MPa) and element size h (mm)."""
-        return default_stiffness(self.stiffness, self.factor, modulus, size)
+        """Penalty stiffness ε (N/mm³) for contact modulus E (MPa) and element size h (mm): the given
+        ``stiffness``, else ``factor`` · E / h."""
+        return float(self.stiffness) if self.stiffness is not None else self.factor * modulus / size
+
+
+@attrs.frozen
+class SolidPenalty(SolidContactLaw):
+    """Node-to-surface penalty contact for solid meshes, with periodic images and self-contact."""
+
+    name: ClassVar[str] = "penalty"
+    description: ClassVar[str] = "node-to-surface penalty contact between tetrahedral yarn surfaces (solid)"
 
     def pairs(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, reach: float) -> dict[str, np.ndarray]:
         """Slave node → nearest opposing master triangle within ``reach`` (mm), with its image (see
