@@ -6,6 +6,7 @@ Usage::
     python benchmarks/bench_volumetric.py iteration --order 2   # one Newton iteration: assembly, contact, direct vs amg
     python benchmarks/bench_volumetric.py iteration --order 2 --solvers pardiso,amg   # skip SuperLU (its fill-in explodes on P2)
     python benchmarks/bench_volumetric.py run --order 1 --seed 0.6 --steps 6   # pre-stress + equibiaxial 0→30 %
+    python benchmarks/bench_volumetric.py law                   # the yarn law alone, per derivative order
 
 Each command prints a table (and ``--json`` writes the numbers). Peak memory is the process's
 maximum resident set size (``resource.getrusage``), so run one command per process.
@@ -149,6 +150,25 @@ def bench_run(args) -> list[dict]:
     return rows
 
 
+def bench_law(args) -> list[dict]:
+    """The cotton yarn law at 20 000 random deformation gradients: energy only, + stress, + tangent."""
+    from knitframe.plugins import get_registry
+
+    model = get_registry()["yarn_model"]["transverse_isotropic"].from_yarn(fabric().yarn)
+    rng = np.random.default_rng(1)
+    F = np.eye(3) + 0.2 * rng.normal(size=(20000, 3, 3))
+    a = rng.normal(size=(20000, 3))
+    a /= np.linalg.norm(a, axis=1, keepdims=True)
+    rows = []
+    for order in (0, 1, 2):
+        model.evaluate(F, a, order=order)
+        t0 = time.perf_counter()
+        for _ in range(5):
+            model.evaluate(F, a, order=order)
+        rows.append({"order": order, "ms": round(1e3 * (time.perf_counter() - t0) / 5, 1)})
+    return rows
+
+
 def table(rows: list[dict]) -> str:
     keys = list(dict.fromkeys(k for r in rows for k in r))
     out = ["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
@@ -158,7 +178,7 @@ def table(rows: list[dict]) -> str:
 
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("what", choices=["mesh", "iteration", "run"])
+    p.add_argument("what", choices=["mesh", "iteration", "run", "law"])
     p.add_argument("--order", type=int, default=2)
     p.add_argument("--seed", type=float, default=1 / 3)
     p.add_argument("--contact", default="mortar")
@@ -168,7 +188,7 @@ def main(argv=None) -> None:
     p.add_argument("--solvers", default="direct,amg", help="linear solvers to time in 'iteration': direct,pardiso,amg")
     p.add_argument("--json")
     args = p.parse_args(argv)
-    rows = {"mesh": bench_mesh, "iteration": bench_iteration, "run": bench_run}[args.what](args)
+    rows = {"mesh": bench_mesh, "iteration": bench_iteration, "run": bench_run, "law": bench_law}[args.what](args)
     print(table(rows))
     if args.json:
         with open(args.json, "w") as fh:
