@@ -131,21 +131,31 @@ def bench_iteration(args) -> list[dict]:
 def bench_run(args) -> list[dict]:
     from knitframe_solvers.volumetric import VolumetricSolver
 
-    solver = VolumetricSolver(order=args.order, seed=args.seed, contact_law=args.contact, prestress_steps=args.prestress)
+    solver = VolumetricSolver(order=args.order, seed=args.seed, contact_law=args.contact, prestress_steps=args.prestress,
+                              linear_solver=args.linear_solver)
     fab = attrs.evolve(fabric(), stitch_length=args.stitch_length)
     t0 = time.perf_counter()
 
     def progress(done, total, message):
         print(f"  {time.perf_counter() - t0:8.1f} s  {done}/{total}  {message}", file=sys.stderr, flush=True)
 
-    resp = solver.simulate(fab, scene(args.steps), progress=progress)
+    resp = solver.simulate(fab, scene(args.steps), progress=progress, checkpoint_dir=args.checkpoint)
     wall = time.perf_counter() - t0
+    if args.save:
+        with open(args.save, "w") as fh:
+            json.dump({"fabric": fab.to_dict(), "scene": scene(args.steps).to_dict(), "response": resp.to_dict()},
+                      fh, indent=1, default=str)
     prov = resp.provenance
     rows = [{"lambda": round(float(l1), 3), "T1_N_per_mm": round(float(t1), 5), "T2_N_per_mm": round(float(t2), 5)}
             for l1, t1, t2 in zip(resp.lambda1, resp.T1, resp.T2)]
     rows.append({"lambda": "wall s", "T1_N_per_mm": round(wall, 1), "T2_N_per_mm": prov.mesh})
     rows.append({"lambda": "split s", "T1_N_per_mm": json.dumps(prov.extra["timings_s"]),
                  "T2_N_per_mm": json.dumps(prov.extra["newton_evaluations"])})
+    tm, ev = prov.extra["timings_s"], prov.extra["newton_evaluations"]
+    n_it = max(ev["linear_solves"], 1)
+    rows.append({"lambda": "per Newton iteration s",
+                 "T1_N_per_mm": f"assembly+contact {(tm['material'] + tm['contact'] + tm['transform']) / n_it:.2f}",
+                 "T2_N_per_mm": f"linear solve {tm['linear_solve'] / n_it:.2f} ({n_it} solves)"})
     rows.append({"lambda": "peak RSS MB", "T1_N_per_mm": round(peak_mb()), "T2_N_per_mm": ""})
     return rows
 
@@ -186,6 +196,9 @@ def main(argv=None) -> None:
     p.add_argument("--stitch-length", type=float, default=11.0, help="jersey stitch length of 'run' (10, 11, 12)")
     p.add_argument("--prestress", type=int, default=4)
     p.add_argument("--solvers", default="direct,amg", help="linear solvers to time in 'iteration': direct,pardiso,amg")
+    p.add_argument("--linear-solver", default="direct", help="linear-solver plugin of 'run'")
+    p.add_argument("--checkpoint", help="'run': checkpoint directory; a killed run resumes from it")
+    p.add_argument("--save", help="'run': write the Response as JSON here (input of benchmarks/agreement.py)")
     p.add_argument("--json")
     args = p.parse_args(argv)
     rows = {"mesh": bench_mesh, "iteration": bench_iteration, "run": bench_run, "law": bench_law}[args.what](args)

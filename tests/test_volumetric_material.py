@@ -188,3 +188,25 @@ def test_undersized_curved_tube_is_stress_free(order):
     s = 0.6
     shrunk = ((s - 1.0) * cm.node_offset).ravel()
     assert forms.energy(shrunk, s) < 1e-10 * forms.energy(shrunk, 1.0)
+
+
+def test_force_flux_does_not_cancel_at_equilibrium():
+    """The flux Σ_e |R_e| bounds |R|, stays positive where the assembled R cancels, and scales with the stress."""
+    mesh = block(1)
+    X = nodes_of(mesh)
+    fibre = np.tile(np.array([0.0, 0.0, 1.0]), (X.shape[0], 1))
+    forms = SolidForms(mesh, ti(200.0, 5.0), fibre)
+    H = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 1e-4]])
+    fluxes = []
+    for k in (1.0, 2.0):
+        _, R, _ = forms.evaluate((k * X @ H.T).ravel(), 1.0, 1)
+        assert np.all(forms.flux >= np.abs(R) - 1e-15)
+        fluxes.append(forms.flux.copy())
+    inner = (X[:, 2] > 1e-9) & (X[:, 2] < 2 - 1e-9)
+    z = 3 * np.flatnonzero(inner) + 2
+    assert np.abs(R[z]).max() < 1e-10 * fluxes[1][z].min()  # interior axial forces cancel, their flux does not
+    assert np.allclose(fluxes[1], 2.0 * fluxes[0], rtol=1e-3)
+    # the flux into the loaded face equals the axial force P_zz·A it carries
+    top = 3 * np.flatnonzero(np.isclose(X[:, 2], 2.0)) + 2
+    P_zz = forms.stress((X @ H.T).ravel())[2, 2].mean()
+    assert fluxes[0][top].sum() == pytest.approx(P_zz * 1.0, rel=1e-3)

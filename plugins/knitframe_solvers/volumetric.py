@@ -24,7 +24,8 @@ A run is
    steps, each cut back adaptively on failure (:func:`knitframe.newton.continuation`).
 
 Each increment is solved by the shared Newton driver (:func:`knitframe.newton.minimise`) with a
-linear-solver plugin. Every converged step is checkpointed; a call with the same inputs and
+linear-solver plugin, whose wall time is kept next to the assembly times (provenance
+``timings_s``). Every converged step is checkpointed; a call with the same inputs and
 checkpoint directory resumes after the last saved step.
 """
 
@@ -140,6 +141,8 @@ class VolumetricSolver:
     prestress_steps: int = attrs.field(default=8, validator=v.in_range(1, 1000))  #: steps of the radial pre-stress, -
     initial_radius: float = attrs.field(default=0.9, validator=v.in_range(0.05, 1.0))  #: largest start radius of the pre-stress / r, -
     tolerance: float = attrs.field(default=1e-3, validator=v.positive)  #: Newton residual tolerance (largest nodal force) / (E_transverse r²), -
+    flux_tolerance: float = attrs.field(default=5e-3, validator=v.non_negative)  #: also converged at a residual ≤ this × the average nodal force flux (ABAQUS's R_n; 0: off), -
+    correction_tolerance: float = attrs.field(default=1e-2, validator=v.positive)  #: ... when the last Newton correction ≤ this × the increment's displacement (ABAQUS's C_n), -
     path_tolerance_factor: float = attrs.field(default=10.0, validator=v.in_range(1.0, 1e6))  #: tolerance of the intermediate pre-stress states / tolerance, -
     max_step: float = attrs.field(default=0.25, validator=v.positive)  #: largest node move per Newton step / yarn radius, -
     min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))  #: smallest cut-back increment / step, -
@@ -207,7 +210,16 @@ class VolumetricSolver:
         t_start = time.perf_counter()
         registry = get_registry()
         model = self.setup(fabric, scene, registry)
-        solve = instantiate(registry, "linear_solver", self.linear_solver, "solver.linear_solver")
+        backend = instantiate(registry, "linear_solver", self.linear_solver, "solver.linear_solver")
+
+        def solve(A, b):
+            t0 = time.perf_counter()
+            try:
+                return backend(A, b)
+            finally:
+                model.timings["linear_solve"] += time.perf_counter() - t0
+                model.evaluations["linear_solves"] += 1
+
         t_load, lam1, lam2 = scene.load.stretches()
         n_load = len(t_load)
         prestress = "prestress" in scene.effects
@@ -218,7 +230,8 @@ class VolumetricSolver:
         # the contact forces that resolve the pre-stress scale with the soft transverse modulus, so does the tolerance
         opts = NewtonOptions(atol=self.tolerance * fabric.yarn.E_transverse * r * r, rtol=1e-10, max_iter=self.max_iterations,
                              max_step=self.max_step, xtol=1e-10 * r, max_backtracks=12,
-                             max_shift_increases=4)
+                             max_shift_increases=4, flux_rtol=self.flux_tolerance,
+                             correction_rtol=self.correction_tolerance)
         n_ind = 3 * len(model.independent)
         base_free = np.ones(n_ind + N_MACRO, bool)
         base_free[:3] = False  # pin one node: the cell's free translation
@@ -235,7 +248,8 @@ class VolumetricSolver:
             return max(float(np.max(np.abs(du))), float(np.max(np.abs(dx[n_ind:]))) * model.L_max) / r
 
         # intermediate pre-stress states are only a path to s = 1: a looser tolerance, as in the rod solver
-        loose = attrs.evolve(opts, atol=self.path_tolerance_factor * opts.atol)
+        loose = attrs.evolve(opts, atol=self.path_tolerance_factor * opts.atol,
+                             flux_rtol=self.path_tolerance_factor * opts.flux_rtol)
         residuals: list[float] = []
 
         def newton(q0: np.ndarray, free: np.ndarray, anchor: np.ndarray | None = None, options: NewtonOptions = opts):
@@ -393,11 +407,11 @@ class VolumetricModel:
         self.damping = float(damping)
         self.u0 = np.zeros(n)
         self.TtT = (self.TT @ T).tocsr()
-        self.timings = {"mesh": t_mesh, "material": 0.0, "contact": 0.0, "transform": 0.0}
+        self.timings = {"mesh": t_mesh, "material": 0.0, "contact": 0.0, "transform": 0.0, "linear_solve": 0.0}
         self.stabilisation_energy = 0.0
         self.friction = False  # lagged Coulomb friction (scene effect "friction")
         self.friction_state = None
-        self.evaluations = {"energy": 0, "gradient": 0, "hessian": 0}
+        self.evaluations = {"energy": 0, "gradient": 0, "hessian": 0, "linear_solves": 0}
 
     def shrunk(self, s0: float) -> np.ndarray:
         """q of the yarns shrunk across the fibre to s0·r: u = (s0 − 1)·(transverse offset)."""
@@ -415,6 +429,20 @@ class VolumetricModel:
             x = self.cm.nodes + self.u0.reshape(-1, 3)
             self.friction_state = self.law.friction_state(self.surface, x, q0[-N_MACRO:], stiffness=self.stiffness,
                                                           reach=self.reach)
+
+    def force_flux(self, gc: np.ndarray | None) -> float:
+        """Average nodal force flux q̃ (N) of the last gradient evaluation.
+
+        q̃ = mean over the loaded nodes of |f_a|, f_a = Σ_e |R_e,a| + |g_contact,a| (3-vectors of
+        absolute element and contact nodal forces): the force level through the mesh, which does
+        not cancel at equilibrium. ABAQUS tests residuals against 0.005 of its time average.
+        """
+        f = np.zeros(self.n) if self.forms.flux is None else self.forms.flux.copy()
+        if gc is not None:
+            f += np.abs(np.asarray(gc)[: self.n])
+        node = np.linalg.norm(f.reshape(-1, 3), axis=1)
+        loaded = node[node > 0]
+        return float(loaded.mean()) if loaded.size else 0.0
 
     def __call__(self, q: np.ndarray, order: int) -> tuple[float, Any, Any, dict]:
         self.evaluations[("energy", "gradient", "hessian")[order]] += 1
@@ -448,6 +476,7 @@ class VolumetricModel:
         info["stabilisation_energy"] = E_stab
         if order == 0:
             return E, None, None, info
+        info["flux"] = self.force_flux(gc)
         t0 = time.perf_counter()
         g = self.TT @ (R + self.damping * du)
         if gc is not None:

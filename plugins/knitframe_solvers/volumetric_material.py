@@ -167,6 +167,7 @@ class SolidForms:
             o = np.asarray(node_offset, dtype=np.float64)[self.edofs]  # (nl, n_el, 3)
             self.grad_offset = np.einsum("lei,lJeq->iJeq", o, self.grad)
         self.chunk = int(chunk)
+        self.flux: np.ndarray | None = None  #: Σ_e |R_e| of the last evaluate(order >= 1), N
         nl, ne = self.edofs.shape
         self.vdofs = (3 * self.edofs[:, None, :] + np.arange(3)[None, :, None]).reshape(3 * nl, ne)  # (3nl, n_el)
         self._pattern: tuple[sp.csr_matrix, np.ndarray] | None = None
@@ -264,12 +265,18 @@ class SolidForms:
         """(W, R, K) in one pass over the elements: the law is evaluated once per chunk.
 
         ``order`` 0 gives W only (+inf for an inverted element), 1 adds R, 2 adds K.
+
+        With ``order >= 1`` the force flux ``self.flux`` (3N,) is kept as well: the sum over
+        elements of the absolute element nodal forces, Σ_e |R_e,ai| (N). Unlike R it does not
+        cancel at equilibrium, so it measures the force level that a residual is small against
+        (the "time-averaged force" of implicit FE codes' convergence tests).
         """
         if order == 0:
             return self.energy(u, s), None, None
         K0, where = self.pattern() if order == 2 else (None, None)
         data = np.zeros(K0.nnz) if order == 2 else None
         R = np.zeros(self.ndof)
+        flux = np.zeros(self.ndof)
         W = 0.0
         m = self.vdofs.shape[0]
         for sl in self._chunks():
@@ -290,6 +297,8 @@ class SolidForms:
                 P = Jt * np.einsum("iMeq,JMeq->iJeq", P, Ti)
             Re = np.einsum("iJeq,lJeq,eq->lie", P, G, self.dx[sl])
             R += np.bincount(self.vdofs[:, sl].ravel(), Re.reshape(-1, Re.shape[-1]).ravel(), minlength=self.ndof)
+            flux += np.bincount(self.vdofs[:, sl].ravel(), np.abs(Re).reshape(-1, Re.shape[-1]).ravel(),
+                                minlength=self.ndof)
             if order == 2:
                 if Ti is not None:
                     A = Jt * np.einsum("iMkNeq,JMeq,LNeq->iJkLeq", A, Ti, Ti, optimize=True)
@@ -297,6 +306,7 @@ class SolidForms:
                 Ke = np.einsum("aikLeq,bLeq,eq->eaibk", T, G, self.dx[sl], optimize=True)
                 lo, hi = sl.start * m * m, sl.stop * m * m
                 data += np.bincount(where[lo:hi], Ke.ravel(), minlength=K0.nnz)
+        self.flux = flux
         K = None
         if order == 2:
             K = K0.copy()
