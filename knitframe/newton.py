@@ -26,7 +26,8 @@ linear-solver plugin, with
   ‖c‖ ≤ C_n·‖x − x_start‖ (both by ``step_norm``, else max-norm on the free DOFs) is
   converged. The residual is then small against the forces the structure carries, and the
   solution no longer moves; a contact energy that is only piecewise smooth can keep the
-  absolute residual from falling further.
+  absolute residual from falling further. From iteration I_P on the ratio R_P replaces R_n
+  (ABAQUS's defaults: R_n = 0.005, C_n = 0.01, R_P = 0.02, I_P = 9).
 
 Failure raises :class:`~knitframe.errors.NumericalError` with the iteration history, never NaN.
 :func:`continuation` follows a load parameter t from t0 to each target, halving the increment
@@ -72,6 +73,8 @@ class NewtonOptions:
     xtol: float = 0.0  #: also converged when an unshifted full Newton step moves no DOF more than this (round-off floor)
     flux_rtol: float = 0.0  #: R_n: also converged when max|g_f| ≤ R_n·q̃, q̃ = info["flux"] (0: off)
     correction_rtol: float = 1e-2  #: C_n: ... and the last correction ≤ C_n × the increment's largest displacement
+    late_flux_rtol: float = 0.0  #: R_P: the flux ratio from iteration ``late_iteration`` on (0: R_n throughout)
+    late_iteration: int = 9  #: I_P: iterations after which R_P replaces R_n
 
 
 @attrs.frozen
@@ -150,7 +153,8 @@ def minimise(
         history.append({"it": it, "energy": float(E), "residual": res, "shift": shift_rel})
         if res <= tol:
             return NewtonResult(x, float(E), g, it, True, tuple(history), info)
-        if options.flux_rtol > 0 and it > 0 and res <= options.flux_rtol * float(info.get("flux", 0.0)):
+        ratio = options.late_flux_rtol if options.late_flux_rtol > 0 and it >= options.late_iteration else options.flux_rtol
+        if ratio > 0 and it > 0 and res <= ratio * float(info.get("flux", 0.0)):
             if correction <= options.correction_rtol * measure(x - x_start):
                 history[-1]["flux"] = float(info["flux"])
                 return NewtonResult(x, float(E), g, it, True, tuple(history), info)

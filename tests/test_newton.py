@@ -87,6 +87,21 @@ def test_flux_test_converges_where_the_residual_has_a_floor():
     assert abs(res.gradient[0]) <= 5e-3 * kinked(res.x, 1)[3]["flux"]
 
 
+def test_late_flux_ratio_applies_only_after_its_iteration():
+    """R_P replaces R_n from iteration I_P on: a residual floor between the two passes late, not early."""
+    def floor(x, order=2):  # near the kink |g| ≥ 1: above R_n·q̃ = 0.5, below R_P·q̃ = 2
+        E, g, H, info = kinked(x, order)
+        return E, g, H, {"flux": 1e2}
+
+    strict = NewtonOptions(max_iter=30, flux_rtol=5e-3, correction_rtol=1.0)
+    with pytest.raises(NumericalError):
+        minimise(floor, np.zeros(1), np.ones(1, bool), solve=direct(), options=strict)
+    res = minimise(floor, np.zeros(1), np.ones(1, bool), solve=direct(),
+                   options=NewtonOptions(max_iter=30, flux_rtol=5e-3, correction_rtol=1.0, late_flux_rtol=2e-2,
+                                         late_iteration=3))
+    assert res.converged and res.iterations >= 3 and abs(res.gradient[0]) <= 2e-2 * 1e2
+
+
 def test_flux_test_waits_for_the_correction_to_settle():
     """A residual already below R_n·q̃ is not enough while Newton still moves the solution."""
     def loud(x, order=2):

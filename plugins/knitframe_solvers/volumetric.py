@@ -142,6 +142,7 @@ class VolumetricSolver:
     initial_radius: float = attrs.field(default=0.9, validator=v.in_range(0.05, 1.0))  #: largest start radius of the pre-stress / r, -
     tolerance: float = attrs.field(default=1e-3, validator=v.positive)  #: Newton residual tolerance (largest nodal force) / (E_transverse r²), -
     flux_tolerance: float = attrs.field(default=5e-3, validator=v.non_negative)  #: also converged at a residual ≤ this × the average nodal force flux (ABAQUS's R_n; 0: off), -
+    late_flux_tolerance: float = attrs.field(default=2e-2, validator=v.non_negative)  #: the flux ratio after 9 iterations (ABAQUS's R_P; 0: flux_tolerance throughout), -
     correction_tolerance: float = attrs.field(default=1e-2, validator=v.positive)  #: ... when the last Newton correction ≤ this × the increment's displacement (ABAQUS's C_n), -
     path_tolerance_factor: float = attrs.field(default=10.0, validator=v.in_range(1.0, 1e6))  #: tolerance of the intermediate pre-stress states / tolerance, -
     max_step: float = attrs.field(default=0.25, validator=v.positive)  #: largest node move per Newton step / yarn radius, -
@@ -231,7 +232,7 @@ class VolumetricSolver:
         opts = NewtonOptions(atol=self.tolerance * fabric.yarn.E_transverse * r * r, rtol=1e-10, max_iter=self.max_iterations,
                              max_step=self.max_step, xtol=1e-10 * r, max_backtracks=12,
                              max_shift_increases=4, flux_rtol=self.flux_tolerance,
-                             correction_rtol=self.correction_tolerance)
+                             correction_rtol=self.correction_tolerance, late_flux_rtol=self.late_flux_tolerance)
         n_ind = 3 * len(model.independent)
         base_free = np.ones(n_ind + N_MACRO, bool)
         base_free[:3] = False  # pin one node: the cell's free translation
@@ -249,14 +250,17 @@ class VolumetricSolver:
 
         # intermediate pre-stress states are only a path to s = 1: a looser tolerance, as in the rod solver
         loose = attrs.evolve(opts, atol=self.path_tolerance_factor * opts.atol,
-                             flux_rtol=self.path_tolerance_factor * opts.flux_rtol)
+                             flux_rtol=self.path_tolerance_factor * opts.flux_rtol,
+                             late_flux_rtol=self.path_tolerance_factor * opts.late_flux_rtol)
         residuals: list[float] = []
+        penetrations: list[float] = []
 
         def newton(q0: np.ndarray, free: np.ndarray, anchor: np.ndarray | None = None, options: NewtonOptions = opts):
             model.anchor(q0 if anchor is None else anchor)
             res = minimise(model, q0, free, solve=solve, options=options, step_norm=step_norm)
             if options is opts:
                 residuals.append(float(np.max(np.abs(res.gradient[free]), initial=0.0)))
+                penetrations.append(float(res.info.get("max_penetration", 0.0)))
             return res
 
         s0 = 1.0
@@ -370,7 +374,8 @@ class VolumetricSolver:
             wall_time=time.perf_counter() - t_start, converged=converged, notes="; ".join(notes),
             extra={"timings_s": {k: round(v_, 3) for k, v_ in model.timings.items()},
                    "newton_evaluations": model.evaluations,
-                   "tolerance_N": opts.atol, "max_final_residual_N": max(residuals, default=0.0), "prestress_start_radius_over_r": s0,
+                   "tolerance_N": opts.atol, "max_final_residual_N": max(residuals, default=0.0),
+                   "max_penetration_over_r": max(penetrations, default=0.0) / r, "prestress_start_radius_over_r": s0,
                    "penalty_N_per_mm3": model.stiffness, "dk_mm": model.cell.dk,
                    "L1_mm": lat.L1.tolist(), "L2_mm": lat.L2.tolist(), "effects": sorted(scene.effects),
                    "options": attrs.asdict(self)},
