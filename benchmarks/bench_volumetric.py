@@ -132,7 +132,8 @@ def bench_run(args) -> list[dict]:
     from knitframe_solvers.volumetric import VolumetricSolver
 
     solver = VolumetricSolver(order=args.order, seed=args.seed, contact_law=args.contact, prestress_steps=args.prestress,
-                              linear_solver=args.linear_solver)
+                              linear_solver=args.linear_solver, contact_modulus=args.contact_modulus,
+                              on_failure="truncate" if args.truncate else "raise")
     fab = attrs.evolve(fabric(), stitch_length=args.stitch_length)
     t0 = time.perf_counter()
 
@@ -196,6 +197,8 @@ def main(argv=None) -> None:
     p.add_argument("--stitch-length", type=float, default=11.0, help="jersey stitch length of 'run' (10, 11, 12)")
     p.add_argument("--prestress", type=int, default=4)
     p.add_argument("--solvers", default="direct,amg", help="linear solvers to time in 'iteration': direct,pardiso,amg")
+    p.add_argument("--contact-modulus", type=float, help="'run': modulus of the contact penalty, MPa (default E_transverse)")
+    p.add_argument("--truncate", action="store_true", help="'run': keep the converged steps when a later one fails")
     p.add_argument("--linear-solver", default="direct", help="linear-solver plugin of 'run'")
     p.add_argument("--checkpoint", help="'run': checkpoint directory; a killed run resumes from it")
     p.add_argument("--save", help="'run': write the Response as JSON here (input of benchmarks/agreement.py)")

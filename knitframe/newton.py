@@ -258,7 +258,9 @@ def continuation(
     ``solve_at(t, x_start)`` solves the state at load parameter t from the start x_start and
     raises NumericalError on failure. A failed increment is halved; once it falls below
     ``min_fraction`` of the target spacing the path stops with a NumericalError carrying the
-    last diagnostic. After a success the increment grows by ``grow`` (never past the next target).
+    last diagnostic. After a success the increment grows by ``grow`` (never past the next target);
+    a new target starts from ``grow`` times the last increment that converged, not from its whole
+    span, so a path that needed small increments does not fail its way down again at every target.
 
     Returns the result at each target; ``on_target(index, t, result)`` is called as each is reached.
     """
@@ -266,9 +268,10 @@ def continuation(
     x = np.asarray(x0, dtype=np.float64)
     t = float(t0)
     prev = t
+    last_ok = math.inf  # the last increment that converged, carried into the next target's span
     for n, target in enumerate(targets):
         span = max(float(target) - prev, 1e-300)
-        dt = span
+        dt = min(span, grow * last_ok)
         min_dt = span * min_fraction
         while True:
             t_try = min(t + dt, float(target))
@@ -281,6 +284,7 @@ def continuation(
                         f"load step cut back below {min_dt:.3g} at t = {t:.6g} (target {target:.6g}): {e}"
                     ) from None
                 continue
+            last_ok = t_try - t
             x, t = result.x, t_try
             if t >= float(target) - 1e-15 * max(1.0, abs(float(target))):
                 break

@@ -132,6 +132,22 @@ def test_continuation_cuts_back_and_reaches_every_target():
     assert len(attempts) > 4
 
 
+def test_continuation_carries_the_increment_into_the_next_target():
+    """After a target reached with small increments, the next one starts from twice that increment, not its span."""
+    attempts = []
+
+    def solve_at(t, x):
+        attempts.append(round(t - x[0], 6))
+        if t - x[0] > 0.3:
+            raise NumericalError("increment too large")
+        return minimise(lambda y, o=2: quartic(y - t, o), x, np.ones(1, bool), solve=direct())
+
+    continuation(solve_at, np.zeros(1), [1.0, 2.0, 3.0])
+    failed = [a for a in attempts if a > 0.3]
+    assert failed[:3] == [1.0, 0.5, 0.5]  # the first target halves its way down (0.25 passes, 0.5 fails again)
+    assert attempts.count(1.0) == 1  # later targets never retry the whole span
+
+
 def test_continuation_gives_up_below_the_smallest_increment():
     """A step that never converges stops with a NumericalError naming the load parameter."""
 
