@@ -27,17 +27,8 @@ import attrs
 import numpy as np
 
 import knitframe
+from knitframe.curves import nrmse_between
 from knitframe.records import Fabric, Response, Scene
-
-
-def nrmse(ref: Response, r: Response) -> float:
-    """RMS of (r − ref) tensions on ref's stretches, both directions, / max |ref tension|."""
-    scale = max(np.abs(ref.T1).max(), np.abs(ref.T2).max())
-    err = []
-    for lam_r, T_r, lam, T in ((ref.lambda1, ref.T1, r.lambda1, r.T1), (ref.lambda2, ref.T2, r.lambda2, r.T2)):
-        o = np.argsort(lam)
-        err.append(np.interp(lam_r, lam[o], T[o]) - T_r)
-    return float(np.sqrt(np.mean(np.concatenate(err) ** 2)) / scale)
 
 
 def fitted(reg, response: Response) -> dict:
@@ -95,14 +86,13 @@ def main(argv=None) -> None:
 def row(vol: Response, rr: Response, t_rod: float, fv: dict, fr: dict, dropped: list, EI: float | None) -> dict:
     """One comparison: the volumetric curve against a rod curve."""
     return {
-            "run": vol.label, "rod_EI": EI, "mesh": vol.provenance.mesh, "volumetric_s": round(vol.provenance.wall_time, 1), "rod_s": round(t_rod, 1),
-            "converged": vol.provenance.converged, "max_stretch": float(vol.lambda1.max()),
-            "T1_end_vol": float(vol.T1[-1]), "T2_end_vol": float(vol.T2[-1]),
-            "T1_rod_at_same": float(np.interp(vol.lambda1[-1], rr.lambda1, rr.T1)),
-            "T2_rod_at_same": float(np.interp(vol.lambda2[-1], rr.lambda2, rr.T2)),
-            "nrmse_rod_vs_vol": nrmse(vol, rr), "fit_vol": fv, "fit_rod": fr, "rod_without": dropped,
+        "run": vol.label, "rod_EI": EI, "mesh": vol.provenance.mesh, "volumetric_s": round(vol.provenance.wall_time, 1),
+        "rod_s": round(t_rod, 1), "converged": vol.provenance.converged, "max_stretch": float(vol.lambda1.max()),
+        "T1_end_vol": float(vol.T1[-1]), "T2_end_vol": float(vol.T2[-1]),
+        "T1_rod_at_same": float(np.interp(vol.lambda1[-1], rr.lambda1, rr.T1)),
+        "T2_rod_at_same": float(np.interp(vol.lambda2[-1], rr.lambda2, rr.T2)),
+        "nrmse_rod_vs_vol": nrmse_between(vol, rr), "fit_vol": fv, "fit_rod": fr, "rod_without": dropped,
     }
-
 
 if __name__ == "__main__":
     main()

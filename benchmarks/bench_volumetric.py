@@ -140,11 +140,12 @@ def bench_run(args) -> list[dict]:
     def progress(done, total, message):
         print(f"  {time.perf_counter() - t0:8.1f} s  {done}/{total}  {message}", file=sys.stderr, flush=True)
 
-    resp = solver.simulate(fab, scene(args.steps), progress=progress, checkpoint_dir=args.checkpoint)
+    sc = scene(args.steps)
+    resp = solver.simulate(fab, sc, progress=progress, checkpoint_dir=args.checkpoint)
     wall = time.perf_counter() - t0
     if args.save:
         with open(args.save, "w") as fh:
-            json.dump({"fabric": fab.to_dict(), "scene": scene(args.steps).to_dict(), "response": resp.to_dict()},
+            json.dump({"fabric": fab.to_dict(), "scene": sc.to_dict(), "response": resp.to_dict()},
                       fh, indent=1, default=str)
     prov = resp.provenance
     rows = [{"lambda": round(float(l1), 3), "T1_N_per_mm": round(float(t1), 5), "T2_N_per_mm": round(float(t2), 5)}

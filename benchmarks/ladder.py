@@ -20,9 +20,9 @@ import argparse
 import json
 import time
 
-import numpy as np
 
 import knitframe
+from knitframe.curves import nrmse_between
 from knitframe.errors import KnitframeError
 from knitframe.records import Fabric, LoadPath, Scene
 
@@ -38,15 +38,6 @@ def rung_solver(spec: str):
         seed = float(args[1]) if len(args) > 1 else 1.0 / 3.0
         return reg["solver"]["volumetric"](order=order, seed=seed)
     raise SystemExit(f"unknown rung {spec!r}; use rod:<n> or volumetric:<order>:<seed>")
-
-
-def nrmse_against(ref: knitframe.Response, r: knitframe.Response) -> float:
-    """RMS tension error on the reference's stretches / maximum reference tension (both directions)."""
-    err, scale = [], max(np.abs(ref.T1).max(), np.abs(ref.T2).max())
-    for lam_r, T_r, lam, T in ((ref.lambda1, ref.T1, r.lambda1, r.T1), (ref.lambda2, ref.T2, r.lambda2, r.T2)):
-        o = np.argsort(lam)
-        err.append(np.interp(lam_r, lam[o], T[o]) - T_r)
-    return float(np.sqrt(np.mean(np.concatenate(err) ** 2)) / scale)
 
 
 def main() -> None:
@@ -82,7 +73,7 @@ def main() -> None:
         r = responses.get(row["rung"])
         row["T1_end"] = float(r.T1[-1]) if r is not None else None
         row["T2_end"] = float(r.T2[-1]) if r is not None else None
-        row["nrmse_vs_ref"] = nrmse_against(ref, r) if r is not None else None
+        row["nrmse_vs_ref"] = nrmse_between(ref, r) if r is not None else None
 
     # cheapest rung: the paper's reduced model fitted to the reference
     fit = reg["fitter"]["lbfgs"]().fit(reg["homogenizer"]["hgo"](), [ref])
@@ -96,7 +87,7 @@ def main() -> None:
         r = reduced.simulate(fabric, reduced_scene)
     rows.insert(0, {"rung": "reduced hgo (fitted to ref)", "wall_time_s": (time.perf_counter() - t0) / n,
                     "status": f"fit {fit.wall_time:.2f} s", "T1_end": float(r.T1[-1]), "T2_end": float(r.T2[-1]),
-                    "nrmse_vs_ref": nrmse_against(ref, r)})
+                    "nrmse_vs_ref": nrmse_between(ref, r)})
 
     print(f"accuracy ladder: {args.pattern} SL{args.stitch_length:g} {args.yarn}, pre-stress + equibiaxial "
           f"0→{100 * args.max_strain:g} % in {args.steps} steps; reference = {done[-1]}")

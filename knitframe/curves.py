@@ -1,4 +1,4 @@
-"""Shared operations on measured curves: averaging repeats and building uniaxial Responses."""
+"""Shared operations on curves: averaging repeats, building uniaxial Responses, comparing two curves."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 
 from knitframe.records import Provenance, Response
 
-__all__ = ["average_repeats", "uniaxial_response"]
+__all__ = ["average_repeats", "uniaxial_response", "nrmse_between"]
 
 
 def average_repeats(
@@ -46,3 +46,19 @@ def uniaxial_response(load: str, axial: np.ndarray, lateral: np.ndarray, tension
                         T1_sd=ten_sd, lambda2_sd=lat_sd, provenance=prov)
     return Response(1 + lateral, 1 + axial, zero, tension, load=load, label=label, n_samples=n,
                     T2_sd=ten_sd, lambda1_sd=lat_sd, provenance=prov)
+
+
+def nrmse_between(ref: Response, r: Response) -> float:
+    """Distance of curve ``r`` from the reference ``ref``, as the fits are scored::
+
+        NRMSE = sqrt(mean_k (T_r(λ_k) − T_ref,k)²) / max_k |T_ref,k|
+
+    over the reference's points k in both directions (course and wale), with ``r``'s tensions
+    interpolated linearly at the reference's stretches (held constant beyond ``r``'s range).
+    """
+    scale = max(np.abs(ref.T1).max(), np.abs(ref.T2).max())
+    err = []
+    for lam_r, T_r, lam, T in ((ref.lambda1, ref.T1, r.lambda1, r.T1), (ref.lambda2, ref.T2, r.lambda2, r.T2)):
+        o = np.argsort(lam)
+        err.append(np.interp(lam_r, lam[o], T[o]) - T_r)
+    return float(np.sqrt(np.mean(np.concatenate(err) ** 2)) / scale)

@@ -81,6 +81,27 @@ def test_adapter_keeps_tensor_order():
     assert A[0, 1, 0, 1] == pytest.approx(C[5, 5])
 
 
+def test_model_without_order_keyword_still_works():
+    """A yarn model whose evaluate(F, a) has no ``order`` parameter gives the same energy, stress and tangent."""
+
+    class Legacy:
+        def __init__(self, inner):
+            self.inner = inner
+
+        def evaluate(self, F, a):
+            return self.inner.evaluate(F, a)
+
+    inner = TransverseIsotropic(E_axial=200.0, radius=0.2, nu=0.3, E_transverse=5.0)
+    new, old = YarnLaw(inner), YarnLaw(Legacy(inner))
+    assert new.takes_order and not old.takes_order
+    rng = np.random.default_rng(3)
+    F = (np.eye(3)[:, :, None, None] + 0.1 * rng.normal(size=(3, 3, 4, 2)))
+    a = np.broadcast_to(np.array([0.0, 0.6, 0.8])[:, None, None], (3, 4, 2))
+    for k in range(3):
+        assert np.allclose(new.evaluate(F, a, 2)[k], old.evaluate(F, a, 2)[k], rtol=1e-14, atol=0)
+    assert old.evaluate(F, a, 0)[1] is None and old.evaluate(F, a, 1)[2] is None
+
+
 @pytest.mark.parametrize("order", [1, 2])
 def test_patch_test_large_strain(order):
     """An affine displacement on the boundary gives the same affine field inside and the uniform stress's tractions."""

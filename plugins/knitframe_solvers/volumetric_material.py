@@ -57,6 +57,16 @@ def _inv_det(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return c / np.where(J == 0, 1.0, J), J
 
 
+def _accepts_order(model: Any) -> bool:
+    """True if ``model.evaluate`` has an ``order`` parameter (older third-party models compute everything)."""
+    import inspect
+
+    try:
+        return "order" in inspect.signature(model.evaluate).parameters
+    except (TypeError, ValueError):
+        return False
+
+
 @attrs.frozen
 class YarnLaw:
     """A yarn model's solid law on skfem-shaped arrays: F (3, 3, n_el, n_qp), fibres a (3, n_el, n_qp).
@@ -68,6 +78,9 @@ class YarnLaw:
     """
 
     model: Any  #: yarn model plugin instance with ``evaluate``
+    #: whether ``model.evaluate`` takes ``order`` (read once from its signature, not per call)
+    takes_order: bool = attrs.field(init=False, default=attrs.Factory(lambda self: _accepts_order(self.model),
+                                                                       takes_self=True))
 
     @classmethod
     def from_yarn(cls, yarn: Any, registry: Any = None) -> "YarnLaw":
@@ -79,21 +92,13 @@ class YarnLaw:
 
     def _evaluate(self, F: np.ndarray, a: np.ndarray, order: int = 2) -> tuple[np.ndarray, Any, Any]:
         Fm, am = np.moveaxis(F, (0, 1), (-2, -1)), np.moveaxis(a, 0, -1)
-        if self._takes_order():
+        if self.takes_order:
             W, P, A = self.model.evaluate(Fm, am, order=order)
         else:  # a yarn model without the ``order`` keyword computes everything
             W, P, A = self.model.evaluate(Fm, am)
         P = None if P is None or order < 1 else np.moveaxis(P, (-2, -1), (0, 1))
         A = None if A is None or order < 2 else np.moveaxis(A, (-4, -3, -2, -1), (0, 1, 2, 3))
         return W, P, A
-
-    def _takes_order(self) -> bool:
-        import inspect
-
-        try:
-            return "order" in inspect.signature(self.model.evaluate).parameters
-        except (TypeError, ValueError):
-            return False
 
     def energy(self, F: np.ndarray, a: np.ndarray) -> np.ndarray:
         """Ψ (n_el, n_qp), MPa; +inf everywhere if any point is inverted."""
