@@ -12,7 +12,10 @@ from knitframe.mesh import cell_mesh
 from knitframe.plugins import get_registry
 from knitframe_contact.mortar import SolidMortar
 from knitframe_contact.penalty import SolidPenalty
-from knitframe_contact.solid_geometry import facet_gap, p2_shape, plane_gap, project_p2
+from knitframe_contact.solid_geometry import (
+    chain_facet_derivatives, facet_gap, nagata_facets, node_normals, p2_gap_derivatives, p2_shape, plane_gap, project_p2,
+    select_pairs,
+)
 from knitframe_solvers.volumetric_material import SolidForms
 from knitframe_yarns.law import line_contact_approach
 
@@ -87,6 +90,92 @@ def test_quadratic_projection_finds_the_closest_point():
     assert pr.xi[1, 1] == 0.0 and np.allclose(pr.xi[2], 0.0)
 
 
+def prism(n_sides: int, R: float = 1.0, length: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """A closed n-gon prism (nodes on a circle of radius R) split into outward-facing triangles."""
+    phi = 2 * np.pi * np.arange(n_sides) / n_sides
+    ring = np.column_stack([R * np.cos(phi), R * np.sin(phi), np.zeros(n_sides)])
+    X = np.concatenate([ring, ring + [0.0, 0.0, length]])
+    i = np.arange(n_sides)
+    j = (i + 1) % n_sides
+    tri = np.concatenate([np.column_stack([i, j, j + n_sides]), np.column_stack([i, j + n_sides, i + n_sides])])
+    return X, tri
+
+
+def test_nagata_patch_rebuilds_a_circle_and_keeps_a_plane():
+    """Patches through nodal normals: an 11-gon's edges bow onto its circle, flat facets stay flat, X6 = A·x."""
+    X, tri = prism(11)
+    nrm = node_normals(X, tri)
+    assert np.allclose(nrm[:, 2], 0.0) and np.allclose(np.linalg.norm(nrm[:, :2] - X[:, :2], axis=1), 0.0)
+    X6, A = nagata_facets(X[tri], nrm[tri])
+    mid = X6[:, 3:]
+    ring_edges = np.abs(mid[..., 2] - np.round(mid[..., 2])) < 1e-12  # circumferential edges (z = 0 or 1)
+    radius = np.linalg.norm(mid[..., :2], axis=-1)[ring_edges]
+    chord = np.cos(np.pi / 11)
+    assert np.all(np.abs(radius - 1.0) < 1e-3) and abs(chord - 1.0) > 0.04  # the flat chord misses by 4 %
+    assert np.allclose(np.einsum("mkcij,mcj->mki", A, X[tri]), X6, atol=1e-14)
+    assert np.allclose(A.sum(axis=2), np.eye(3))  # a translation (periodic image) carries over
+    # the two facets sharing an edge build the same mid point: the patched surface is continuous
+    edges = {}
+    for f in range(len(tri)):
+        for k, (a, b) in zip((3, 4, 5), ((0, 1), (1, 2), (2, 0))):
+            key = tuple(sorted((tri[f, a], tri[f, b])))
+            if key in edges:
+                assert np.allclose(edges[key], X6[f, k], atol=1e-14)
+            edges[key] = X6[f, k]
+    flat = np.array([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]])
+    Xf, _ = nagata_facets(flat, np.tile([0.0, 0, 1], (1, 3, 1)))
+    assert np.allclose(Xf[0, 3:], [[0.5, 0, 0], [0.5, 0.5, 0], [0, 0.5, 0]])
+
+
+def test_nagata_gap_derivatives_through_the_corners():
+    """The gap to a patch, chained to the triangle's corners for fixed normals, has the exact gradient and Hessian."""
+    rng = np.random.default_rng(3)
+    X, tri = prism(9)
+    nrm = node_normals(X, tri)
+    f = np.array([0, 4, 10, 13])
+    Xt = X[tri[f]] + 0.01 * rng.normal(size=(4, 3, 3))
+    nt = nrm[tri[f]]
+    p = Xt.mean(axis=1) * [0.99, 0.99, 1.0] + 0.001 * rng.normal(size=(4, 3))
+
+    def gap(p, Xt):
+        X6, A = nagata_facets(Xt, nt)
+        pr = project_p2(p, X6)
+        dg, Hg = chain_facet_derivatives(*p2_gap_derivatives(pr, X6, None, 2), A)
+        return pr.g, dg, Hg
+
+    g, dg, Hg = gap(p, Xt)
+    assert np.all(g < 0)  # inside the patched cylinder
+    eps = 1e-6
+    for k in range(4):
+        for i in range(3):
+            dp = np.zeros((4, 4, 3))
+            dp[:, k, i] = eps
+            gp, dgp, _ = gap(p + dp[:, 0], Xt + dp[:, 1:])
+            gm, dgm, _ = gap(p - dp[:, 0], Xt - dp[:, 1:])
+            assert np.allclose((gp - gm) / (2 * eps), dg[:, k, i], atol=1e-7)
+            assert np.allclose((dgp - dgm) / (2 * eps), Hg[:, :, :, k, i], atol=1e-5)
+
+
+def test_smoothed_master_gap_does_not_jump_across_facet_edges():
+    """A point sliding round inside a faceted cylinder: the flat-facet gap swings by the facets' sagitta and
+    kinks at every edge; the gap to the Nagata patches stays within 0.1 % of the radius of the true one."""
+    X, tri = prism(11, R=1.0, length=2.0)
+    nrm = node_normals(X, tri)
+    depth = 0.02
+    phi = np.linspace(0.0, 4 * np.pi / 11, 241)
+    pts = np.column_stack([(1 - depth) * np.cos(phi), (1 - depth) * np.sin(phi), np.full(phi.size, 1.0)])
+    point = np.repeat(np.arange(len(pts)), len(tri))
+    element = np.tile(np.arange(len(tri)), len(pts))
+    inward = -pts / np.linalg.norm(pts, axis=1, keepdims=True)  # the slave surface faces the master
+    flat = select_pairs(pts[point], point, element, X[tri][element], inward[point], 0.3)
+    X6, _ = nagata_facets(X[tri], nrm[tri], blocks=False)
+    smooth = select_pairs(pts[point], point, element, X6[element], inward[point], 0.3)
+    assert len(flat.g) == len(smooth.g) == len(pts)
+    assert np.ptp(flat.g) > 0.03  # the sagitta of the 11-gon, 4 % of R
+    assert np.max(np.abs(smooth.g + depth)) < 1e-3
+    assert np.max(np.abs(np.diff(smooth.g))) < 0.1 * np.max(np.abs(np.diff(flat.g)))
+
+
 @pytest.fixture(scope="module", params=[1, 2])
 def cylinder(request):
     order = request.param
@@ -94,7 +183,8 @@ def cylinder(request):
     return mesh, body, surface(mesh, body, arc, top)
 
 
-@pytest.mark.parametrize("law", [SolidPenalty(), SolidMortar()], ids=["penalty", "mortar"])
+@pytest.mark.parametrize("law", [SolidPenalty(), SolidMortar(), SolidPenalty(smoothing="none"), SolidMortar(smoothing="none")],
+                         ids=["penalty", "mortar", "penalty-flat", "mortar-flat"])
 def test_contact_derivatives_match_finite_differences(cylinder, law):
     """Contact gradient = FD of the energy; Hessian = FD of the gradient (exact, on curved P2 facets too)."""
     mesh, body, surf = cylinder

@@ -44,8 +44,8 @@ import numpy as np
 from knitframe import hookimpl, validators as v
 from knitframe_contact.penalty import SolidContactLaw
 from knitframe_contact.solid_geometry import (
-    FrictionState, P2Projection, SolidSurface, assemble, barycentric, combine, facet_size, friction_terms,
-    p2_gap_derivatives, p2_shape, penalty_terms, plane_gap, select_pairs,
+    FrictionState, P2Projection, SolidSurface, assemble, barycentric, chain_facet_derivatives, combine, facet_size,
+    friction_terms, nagata_facets, p2_gap_derivatives, p2_shape, penalty_terms, plane_gap, select_pairs,
 )
 
 
@@ -72,9 +72,10 @@ class SolidMortar(SolidContactLaw):
     quadrature: int = attrs.field(default=4, validator=v.in_range(1, 19))  #: polynomial order of the slave-triangle rule, -
 
     def _pairs(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, reach: float,
-               order: int) -> dict[str, Any]:
+               order: int, normals: np.ndarray | None = None) -> dict[str, Any]:
         """Active quadrature-point pairs of state x: gaps (and their derivatives up to ``order``)."""
         quadratic = surface.facets.shape[1] == 6
+        smooth = not quadratic and self.smoothing == "nagata"
         lam, w = triangle_rule(self.quadrature)
         if quadratic:
             N_q, dN_q = p2_shape(lam[:, 1:])
@@ -98,7 +99,11 @@ class SolidMortar(SolidContactLaw):
         cand = surface.candidates(xq, sf[face, 0], x, h, reach, quadratic=quadratic, group=nq)
         elements = surface.facets if quadratic else surface.triangles
         Xm = x[elements[cand.triangle]] + cand.shift[:, None, :]
-        chosen = select_pairs(xq[cand.point], cand.point, cand.triangle, Xm, ns_q[cand.point], reach)
+        if smooth:
+            nodal = self.master_normals(surface) if normals is None else normals
+            nodal_m = nodal[elements[cand.triangle]]
+            Xp = nagata_facets(Xm, nodal_m, blocks=False)[0]
+        chosen = select_pairs(xq[cand.point], cand.point, cand.triangle, Xp if smooth else Xm, ns_q[cand.point], reach)
         rows, g = chosen.rows, chosen.g
         point, Xm = cand.point[rows], Xm[rows]
         sel = np.flatnonzero((g < 0) & (g > -reach))
@@ -113,6 +118,14 @@ class SolidMortar(SolidContactLaw):
             out["xi"], out["normal"] = pr.xi, pr.n
             if order >= 1:
                 out["dg"], out["Hg"] = p2_gap_derivatives(pr, Xm, N, order)
+        elif smooth:
+            pr = _take(chosen.projection, sel)
+            out["xi"], out["normal"] = pr.xi, pr.n
+            if order >= 1:
+                rs = rows[sel]
+                X6, A6 = nagata_facets(Xm, nodal_m[rs])
+                dg6, Hg6 = p2_gap_derivatives(pr, X6, N, order)
+                out["dg"], out["Hg"] = chain_facet_derivatives(dg6, Hg6, A6)
         else:
             A, B, C = Xm[:, 0], Xm[:, 1], Xm[:, 2]
             out["xi"] = barycentric(out["p"], A, B, C)[:, 1:]
@@ -134,7 +147,7 @@ class SolidMortar(SolidContactLaw):
         return out
 
     def friction_state(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, *, stiffness: float,
-                       reach: float) -> FrictionState:
+                       reach: float, normals: np.ndarray | None = None) -> FrictionState:
         """Freeze the active quadrature-point pairs of the converged state x for the next increment's friction.
 
         Each pair keeps its slave facet and quadrature point, master facet (linear triangle on
@@ -142,7 +155,7 @@ class SolidMortar(SolidContactLaw):
         force λ = ε w_q A_f ⟨−g⟩ (N), the unit master normal, and the relative position
         c₀ = x_q − x_m(ξ*) of the two material points (see the module docstring).
         """
-        pr = self._pairs(surface, x, h, reach, 0)
+        pr = self._pairs(surface, x, h, reach, 0, normals)
         quadratic = pr["quadratic"]
         Nm = p2_shape(pr["xi"])[0] if quadratic else np.column_stack([1.0 - pr["xi"].sum(axis=1), pr["xi"]])
         elements = surface.facets if quadratic else surface.triangles
@@ -157,14 +170,20 @@ class SolidMortar(SolidContactLaw):
                              pr["normal"], facet_size(surface)[slave], nodes, images, weights, c0)
 
     def evaluate(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, order: int, *,
-                 stiffness: float, reach: float, friction_state: FrictionState | None = None
-                 ) -> tuple[float, Any, Any, dict[str, Any]]:
+                 stiffness: float, reach: float, friction_state: FrictionState | None = None,
+                 normals: np.ndarray | None = None) -> tuple[float, Any, Any, dict[str, Any]]:
         """Energy (N·mm), gradient and Hessian in q = [u (3N), h (6)], and diagnostics (see ``penalty``).
+
+        ``normals`` (N, 3): the nodal normals that shape the smoothed master surface of linear
+        meshes (``smoothing = "nagata"``), held fixed in this evaluation; default the reference
+        configuration's (:meth:`master_normals`). A solver freezes them at the start of each
+        increment (``node_normals`` of that state), so that the energy, gradient and Hessian of
+        the increment are exactly consistent.
 
         With ``friction_state`` (from :meth:`friction_state` at the last converged state) the
         lagged regularised Coulomb friction of those pairs is added (module docstring).
         """
-        pr = self._pairs(surface, x, h, reach, order)
+        pr = self._pairs(surface, x, h, reach, order, normals)
         quadratic = pr["quadratic"]
         g, f, weight, sf = pr["g"], pr["f"], pr["weight"], pr["sf"]
         E, grad, hess = penalty_terms(g, pr.get("dg"), pr.get("Hg"), weight, stiffness, order)

@@ -37,8 +37,8 @@ import numpy as np
 
 from knitframe import hookimpl, validators as v
 from knitframe_contact.solid_geometry import (
-    FrictionState, SolidSurface, assemble, barycentric, facet_size, friction_terms, node_normals, penalty_terms,
-    plane_gap, select_pairs,
+    FrictionState, P2Projection, SolidSurface, assemble, barycentric, chain_facet_derivatives, facet_size,
+    friction_terms, nagata_facets, node_normals, p2_gap_derivatives, penalty_terms, plane_gap, select_pairs,
 )
 
 
@@ -52,6 +52,11 @@ class SolidContactLaw:
     factor: float = attrs.field(default=10.0, validator=v.positive)  #: ε = factor · E / h when stiffness is not given, -
     friction: float = attrs.field(default=0.3, validator=v.non_negative)  #: Coulomb coefficient μ (used only with a friction state), -
     slip: float = attrs.field(default=0.05, validator=v.positive)  #: regularisation slip ε_s / slave facet size (mean corner-edge length), -
+    smoothing: str = attrs.field(default="nagata", validator=v.one_of(("none", "nagata")))  #: master surface of linear (P1) meshes: "none" (flat facets) or "nagata" (quadratic patches through the nodal normals), -
+
+    def master_normals(self, surface: SolidSurface, x: np.ndarray | None = None) -> np.ndarray:
+        """Area-weighted unit normals (N, 3) of the master surface at x (default: the reference nodes)."""
+        return node_normals(surface.X if x is None else x, surface.triangles[surface.tri_master])
 
     def penalty(self, modulus: float, size: float) -> float:
         """Penalty stiffness ε (N/mm³) for contact modulus E (MPa) and element size h (mm): the given
@@ -66,19 +71,28 @@ class SolidPenalty(SolidContactLaw):
     name: ClassVar[str] = "penalty"
     description: ClassVar[str] = "node-to-surface penalty contact between tetrahedral yarn surfaces (solid)"
 
-    def pairs(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, reach: float) -> dict[str, np.ndarray]:
+    def pairs(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, reach: float,
+              normals: np.ndarray | None = None) -> dict[str, Any]:
         """Slave node → nearest opposing master triangle within ``reach`` (mm), with its image (see
-        :func:`knitframe_contact.solid_geometry.select_pairs`)."""
+        :func:`knitframe_contact.solid_geometry.select_pairs`); on a smoothed surface also the
+        patch projection and gap."""
         slave = surface.slave_nodes
         cand = surface.candidates(x[slave], slave, x, h, reach)
         Xm = x[surface.triangles[cand.triangle]] + cand.shift[:, None, :]
+        smooth = surface.facets.shape[1] == 3 and self.smoothing == "nagata"
+        if smooth:
+            nodal = self.master_normals(surface) if normals is None else normals
+            Xm = nagata_facets(Xm, nodal[surface.triangles[cand.triangle]], blocks=False)[0]
         ns = node_normals(x, surface.triangles[surface.tri_slave])[slave]
-        rows = select_pairs(x[slave[cand.point]], cand.point, cand.triangle, Xm, ns[cand.point], reach).rows
-        return {"node": slave[cand.point[rows]], "triangle": cand.triangle[rows], "image": cand.image[rows]}
+        chosen = select_pairs(x[slave[cand.point]], cand.point, cand.triangle, Xm, ns[cand.point], reach)
+        rows = chosen.rows
+        return {"node": slave[cand.point[rows]], "triangle": cand.triangle[rows], "image": cand.image[rows],
+                "g": chosen.g, "projection": chosen.projection if smooth else None}
 
-    def _active(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, reach: float, order: int):
+    def _active(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, reach: float, order: int,
+                normals: np.ndarray | None = None):
         """Active pairs: nodes (m, 4) and images (m, 4, 2) of (s, a, b, c), their points, gaps and derivatives."""
-        pr = self.pairs(surface, x, h, reach)
+        pr = self.pairs(surface, x, h, reach, normals)
         tri = surface.triangles[pr["triangle"]]
         nodes = np.column_stack([pr["node"], tri])
         images = np.zeros((len(nodes), 4, 2), np.int64)
@@ -86,22 +100,31 @@ class SolidPenalty(SolidContactLaw):
         p = x[nodes]
         if surface.lattice is not None:
             p = p + surface.lattice.shift(images, np.zeros(6) if h is None else h)
-        g = plane_gap(p[:, 0], p[:, 1], p[:, 2], p[:, 3], order=0)[0]
+        smooth = pr["projection"] is not None
+        g = pr["g"] if smooth else plane_gap(p[:, 0], p[:, 1], p[:, 2], p[:, 3], order=0)[0]
         sel = np.flatnonzero((g < 0) & (g > -reach))
         p = p[sel]
-        g, dg, Hg = plane_gap(p[:, 0], p[:, 1], p[:, 2], p[:, 3], order=order)
+        if smooth:
+            nodal = self.master_normals(surface) if normals is None else normals
+            X6, A6 = nagata_facets(p[:, 1:], nodal[tri[sel]])
+            proj = P2Projection(*(getattr(pr["projection"], f.name)[sel] for f in attrs.fields(P2Projection)))
+            g, dg, Hg = g[sel], None, None
+            if order >= 1:
+                dg, Hg = chain_facet_derivatives(*p2_gap_derivatives(proj, X6, None, order), A6)
+        else:
+            g, dg, Hg = plane_gap(p[:, 0], p[:, 1], p[:, 2], p[:, 3], order=order)
         return {"node": pr["node"][sel], "triangle": pr["triangle"][sel], "image": pr["image"][sel],
                 "nodes": nodes[sel], "images": images[sel], "p": p, "g": g, "dg": dg, "Hg": Hg}
 
     def friction_state(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, *, stiffness: float,
-                       reach: float) -> FrictionState:
+                       reach: float, normals: np.ndarray | None = None) -> FrictionState:
         """Freeze the active node pairs of the converged state x for the next increment's friction.
 
         Each pair keeps its slave node, master triangle and image, the barycentric point ξ of the
         node's projection on the master's plane, the normal force λ = ε A_s ⟨−g⟩ (N), the unit
         master normal, and the relative position c₀ = x_s − x_m(ξ) (see the module docstring).
         """
-        a = self._active(surface, x, h, reach, 0)
+        a = self._active(surface, x, h, reach, 0, normals)
         p = a["p"]
         lam = barycentric(p[:, 0], p[:, 1], p[:, 2], p[:, 3])
         weights = np.column_stack([np.ones(len(lam)), -lam])
@@ -118,8 +141,8 @@ class SolidPenalty(SolidContactLaw):
                              np.einsum("mk,mki->mi", weights, p))
 
     def evaluate(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, order: int, *,
-                 stiffness: float, reach: float, friction_state: FrictionState | None = None
-                 ) -> tuple[float, Any, Any, dict[str, Any]]:
+                 stiffness: float, reach: float, friction_state: FrictionState | None = None,
+                 normals: np.ndarray | None = None) -> tuple[float, Any, Any, dict[str, Any]]:
         """Energy (N·mm), gradient and Hessian in q = [u (3N), h (6)], and diagnostics.
 
         Parameters
@@ -129,8 +152,11 @@ class SolidPenalty(SolidContactLaw):
         order : 0, 1 or 2.  stiffness : ε, N/mm³.  reach : search distance, mm.
         friction_state : pairs frozen by :meth:`friction_state` at the last converged state;
             their lagged regularised Coulomb friction is added (module docstring).
+        normals : (N, 3) nodal normals that shape the smoothed master surface of linear meshes
+            (``smoothing = "nagata"``), fixed in this evaluation; default the reference
+            configuration's. Solvers freeze them at the start of each increment.
         """
-        a = self._active(surface, x, h, reach, order)
+        a = self._active(surface, x, h, reach, order, normals)
         g = a["g"]
         weight = surface.tributary[a["node"]]
         E, grad, hess = penalty_terms(g, a["dg"], a["Hg"], weight, stiffness, order)

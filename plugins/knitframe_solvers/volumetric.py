@@ -416,6 +416,7 @@ class VolumetricModel:
         self.stabilisation_energy = 0.0
         self.friction = False  # lagged Coulomb friction (scene effect "friction")
         self.friction_state = None
+        self.normals = None  # nodal normals of the smoothed P1 master surface, frozen per increment (anchor)
         self.evaluations = {"energy": 0, "gradient": 0, "hessian": 0, "linear_solves": 0}
 
     def shrunk(self, s0: float) -> np.ndarray:
@@ -430,10 +431,16 @@ class VolumetricModel:
         contact pairs of q0 (normal forces, master points) are frozen for the increment's slip."""
         self.u0 = self.T @ q0
         self.friction_state = None
+        x = self.cm.nodes + self.u0.reshape(-1, 3)
+        self.normals = None
+        if self.law is not None and self.surface.facets.shape[1] == 3 and getattr(self.law, "smoothing", "none") != "none":
+            self.normals = self.law.master_normals(self.surface, x)
         if self.friction:
-            x = self.cm.nodes + self.u0.reshape(-1, 3)
             self.friction_state = self.law.friction_state(self.surface, x, q0[-N_MACRO:], stiffness=self.stiffness,
-                                                          reach=self.reach)
+                                                          reach=self.reach, **self._normals())
+
+    def _normals(self) -> dict[str, np.ndarray]:
+        return {} if self.normals is None else {"normals": self.normals}
 
     def force_flux(self, gc: np.ndarray | None) -> float:
         """Average nodal force flux q̃ (N) of the last gradient evaluation.
@@ -471,6 +478,7 @@ class VolumetricModel:
             t0 = time.perf_counter()
             x = self.cm.nodes + u.reshape(-1, 3)
             kw = {"friction_state": self.friction_state} if self.friction_state is not None else {}
+            kw.update(self._normals())
             Ec, gc, Hc, info = self.law.evaluate(self.surface, x, h, order, stiffness=self.stiffness, reach=self.reach,
                                                  **kw)
             E += Ec
