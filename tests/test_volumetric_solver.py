@@ -113,6 +113,11 @@ def test_killed_run_resumes_to_the_same_result(tmp_path):
     resumed = solver.simulate(FABRIC, STRETCH, checkpoint_dir=tmp_path, progress=lambda d, t, m: seen.append(m))
     assert seen == ["load step 2/2"]  # only the missing step was computed
     assert np.allclose(resumed.T1, full.T1, rtol=1e-9) and np.allclose(resumed.lambda1, full.lambda1)
+    # a contact law with other options (here its default master surface) is another run: not resumed
+    other = VolumetricSolver(order=1, seed=0.75, contact_law={"kind": "mortar", "smoothing": "none"})
+    seen.clear()
+    other.simulate(FABRIC, STRETCH, checkpoint_dir=tmp_path, progress=lambda d, t, m: seen.append(m))
+    assert seen == ["load step 1/2", "load step 2/2"]
 
 
 def test_overlapping_yarns_without_prestress_stop_with_a_diagnostic():

@@ -102,7 +102,9 @@ class SolidMortar(SolidContactLaw):
         if smooth:
             nodal = self.master_normals(surface) if normals is None else normals
             nodal_m = nodal[elements[cand.triangle]]
-            Xp = nagata_facets(Xm, nodal_m, blocks=False)[0]
+            # the patches of the master triangles once, then moved to each candidate's image
+            used, where = np.unique(cand.triangle, return_inverse=True)
+            Xp = nagata_facets(x[elements[used]], nodal[elements[used]], blocks=False)[0][where] + cand.shift[:, None, :]
         chosen = select_pairs(xq[cand.point], cand.point, cand.triangle, Xp if smooth else Xm, ns_q[cand.point], reach)
         rows, g = chosen.rows, chosen.g
         point, Xm = cand.point[rows], Xm[rows]

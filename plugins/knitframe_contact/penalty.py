@@ -82,7 +82,9 @@ class SolidPenalty(SolidContactLaw):
         smooth = surface.facets.shape[1] == 3 and self.smoothing == "nagata"
         if smooth:
             nodal = self.master_normals(surface) if normals is None else normals
-            Xm = nagata_facets(Xm, nodal[surface.triangles[cand.triangle]], blocks=False)[0]
+            used, where = np.unique(cand.triangle, return_inverse=True)
+            tri_u = surface.triangles[used]
+            Xm = nagata_facets(x[tri_u], nodal[tri_u], blocks=False)[0][where] + cand.shift[:, None, :]
         ns = node_normals(x, surface.triangles[surface.tri_slave])[slave]
         chosen = select_pairs(x[slave[cand.point]], cand.point, cand.triangle, Xm, ns[cand.point], reach)
         rows = chosen.rows

@@ -152,8 +152,10 @@ class VolumetricSolver:
     stabilisation: float = attrs.field(default=1e-4, validator=v.non_negative)  #: weak foundation on each increment's displacement / (E_transverse / h²), -
     on_failure: Literal["raise", "truncate"] = "raise"  #: "truncate" returns the converged steps (converged = false)
 
-    def _key(self, fabric: Fabric, scene: Scene) -> str:
-        text = json.dumps([fabric.to_dict(), scene.to_dict(), attrs.asdict(self)], sort_keys=True, default=str)
+    def _key(self, fabric: Fabric, scene: Scene, law: Any = None) -> str:
+        """Checkpoint key: the inputs, the solver options and the resolved contact law (its defaults included)."""
+        resolved = None if law is None else [type(law).__name__, attrs.asdict(law)]
+        text = json.dumps([fabric.to_dict(), scene.to_dict(), attrs.asdict(self), resolved], sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()[:24]
 
     def setup(self, fabric: Fabric, scene: Scene, registry=None) -> "VolumetricModel":
@@ -241,7 +243,7 @@ class VolumetricSolver:
         if vtu:
             out_dir.mkdir(parents=True, exist_ok=True)
         vtu_files: list[tuple[float, str]] = []
-        ckpt = StepCheckpoints(checkpoint_dir, self._key(fabric, scene)) if checkpoint_dir is not None else None
+        ckpt = StepCheckpoints(checkpoint_dir, self._key(fabric, scene, model.law)) if checkpoint_dir is not None else None
         lat = model.lattice
 
         def step_norm(dx: np.ndarray) -> float:
