@@ -131,7 +131,8 @@ def bench_iteration(args) -> list[dict]:
 def bench_run(args) -> list[dict]:
     from knitframe_solvers.volumetric import VolumetricSolver
 
-    solver = VolumetricSolver(order=args.order, seed=args.seed, contact_law=args.contact, prestress_steps=args.prestress,
+    solver = VolumetricSolver(order=args.order, seed=args.seed, contact_law={"kind": args.contact, "smoothing": args.smoothing},
+                              prestress_steps=args.prestress,
                               linear_solver=args.linear_solver, contact_modulus=args.contact_modulus,
                               on_failure="truncate" if args.truncate else "raise")
     fab = attrs.evolve(fabric(), stitch_length=args.stitch_length)
@@ -141,7 +142,14 @@ def bench_run(args) -> list[dict]:
         print(f"  {time.perf_counter() - t0:8.1f} s  {done}/{total}  {message}", file=sys.stderr, flush=True)
 
     sc = scene(args.steps)
-    resp = solver.simulate(fab, sc, progress=progress, checkpoint_dir=args.checkpoint)
+    trace = None
+    if args.trace:
+        trace_file = open(args.trace, "a")
+
+        def trace(record):
+            trace_file.write(json.dumps(record, default=float) + "\n")
+            trace_file.flush()
+    resp = solver.simulate(fab, sc, progress=progress, checkpoint_dir=args.checkpoint, trace=trace)
     wall = time.perf_counter() - t0
     if args.save:
         with open(args.save, "w") as fh:
@@ -203,6 +211,8 @@ def main(argv=None) -> None:
     p.add_argument("--linear-solver", default="direct", help="linear-solver plugin of 'run'")
     p.add_argument("--checkpoint", help="'run': checkpoint directory; a killed run resumes from it")
     p.add_argument("--save", help="'run': write the Response as JSON here (input of benchmarks/agreement.py)")
+    p.add_argument("--trace", help="'run': append every Newton solve (history, diagnostic) to this JSON-lines file")
+    p.add_argument("--smoothing", default="nagata", help="'run': master surface of P1 contact, nagata or none")
     p.add_argument("--json")
     args = p.parse_args(argv)
     rows = {"mesh": bench_mesh, "iteration": bench_iteration, "run": bench_run, "law": bench_law}[args.what](args)

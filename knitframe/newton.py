@@ -151,12 +151,14 @@ def minimise(
         if not np.isfinite(res):
             raise NumericalError(f"Newton: non-finite gradient at iteration {it}; {_fmt(history)}")
         history.append({"it": it, "energy": float(E), "residual": res, "shift": shift_rel})
+        for key in ("flux", "active"):
+            if key in info:
+                history[-1][key] = float(info[key])
         if res <= tol:
             return NewtonResult(x, float(E), g, it, True, tuple(history), info)
         ratio = options.late_flux_rtol if options.late_flux_rtol > 0 and it >= options.late_iteration else options.flux_rtol
         if ratio > 0 and it > 0 and res <= ratio * float(info.get("flux", 0.0)):
             if correction <= options.correction_rtol * measure(x - x_start):
-                history[-1]["flux"] = float(info["flux"])
                 return NewtonResult(x, float(E), g, it, True, tuple(history), info)
         if it == options.max_iter:
             break
@@ -190,10 +192,9 @@ def minimise(
                     break
             shift_rel = max(10.0 * shift_rel, 1e-8)
         if not accepted:
-            raise NumericalError(
+            raise _failure(
                 f"Newton: no descent step at iteration {it} (residual {res:.3g} > tol {tol:.3g}, shift up to "
-                f"{shift_rel:.2g}); {_fmt(history)}"
-            )
+                f"{shift_rel:.2g}); {_fmt(history)}", history)
         history[-1]["alpha"] = alpha
         correction = measure(x_new - x)
         x = x_new
@@ -202,10 +203,16 @@ def minimise(
             res = float(np.max(np.abs(g[free]), initial=0.0))
             history.append({"it": it + 1, "energy": float(E), "residual": res, "shift": 0.0, "xtol": True})
             return NewtonResult(x, float(E), g, it + 1, True, tuple(history), info)
-    raise NumericalError(
+    raise _failure(
         f"Newton: no convergence in {options.max_iter} iterations (residual {history[-1]['residual']:.3g} > "
-        f"tol {tol:.3g}); {_fmt(history)}"
-    )
+        f"tol {tol:.3g}); {_fmt(history)}", history)
+
+
+def _failure(message: str, history: Sequence[dict]) -> NumericalError:
+    """A NumericalError that carries the whole iteration history as ``error.history``."""
+    err = NumericalError(message)
+    err.history = tuple(history)
+    return err
 
 
 def _line_search(fun: Problem, x: np.ndarray, E: float, g: np.ndarray, dx: np.ndarray, slope: float,

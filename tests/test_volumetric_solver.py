@@ -120,6 +120,19 @@ def test_killed_run_resumes_to_the_same_result(tmp_path):
     assert seen == ["load step 1/2", "load step 2/2"]
 
 
+def test_trace_records_every_newton_solve():
+    """``trace`` gets one record per Newton solve with its iteration history; the last residual is the converged one."""
+    records = []
+    resp = VolumetricSolver(order=1, seed=0.75).simulate(FABRIC, STRETCH, trace=records.append)
+    loads = [r for r in records if r["phase"] == "load"]
+    assert [r["t"] for r in loads] == [1.0, 2.0] and all(r["converged"] for r in loads)
+    for r in loads:
+        last = r["history"][-1]
+        assert r["iterations"] == len(r["history"]) - 1
+        assert last["residual"] <= max(resp.provenance.extra["tolerance_N"], 5e-3 * last["flux"])
+        assert all("flux" in h for h in r["history"])
+
+
 def test_overlapping_yarns_without_prestress_stop_with_a_diagnostic():
     """Yarns that overlap in the knitted state and no pre-stress: a one-line NumericalError, not NaN."""
 

@@ -195,7 +195,7 @@ class VolumetricSolver:
         return model
 
     def simulate(self, fabric: Fabric, scene: Scene, *, progress=None, output_dir: str | Path | None = None,
-                 checkpoint_dir: str | Path | None = None) -> Response:
+                 checkpoint_dir: str | Path | None = None, trace=None) -> Response:
         """Pre-stress (if asked) and follow the scene's load path; returns tensions per unit width.
 
         Parameters
@@ -209,6 +209,11 @@ class VolumetricSolver:
         checkpoint_dir : path, optional
             Converged steps are saved there; a later call with the same inputs resumes after
             the last saved step.
+        trace : callable, optional
+            ``trace(record)`` after every Newton solve, converged or not: a dict with the phase
+            ("prestress" or "load"), the load parameter t, ``converged``, the wall time, the
+            iteration history (energy, residual, flux, line-search α, shift) and, on failure,
+            the diagnostic. For reproducible convergence studies.
         """
         t_start = time.perf_counter()
         registry = get_registry()
@@ -257,9 +262,21 @@ class VolumetricSolver:
         residuals: list[float] = []
         penetrations: list[float] = []
 
-        def newton(q0: np.ndarray, free: np.ndarray, anchor: np.ndarray | None = None, options: NewtonOptions = opts):
+        def newton(q0: np.ndarray, free: np.ndarray, anchor: np.ndarray | None = None, options: NewtonOptions = opts,
+                   where: tuple[str, float] = ("prestress", 0.0)):
             model.anchor(q0 if anchor is None else anchor)
-            res = minimise(model, q0, free, solve=solve, options=options, step_norm=step_norm)
+            t0 = time.perf_counter()
+            try:
+                res = minimise(model, q0, free, solve=solve, options=options, step_norm=step_norm)
+            except NumericalError as e:
+                if trace is not None:
+                    trace({"phase": where[0], "t": where[1], "converged": False, "wall_s": time.perf_counter() - t0,
+                           "history": list(getattr(e, "history", ())), "diagnostic": str(e)})
+                raise
+            if trace is not None:
+                trace({"phase": where[0], "t": where[1], "converged": True, "wall_s": time.perf_counter() - t0,
+                       "iterations": res.iterations, "history": list(res.history),
+                       "max_penetration_over_r": float(res.info.get("max_penetration", 0.0)) / r})
             if options is opts:
                 residuals.append(float(np.max(np.abs(res.gradient[free]), initial=0.0)))
                 penetrations.append(float(res.info.get("max_penetration", 0.0)))
@@ -310,7 +327,7 @@ class VolumetricSolver:
                     s_new = s0 + t * (1.0 - s0)
                     q1 = q0 + model.shrunk(s_new) - model.shrunk(model.s)
                     model.s = s_new
-                    return newton(q1, free, anchor=q0, options=loose if t < 1.0 - 1e-12 else opts)
+                    return newton(q1, free, anchor=q0, options=loose if t < 1.0 - 1e-12 else opts, where=("prestress", t))
 
                 def on_prestress(i: int, t: float, res) -> None:
                     nonlocal q
@@ -348,7 +365,7 @@ class VolumetricSolver:
                 qs[:n_ind] += lat.affine(model.X_ind, qs[n_ind:] - q0[n_ind:]).ravel()
                 free = base_free.copy()
                 free[n_ind:] = ~pres
-                return newton(qs, free, anchor=q0)
+                return newton(qs, free, anchor=q0, where=("load", tau))
 
             def on_load(i: int, tau: float, res) -> None:
                 nonlocal q
