@@ -27,9 +27,14 @@ linear-solver plugin, with
   converged. The residual is then small against the forces the structure carries, and the
   solution no longer moves; a contact energy that is only piecewise smooth can keep the
   absolute residual from falling further. From iteration I_P on the ratio R_P replaces R_n
-  (ABAQUS's defaults: R_n = 0.005, C_n = 0.01, R_P = 0.02, I_P = 9).
+  (ABAQUS's defaults: R_n = 0.005, C_n = 0.01, R_P = 0.02, I_P = 9);
+* an optional early stop (``stall_iterations`` = K): when none of the last K residuals is below
+  the smallest one before them, the increment is given up at once rather than after
+  ``max_iter`` iterations, so that the continuation cuts back sooner (in the spirit of
+  ABAQUS's divergence and rate-of-convergence checks).
 
-Failure raises :class:`~knitframe.errors.NumericalError` with the iteration history, never NaN.
+Failure raises :class:`~knitframe.errors.NumericalError`, never NaN; its ``history`` attribute
+holds the whole iteration history.
 :func:`continuation` follows a load parameter t from t0 to each target, halving the increment
 on failure and growing it again after successes. :class:`StepCheckpoints` stores converged
 steps so a killed run can resume.
@@ -75,6 +80,7 @@ class NewtonOptions:
     correction_rtol: float = 1e-2  #: C_n: ... and the last correction ≤ C_n × the increment's largest displacement
     late_flux_rtol: float = 0.0  #: R_P: the flux ratio from iteration ``late_iteration`` on (0: R_n throughout)
     late_iteration: int = 9  #: I_P: iterations after which R_P replaces R_n
+    stall_iterations: int = 0  #: give up when the smallest residual has not improved in this many iterations (0: off)
 
 
 @attrs.frozen
@@ -162,6 +168,13 @@ def minimise(
                 return NewtonResult(x, float(E), g, it, True, tuple(history), info)
         if it == options.max_iter:
             break
+        if options.stall_iterations and it >= options.stall_iterations:
+            window = [h["residual"] for h in history[-options.stall_iterations:]]
+            best_before = min(h["residual"] for h in history[:-options.stall_iterations])
+            if min(window) >= best_before:
+                raise _failure(
+                    f"Newton: stalled, no residual below {best_before:.3g} in the last {options.stall_iterations} "
+                    f"iterations (tol {tol:.3g}); {_fmt(history)}", history)
         Hff = H[free][:, free].tocsc()
         gf = g[free]
         scale = _diag_scale(Hff)

@@ -89,6 +89,17 @@ def test_flux_test_converges_where_the_residual_has_a_floor():
     assert abs(res.gradient[0]) <= 5e-3 * kinked(res.x, 1)[3]["flux"]
 
 
+def test_stalled_iteration_gives_up_early():
+    """With stall_iterations = K, an iteration whose residual has not improved in K iterations stops there."""
+    with pytest.raises(NumericalError, match="stalled") as failed:
+        minimise(kinked, np.zeros(1), np.ones(1, bool), solve=direct(), options=NewtonOptions(max_iter=30, stall_iterations=5))
+    residuals = [h["residual"] for h in failed.value.history]
+    assert len(residuals) == 9 and min(residuals[-5:]) >= min(residuals[:-5])  # the floor 1.0 is first met at iteration 3
+    # a converging iteration is not stopped
+    assert minimise(kinked, np.zeros(1), np.ones(1, bool), solve=direct(),
+                    options=NewtonOptions(max_iter=30, flux_rtol=5e-3, stall_iterations=5)).converged
+
+
 def test_late_flux_ratio_applies_only_after_its_iteration():
     """R_P replaces R_n from iteration I_P on: a residual floor between the two passes late, not early."""
     def floor(x, order=2):  # near the kink |g| ≥ 1: above R_n·q̃ = 0.5, below R_P·q̃ = 2

@@ -148,6 +148,7 @@ class VolumetricSolver:
     max_step: float = attrs.field(default=0.25, validator=v.positive)  #: largest node move per Newton step / yarn radius, -
     min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))  #: smallest cut-back increment / step, -
     max_iterations: int = attrs.field(default=40, validator=v.in_range(1, 10000))  #: Newton iterations per increment, -
+    stall_iterations: int = attrs.field(default=10, validator=v.in_range(0, 10000))  #: cut back once the residual has not improved in this many Newton iterations (0: only after max_iterations), -
     intorder: int = attrs.field(default=2, validator=v.in_range(1, 6))  #: quadrature order of the solid (2: 4 points), -
     stabilisation: float = attrs.field(default=1e-4, validator=v.non_negative)  #: weak foundation on each increment's displacement / (E_transverse / h²), -
     on_failure: Literal["raise", "truncate"] = "raise"  #: "truncate" returns the converged steps (converged = false)
@@ -239,7 +240,8 @@ class VolumetricSolver:
         opts = NewtonOptions(atol=self.tolerance * fabric.yarn.E_transverse * r * r, rtol=1e-10, max_iter=self.max_iterations,
                              max_step=self.max_step, xtol=1e-10 * r, max_backtracks=12,
                              max_shift_increases=4, flux_rtol=self.flux_tolerance,
-                             correction_rtol=self.correction_tolerance, late_flux_rtol=self.late_flux_tolerance)
+                             correction_rtol=self.correction_tolerance, late_flux_rtol=self.late_flux_tolerance,
+                             stall_iterations=self.stall_iterations)
         n_ind = 3 * len(model.independent)
         base_free = np.ones(n_ind + N_MACRO, bool)
         base_free[:3] = False  # pin one node: the cell's free translation
