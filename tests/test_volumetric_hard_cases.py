@@ -38,9 +38,14 @@ def test_hard_case_converges_or_stops_cleanly(name):
         r = solver.simulate(fabric, SCENE)
     except NumericalError as e:
         assert "\n" not in str(e) and "volumetric" in str(e)
+        print(f"\n{name}: stopped: {e}")  # the outcome, for docs/validation.md (pytest -s)
         return
     except GeometryError as e:  # a cell the swept tubes cannot represent is refused before any solve
         assert "\n" not in str(e) and "centerlines" in str(e)
+        print(f"\n{name}: refused: {e}")
         return
     assert np.all(np.isfinite(r.T1)) and np.all(np.isfinite(r.T2))
     assert r.provenance.converged or "stopped after" in r.provenance.notes
+    print(f"\n{name}: converged={r.provenance.converged} lambda1={np.round(r.lambda1, 4).tolist()} "
+          f"T1={np.round(r.T1, 5).tolist()} T2={np.round(r.T2, 5).tolist()} N/mm, {r.provenance.wall_time:.0f} s "
+          f"{r.provenance.notes}")
