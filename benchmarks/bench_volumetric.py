@@ -134,8 +134,13 @@ def bench_run(args) -> list[dict]:
     solver = VolumetricSolver(order=args.order, seed=args.seed, contact_law={"kind": args.contact, "smoothing": args.smoothing},
                               prestress_steps=args.prestress,
                               linear_solver=args.linear_solver, contact_modulus=args.contact_modulus,
-                              on_failure="truncate" if args.truncate else "raise")
+                              on_failure="truncate" if args.truncate else "raise",
+                              **({} if args.stabilisation is None else {"stabilisation": args.stabilisation}))
     fab = attrs.evolve(fabric(), stitch_length=args.stitch_length)
+    if args.transverse_ratio is not None:  # a diagnostic: the same yarn with a milder anisotropy
+        y = fab.yarn
+        fab = attrs.evolve(fab, yarn=attrs.evolve(y, name=f"{y.name}-ET{args.transverse_ratio:g}",
+                                                  E_transverse=args.transverse_ratio * y.E_axial))
     t0 = time.perf_counter()
 
     def progress(done, total, message):
@@ -213,6 +218,9 @@ def main(argv=None) -> None:
     p.add_argument("--save", help="'run': write the Response as JSON here (input of benchmarks/agreement.py)")
     p.add_argument("--trace", help="'run': append every Newton solve (history, diagnostic) to this JSON-lines file")
     p.add_argument("--smoothing", default="nagata", help="'run': master surface of P1 contact, nagata or none")
+    p.add_argument("--transverse-ratio", type=float,
+                   help="'run': set the yarn's E_transverse to this × E_axial (a diagnostic of the anisotropy)")
+    p.add_argument("--stabilisation", type=float, help="'run': the solver's stabilisation (weak foundation) factor")
     p.add_argument("--json")
     args = p.parse_args(argv)
     rows = {"mesh": bench_mesh, "iteration": bench_iteration, "run": bench_run, "law": bench_law}[args.what](args)

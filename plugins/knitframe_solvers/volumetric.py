@@ -263,6 +263,12 @@ class VolumetricSolver:
                              late_flux_rtol=self.path_tolerance_factor * opts.late_flux_rtol)
         residuals: list[float] = []
         penetrations: list[float] = []
+        shares: list[float] = []
+
+        def stab_share(res) -> float:
+            """The foundation's share of the increment's energy (ABAQUS compares ALLSD with ALLIE)."""
+            e = float(res.info.get("stabilisation_energy", 0.0))
+            return e / abs(res.energy) if res.energy else 0.0
 
         def newton(q0: np.ndarray, free: np.ndarray, anchor: np.ndarray | None = None, options: NewtonOptions = opts,
                    where: tuple[str, float] = ("prestress", 0.0)):
@@ -278,8 +284,10 @@ class VolumetricSolver:
             if trace is not None:
                 trace({"phase": where[0], "t": where[1], "converged": True, "wall_s": time.perf_counter() - t0,
                        "iterations": res.iterations, "history": list(res.history),
-                       "max_penetration_over_r": float(res.info.get("max_penetration", 0.0)) / r})
+                       "max_penetration_over_r": float(res.info.get("max_penetration", 0.0)) / r,
+                       "stabilisation_share": stab_share(res)})
             if options is opts:
+                shares.append(stab_share(res))
                 residuals.append(float(np.max(np.abs(res.gradient[free]), initial=0.0)))
                 penetrations.append(float(res.info.get("max_penetration", 0.0)))
             return res
@@ -396,7 +404,8 @@ class VolumetricSolver:
             extra={"timings_s": {k: round(v_, 3) for k, v_ in model.timings.items()},
                    "newton_evaluations": model.evaluations,
                    "tolerance_N": opts.atol, "max_final_residual_N": max(residuals, default=0.0),
-                   "max_penetration_over_r": max(penetrations, default=0.0) / r, "prestress_start_radius_over_r": s0,
+                   "max_penetration_over_r": max(penetrations, default=0.0) / r,
+                   "max_stabilisation_share": max(shares, default=0.0), "prestress_start_radius_over_r": s0,
                    "penalty_N_per_mm3": model.stiffness, "dk_mm": model.cell.dk,
                    "L1_mm": lat.L1.tolist(), "L2_mm": lat.L2.tolist(), "effects": sorted(scene.effects),
                    "options": attrs.asdict(self)},
