@@ -29,7 +29,8 @@ linear-solver plugin, with
   absolute residual from falling further. From iteration I_P on the ratio R_P replaces R_n
   (ABAQUS's defaults: R_n = 0.005, C_n = 0.01, R_P = 0.02, I_P = 9);
 * an optional early stop (``stall_iterations`` = K): when none of the last K residuals is below
-  the smallest one before them, the increment is given up at once rather than after
+  the smallest one before them, and that is still more than ``STALL_FACTOR`` = 10 times the
+  tolerance (the absolute one or R·q̃), the increment is given up at once rather than after
   ``max_iter`` iterations, so that the continuation cuts back sooner (in the spirit of
   ABAQUS's divergence and rate-of-convergence checks).
 
@@ -171,7 +172,8 @@ def minimise(
         if options.stall_iterations and it >= options.stall_iterations:
             window = [h["residual"] for h in history[-options.stall_iterations:]]
             best_before = min(h["residual"] for h in history[:-options.stall_iterations])
-            if min(window) >= best_before:
+            target = max(tol, ratio * float(info.get("flux", 0.0)))
+            if min(window) >= best_before and best_before > STALL_FACTOR * target:
                 raise _failure(
                     f"Newton: stalled, no residual below {best_before:.3g} in the last {options.stall_iterations} "
                     f"iterations (tol {tol:.3g}); {_fmt(history)}", history)
@@ -219,6 +221,10 @@ def minimise(
     raise _failure(
         f"Newton: no convergence in {options.max_iter} iterations (residual {history[-1]['residual']:.3g} > "
         f"tol {tol:.3g}); {_fmt(history)}", history)
+
+
+#: an iteration counts as stalled only while its best residual is this many times the tolerance
+STALL_FACTOR = 10.0
 
 
 def _failure(message: str, history: Sequence[dict]) -> NumericalError:

@@ -95,6 +95,11 @@ def test_stalled_iteration_gives_up_early():
         minimise(kinked, np.zeros(1), np.ones(1, bool), solve=direct(), options=NewtonOptions(max_iter=30, stall_iterations=5))
     residuals = [h["residual"] for h in failed.value.history]
     assert len(residuals) == 9 and min(residuals[-5:]) >= min(residuals[:-5])  # the floor 1.0 is first met at iteration 3
+    # near the tolerance (the floor 1.0 is 5 × atol) it is not given up early: it runs to max_iter
+    with pytest.raises(NumericalError, match="no convergence") as near:
+        minimise(kinked, np.zeros(1), np.ones(1, bool), solve=direct(),
+                 options=NewtonOptions(max_iter=30, atol=0.2, stall_iterations=5))
+    assert len(near.value.history) == 31
     # a converging iteration is not stopped
     assert minimise(kinked, np.zeros(1), np.ones(1, bool), solve=direct(),
                     options=NewtonOptions(max_iter=30, flux_rtol=5e-3, stall_iterations=5)).converged
