@@ -13,8 +13,8 @@ from knitframe.plugins import get_registry
 from knitframe_contact.mortar import SolidMortar
 from knitframe_contact.penalty import SolidPenalty
 from knitframe_contact.solid_geometry import (
-    chain_facet_derivatives, facet_gap, nagata_facets, node_normals, p2_gap_derivatives, p2_shape, plane_gap, project_p2,
-    select_pairs,
+    chain_facet_derivatives, facet_gap, nagata_facets, node_normals, p2_gap_derivatives, p2_shape, penalty_depth,
+    penalty_terms, plane_gap, project_p2, select_pairs,
 )
 from knitframe_solvers.volumetric_material import SolidForms
 from knitframe_yarns.law import line_contact_approach
@@ -174,6 +174,33 @@ def test_smoothed_master_gap_does_not_jump_across_facet_edges():
     assert np.ptp(flat.g) > 0.03  # the sagitta of the 11-gon, 4 % of R
     assert np.max(np.abs(smooth.g + depth)) < 1e-3
     assert np.max(np.abs(np.diff(smooth.g))) < 0.1 * np.max(np.abs(np.diff(flat.g)))
+
+
+def test_penalty_fades_out_continuously_at_the_reach():
+    """ψ = d² below the band; across it the energy and force fall to zero at the reach (no jump when a pair
+    enters the search), and the gradient and Hessian of the faded energy match central differences."""
+    reach, band = 0.1, (0.05, 0.1)
+    d = np.array([0.0, 0.02, 0.05, 0.075, 0.1 - 1e-12])
+    psi, dpsi, _ = penalty_depth(-d, band)
+    assert np.allclose(psi[:3], d[:3] ** 2) and np.allclose(dpsi[:3], 2 * d[:3])
+    assert 0 < psi[3] < d[3] ** 2 and psi[4] < 1e-15 and abs(dpsi[4]) < 1e-9
+    assert SolidMortar().band(reach) == (0.05, 0.1) and SolidMortar(fade=1.0).band(reach) is None
+    rng = np.random.default_rng(5)
+    X = np.array([[[0.07, 0.2, -0.06], [0, 0, 0], [1, 0, 0], [0, 1, 0]]]) + 1e-3 * rng.normal(size=(1, 4, 3))
+
+    def f(v, order):
+        x = v.reshape(1, 4, 3)
+        g, dg, Hg = plane_gap(*x.transpose(1, 0, 2), order=max(order, 1))
+        E, G, H = penalty_terms(g, dg, Hg if order == 2 else None, np.ones(1), 100.0, order, band)
+        return E, None if G is None else G.ravel(), None if H is None else H.reshape(12, 12), {}
+
+    v = X.ravel()
+    assert f(v, 0)[0] > 0 and 0.05 < -plane_gap(*X.transpose(1, 0, 2), order=0)[0][0] < 0.1  # inside the band
+    du = rng.normal(size=12)
+    E, G, H, _ = f(v, 2)
+    h = 1e-7
+    assert abs(G @ du - (f(v + h * du, 0)[0] - f(v - h * du, 0)[0]) / (2 * h)) < 1e-6 * np.abs(G).sum()
+    assert np.allclose(H @ du, (f(v + h * du, 1)[1] - f(v - h * du, 1)[1]) / (2 * h), atol=1e-5 * np.abs(H).max())
 
 
 @pytest.fixture(scope="module", params=[1, 2])

@@ -168,7 +168,8 @@ class SolidMortar(SolidContactLaw):
         weights = np.column_stack([pr["N"], -Nm])
         c0 = pr["p"] - np.einsum("mk,mki->mi", Nm, pr["Xm"])
         slave = surface.slave[pr["f"]]
-        return FrictionState(slave, pr["q"], pr["master"], pr["image"], pr["xi"], stiffness * pr["weight"] * (-pr["g"]),
+        return FrictionState(slave, pr["q"], pr["master"], pr["image"], pr["xi"],
+                             pr["weight"] * self.normal_pressure(pr["g"], stiffness, reach),
                              pr["normal"], facet_size(surface)[slave], nodes, images, weights, c0)
 
     def evaluate(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, order: int, *,
@@ -188,7 +189,8 @@ class SolidMortar(SolidContactLaw):
         pr = self._pairs(surface, x, h, reach, order, normals)
         quadratic = pr["quadratic"]
         g, f, weight, sf = pr["g"], pr["f"], pr["weight"], pr["sf"]
-        E, grad, hess = penalty_terms(g, pr.get("dg"), pr.get("Hg"), weight, stiffness, order)
+        E, grad, hess = penalty_terms(g, pr.get("dg"), pr.get("Hg"), weight, stiffness, order, self.band(reach))
+        pn = self.normal_pressure(g, stiffness, reach)
         elements = surface.facets if quadratic else surface.triangles
         nodes = np.column_stack([sf[f], elements[pr["master"]]])
         k = pr["N"].shape[1]
@@ -220,13 +222,13 @@ class SolidMortar(SolidContactLaw):
         num, den = np.zeros(surface.n_nodes), np.zeros(surface.n_nodes)
         wq = w[pr["qidx"]] * dA
         np.add.at(den, np.repeat(sf, nq, axis=0).ravel(), np.repeat(wq, k))
-        np.add.at(num, sf[f].ravel(), np.repeat(weight * stiffness * (-g), k))
+        np.add.at(num, sf[f].ravel(), np.repeat(weight * pn, k))
         pressure = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
         info.update({
             "active": int(g.size),
             "max_penetration": float(-g.min()) if g.size else 0.0,
             "pressure": pressure,
-            "force": float(np.sum(weight * stiffness * (-g))),
+            "force": float(np.sum(weight * pn)),
         })
         return E, G, Hm, info
 

@@ -38,7 +38,8 @@ import numpy as np
 from knitframe import hookimpl, validators as v
 from knitframe_contact.solid_geometry import (
     FrictionState, P2Projection, SolidSurface, assemble, barycentric, chain_facet_derivatives, facet_size,
-    friction_terms, nagata_facets, node_normals, p2_gap_derivatives, penalty_terms, plane_gap, select_pairs,
+    friction_terms, nagata_facets, node_normals, p2_gap_derivatives, penalty_depth, penalty_terms, plane_gap,
+    select_pairs,
 )
 
 
@@ -52,7 +53,23 @@ class SolidContactLaw:
     factor: float = attrs.field(default=10.0, validator=v.positive)  #: ε = factor · E / h when stiffness is not given, -
     friction: float = attrs.field(default=0.3, validator=v.non_negative)  #: Coulomb coefficient μ (used only with a friction state), -
     slip: float = attrs.field(default=0.05, validator=v.positive)  #: regularisation slip ε_s / slave facet size (mean corner-edge length), -
+    fade: float = attrs.field(default=0.5, validator=v.in_range(0.0, 1.0, lo_open=True))  #: penetration / reach from which the penalty fades out, reaching zero force at the reach (1: no fade), -
     smoothing: str = attrs.field(default="nagata", validator=v.one_of(("none", "nagata")))  #: master surface of linear (P1) meshes: "none" (flat facets) or "nagata" (quadratic patches through the nodal normals), -
+
+    def band(self, reach: float) -> tuple[float, float] | None:
+        """The fade band (d1, d2) of the penetration, mm (see :func:`~knitframe_contact.solid_geometry.penalty_depth`).
+
+        A pair is only kept up to the search reach; without the fade the energy would jump by
+        ½ ε w reach² when a pair crosses it (a point that comes within reach of the far side
+        of a curved master, not a true contact). Across the band the force fades to zero, so
+        the energy is continuous there. Converged penetrations are a few percent of r, far
+        below the band; a run reports its largest.
+        """
+        return None if self.fade >= 1.0 else (self.fade * reach, reach)
+
+    def normal_pressure(self, g: np.ndarray, stiffness: float, reach: float) -> np.ndarray:
+        """Contact pressure ½ ε ψ'(⟨−g⟩) (MPa): ε⟨−g⟩ below the fade band."""
+        return 0.5 * stiffness * penalty_depth(g, self.band(reach))[1]
 
     def master_normals(self, surface: SolidSurface, x: np.ndarray | None = None) -> np.ndarray:
         """Area-weighted unit normals (N, 3) of the master surface at x (default: the reference nodes)."""
@@ -137,7 +154,7 @@ class SolidPenalty(SolidContactLaw):
         np.add.at(num, sf.ravel(), np.repeat(facet_size(surface)[surface.slave], sf.shape[1]))
         np.add.at(den, sf.ravel(), 1.0)
         size = num[a["node"]] / den[a["node"]]
-        force = stiffness * surface.tributary[a["node"]] * (-a["g"])
+        force = surface.tributary[a["node"]] * self.normal_pressure(a["g"], stiffness, reach)
         return FrictionState(a["node"], np.full(len(lam), -1), a["triangle"], a["image"], lam[:, 1:], force,
                              nrm / np.linalg.norm(nrm, axis=1, keepdims=True), size, a["nodes"], a["images"], weights,
                              np.einsum("mk,mki->mi", weights, p))
@@ -161,7 +178,7 @@ class SolidPenalty(SolidContactLaw):
         a = self._active(surface, x, h, reach, order, normals)
         g = a["g"]
         weight = surface.tributary[a["node"]]
-        E, grad, hess = penalty_terms(g, a["dg"], a["Hg"], weight, stiffness, order)
+        E, grad, hess = penalty_terms(g, a["dg"], a["Hg"], weight, stiffness, order, self.band(reach))
         terms = [(a["nodes"], a["images"], grad, hess)]
         info: dict[str, Any] = {}
         if friction_state is not None and self.friction > 0 and len(friction_state):
@@ -171,7 +188,7 @@ class SolidPenalty(SolidContactLaw):
             terms.append((friction_state.nodes, friction_state.images, gf, Hf))
         E, G, H = assemble(surface.n_nodes, surface.lattice, E, terms, order)
         pressure = np.zeros(surface.n_nodes)
-        pressure[a["node"]] = -stiffness * g
+        pressure[a["node"]] = self.normal_pressure(g, stiffness, reach)
         info.update({
             "active": int(g.size),
             "max_penetration": float(-g.min()) if g.size else 0.0,

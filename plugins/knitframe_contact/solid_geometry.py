@@ -37,7 +37,7 @@ from knitframe.errors import NumericalError
 from knitframe.periodic import Lattice, PointMap
 
 __all__ = [
-    "plane_gap", "barycentric", "point_triangle_distance", "nearest", "node_normals", "penalty_terms", "combine",
+    "plane_gap", "barycentric", "point_triangle_distance", "nearest", "node_normals", "penalty_terms", "penalty_depth", "combine",
     "assemble", "SolidSurface", "Candidates", "bezier_points", "distance_bound", "select_pairs", "Selection",
     "p2_shape", "p2_coefficients", "project_p2", "P2Projection", "facet_gap", "p2_gap_derivatives",
     "FrictionState", "friction_potential", "friction_terms", "facet_size", "nagata_facets", "chain_facet_derivatives",
@@ -735,26 +735,48 @@ def nearest(point: np.ndarray, dist: np.ndarray, *ties: np.ndarray) -> np.ndarra
     return order[first]
 
 
-def penalty_terms(g: np.ndarray, dg: np.ndarray, Hg: np.ndarray | None, weight: np.ndarray, stiffness: float,
-                  order: int) -> tuple[float, np.ndarray | None, np.ndarray | None]:
-    """Energy ½ ε w ⟨−g⟩², its element gradients (m, k, 3) and Hessians (m, k, 3, k, 3) for active pairs.
+def penalty_depth(g: np.ndarray, band: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """ψ(d), ψ'(d), ψ''(d) of the penetration d = ⟨−g⟩ (mm², mm, -): the penalty energy is ½ ε w ψ.
 
-    ``weight`` (m,) is the slave area each gap stands for (mm²), ``stiffness`` ε in N/mm³.
+    ψ = d² up to the band's start d1; across the band (d1, d2) it fades out, ψ = d² S(t),
+    S = 1 − 3t² + 2t³, t = (d − d1)/(d2 − d1), so that ψ and ψ' reach 0 at d2 (the contact
+    reach, beyond which a pair is not kept). Without a band ψ = d² throughout.
     """
-    pen = np.minimum(g, 0.0)
-    E = 0.5 * stiffness * float(np.sum(weight * pen**2))
+    d = np.maximum(-g, 0.0)
+    psi, d_psi, dd_psi = d * d, 2.0 * d, 2.0 * (d > 0)
+    if band is not None:
+        d1, d2 = band
+        width = d2 - d1
+        t = np.clip((d - d1) / width, 0.0, 1.0)
+        S = 1.0 - 3.0 * t**2 + 2.0 * t**3
+        dS = np.where((t > 0) & (t < 1), (-6.0 * t + 6.0 * t**2) / width, 0.0)
+        ddS = np.where((t > 0) & (t < 1), (-6.0 + 12.0 * t) / width**2, 0.0)
+        psi, d_psi, dd_psi = d * d * S, 2.0 * d * S + d * d * dS, dd_psi * S + 4.0 * d * dS + d * d * ddS
+    return psi, d_psi, dd_psi
+
+
+def penalty_terms(g: np.ndarray, dg: np.ndarray, Hg: np.ndarray | None, weight: np.ndarray, stiffness: float,
+                  order: int, band: tuple[float, float] | None = None
+                  ) -> tuple[float, np.ndarray | None, np.ndarray | None]:
+    """Energy ½ ε w ψ(⟨−g⟩), its element gradients (m, k, 3) and Hessians (m, k, 3, k, 3) for active pairs.
+
+    ``weight`` (m,) is the slave area each gap stands for (mm²), ``stiffness`` ε in N/mm³; ψ = d²
+    (the classical ½ ε w ⟨−g⟩²), faded out across ``band`` (:func:`penalty_depth`). With
+    d = −g: ∂E = −½ ε w ψ' ∂g and ∂²E = ½ ε w (ψ'' ∂g ⊗ ∂g − ψ' ∂²g).
+    """
+    psi, d_psi, dd_psi = penalty_depth(g, band)
+    E = 0.5 * stiffness * float(np.sum(weight * psi))
     if order == 0:
         return E, None, None
-    c = stiffness * weight
-    grad = (c * pen)[:, None, None] * dg
+    c = 0.5 * stiffness * weight
+    grad = (-c * d_psi)[:, None, None] * dg
     if order == 1:
         return E, grad, None
-    on = (g < 0).astype(float)
     m, k = dg.shape[:2]
     d = dg.reshape(m, 3 * k)
-    hess = ((c * on)[:, None, None] * (d[:, :, None] * d[:, None, :])).reshape(m, k, 3, k, 3)
+    hess = ((c * dd_psi)[:, None, None] * (d[:, :, None] * d[:, None, :])).reshape(m, k, 3, k, 3)
     if Hg is not None:
-        hess += (c * pen)[:, None, None, None, None] * Hg
+        hess -= (c * d_psi)[:, None, None, None, None] * Hg
     return E, grad, hess
 
 
