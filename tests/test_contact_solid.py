@@ -176,6 +176,29 @@ def test_smoothed_master_gap_does_not_jump_across_facet_edges():
     assert np.max(np.abs(np.diff(smooth.g))) < 0.1 * np.max(np.abs(np.diff(flat.g)))
 
 
+def test_folded_patch_is_not_a_penetration():
+    """A point outside a strongly bowed patch, just beyond its rim: the patch's continuation folds over there
+    (normal turned against the corners' plane) and reported a gap of −0.097 mm; it must not qualify.
+
+    The numbers are a triangle, its nodal normals and a slave point taken from a jersey cell run where
+    this spurious pair made the contact energy jump."""
+    Xt = np.array([[0.3970220578290573, 0.6172234515365792, 0.13746648774933495],
+                   [0.5186977355848384, 0.6063778531860873, 0.2561806073084894],
+                   [0.4765906506443856, 0.7049691798592989, 0.16747823843478618]])
+    nt = np.array([[-0.6368880963383645, 0.16845692981560978, 0.7523269339453378],
+                   [-0.17745334564439583, 0.5815138302562098, 0.7939470859826632],
+                   [-0.1618329135962339, 0.6359132682948969, 0.7546021622573423]])
+    p = np.array([[0.4958636184723171, 0.6634617543482386, 0.33105287966188657]])
+    ns = np.array([[0.01062752663991197, -0.00489598085137729, 0.00696698809696292]])
+    X6, _ = nagata_facets(Xt[None], nt[None])
+    flat = np.cross(Xt[1] - Xt[0], Xt[2] - Xt[0])
+    assert np.dot(p[0] - Xt[0], flat) > 0  # outside: above the corners' plane
+    ext = project_p2(p, X6, extend=True, start=project_p2(p, X6).xi)
+    assert ext.interior[0] and ext.g[0] < -0.09 and np.dot(ext.n[0], flat) < 0  # the folded continuation
+    chosen = select_pairs(p, np.zeros(1, np.int64), np.zeros(1, np.int64), X6, ns, 0.111)
+    assert len(chosen.g) == 0 or chosen.g[0] > 0
+
+
 def test_penalty_fades_out_continuously_at_the_reach():
     """ψ = d² below the band; across it the energy and force fall to zero at the reach (no jump when a pair
     enters the search), and the gradient and Hessian of the faded energy match central differences."""

@@ -406,7 +406,10 @@ def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.n
     The gap is the plane gap of a linear triangle (:func:`plane_gap`) or n·(p − x(ξ*)) at the
     closest point of a quadratic facet (:func:`project_p2`); when that is on the facet's rim,
     ξ* is the closest point of the facet's polynomial continuation beyond the rim (the curved
-    counterpart of a triangle's plane), where one is found within 0.5 of the triangle.
+    counterpart of a triangle's plane), where one is found within 0.5 of the triangle and its normal
+    stays within 60° of the corners' plane. A curved element whose normal at the closest point is
+    turned against its corners' plane (a strongly bowed facet folding over near its rim) does not
+    qualify: its "gap" would report a point outside the body as deep inside it.
 
     Distances are computed where needed only: first for the candidates into which the point
     projects (barycentric coordinates on the corners' plane ≥ −``prescreen``), then for the rest
@@ -427,8 +430,17 @@ def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.n
         dist, inside, g = point_triangle_distance(p[rows], x[:, 0], x[:, 1], x[:, 2], gap=True)
         return dist, np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]), inside, g, None
 
+    # a curved facet's normal at the closest point must keep the orientation of its corners' plane: where a
+    # strongly bowed facet folds over near its rim the normal flips, and the "gap" there is not a gap
+    m_flat = np.cross(Xe[:, 1] - Xe[:, 0], Xe[:, 2] - Xe[:, 0])
+
+    def unfolded(n, rows, limit=0.0):
+        return _dot(n, m_flat[rows]) > limit * np.linalg.norm(n, axis=1) * np.linalg.norm(m_flat[rows], axis=1)
+
     res1 = narrow(first)
     ok1 = (_dot(res1[1], normal[first]) < 0) & (res1[0] < reach)
+    if quadratic:
+        ok1 &= unfolded(res1[1], first)
     best = np.full(int(point.max(initial=-1)) + 1, np.inf)
     good = np.flatnonzero(ok1 & res1[2])
     win = good[nearest(point[first[good]], res1[0][good])]
@@ -438,6 +450,8 @@ def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.n
     rest = np.flatnonzero(rest & (bound <= best[point]))
     res2 = narrow(rest)
     ok2 = (_dot(res2[1], normal[rest]) < 0) & (res2[0] < reach)
+    if quadratic:
+        ok2 &= unfolded(res2[1], rest)
     rows = np.concatenate([first, rest])
     dist, inside, g = (np.concatenate([a, b]) for a, b in ((res1[0], res2[0]), (res1[2], res2[2]), (res1[3], res2[3])))
     ok = np.flatnonzero(np.concatenate([ok1, ok2]))
@@ -458,10 +472,11 @@ def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.n
         if rim.size:
             r = rows[chosen[rim]]
             ext = project_p2(p[r], Xe[r], extend=True, start=proj["xi"][rim])
-            use = rim[ext.interior]
+            valid = ext.interior & unfolded(ext.n, r, 0.5)  # within 60° of the facet's plane, not folded over
+            use = rim[valid]
             for f in fields:
-                proj[f][use] = getattr(ext, f)[ext.interior]
-            g[use] = ext.g[ext.interior]
+                proj[f][use] = getattr(ext, f)[valid]
+            g[use] = ext.g[valid]
         proj = P2Projection(**proj)
     return Selection(rows[chosen], g, proj)
 
