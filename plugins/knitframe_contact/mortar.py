@@ -6,13 +6,18 @@ same yarn), and the penalty energy is integrated over the slave surface::
 
     W = ∫_Γs ½ ε ⟨−g(x)⟩² dA ≈ Σ_f Σ_q ½ ε w_q A_f ⟨−g(x_q)⟩²
 
-so the contact traction ε⟨−g⟩ is a field on the slave surface, not a set of nodal forces: a
+(faded out across the last half of the search reach, so that a pair entering the search does not
+make the energy jump; :meth:`SolidContactLaw.band`), so the contact traction ε⟨−g⟩ is a field on the slave surface, not a set of nodal forces: a
 uniform pressure is transmitted as a uniform pressure (contact patch test), and the force on
 the master side is integrated consistently through the master's shape functions at the
 projection points. On linear facets g is the distance to the master triangle's plane; on
 quadratic facets it is n·(x_q − x(ξ*)) at the closest point ξ* of the curved master facet, or
 of its polynomial continuation when the point lies beyond the facet's rim (the curved
-counterpart of the plane; :func:`knitframe_contact.solid_geometry.select_pairs`). The gradient
+counterpart of the plane; :func:`knitframe_contact.solid_geometry.select_pairs`). On linear
+meshes the master surface is by default smoothed (``smoothing = "nagata"``): each master
+triangle becomes the quadratic patch through its corners' nodal normals
+(:func:`knitframe_contact.solid_geometry.nagata_facets`), with the normals frozen for the
+increment, so that the gap does not kink at facet edges. The gradient
 and Hessian are exact for the current pairing, including the second derivative of the
 closest-point projection on curved facets
 (:func:`knitframe_contact.solid_geometry.p2_gap_derivatives`; Gauss-Newton only where the

@@ -8,7 +8,10 @@ by its signed plane gap g (see :func:`knitframe_contact.solid_geometry.plane_gap
 
 with A_s the node's tributary reference area (a third of each adjacent surface triangle) and ε
 the penalty stiffness in N/mm³ (pressure per mm of penetration; default ``factor``·E/h from the
-solver's contact modulus E and element size h). The gradient and the Hessian are exact for the
+solver's contact modulus E and element size h); ⟨−g⟩² fades out across the last half of the
+search reach (``fade``). On linear meshes the master triangles are by default replaced by
+quadratic Nagata patches through the nodal normals (``smoothing``; see ``mortar``), and the gap
+is measured to the patch. The gradient and the Hessian are exact for the
 current pairing, including the rotation of the master plane. Node pressure ε⟨−g⟩ is reported for
 output. Pairs are only kept when the slave node normal opposes the master normal, and when the
 penetration is shallower than the search reach (deeper pairs are the far side of a body).
