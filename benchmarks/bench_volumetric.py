@@ -147,14 +147,15 @@ def bench_run(args) -> list[dict]:
         print(f"  {time.perf_counter() - t0:8.1f} s  {done}/{total}  {message}", file=sys.stderr, flush=True)
 
     sc = scene(args.steps)
-    trace = None
-    if args.trace:
-        trace_file = open(args.trace, "a")
+    trace_file = open(args.trace, "a") if args.trace else None
 
-        def trace(record):
-            trace_file.write(json.dumps(record, default=float) + "\n")
-            trace_file.flush()
-    resp = solver.simulate(fab, sc, progress=progress, checkpoint_dir=args.checkpoint, trace=trace)
+    def write_trace(record):
+        trace_file.write(json.dumps(record, default=float) + "\n")
+        trace_file.flush()
+    resp = solver.simulate(fab, sc, progress=progress, checkpoint_dir=args.checkpoint,
+                           trace=write_trace if trace_file is not None else None)
+    if trace_file is not None:
+        trace_file.close()
     wall = time.perf_counter() - t0
     if args.save:
         with open(args.save, "w") as fh:
