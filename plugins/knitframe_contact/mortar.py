@@ -49,8 +49,8 @@ import numpy as np
 from knitframe import hookimpl, validators as v
 from knitframe_contact.penalty import SolidContactLaw
 from knitframe_contact.solid_geometry import (
-    FrictionState, P2Projection, SolidSurface, assemble, barycentric, chain_facet_derivatives, combine, facet_size,
-    friction_terms, nagata_facets, p2_gap_derivatives, p2_shape, penalty_terms, plane_gap, select_pairs,
+    FrictionState, P2Projection, SolidSurface, assemble, barycentric, combine, facet_size, friction_terms,
+    p2_gap_derivatives, p2_shape, penalty_terms, plane_gap, select_pairs,
 )
 
 
@@ -80,7 +80,7 @@ class SolidMortar(SolidContactLaw):
                order: int, normals: np.ndarray | None = None) -> dict[str, Any]:
         """Active quadrature-point pairs of state x: gaps (and their derivatives up to ``order``)."""
         quadratic = surface.facets.shape[1] == 6
-        smooth = not quadratic and self.smoothing == "nagata"
+        smooth = self.smoothed(surface)
         lam, w = triangle_rule(self.quadrature)
         if quadratic:
             N_q, dN_q = p2_shape(lam[:, 1:])
@@ -104,13 +104,8 @@ class SolidMortar(SolidContactLaw):
         cand = surface.candidates(xq, sf[face, 0], x, h, reach, quadratic=quadratic, group=nq)
         elements = surface.facets if quadratic else surface.triangles
         Xm = x[elements[cand.triangle]] + cand.shift[:, None, :]
-        if smooth:
-            nodal = self.master_normals(surface) if normals is None else normals
-            nodal_m = nodal[elements[cand.triangle]]
-            # the patches of the master triangles once, then moved to each candidate's image
-            used, where = np.unique(cand.triangle, return_inverse=True)
-            Xp = nagata_facets(x[elements[used]], nodal[elements[used]], blocks=False)[0][where] + cand.shift[:, None, :]
-        chosen = select_pairs(xq[cand.point], cand.point, cand.triangle, Xp if smooth else Xm, ns_q[cand.point], reach)
+        Xp = self.patches(surface, x, cand.triangle, cand.shift, normals) if smooth else Xm
+        chosen = select_pairs(xq[cand.point], cand.point, cand.triangle, Xp, ns_q[cand.point], reach)
         rows, g = chosen.rows, chosen.g
         point, Xm = cand.point[rows], Xm[rows]
         sel = np.flatnonzero((g < 0) & (g > -reach))
@@ -129,10 +124,7 @@ class SolidMortar(SolidContactLaw):
             pr = _take(chosen.projection, sel)
             out["xi"], out["normal"] = pr.xi, pr.n
             if order >= 1:
-                rs = rows[sel]
-                X6, A6 = nagata_facets(Xm, nodal_m[rs])
-                dg6, Hg6 = p2_gap_derivatives(pr, X6, N, order)
-                out["dg"], out["Hg"] = chain_facet_derivatives(dg6, Hg6, A6)
+                out["dg"], out["Hg"] = self.patch_gap_derivatives(surface, Xm, out["master"], pr, N, order, normals)
         else:
             A, B, C = Xm[:, 0], Xm[:, 1], Xm[:, 2]
             out["xi"] = barycentric(out["p"], A, B, C)[:, 1:]

@@ -74,9 +74,33 @@ class SolidContactLaw:
         """Contact pressure ½ ε ψ'(⟨−g⟩) (MPa): ε⟨−g⟩ below the fade band."""
         return 0.5 * stiffness * penalty_depth(g, self.band(reach))[1]
 
-    def master_normals(self, surface: SolidSurface, x: np.ndarray | None = None) -> np.ndarray:
-        """Area-weighted unit normals (N, 3) of the master surface at x (default: the reference nodes)."""
+    def smoothed(self, surface: SolidSurface) -> bool:
+        """Whether the master surface is made of Nagata patches: linear (P1) facets and ``smoothing = "nagata"``."""
+        return surface.facets.shape[1] == 3 and self.smoothing == "nagata"
+
+    def master_normals(self, surface: SolidSurface, x: np.ndarray | None = None) -> np.ndarray | None:
+        """Angle-weighted unit normals (N, 3) of the master surface at x (default: the reference nodes)
+        that shape its patches, or None when the surface is not smoothed. A solver freezes them at the
+        start of each increment and passes them to :meth:`evaluate` as ``normals``."""
+        if not self.smoothed(surface):
+            return None
         return node_normals(surface.X if x is None else x, surface.triangles[surface.tri_master])
+
+    def patches(self, surface: SolidSurface, x: np.ndarray, triangle: np.ndarray, shift: np.ndarray,
+                normals: np.ndarray | None) -> np.ndarray:
+        """Nagata patches (m, 6, 3) of master triangles ``triangle`` (m,) moved by ``shift`` (m, 3): each
+        distinct triangle is built once (:func:`~knitframe_contact.solid_geometry.nagata_facets`)."""
+        nodal = self.master_normals(surface) if normals is None else normals
+        used, where = np.unique(triangle, return_inverse=True)
+        tri = surface.triangles[used]
+        return nagata_facets(x[tri], nodal[tri], blocks=False)[0][where] + shift[:, None, :]
+
+    def patch_gap_derivatives(self, surface: SolidSurface, Xt: np.ndarray, triangle: np.ndarray, projection,
+                              weights: np.ndarray | None, order: int, normals: np.ndarray | None):
+        """Gap gradient and Hessian of pairs on patches, in (slave points, the triangles' corners Xt (m, 3, 3))."""
+        nodal = self.master_normals(surface) if normals is None else normals
+        X6, A6 = nagata_facets(Xt, nodal[surface.triangles[triangle]])
+        return chain_facet_derivatives(*p2_gap_derivatives(projection, X6, weights, order), A6)
 
     def penalty(self, modulus: float, size: float) -> float:
         """Penalty stiffness ε (N/mm³) for contact modulus E (MPa) and element size h (mm): the given
@@ -99,12 +123,9 @@ class SolidPenalty(SolidContactLaw):
         slave = surface.slave_nodes
         cand = surface.candidates(x[slave], slave, x, h, reach)
         Xm = x[surface.triangles[cand.triangle]] + cand.shift[:, None, :]
-        smooth = surface.facets.shape[1] == 3 and self.smoothing == "nagata"
+        smooth = self.smoothed(surface)
         if smooth:
-            nodal = self.master_normals(surface) if normals is None else normals
-            used, where = np.unique(cand.triangle, return_inverse=True)
-            tri_u = surface.triangles[used]
-            Xm = nagata_facets(x[tri_u], nodal[tri_u], blocks=False)[0][where] + cand.shift[:, None, :]
+            Xm = self.patches(surface, x, cand.triangle, cand.shift, normals)
         ns = node_normals(x, surface.triangles[surface.tri_slave])[slave]
         chosen = select_pairs(x[slave[cand.point]], cand.point, cand.triangle, Xm, ns[cand.point], reach)
         rows = chosen.rows
@@ -127,12 +148,10 @@ class SolidPenalty(SolidContactLaw):
         sel = np.flatnonzero((g < 0) & (g > -reach))
         p = p[sel]
         if smooth:
-            nodal = self.master_normals(surface) if normals is None else normals
-            X6, A6 = nagata_facets(p[:, 1:], nodal[tri[sel]])
             proj = P2Projection(*(getattr(pr["projection"], f.name)[sel] for f in attrs.fields(P2Projection)))
             g, dg, Hg = g[sel], None, None
             if order >= 1:
-                dg, Hg = chain_facet_derivatives(*p2_gap_derivatives(proj, X6, None, order), A6)
+                dg, Hg = self.patch_gap_derivatives(surface, p[:, 1:], pr["triangle"][sel], proj, None, order, normals)
         else:
             g, dg, Hg = plane_gap(p[:, 0], p[:, 1], p[:, 2], p[:, 3], order=order)
         return {"node": pr["node"][sel], "triangle": pr["triangle"][sel], "image": pr["image"][sel],

@@ -432,7 +432,7 @@ def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.n
 
     # a curved facet's normal at the closest point must keep the orientation of its corners' plane: where a
     # strongly bowed facet folds over near its rim the normal flips, and the "gap" there is not a gap
-    m_flat = np.cross(Xe[:, 1] - Xe[:, 0], Xe[:, 2] - Xe[:, 0])
+    m_flat = np.cross(Xe[:, 1] - Xe[:, 0], Xe[:, 2] - Xe[:, 0]) if quadratic else None
 
     def unfolded(n, rows, limit=0.0):
         return _dot(n, m_flat[rows]) > limit * np.linalg.norm(n, axis=1) * np.linalg.norm(m_flat[rows], axis=1)

@@ -20,7 +20,8 @@ from knitframe.errors import ConfigError, NumericalError
 
 BACKENDS = ("auto", "superlu", "pardiso", "cholmod")
 #: ``auto`` uses PARDISO from this many unknowns up: below (the rod cells), SuperLU is as fast and keeps
-#: every digit; above, PARDISO is much faster (a P1 jersey cell, 10 143 unknowns: 0.18 s against 0.86 s)
+#: every digit; above, PARDISO is much faster after its one-off start-up (a P1 jersey cell, 8 091 unknowns:
+#: 0.05 s against 0.45 s per new matrix; docs/performance.md, ``bench_volumetric.py iteration``)
 AUTO_PARDISO_SIZE = 5_000
 _MODULES = {"pardiso": ("pypardiso", "pip install pypardiso"),
             "cholmod": ("sksparse", "pip install scikit-sparse (needs libsuitesparse-dev)")}

@@ -443,7 +443,6 @@ class VolumetricModel:
         self.u0 = np.zeros(n)
         self.TtT = (self.TT @ T).tocsr()
         self.timings = {"mesh": t_mesh, "material": 0.0, "contact": 0.0, "transform": 0.0, "linear_solve": 0.0}
-        self.stabilisation_energy = 0.0
         self.friction = False  # lagged Coulomb friction (scene effect "friction")
         self.friction_state = None
         self.normals = None  # nodal normals of the smoothed P1 master surface, frozen per increment (anchor)
@@ -462,9 +461,9 @@ class VolumetricModel:
         self.u0 = self.T @ q0
         self.friction_state = None
         x = self.cm.nodes + self.u0.reshape(-1, 3)
-        self.normals = None
-        if self.law is not None and self.surface.facets.shape[1] == 3 and getattr(self.law, "smoothing", "none") != "none":
-            self.normals = self.law.master_normals(self.surface, x)
+        # laws without a smoothed master surface (or without the method, from other packages) get none
+        frozen = getattr(self.law, "master_normals", None)
+        self.normals = None if frozen is None else frozen(self.surface, x)
         if self.friction:
             self.friction_state = self.law.friction_state(self.surface, x, q0[-N_MACRO:], stiffness=self.stiffness,
                                                           reach=self.reach, **self._normals())
