@@ -200,3 +200,27 @@ def test_friction_is_frozen_per_increment_only_when_asked(monkeypatch):
     assert calls == []
     r = solver.simulate(FABRIC, attrs.evolve(STRETCH, effects=frozenset(effects | {"friction"})))
     assert len(calls) >= STRETCH.load.steps and r.provenance.converged
+
+
+@pytest.mark.parametrize("search", ["iteration", "evaluation"])
+def test_contact_search_once_per_newton_iteration(monkeypatch, search):
+    """contact_search = "iteration": the contact pairs are searched at the Hessian evaluations only
+    (one per Newton iterate) and held through the line search; "evaluation" searches every time."""
+    from knitframe_contact.solid_geometry import SolidSurface
+
+    calls = []
+    original = SolidSurface.candidates
+
+    def counting(self, *args, **kwargs):
+        calls.append(1)
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(SolidSurface, "candidates", counting)
+    # a stretch large enough for the Poisson contraction to need Newton iterations with line searches
+    scene = Scene(load=LoadPath(kind="uniaxial", direction="course", max_strain=0.2, steps=2),
+                  effects={"large_deformation", "anisotropy", "contact"})
+    r = VolumetricSolver(order=1, seed=0.75, contact_law="mortar", contact_search=search).simulate(FABRIC, scene)
+    ev = r.provenance.extra["newton_evaluations"]
+    assert r.provenance.converged and ev["energy"] > 0
+    expected = ev["hessian"] if search == "iteration" else ev["energy"] + ev["gradient"] + ev["hessian"]
+    assert len(calls) == expected

@@ -49,7 +49,7 @@ import numpy as np
 from knitframe import hookimpl, validators as v
 from knitframe_contact.penalty import SolidContactLaw
 from knitframe_contact.solid_geometry import (
-    FrictionState, P2Projection, SolidSurface, assemble, barycentric, combine, facet_size, friction_terms,
+    Candidates, FrictionState, P2Projection, SolidSurface, assemble, barycentric, combine, facet_size, friction_terms,
     p2_gap_derivatives, p2_shape, penalty_terms, plane_gap, select_pairs,
 )
 
@@ -77,8 +77,9 @@ class SolidMortar(SolidContactLaw):
     quadrature: int = attrs.field(default=4, validator=v.in_range(1, 19))  #: polynomial order of the slave-triangle rule, -
 
     def _pairs(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, reach: float,
-               order: int, normals: np.ndarray | None = None) -> dict[str, Any]:
-        """Active quadrature-point pairs of state x: gaps (and their derivatives up to ``order``)."""
+               order: int, normals: np.ndarray | None = None, pairing: Candidates | None = None) -> dict[str, Any]:
+        """Active quadrature-point pairs of state x: gaps (and their derivatives up to ``order``);
+        with ``pairing`` only those pairs are considered (:meth:`search`)."""
         quadratic = surface.facets.shape[1] == 6
         smooth = self.smoothed(surface)
         lam, w = triangle_rule(self.quadrature)
@@ -101,7 +102,7 @@ class SolidMortar(SolidContactLaw):
             ns_q = np.repeat(np.cross(xs[:, 1] - xs[:, 0], xs[:, 2] - xs[:, 0]), nq, axis=0)
         face = np.repeat(np.arange(len(sf)), nq)
         qidx = np.tile(np.arange(nq), len(sf))
-        cand = surface.candidates(xq, sf[face, 0], x, h, reach, quadratic=quadratic, group=nq)
+        cand = self.search(surface, xq, sf[face, 0], x, h, reach, pairing, quadratic=quadratic, group=nq)
         elements = surface.facets if quadratic else surface.triangles
         Xm = x[elements[cand.triangle]] + cand.shift[:, None, :]
         Xp = self.patches(surface, x, cand.triangle, cand.shift, normals) if smooth else Xm
@@ -114,7 +115,8 @@ class SolidMortar(SolidContactLaw):
         N = N_q[q]  # (m, k) slave shape functions at the points
         out = {"quadratic": quadratic, "f": f, "q": q, "N": N, "g": g, "Xm": Xm, "p": xq[point],
                "master": cand.triangle[rows[sel]], "image": cand.image[rows[sel]],
-               "weight": w[q] * dA[point], "sf": sf, "nq": nq, "dA": dA, "w": w, "qidx": qidx}
+               "weight": w[q] * dA[point], "sf": sf, "nq": nq, "dA": dA, "w": w, "qidx": qidx,
+               "pairing": self.chosen(cand, rows)}
         if quadratic:
             pr = _take(chosen.projection, sel)
             out["xi"], out["normal"] = pr.xi, pr.n
@@ -171,7 +173,8 @@ class SolidMortar(SolidContactLaw):
 
     def evaluate(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, order: int, *,
                  stiffness: float, reach: float, friction_state: FrictionState | None = None,
-                 normals: np.ndarray | None = None) -> tuple[float, Any, Any, dict[str, Any]]:
+                 normals: np.ndarray | None = None, pairing: Candidates | None = None
+                 ) -> tuple[float, Any, Any, dict[str, Any]]:
         """Energy (N·mm), gradient and Hessian in q = [u (3N), h (6)], and diagnostics (see ``penalty``).
 
         ``normals`` (N, 3): the nodal normals that shape the smoothed master surface of linear
@@ -182,8 +185,11 @@ class SolidMortar(SolidContactLaw):
 
         With ``friction_state`` (from :meth:`friction_state` at the last converged state) the
         lagged regularised Coulomb friction of those pairs is added (module docstring).
+
+        ``pairing``: the pairs of an earlier evaluation (its ``info["pairing"]``) to evaluate
+        instead of searching (:meth:`search`); every evaluation reports the pairing it used.
         """
-        pr = self._pairs(surface, x, h, reach, order, normals)
+        pr = self._pairs(surface, x, h, reach, order, normals, pairing)
         quadratic = pr["quadratic"]
         g, f, weight, sf = pr["g"], pr["f"], pr["weight"], pr["sf"]
         E, grad, hess = penalty_terms(g, pr.get("dg"), pr.get("Hg"), weight, stiffness, order, self.band(reach))
@@ -226,6 +232,7 @@ class SolidMortar(SolidContactLaw):
             "max_penetration": float(-g.min()) if g.size else 0.0,
             "pressure": pressure,
             "force": float(np.sum(weight * pn)),
+            "pairing": pr["pairing"],
         })
         return E, G, Hm, info
 
