@@ -149,10 +149,13 @@ def quarter_cylinder_on_flat(R: float, h_contact: float, h_far: float, thickness
 
 
 def image_blocks():
-    """A 1 x 1 x 0.5 block whose right face (slave) meets the left face (master) of its own periodic image.
+    """A slave block's right face (x = 1) meets the left face (master) of the periodic image of a second block.
 
-    The lattice is offset sideways so that no slave node projects onto a master edge. Returns
-    (X, surface, n_nodes).
+    Block A = [0.5, 1] x [0.2, 0.8] x [0.1, 0.4] (slave: its right face) and block B =
+    [0, 0.4] x [0, 1] x [0, 0.5] (master: its left face), whose image one lattice vector
+    L1 = (0.98, 0.0731) on overlaps A by 0.02. The master face is larger than the slave one and
+    meshed differently, so that no slave node lies over a master edge or beyond the master's rim
+    (the gap has kinks there). Returns (X, surface, n_nodes).
     """
     import skfem
 
@@ -161,14 +164,16 @@ def image_blocks():
     from knitframe.periodic import Lattice
     from knitframe_contact.solid_geometry import SolidSurface
 
-    m = skfem.MeshTet1.init_tensor(np.linspace(0, 1, 4), np.linspace(0, 1, 3), np.linspace(0, 0.5, 2))
+    a = skfem.MeshTet1.init_tensor(np.linspace(0.5, 1, 3), np.linspace(0.2, 0.8, 4), np.linspace(0.1, 0.4, 3))
+    b = skfem.MeshTet1.init_tensor(np.linspace(0, 0.4, 3), np.linspace(0, 1, 5), np.linspace(0, 0.5, 4))
+    m, body = join([a, b], 1)
     X = m.p.T
     bf = m.boundary_facets()
     fx = X[m.facets[:, bf], 0]
     right, left = bf[np.all(np.isclose(fx, 1), axis=0)], bf[np.all(np.isclose(fx, 0), axis=0)]
     facets = np.vstack([surface_facets(m, right), surface_facets(m, left)])
     n = len(X)
-    topo = SegmentTopology(np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n), np.zeros(1, np.int64), np.zeros(1))
+    topo = SegmentTopology(body, np.zeros(n, np.int64), np.zeros(n), np.zeros(2, np.int64), np.zeros(2))
     lattice = Lattice([0.98, 0.0731, 0], [0, 3.0, 0])
     surf = SolidSurface.build(X, facets, np.arange(len(right)), np.arange(len(right), len(facets)), topo, 1.0, lattice)
     return X, surf, n

@@ -397,3 +397,66 @@ def test_held_pairing_follows_the_macro_dofs():
             assert kept[0] == pytest.approx(fresh[0], rel=1e-12, abs=1e-300)
             assert np.allclose(kept[1], fresh[1], rtol=0, atol=1e-12 * max(np.abs(fresh[1]).max(), 1.0))
         assert kept[0] == 0.0
+
+
+def _one_facet_gap(p, X6, order=2):
+    """Gap of point p to the single quadratic facet X6 (6, 3) as the contact laws measure it, with derivatives."""
+    sel = select_pairs(p[None], np.zeros(1, np.int64), np.zeros(1, np.int64), X6[None],
+                       -np.cross(X6[1] - X6[0], X6[2] - X6[0])[None], 1.0)
+    dg, Hg = p2_gap_derivatives(sel.projection, X6[None], None, order)
+    return sel.g[0], dg[0], None if Hg is None else Hg[0], sel.projection
+
+
+@pytest.mark.parametrize("p,where", [
+    ([-0.05, 0.4, -0.03], "edge s = 0"), ([0.4, -0.1, 0.08], "edge t = 0"), ([0.6, 0.6, -0.05], "edge s + t = 1"),
+    ([-0.05, -0.06, -0.02], "corner"), ([0.3, 0.3, -0.02], "inside")])
+def test_gap_beyond_the_rim_is_the_signed_distance_with_exact_derivatives(p, where):
+    """Closest point on a curved facet's edge or corner: g = ±|p − x*|, and its gradient and Hessian in the
+    point and the six facet nodes match central differences (inside: the usual n·(p − x*))."""
+    rng = np.random.default_rng(0)
+    X6 = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0.5, 0, 0.1], [0.5, 0.5, 0.15], [0, 0.5, 0.05]]) \
+        + 0.02 * rng.normal(size=(6, 3))
+    p = np.array(p, float)
+    g, dg, Hg, pr = _one_facet_gap(p, X6)
+    assert pr.interior[0] == (where == "inside")
+    assert abs(abs(g) - np.linalg.norm(p - pr.x[0])) < 1e-12
+    z, eps = np.vstack([p, X6]), 1e-6
+    for k in range(7):
+        for i in range(3):
+            dz = np.zeros_like(z)
+            dz[k, i] = eps
+            gp, dgp, _, _ = _one_facet_gap(z[0] + dz[0], z[1:] + dz[1:])
+            gm, dgm, _, _ = _one_facet_gap(z[0] - dz[0], z[1:] - dz[1:])
+            assert abs((gp - gm) / (2 * eps) - dg[k, i]) < 1e-8
+            assert np.abs((dgp - dgm) / (2 * eps) - Hg[:, :, k, i]).max() < 1e-7 * max(np.abs(Hg).max(), 1.0)
+
+
+def test_gap_is_continuous_where_the_nearest_facet_changes_over_a_corner():
+    """A point passing over the apex of a six-facet cone: its nearest facet changes between facets that share
+    only the apex. The gap is the distance to the cone (1-Lipschitz along the path), where the gap to the
+    continuation of the facet that was nearest jumps when another facet's inside becomes nearest."""
+    ring = np.array([[np.cos(a), np.sin(a), 0.0] for a in np.arange(6) * np.pi / 3])
+    apex = np.array([0.0, 0.0, 0.3])
+    tri = np.array([[apex, ring[k], ring[(k + 1) % 6]] for k in range(6)])
+    X6 = np.concatenate([tri, 0.5 * (tri[:, [0, 1, 2]] + tri[:, [1, 2, 0]])], axis=1)  # flat quadratic facets
+    s = np.linspace(-0.4, 0.4, 801)
+    pts = np.column_stack([s, 0.13 + 0 * s, 0.42 + 0 * s])  # above the apex, off the cone's ridges
+    point = np.repeat(np.arange(len(pts)), 6)
+    element = np.tile(np.arange(6), len(pts))
+    sel = select_pairs(pts[point], point, element, X6[element], np.tile([0.0, 0.0, -1.0], (len(point), 1)), 1.0)
+    assert len(sel.g) == len(pts)
+    chosen = element[sel.rows]
+    assert len(np.unique(chosen)) >= 3 and np.any(~sel.projection.interior) and np.any(sel.projection.interior)
+    assert np.max(np.abs(np.diff(sel.g))) <= np.diff(s)[0] * (1 + 1e-9)
+
+
+def test_open_edges_of_the_master_surface():
+    """An open face has its rim as open edges; a periodic cell's tube surface, its end nodes identified with the
+    start nodes across the seam, has none."""
+    from knitframe_solvers.volumetric import contact_surface
+
+    _, surf, _ = image_blocks()
+    m = surf.master
+    assert 0 < surf.open_facet[m].sum() < surf.open_facet[m].size and not surf.open_facet[surf.slave].any()
+    cm = cell_mesh(helix_cell(0.2), seed=0.6, check=False)
+    assert contact_surface(cm, None).open_facet.sum() == 0

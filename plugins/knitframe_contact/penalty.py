@@ -151,7 +151,8 @@ class SolidPenalty(SolidContactLaw):
         if smooth:
             Xm = self.patches(surface, x, cand.triangle, cand.shift, normals)
         ns = node_normals(x, surface.triangles[surface.tri_slave])[slave]
-        chosen = select_pairs(x[slave[cand.point]], cand.point, cand.triangle, Xm, ns[cand.point], reach)
+        chosen = select_pairs(x[slave[cand.point]], cand.point, cand.triangle, Xm, ns[cand.point], reach,
+                              open_rim=surface.open_rim(cand.triangle, False) if smooth else None)
         rows = chosen.rows
         return {"node": slave[cand.point[rows]], "triangle": cand.triangle[rows], "image": cand.image[rows],
                 "g": chosen.g, "projection": chosen.projection if smooth else None, "pairing": self.chosen(cand, rows)}

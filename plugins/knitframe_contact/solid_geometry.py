@@ -222,6 +222,19 @@ class Candidates:
     shift: np.ndarray  #: (m, 3) current image shift F̄·S_k, mm
 
 
+def _open_edges(corners: np.ndarray, master: np.ndarray) -> np.ndarray:
+    """(E, 3) flags: edge (01, 12, 20) of element e is used by exactly one master element (all False off the master set)."""
+    out = np.zeros(corners.shape, bool)
+    if len(master) == 0:
+        return out
+    c = corners[master]
+    edges = np.stack([c[:, [0, 1]], c[:, [1, 2]], c[:, [2, 0]]], axis=1)  # (m, 3, 2)
+    key = np.sort(edges, axis=2).reshape(-1, 2)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    out[master] = (counts[inverse.ravel()] == 1).reshape(-1, 3)
+    return out
+
+
 @attrs.frozen(eq=False)
 class SolidSurface:
     """The contact surface of a solid mesh, with the bookkeeping for self-contact and images.
@@ -250,11 +263,23 @@ class SolidSurface:
     area: np.ndarray  #: (F,) reference facet areas, mm²
     slave_nodes: np.ndarray  #: nodes of the slave facets
     tributary: np.ndarray  #: (N,) reference slave area per node (a third of each slave triangle), mm²
+    open_facet: np.ndarray  #: (F, 3) master facets' edges (corners 01, 12, 20) on the master surface's open boundary
+    open_triangle: np.ndarray  #: (T, 3) the same for the linear triangles of the master facets
+
+    def open_rim(self, element: np.ndarray, quadratic: bool) -> np.ndarray:
+        """(m, 3) open-boundary flags of the edges of master elements (facets with ``quadratic``, else triangles)."""
+        return (self.open_facet if quadratic else self.open_triangle)[element]
 
     @classmethod
     def build(cls, X: np.ndarray, facets: np.ndarray, slave: np.ndarray, master: np.ndarray,
-              topology: SegmentTopology, exclusion: float, lattice: Lattice | None = None) -> "SolidSurface":
-        """Surface over reference nodes X (N, 3); areas and tributary areas from X."""
+              topology: SegmentTopology, exclusion: float, lattice: Lattice | None = None,
+              identify: np.ndarray | None = None) -> "SolidSurface":
+        """Surface over reference nodes X (N, 3); areas and tributary areas from X.
+
+        ``identify`` (N,): the node each node stands for when counting the master surface's
+        edges (a periodic mesh's end nodes → their matched start nodes), so that an edge on a
+        periodic seam, continued by the image's facets, is not an open boundary.
+        """
         from knitframe.mesh import split_facets
 
         facets = np.asarray(facets, np.int64)
@@ -268,8 +293,11 @@ class SolidSurface:
         trib = np.zeros(len(X))
         for k in range(3):
             np.add.at(trib, tri[ts, k], t_area[ts] / 3.0)
+        ident = np.arange(len(X)) if identify is None else np.asarray(identify, np.int64)
         return cls(len(X), np.asarray(X, np.float64), facets, np.asarray(slave, np.int64), np.asarray(master, np.int64), topology,
-                   float(exclusion), lattice, tri, ts, tri_of(master), area, np.unique(facets[slave]), trib)
+                   float(exclusion), lattice, tri, ts, tri_of(master), area, np.unique(facets[slave]), trib,
+                   _open_edges(ident[facets[:, :3]], np.asarray(master, np.int64)),
+                   _open_edges(ident[tri], tri_of(master)))
 
     def candidates(self, points: np.ndarray, point_node: np.ndarray, x: np.ndarray, h: np.ndarray | None,
                    reach: float, *, quadratic: bool = False, group: int = 1) -> Candidates:
@@ -393,23 +421,31 @@ class Selection:
 
 
 def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.ndarray, normal: np.ndarray,
-                 reach: float, *, prescreen: float = 0.2) -> Selection:
+                 reach: float, *, prescreen: float = 0.2, open_rim: np.ndarray | None = None) -> Selection:
     """For every query point, the nearest opposing master element of its candidates.
 
     A candidate (point p, element at its image, nodes Xe) qualifies when the element's normal at
     the closest point opposes the point's own ``normal`` and the distance is below ``reach``.
-    Per point the rank is the distance, plus 2·reach when the closest point is on the element's
-    rim rather than a projection into it (switching between elements a point projects into
-    keeps the gap continuous); equal ranks (an edge or corner shared by several elements, or
+    Per point the rank is the distance (for flat triangles plus 2·reach when the closest point is
+    on the element's rim rather than a projection into it: their gap is the plane's); equal ranks (an edge or corner shared by several elements, or
     coplanar neighbours; equal within 1e-10·reach, so that round-off does not decide) go to the
     element whose plane faces the point most (largest |g|), then to the lower ``element``.
-    The gap is the plane gap of a linear triangle (:func:`plane_gap`) or n·(p − x(ξ*)) at the
-    closest point of a quadratic facet (:func:`project_p2`); when that is on the facet's rim,
-    ξ* is the closest point of the facet's polynomial continuation beyond the rim (the curved
-    counterpart of a triangle's plane), where one is found within 0.5 of the triangle and its normal
-    stays within 60° of the corners' plane. A curved element whose normal at the closest point is
-    turned against its corners' plane (a strongly bowed facet folding over near its rim) does not
-    qualify: its "gap" would report a point outside the body as deep inside it.
+    The gap is the plane gap of a linear triangle (:func:`plane_gap`) or, on quadratic facets,
+    the signed distance g = ±|p − x(ξ*)| to the closest point ξ* (:func:`project_p2`), with the
+    sign of n·(p − x*); inside the facet (or on its rim with p − x* along n) that is n·(p − x*).
+    Where ξ* is on the rim otherwise, the unit
+    vector ±(p − x*)/|p − x*| is returned as the projection's normal n, the gap's gradient
+    direction. Ranked by distance alone, the gap is the signed distance to the master surface and
+    stays continuous when the nearest facet changes, also between facets that share only a
+    corner (a pair switching between such facets made the energy jump when the gap beyond the
+    rim was measured to the facet's polynomial continuation). Only beyond an edge on the master
+    surface's open boundary (``open_rim`` (n, 3): the candidates' edges 01, 12, 20 that no other
+    master facet continues), the gap is measured to the facet's polynomial continuation, as a
+    plane continues a flat triangle, where that has a closest point within 0.5 of the triangle
+    whose normal stays within 60° of the corners' plane; the signed distance to an open edge
+    would count a point beside the surface as inside the body. A curved element whose normal at
+    the closest point is turned against its corners' plane (a strongly bowed facet folding over
+    near its rim) does not qualify.
 
     Distances are computed where needed only: first for the candidates into which the point
     projects (barycentric coordinates on the corners' plane ≥ −``prescreen``), then for the rest
@@ -458,25 +494,48 @@ def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.n
     # ranks within rounding of each other are ties: compare them on a grid of 1e-10·reach, so
     # that the choice between coplanar neighbours does not flip with round-off
     q = 1e-10 * reach
-    rank = np.floor((dist + np.where(inside, 0.0, 2.0 * reach)) / q)
+    rank = np.floor((dist + (0.0 if quadratic else np.where(inside, 0.0, 2.0 * reach))) / q)
     face = np.floor(-np.abs(g) / q)
     chosen = ok[nearest(point[rows[ok]], rank[ok], face[ok], element[rows[ok]])]
     proj, g = None, g[chosen]
     if quadratic:
         fields = [f.name for f in attrs.fields(P2Projection)]
         proj = {f: np.concatenate([getattr(res1[4], f), getattr(res2[4], f)])[chosen] for f in fields}
-        # a point whose closest point is on the rim: its gap is measured to the facet's smooth
-        # continuation beyond the rim (as the plane continues a flat triangle), where that has a
-        # nearby closest point; the gap stays smooth in the nodes there
+        # a closest point on the rim: the gap is the signed distance ±|p − x*| (sign of n·(p − x*)),
+        # and the unit direction of p − x* takes the normal's place. The gap is then the signed
+        # distance to the master surface wherever the point is, continuous when the nearest point
+        # passes from one curved facet to another, including facets that share no edge
         rim = np.flatnonzero(~proj["interior"])
+        # on the rim but along the normal (a point right over an edge or corner): the facet's own gap
+        r_rim = p[rows[chosen[rim]]] - proj["x"][rim]
+        normal_only = np.linalg.norm(r_rim - proj["g"][rim, None] * proj["n"][rim], axis=1) \
+            <= 1e-10 * np.maximum(proj["dist"][rim], reach)
+        proj["interior"][rim[normal_only]] = True
+        rim = rim[~normal_only]
+        if open_rim is not None and rim.size:
+            # beyond an open edge of the master surface (no facet continues it) the gap is measured to
+            # the facet's polynomial continuation, as a plane continues a flat triangle, where that has a
+            # closest point near the facet that is not folded over (normal within 60° of the corners' plane)
+            xi = proj["xi"][rim]
+            on = np.column_stack([xi[:, 1] <= 0.0, xi.sum(axis=1) >= 1.0 - 1e-14, xi[:, 0] <= 0.0])  # edges 01, 12, 20
+            beyond = np.flatnonzero(np.any(on & open_rim[rows[chosen[rim]]], axis=1))
+            if beyond.size:
+                r = rows[chosen[rim[beyond]]]
+                ext = project_p2(p[r], Xe[r], extend=True, start=xi[beyond])
+                valid = ext.interior & unfolded(ext.n, r, 0.5)
+                use = rim[beyond[valid]]
+                for f in fields:
+                    proj[f][use] = getattr(ext, f)[valid]
+                g[use] = ext.g[valid]
+                rim = np.setdiff1d(rim, use)
         if rim.size:
-            r = rows[chosen[rim]]
-            ext = project_p2(p[r], Xe[r], extend=True, start=proj["xi"][rim])
-            valid = ext.interior & unfolded(ext.n, r, 0.5)  # within 60° of the facet's plane, not folded over
-            use = rim[valid]
-            for f in fields:
-                proj[f][use] = getattr(ext, f)[valid]
-            g[use] = ext.g[valid]
+            d = proj["dist"][rim]
+            sign = np.where(g[rim] < 0.0, -1.0, 1.0)
+            r = p[rows[chosen[rim]]] - proj["x"][rim]
+            ok_d = d > 1e-12 * reach
+            unit = np.where(ok_d[:, None], r / np.where(ok_d, d, 1.0)[:, None], proj["n"][rim] * sign[:, None])
+            proj["n"][rim] = sign[:, None] * unit
+            g[rim] = proj["g"][rim] = sign * d
         proj = P2Projection(**proj)
     return Selection(rows[chosen], g, proj)
 
@@ -660,9 +719,16 @@ def p2_gap_derivatives(pr: P2Projection, Xf: np.ndarray, weights: np.ndarray | N
 
         ∂²g = −Σ_αβ [ A⁻¹_αβ (e_α ⊗ h_β + h_β ⊗ e_α + g h_α ⊗ h_β) + M_αβ e_α ⊗ e_β ]
 
-    exact at an interior closest point. Where the closest point is on the facet's rim (clipped)
-    or A is not positive definite, the gap is only piecewise smooth and the second derivative is
-    set to zero (the Gauss-Newton form of the penalty Hessian). Returns dg (m, K, 3) and
+    exact at an interior closest point. Where the closest point is on the facet's rim, the gap
+    is the signed distance g = ±|r|, r = p − x(ξ*), and ``pr.n`` holds r/g (see
+    :func:`select_pairs`); ∂g/∂y_a = U_a n again, and with P = I − n nᵀ::
+
+        ∂²g = [ U ⊗ U P − e ⊗ e / A ] / g,   e_a = U_a x_τ + V_τ,a r,   A = x_τ·x_τ − r·x_ττ
+
+    on an edge of the triangle (τ its parameter, V_τ = ∂²N/∂ξ∂τ's weights of x_τ; from the
+    stationarity r·x_τ = 0 by the implicit function theorem), and ∂²g = U ⊗ U P / g at a corner.
+    Where A is not positive (definite), or the closest point is neither inside nor on the rim (the
+    projection did not converge), the second derivative is set to zero (the Gauss-Newton form of the penalty Hessian). Returns dg (m, K, 3) and
     Hg (m, K, 3, K, 3) (None for ``order`` < 2).
     """
     m = len(pr.g)
@@ -700,7 +766,36 @@ def p2_gap_derivatives(pr: P2Projection, Xf: np.ndarray, weights: np.ndarray | N
     L = np.concatenate([et, hh, em, ht], axis=1).reshape(m, 8, 3 * K)
     R = np.concatenate([hh, et, e, hh], axis=1).reshape(m, 8, 3 * K)
     Hg = -np.matmul(L.transpose(0, 2, 1), R).reshape(m, K, 3, K, 3)
+    rim = np.flatnonzero(~pr.interior & (np.abs(pr.g) > 0))
+    if rim.size:
+        Hg[rim] = _rim_gap_hessian(pr, rim, U[rim], V[rim], a3[rim], a4[rim], a5[rim])
     return dg, Hg
+
+
+def _rim_gap_hessian(pr: "P2Projection", rows: np.ndarray, U: np.ndarray, V: np.ndarray, a3: np.ndarray,
+                     a4: np.ndarray, a5: np.ndarray) -> np.ndarray:
+    """∂²g (k, K, 3, K, 3) of the signed distance at closest points on the rim (see :func:`p2_gap_derivatives`)."""
+    k, K = U.shape
+    xi, g, n = pr.xi[rows], pr.g[rows], pr.n[rows]
+    s_, t_ = xi[:, 0], xi[:, 1]
+    on = np.column_stack([s_ <= 0.0, t_ <= 0.0, s_ + t_ >= 1.0 - 1e-14])
+    edge = on.sum(axis=1) == 1
+    # the edge's direction in ξ: s = 0 → (0, 1), t = 0 → (1, 0), s + t = 1 → (−1, 1)
+    tau = np.where(on[:, [0]], [0.0, 1.0], np.where(on[:, [1]], [1.0, 0.0], [-1.0, 1.0]))
+    x_tau = tau[:, :1] * pr.xs[rows] + tau[:, 1:] * pr.xt[rows]
+    x_tt = 2.0 * tau[:, :1] ** 2 * a3 + 2.0 * tau[:, :1] * tau[:, 1:] * a4 + 2.0 * tau[:, 1:] ** 2 * a5
+    r = g[:, None] * n
+    A = _dot(x_tau, x_tau) - _dot(r, x_tt)
+    P = np.eye(3)[None] - n[:, :, None] * n[:, None, :]
+    H = np.einsum("ma,mb,mij->maibj", U, U, P)
+    V_tau = tau[:, 0, None] * V[:, 0] + tau[:, 1, None] * V[:, 1]  # (k, K)
+    e = U[:, :, None] * x_tau[:, None, :] + V_tau[:, :, None] * r[:, None, :]
+    use = edge & (A > 1e-12 * _dot(x_tau, x_tau))
+    coef = np.where(use, 1.0 / np.where(use, A, 1.0), 0.0)
+    H -= coef[:, None, None, None, None] * np.einsum("mai,mbj->maibj", e, e)
+    H /= g[:, None, None, None, None]
+    H[(edge & ~use) | (on.sum(axis=1) == 0)] = 0.0  # not a strict minimum along the edge, or not on the rim
+    return H
 
 
 def facet_gap(p: np.ndarray, Xf: np.ndarray, order: int = 1

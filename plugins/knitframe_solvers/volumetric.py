@@ -90,7 +90,11 @@ def contact_surface(cm: Any, lattice: Lattice | None, exclusion: float | None = 
     topo = SegmentTopology(strand_of[b], pos[b], offset[b] + cm.node_arc, cycle, length)
     excl = np.pi * 2.0 * cm.radius if exclusion is None else float(exclusion)
     all_f = np.arange(len(cm.surface))
-    return SolidSurface.build(cm.nodes, cm.surface, all_f, all_f, topo, excl, lattice)
+    # the tubes' end nodes stand for their matched start nodes: the seams are continued by the images
+    identify = np.arange(cm.n_nodes)
+    for end, start, _ in cm.end_pairs:
+        identify[end] = start
+    return SolidSurface.build(cm.nodes, cm.surface, all_f, all_f, topo, excl, lattice, identify)
 
 
 def write_solid_vtu(path: Path, forms: SolidForms, u: np.ndarray, s: float, pressure: np.ndarray) -> Path:
