@@ -460,3 +460,20 @@ def test_open_edges_of_the_master_surface():
     assert 0 < surf.open_facet[m].sum() < surf.open_facet[m].size and not surf.open_facet[surf.slave].any()
     cm = cell_mesh(helix_cell(0.2), seed=0.6, check=False)
     assert contact_surface(cm, None).open_facet.sum() == 0
+
+
+def test_a_flank_at_right_angles_stays_in_contact():
+    """A slave point 0.01 inside a master facet whose own normal stands at right angles to the master's
+    (the flank of a crossing yarn): it pairs with the same gap whether its normal leans 3° towards or away
+    from the master's; only a normal within 60° of the master's (the back of the other body) is refused."""
+    X6 = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0.5, 0, 0], [0.5, 0.5, 0], [0, 0.5, 0]], float)[None]
+    p = np.array([[0.3, 0.3, -0.01]])
+    one = np.zeros(1, np.int64)
+    gaps = []
+    for angle in (93.0, 87.0, 65.0, 50.0):
+        a = np.radians(angle)  # between the slave normal and the master normal +z
+        ns = np.array([[np.sin(a), 0.0, np.cos(a)]])
+        sel = select_pairs(p, one, one, X6, ns, 0.1)
+        gaps.append(sel.g[0] if len(sel.g) else None)
+    assert gaps[0] == pytest.approx(-0.01) and gaps[1] == pytest.approx(-0.01) and gaps[2] == pytest.approx(-0.01)
+    assert gaps[3] is None

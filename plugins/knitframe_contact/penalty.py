@@ -11,10 +11,11 @@ the penalty stiffness in N/mm³ (pressure per mm of penetration; default ``facto
 solver's contact modulus E and element size h); ⟨−g⟩² fades out across the last half of the
 search reach (``fade``). On linear meshes the master triangles are by default replaced by
 quadratic Nagata patches through the nodal normals (``smoothing``; see ``mortar``), and the gap
-is measured to the patch. The gradient and the Hessian are exact for the
-current pairing, including the rotation of the master plane. Node pressure ε⟨−g⟩ is reported for
-output. Pairs are only kept when the slave node normal opposes the master normal, and when the
-penetration is shallower than the search reach (deeper pairs are the far side of a body).
+is measured to the patch. The gradient and the Hessian are exact for the current pairing,
+including the rotation of the master plane. Node pressure ε⟨−g⟩ is reported for output. Pairs
+are only kept when the slave node normal is not turned the master normal's way (within 60° of
+parallel), and when the penetration is shallower than the search reach (deeper pairs are the
+far side of a body).
 
 Friction (only when the solver passes a ``friction_state``): regularised Coulomb friction with
 the normal force lagged from the last converged state. :meth:`SolidPenalty.friction_state`

@@ -411,6 +411,10 @@ def distance_bound(p: np.ndarray, Xe: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return bound, np.column_stack([l0, l1, l2])
 
 
+#: largest cosine between a master element's normal and a query point's own normal for a pair (60° off parallel)
+OPPOSING = 0.5
+
+
 @attrs.frozen(eq=False)
 class Selection:
     """The master element chosen for each query point (see :func:`select_pairs`)."""
@@ -421,11 +425,17 @@ class Selection:
 
 
 def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.ndarray, normal: np.ndarray,
-                 reach: float, *, prescreen: float = 0.2, open_rim: np.ndarray | None = None) -> Selection:
+                 reach: float, *, prescreen: float = 0.2, open_rim: np.ndarray | None = None,
+                 facing: float = OPPOSING) -> Selection:
     """For every query point, the nearest opposing master element of its candidates.
 
     A candidate (point p, element at its image, nodes Xe) qualifies when the element's normal at
-    the closest point opposes the point's own ``normal`` and the distance is below ``reach``.
+    the closest point is not turned the same way as the point's own ``normal`` (the cosine of
+    their angle below ``facing``, default :data:`OPPOSING` = 0.5: a pair is refused only when the
+    two normals are within 60° of parallel, where the element is the back of the other body; with
+    a bound at 0, the flank of a crossing yarn, whose normal stands at right angles to the
+    surface it presses into, flipped in and out of contact from one Newton iterate to the next)
+    and the distance is below ``reach``.
     Per point the rank is the distance (for flat triangles plus 2·reach when the closest point is
     on the element's rim rather than a projection into it: their gap is the plane's); equal ranks (an edge or corner shared by several elements, or
     coplanar neighbours; equal within 1e-10·reach, so that round-off does not decide) go to the
@@ -474,7 +484,10 @@ def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.n
         return _dot(n, m_flat[rows]) > limit * np.linalg.norm(n, axis=1) * np.linalg.norm(m_flat[rows], axis=1)
 
     res1 = narrow(first)
-    ok1 = (_dot(res1[1], normal[first]) < 0) & (res1[0] < reach)
+    def facing_ok(n, rows):
+        return _dot(n, normal[rows]) < facing * np.linalg.norm(n, axis=1) * np.linalg.norm(normal[rows], axis=1)
+
+    ok1 = facing_ok(res1[1], first) & (res1[0] < reach)
     if quadratic:
         ok1 &= unfolded(res1[1], first)
     best = np.full(int(point.max(initial=-1)) + 1, np.inf)
@@ -485,7 +498,7 @@ def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.n
     rest[first] = False
     rest = np.flatnonzero(rest & (bound <= best[point]))
     res2 = narrow(rest)
-    ok2 = (_dot(res2[1], normal[rest]) < 0) & (res2[0] < reach)
+    ok2 = facing_ok(res2[1], rest) & (res2[0] < reach)
     if quadratic:
         ok2 &= unfolded(res2[1], rest)
     rows = np.concatenate([first, rest])
