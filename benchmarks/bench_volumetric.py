@@ -7,6 +7,7 @@ Usage::
     python benchmarks/bench_volumetric.py iteration --order 2 --solvers pardiso,amg   # skip SuperLU (its fill-in explodes on P2)
     python benchmarks/bench_volumetric.py run --order 1 --seed 0.6 --steps 6   # pre-stress + equibiaxial 0→30 %
     python benchmarks/bench_volumetric.py law                   # the yarn law alone, per derivative order
+    python benchmarks/bench_volumetric.py trace --trace run.jsonl   # summary of a traced run, one row per Newton solve
 
 Each command prints a table (and ``--json`` writes the numbers). Peak memory is the process's
 maximum resident set size (``resource.getrusage``), so run one command per process.
@@ -37,11 +38,11 @@ def fabric():
     return Fabric(pattern="jersey", yarn=get_registry()["yarn"]["cotton"], stitch_length=11)
 
 
-def scene(steps: int):
+def scene(steps: int, friction: bool = False):
     from knitframe.records import LoadPath, Scene
 
-    return Scene(load=LoadPath(kind="equibiaxial", max_strain=0.3, steps=steps),
-                 effects={"large_deformation", "bending", "contact", "prestress", "anisotropy"})
+    effects = {"large_deformation", "bending", "contact", "prestress", "anisotropy"} | ({"friction"} if friction else set())
+    return Scene(load=LoadPath(kind="equibiaxial", max_strain=0.3, steps=steps), effects=effects)
 
 
 def bench_mesh(args) -> list[dict]:
@@ -139,7 +140,10 @@ def bench_iteration(args) -> list[dict]:
 def bench_run(args) -> list[dict]:
     from knitframe_solvers.volumetric import VolumetricSolver
 
-    solver = VolumetricSolver(order=args.order, seed=args.seed, contact_law={"kind": args.contact, "smoothing": args.smoothing},
+    law = {"kind": args.contact, "smoothing": args.smoothing}
+    if args.mu is not None:
+        law["friction"] = args.mu
+    solver = VolumetricSolver(order=args.order, seed=args.seed, contact_law=law,
                               prestress_steps=args.prestress,
                               linear_solver=args.linear_solver, contact_modulus=args.contact_modulus,
                               on_failure="truncate" if args.truncate else "raise",
@@ -154,7 +158,7 @@ def bench_run(args) -> list[dict]:
     def progress(done, total, message):
         print(f"  {time.perf_counter() - t0:8.1f} s  {done}/{total}  {message}", file=sys.stderr, flush=True)
 
-    sc = scene(args.steps)
+    sc = scene(args.steps, args.friction)
     trace_file = open(args.trace, "a") if args.trace else None
 
     def write_trace(record):
@@ -181,6 +185,27 @@ def bench_run(args) -> list[dict]:
                  "T1_N_per_mm": f"assembly+contact {(tm['material'] + tm['contact'] + tm['transform']) / n_it:.2f}",
                  "T2_N_per_mm": f"linear solve {tm['linear_solve'] / n_it:.2f} ({n_it} solves)"})
     rows.append({"lambda": "peak RSS MB", "T1_N_per_mm": round(peak_mb()), "T2_N_per_mm": ""})
+    return rows
+
+
+def bench_trace(args) -> list[dict]:
+    """One row per Newton solve of a trace file (``run --trace``): outcome, iterations, wall time, the final
+    residual against the force flux, active contacts, and the largest energy jump between an accepted
+    line-search step and the next iterate (where the contact pairing changed between them)."""
+    rows = []
+    with open(args.trace) as fh:
+        for line in fh:
+            rec = json.loads(line)
+            h = rec.get("history", [])
+            last = h[-1] if h else {}
+            jumps = [b["energy"] - a["step_energy"] for a, b in zip(h[:-1], h[1:]) if "step_energy" in a]
+            jump = max(jumps, key=abs, default=0.0)
+            res, flux = last.get("residual", float("nan")), last.get("flux", 0.0)
+            rows.append({"phase": rec["phase"], "t": round(rec["t"], 5), "converged": rec["converged"],
+                         "iterations": max(len(h) - 1, 0), "wall s": round(rec["wall_s"], 1),
+                         "residual N": f"{res:.3g}", "residual/flux": f"{res / flux:.3g}" if flux else "",
+                         "active": int(last.get("active", 0)), "largest pairing jump N·mm": f"{jump:.3g}",
+                         "relative jump": f"{abs(jump) / abs(last['energy']):.2g}" if last.get("energy") else ""})
     return rows
 
 
@@ -212,7 +237,7 @@ def table(rows: list[dict]) -> str:
 
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("what", choices=["mesh", "iteration", "run", "law"])
+    p.add_argument("what", choices=["mesh", "iteration", "run", "law", "trace"])
     p.add_argument("--order", type=int, default=2)
     p.add_argument("--seed", type=float, default=1 / 3)
     p.add_argument("--contact", default="mortar")
@@ -225,14 +250,18 @@ def main(argv=None) -> None:
     p.add_argument("--linear-solver", default="direct", help="linear-solver plugin of 'run'")
     p.add_argument("--checkpoint", help="'run': checkpoint directory; a killed run resumes from it")
     p.add_argument("--save", help="'run': write the Response as JSON here (input of benchmarks/agreement.py)")
-    p.add_argument("--trace", help="'run': append every Newton solve (history, diagnostic) to this JSON-lines file")
+    p.add_argument("--trace", help="'run': append every Newton solve (history, diagnostic) to this JSON-lines file; "
+                                   "'trace': the file to summarise")
+    p.add_argument("--friction", action="store_true", help="'run': the scene asks for yarn-yarn friction (lagged Coulomb)")
+    p.add_argument("--mu", type=float, help="'run': Coulomb friction coefficient of the contact law (default the law's, 0.3)")
     p.add_argument("--smoothing", default="nagata", help="'run': master surface of P1 contact, nagata or none")
     p.add_argument("--transverse-ratio", type=float,
                    help="'run': set the yarn's E_transverse to this × E_axial (a diagnostic of the anisotropy)")
     p.add_argument("--stabilisation", type=float, help="'run': the solver's stabilisation (weak foundation) factor")
     p.add_argument("--json")
     args = p.parse_args(argv)
-    rows = {"mesh": bench_mesh, "iteration": bench_iteration, "run": bench_run, "law": bench_law}[args.what](args)
+    rows = {"mesh": bench_mesh, "iteration": bench_iteration, "run": bench_run, "law": bench_law,
+            "trace": bench_trace}[args.what](args)
     print(table(rows))
     if args.json:
         with open(args.json, "w") as fh:

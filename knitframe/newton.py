@@ -93,7 +93,7 @@ class NewtonResult:
     gradient: np.ndarray
     iterations: int
     converged: bool
-    history: tuple[dict, ...]  #: per iteration: energy, residual, alpha, shift
+    history: tuple[dict, ...]  #: per iteration: energy, residual, alpha, shift, step_energy (E at the accepted step, as the line search evaluated it)
     info: dict
 
 
@@ -211,6 +211,7 @@ def minimise(
                 f"Newton: no descent step at iteration {it} (residual {res:.3g} > tol {tol:.3g}, shift up to "
                 f"{shift_rel:.2g}); {_fmt(history)}", history)
         history[-1]["alpha"] = alpha
+        history[-1]["step_energy"] = float(E_new)  # as the line search saw it: the next entry's energy may differ
         correction = measure(x_new - x)
         x = x_new
         E, g, H, info = fun(x, 2)
