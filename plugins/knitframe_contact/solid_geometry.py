@@ -483,10 +483,10 @@ def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.n
     def unfolded(n, rows, limit=0.0):
         return _dot(n, m_flat[rows]) > limit * np.linalg.norm(n, axis=1) * np.linalg.norm(m_flat[rows], axis=1)
 
-    res1 = narrow(first)
     def facing_ok(n, rows):
         return _dot(n, normal[rows]) < facing * np.linalg.norm(n, axis=1) * np.linalg.norm(normal[rows], axis=1)
 
+    res1 = narrow(first)
     ok1 = facing_ok(res1[1], first) & (res1[0] < reach)
     if quadratic:
         ok1 &= unfolded(res1[1], first)
