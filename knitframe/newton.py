@@ -183,7 +183,9 @@ def minimise(
         base = options.stabilisation if (stabilise is not None and stabilise(info)) else 0.0
         shift_rel = shift_rel * 0.1 if shift_rel * 0.1 > max(base, 1e-10) else base
         accepted = False
+        tried = 0.0
         for _ in range(options.max_shift_increases + 1):
+            tried = shift_rel
             A = Hff + sp.identity(Hff.shape[0], format="csc") * (shift_rel * scale) if shift_rel > 0 else Hff
             dx_f = None
             try:
@@ -209,7 +211,7 @@ def minimise(
         if not accepted:
             raise _failure(
                 f"Newton: no descent step at iteration {it} (residual {res:.3g} > tol {tol:.3g}, shift up to "
-                f"{shift_rel:.2g}); {_fmt(history)}", history)
+                f"{tried:.2g}); {_fmt(history)}", history)
         history[-1]["alpha"] = alpha
         history[-1]["step_energy"] = float(E_new)  # as the line search saw it: the next entry's energy may differ
         correction = measure(x_new - x)
