@@ -354,9 +354,10 @@ def test_self_contact_between_helix_turns_only(law):
 
 @pytest.mark.parametrize("law", [SolidPenalty(), SolidMortar(), SolidMortar(smoothing="none")],
                          ids=["penalty", "mortar", "mortar-flat"])
-def test_held_pairing_reproduces_the_search_and_is_differentiable(cylinder, law):
-    """Evaluated with the pairing its own search chose, a state gives the same energy, gradient and
-    Hessian; at a moved state the held pairing's gradient and Hessian are those of its energy (FD)."""
+def test_held_candidates_reproduce_the_search_and_are_differentiable(cylinder, law):
+    """Evaluated with the candidates of its own search, a state gives the same energy, gradient and
+    Hessian; at a moved state they give those of a fresh search, and the gradient and Hessian are
+    those of the energy (FD)."""
     mesh, body, surf = cylinder
     X = nodes(mesh)
     n = 3 * len(X)
@@ -364,36 +365,39 @@ def test_held_pairing_reproduces_the_search_and_is_differentiable(cylinder, law)
     u = np.zeros(n)
     u[1::3] = -0.01 * (body == 0)
     E, g, H, info = law.evaluate(surf, X + u.reshape(-1, 3), None, 2, stiffness=1e3, reach=0.1)
-    held = info["pairing"]
-    assert info["active"] > 0 and len(held.point) >= info["active"]
-    E2, g2, H2, info2 = law.evaluate(surf, X + u.reshape(-1, 3), None, 2, stiffness=1e3, reach=0.1, pairing=held)
+    held = info["candidates"]
+    assert info["active"] > 0 and len(held.point) > info["active"]
+    E2, g2, H2, info2 = law.evaluate(surf, X + u.reshape(-1, 3), None, 2, stiffness=1e3, reach=0.1, candidates=held)
     assert E2 == E and np.array_equal(g2, g) and abs(H2 - H).max() == 0.0 and info2["active"] == info["active"]
-    # a different state: sideways slide and a deeper press, evaluated on the held pairs
+    # a different state: sideways slide and a deeper press, evaluated on the held candidates
     v = u + 1e-4 * rng.normal(size=n) + np.tile([0.003, -0.002, 0.0], len(X)) * np.repeat(body == 0, 3)
     du = rng.normal(size=n) * np.repeat(body == 0, 3)
+    fresh = law.evaluate(surf, X + v.reshape(-1, 3), None, 1, stiffness=1e3, reach=0.1)
+    kept = law.evaluate(surf, X + v.reshape(-1, 3), None, 1, stiffness=1e3, reach=0.1, candidates=held)
+    assert kept[0] == pytest.approx(fresh[0], rel=1e-12) and np.allclose(kept[1], fresh[1], rtol=1e-10, atol=1e-14)
 
     def f(w, order):
-        return law.evaluate(surf, X + w.reshape(-1, 3), None, order, stiffness=1e3, reach=0.1, pairing=held)
+        return law.evaluate(surf, X + w.reshape(-1, 3), None, order, stiffness=1e3, reach=0.1, candidates=held)
 
     assert assert_derivatives(f, v, du, n)["active"] > 0
-    # held pairs are all there is: the pairing of a separated state sees no contact at the pressed one
+    # held candidates are all there is: those of a separated state see no contact at the pressed one
     apart = u.copy()
     apart[1::3] = 0.5 * (body == 0)
-    none = law.evaluate(surf, X + apart.reshape(-1, 3), None, 0, stiffness=1e3, reach=0.1)[3]["pairing"]
+    none = law.evaluate(surf, X + apart.reshape(-1, 3), None, 0, stiffness=1e3, reach=0.1)[3]["candidates"]
     assert len(none.point) == 0
-    assert law.evaluate(surf, X + u.reshape(-1, 3), None, 1, stiffness=1e3, reach=0.1, pairing=none)[0] == 0.0
+    assert law.evaluate(surf, X + u.reshape(-1, 3), None, 1, stiffness=1e3, reach=0.1, candidates=none)[0] == 0.0
 
 
-def test_held_pairing_follows_the_macro_dofs():
-    """Held pairs with a periodic image move with the lattice: at other macro DOFs the held energy
-    equals a fresh search's, and separates to zero with it."""
+def test_held_candidates_follow_the_macro_dofs():
+    """Held candidates with a periodic image move with the lattice: at other macro DOFs the held
+    energy equals a fresh search's, and separates to zero with it."""
     X, surf, n = image_blocks()
     for law in (SolidPenalty(), SolidMortar()):
-        held = law.evaluate(surf, X, np.zeros(6), 2, stiffness=100.0, reach=0.1)[3]["pairing"]
+        held = law.evaluate(surf, X, np.zeros(6), 2, stiffness=100.0, reach=0.1)[3]["candidates"]
         for hx in (0.002, 0.05):
             hd = np.array([hx, 0, 0, 0, 0, 0])
             fresh = law.evaluate(surf, X, hd, 1, stiffness=100.0, reach=0.1)
-            kept = law.evaluate(surf, X, hd, 1, stiffness=100.0, reach=0.1, pairing=held)
+            kept = law.evaluate(surf, X, hd, 1, stiffness=100.0, reach=0.1, candidates=held)
             assert kept[0] == pytest.approx(fresh[0], rel=1e-12, abs=1e-300)
             assert np.allclose(kept[1], fresh[1], rtol=0, atol=1e-12 * max(np.abs(fresh[1]).max(), 1.0))
         assert kept[0] == 0.0

@@ -204,8 +204,8 @@ def test_friction_is_frozen_per_increment_only_when_asked(monkeypatch):
 
 @pytest.mark.parametrize("search", ["iteration", "evaluation"])
 def test_contact_search_once_per_newton_iteration(monkeypatch, search):
-    """contact_search = "iteration": the contact pairs are searched at the Hessian evaluations only
-    (one per Newton iterate) and held through the line search; "evaluation" searches every time."""
+    """contact_search = "iteration": the broad-phase contact search runs at the Hessian evaluations only
+    (one per Newton iterate), its candidates held through the line search; "evaluation" searches every time."""
     from knitframe_contact.solid_geometry import SolidSurface
 
     calls = []

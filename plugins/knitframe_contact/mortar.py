@@ -77,9 +77,9 @@ class SolidMortar(SolidContactLaw):
     quadrature: int = attrs.field(default=4, validator=v.in_range(1, 19))  #: polynomial order of the slave-triangle rule, -
 
     def _pairs(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, reach: float,
-               order: int, normals: np.ndarray | None = None, pairing: Candidates | None = None) -> dict[str, Any]:
+               order: int, normals: np.ndarray | None = None, held: Candidates | None = None) -> dict[str, Any]:
         """Active quadrature-point pairs of state x: gaps (and their derivatives up to ``order``);
-        with ``pairing`` only those pairs are considered (:meth:`search`)."""
+        with ``held`` the pairs are chosen from those candidates (:meth:`search`)."""
         quadratic = surface.facets.shape[1] == 6
         smooth = self.smoothed(surface)
         lam, w = triangle_rule(self.quadrature)
@@ -102,7 +102,7 @@ class SolidMortar(SolidContactLaw):
             ns_q = np.repeat(np.cross(xs[:, 1] - xs[:, 0], xs[:, 2] - xs[:, 0]), nq, axis=0)
         face = np.repeat(np.arange(len(sf)), nq)
         qidx = np.tile(np.arange(nq), len(sf))
-        cand = self.search(surface, xq, sf[face, 0], x, h, reach, pairing, quadratic=quadratic, group=nq)
+        cand = self.search(surface, xq, sf[face, 0], x, h, reach, held, quadratic=quadratic, group=nq)
         elements = surface.facets if quadratic else surface.triangles
         Xm = x[elements[cand.triangle]] + cand.shift[:, None, :]
         Xp = self.patches(surface, x, cand.triangle, cand.shift, normals) if smooth else Xm
@@ -117,7 +117,7 @@ class SolidMortar(SolidContactLaw):
         out = {"quadratic": quadratic, "f": f, "q": q, "N": N, "g": g, "Xm": Xm, "p": xq[point],
                "master": cand.triangle[rows[sel]], "image": cand.image[rows[sel]],
                "weight": w[q] * dA[point], "sf": sf, "nq": nq, "dA": dA, "w": w, "qidx": qidx,
-               "pairing": self.chosen(cand, rows)}
+               "candidates": cand}
         if quadratic:
             pr = _take(chosen.projection, sel)
             out["xi"], out["normal"] = pr.xi, pr.n
@@ -174,7 +174,7 @@ class SolidMortar(SolidContactLaw):
 
     def evaluate(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, order: int, *,
                  stiffness: float, reach: float, friction_state: FrictionState | None = None,
-                 normals: np.ndarray | None = None, pairing: Candidates | None = None
+                 normals: np.ndarray | None = None, candidates: Candidates | None = None
                  ) -> tuple[float, Any, Any, dict[str, Any]]:
         """Energy (N·mm), gradient and Hessian in q = [u (3N), h (6)], and diagnostics (see ``penalty``).
 
@@ -187,10 +187,11 @@ class SolidMortar(SolidContactLaw):
         With ``friction_state`` (from :meth:`friction_state` at the last converged state) the
         lagged regularised Coulomb friction of those pairs is added (module docstring).
 
-        ``pairing``: the pairs of an earlier evaluation (its ``info["pairing"]``) to evaluate
-        instead of searching (:meth:`search`); every evaluation reports the pairing it used.
+        ``candidates``: the candidate master elements of an earlier evaluation (its
+        ``info["candidates"]``) to choose pairs from instead of a broad-phase search
+        (:meth:`search`); every evaluation reports the candidates it used.
         """
-        pr = self._pairs(surface, x, h, reach, order, normals, pairing)
+        pr = self._pairs(surface, x, h, reach, order, normals, candidates)
         quadratic = pr["quadratic"]
         g, f, weight, sf = pr["g"], pr["f"], pr["weight"], pr["sf"]
         E, grad, hess = penalty_terms(g, pr.get("dg"), pr.get("Hg"), weight, stiffness, order, self.band(reach))
@@ -233,7 +234,7 @@ class SolidMortar(SolidContactLaw):
             "max_penetration": float(-g.min()) if g.size else 0.0,
             "pressure": pressure,
             "force": float(np.sum(weight * pn)),
-            "pairing": pr["pairing"],
+            "candidates": pr["candidates"],
         })
         return E, G, Hm, info
 

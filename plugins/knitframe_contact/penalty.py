@@ -104,28 +104,23 @@ class SolidContactLaw:
         return chain_facet_derivatives(*p2_gap_derivatives(projection, X6, weights, order), A6)
 
     def search(self, surface: SolidSurface, points: np.ndarray, point_node: np.ndarray, x: np.ndarray,
-               h: np.ndarray | None, reach: float, pairing: Candidates | None, **kw) -> Candidates:
+               h: np.ndarray | None, reach: float, held: Candidates | None, **kw) -> Candidates:
         """Candidate master elements of the query points: the broad-phase search
-        (:meth:`SolidSurface.candidates`), or with ``pairing`` the pairs it fixes (one master
-        element and image per point, from an earlier evaluation's ``info["pairing"]``), whose
-        image shifts F̄·S_k follow the current macro DOFs h.
+        (:meth:`SolidSurface.candidates`), or the ``held`` candidates of an earlier evaluation
+        (its ``info["candidates"]``), whose image shifts F̄·S_k follow the current macro DOFs h.
 
-        Within a Newton iteration a solver holds the pairing of the iterate while its line search
-        tries steps: the energy along the step is then smooth, with no pair switching between
-        master elements that share no edge (a jump in the gap) or entering the search. Every
-        point within ``reach`` of an opposing master at the iterate is in the pairing, so a
-        contact can close inside the step (the step is capped below the reach).
+        Within a Newton iteration a solver holds the candidates of the iterate while its line
+        search tries steps; each point still takes its nearest qualifying element among them, so
+        the gap is the same function of the nodes as with a fresh search, without the KD-tree.
+        The held set covers the step: a pair out of ``reach`` at the iterate cannot penetrate
+        within a step that moves no node more than half the reach, and the penalty fades to zero
+        at the reach.
         """
-        if pairing is None:
+        if held is None:
             return surface.candidates(points, point_node, x, h, reach, **kw)
-        shift = np.zeros((len(pairing.point), 3)) if surface.lattice is None else \
-            surface.lattice.shift(pairing.image, np.zeros(6) if h is None else h)
-        return Candidates(pairing.point, pairing.triangle, pairing.image, shift)
-
-    @staticmethod
-    def chosen(cand: Candidates, rows: np.ndarray) -> Candidates:
-        """The pairing that a search chose: candidate ``rows`` (one per point with an opposing master in reach)."""
-        return Candidates(cand.point[rows], cand.triangle[rows], cand.image[rows], cand.shift[rows])
+        shift = np.zeros((len(held.point), 3)) if surface.lattice is None else \
+            surface.lattice.shift(held.image, np.zeros(6) if h is None else h)
+        return Candidates(held.point, held.triangle, held.image, shift)
 
     def penalty(self, modulus: float, size: float) -> float:
         """Penalty stiffness ε (N/mm³) for contact modulus E (MPa) and element size h (mm): the given
@@ -141,12 +136,12 @@ class SolidPenalty(SolidContactLaw):
     description: ClassVar[str] = "node-to-surface penalty contact between tetrahedral yarn surfaces (solid)"
 
     def pairs(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, reach: float,
-              normals: np.ndarray | None = None, pairing: Candidates | None = None) -> dict[str, Any]:
+              normals: np.ndarray | None = None, held: Candidates | None = None) -> dict[str, Any]:
         """Slave node → nearest opposing master triangle within ``reach`` (mm), with its image (see
         :func:`knitframe_contact.solid_geometry.select_pairs`); on a smoothed surface also the
-        patch projection and gap. ``pairing``: search only these pairs (:meth:`search`)."""
+        patch projection and gap. ``held``: candidates to choose from instead of a search (:meth:`search`)."""
         slave = surface.slave_nodes
-        cand = self.search(surface, x[slave], slave, x, h, reach, pairing)
+        cand = self.search(surface, x[slave], slave, x, h, reach, held)
         Xm = x[surface.triangles[cand.triangle]] + cand.shift[:, None, :]
         smooth = self.smoothed(surface)
         if smooth:
@@ -156,12 +151,12 @@ class SolidPenalty(SolidContactLaw):
                               open_rim=surface.open_rim(cand.triangle, False) if smooth else None)
         rows = chosen.rows
         return {"node": slave[cand.point[rows]], "triangle": cand.triangle[rows], "image": cand.image[rows],
-                "g": chosen.g, "projection": chosen.projection if smooth else None, "pairing": self.chosen(cand, rows)}
+                "g": chosen.g, "projection": chosen.projection if smooth else None, "candidates": cand}
 
     def _active(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, reach: float, order: int,
-                normals: np.ndarray | None = None, pairing: Candidates | None = None):
+                normals: np.ndarray | None = None, held: Candidates | None = None):
         """Active pairs: nodes (m, 4) and images (m, 4, 2) of (s, a, b, c), their points, gaps and derivatives."""
-        pr = self.pairs(surface, x, h, reach, normals, pairing)
+        pr = self.pairs(surface, x, h, reach, normals, held)
         tri = surface.triangles[pr["triangle"]]
         nodes = np.column_stack([pr["node"], tri])
         images = np.zeros((len(nodes), 4, 2), np.int64)
@@ -182,7 +177,7 @@ class SolidPenalty(SolidContactLaw):
             g, dg, Hg = plane_gap(p[:, 0], p[:, 1], p[:, 2], p[:, 3], order=order)
         return {"node": pr["node"][sel], "triangle": pr["triangle"][sel], "image": pr["image"][sel],
                 "nodes": nodes[sel], "images": images[sel], "p": p, "g": g, "dg": dg, "Hg": Hg,
-                "pairing": pr["pairing"]}
+                "candidates": pr["candidates"]}
 
     def friction_state(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, *, stiffness: float,
                        reach: float, normals: np.ndarray | None = None) -> FrictionState:
@@ -210,7 +205,7 @@ class SolidPenalty(SolidContactLaw):
 
     def evaluate(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, order: int, *,
                  stiffness: float, reach: float, friction_state: FrictionState | None = None,
-                 normals: np.ndarray | None = None, pairing: Candidates | None = None
+                 normals: np.ndarray | None = None, candidates: Candidates | None = None
                  ) -> tuple[float, Any, Any, dict[str, Any]]:
         """Energy (N·mm), gradient and Hessian in q = [u (3N), h (6)], and diagnostics.
 
@@ -224,11 +219,11 @@ class SolidPenalty(SolidContactLaw):
         normals : (N, 3) nodal normals that shape the smoothed master surface of linear meshes
             (``smoothing = "nagata"``), fixed in this evaluation; default the reference
             configuration's. Solvers freeze them at the start of each increment.
-        pairing : the pairs of an earlier evaluation (its ``info["pairing"]``) to evaluate
-            instead of searching (:meth:`search`); energy, gradient and Hessian are those of
-            that fixed pairing. Every evaluation reports the pairing it used.
+        candidates : the candidate master elements of an earlier evaluation (its
+            ``info["candidates"]``) to choose pairs from instead of a broad-phase search
+            (:meth:`search`). Every evaluation reports the candidates it used.
         """
-        a = self._active(surface, x, h, reach, order, normals, pairing)
+        a = self._active(surface, x, h, reach, order, normals, candidates)
         g = a["g"]
         weight = surface.tributary[a["node"]]
         E, grad, hess = penalty_terms(g, a["dg"], a["Hg"], weight, stiffness, order, self.band(reach))
@@ -247,7 +242,7 @@ class SolidPenalty(SolidContactLaw):
             "max_penetration": float(-g.min()) if g.size else 0.0,
             "pressure": pressure,
             "force": float(np.sum(weight * pressure[a["node"]])),
-            "pairing": a["pairing"],
+            "candidates": a["candidates"],
         })
         return E, G, H, info
 

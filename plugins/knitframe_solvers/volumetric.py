@@ -156,7 +156,7 @@ class VolumetricSolver:
     stall_iterations: int = attrs.field(default=10, validator=v.in_range(0, 10000))  #: cut back once the residual has not improved in this many Newton iterations (0: only after max_iterations), -
     intorder: int = attrs.field(default=2, validator=v.in_range(1, 6))  #: quadrature order of the solid (2: 4 points), -
     stabilisation: float = attrs.field(default=1e-4, validator=v.non_negative)  #: weak foundation on each increment's displacement / (E_transverse / h²), -
-    contact_search: Literal["iteration", "evaluation"] = attrs.field(default="iteration", validator=v.one_of(("iteration", "evaluation")))  #: when contact pairs are searched: once per Newton iteration, held through its line search ("iteration"), or at every energy evaluation, -
+    contact_search: Literal["iteration", "evaluation"] = attrs.field(default="iteration", validator=v.one_of(("iteration", "evaluation")))  #: when the broad-phase contact search runs: once per Newton iteration, its candidates held through the line search ("iteration"), or at every energy evaluation, -
     on_failure: Literal["raise", "truncate"] = "raise"  #: "truncate" returns the converged steps (converged = false)
 
     def _key(self, fabric: Fabric, scene: Scene, law: Any = None) -> str:
@@ -199,8 +199,8 @@ class VolumetricSolver:
         model = VolumetricModel(cell, cm, forms, lattice, T.tocsr(), independent, law, surface, stiffness,
                                 self.reach * cm.radius, t_mesh, damping)
         model.friction = law is not None and "friction" in scene.effects
-        model.hold_pairing = (self.contact_search == "iteration" and law is not None
-                              and "pairing" in inspect.signature(law.evaluate).parameters)
+        model.hold_candidates = (self.contact_search == "iteration" and law is not None
+                                 and "candidates" in inspect.signature(law.evaluate).parameters)
         return model
 
     def simulate(self, fabric: Fabric, scene: Scene, *, progress=None, output_dir: str | Path | None = None,
@@ -434,13 +434,12 @@ class VolumetricModel:
     pulled back to q through the periodic map u = T q. Wall time is accumulated per part in
     ``timings`` (material assembly, contact, transforms).
 
-    Contact search (``hold_pairing``): a Hessian evaluation (order 2, one per Newton iterate)
-    searches the contact pairs afresh and keeps them; energy and gradient evaluations (order 0
-    and 1: the line search between two iterates) reuse them. The line search then sees a smooth
-    energy along the step, where a fresh search at every trial point lets a pair switch between
-    master elements that share no edge, a jump in the energy that no step length passes.
-    Convergence is judged at iterates, so with a fresh search: the converged state is that of
-    the true contact problem. Implicit FE codes likewise search contact once per iteration.
+    Contact search (``hold_candidates``): a Hessian evaluation (order 2, one per Newton iterate)
+    runs the broad-phase contact search and keeps its candidate master elements; energy and
+    gradient evaluations (order 0 and 1: the line search between two iterates) choose each
+    point's pair among them (the laws' ``candidates``), which saves the KD-tree search there. The
+    gap is the same function as with a fresh search, as the step cannot bring a pair from out of
+    the reach into contact. Implicit FE codes likewise search contact once per iteration.
     """
 
     def __init__(self, cell, cm, forms, lattice, T, independent, law, surface, stiffness, reach, t_mesh,
@@ -464,8 +463,8 @@ class VolumetricModel:
         self.friction = False  # lagged Coulomb friction (scene effect "friction")
         self.friction_state = None
         self.normals = None  # nodal normals of the smoothed P1 master surface, frozen per increment (anchor)
-        self.hold_pairing = False  # contact pairs searched at order-2 evaluations only, held for order 0 and 1
-        self.pairing = None
+        self.hold_candidates = False  # broad-phase contact search at order-2 evaluations only, held for order 0 and 1
+        self.held = None
         self.evaluations = {"energy": 0, "gradient": 0, "hessian": 0, "linear_solves": 0}
 
     def shrunk(self, s0: float) -> np.ndarray:
@@ -480,7 +479,7 @@ class VolumetricModel:
         contact pairs of q0 (normal forces, master points) are frozen for the increment's slip."""
         self.u0 = self.T @ q0
         self.friction_state = None
-        self.pairing = None
+        self.held = None
         x = self.cm.nodes + self.u0.reshape(-1, 3)
         # laws without a smoothed master surface (or without the method, from other packages) get none
         frozen = getattr(self.law, "master_normals", None)
@@ -529,13 +528,13 @@ class VolumetricModel:
             x = self.cm.nodes + u.reshape(-1, 3)
             kw = {"friction_state": self.friction_state} if self.friction_state is not None else {}
             kw.update(self._normals())
-            if self.hold_pairing and order < 2 and self.pairing is not None:
-                kw["pairing"] = self.pairing
+            if self.hold_candidates and order < 2 and self.held is not None:
+                kw["candidates"] = self.held
             Ec, gc, Hc, info = self.law.evaluate(self.surface, x, h, order, stiffness=self.stiffness, reach=self.reach,
                                                  **kw)
-            if self.hold_pairing and order == 2:
-                self.pairing = info.get("pairing")
-            info.pop("pairing", None)
+            if self.hold_candidates and order == 2:
+                self.held = info.get("candidates")
+            info.pop("candidates", None)
             E += Ec
             self.timings["contact"] += time.perf_counter() - t0
         du = u - self.u0
