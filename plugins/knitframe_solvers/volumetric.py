@@ -244,11 +244,14 @@ class VolumetricSolver:
         report = progress or (lambda done, tot, msg: None)
         r = model.cm.radius
         # few backtracks: at a contact-switching kink a cut-back of the load step helps more than α → 0;
-        # Levenberg shifts up to 0.1 × the mean diagonal: where loops buckle or contact curvature makes the
-        # Hessian indefinite the Newton direction climbs, and shifts of 1e-5 had been too small to turn it
+        # Levenberg shifts up to 1e-2 × the mean diagonal: where loops buckle or contact curvature makes the
+        # Hessian indefinite the Newton direction climbs, and shifts of 1e-5 had been too small to turn it;
+        # no residual-decrease fallback: the contact energy is continuous along a step (candidates held,
+        # gaps continuous across facets), so a step must lower it (the fallback let the energy climb and
+        # the iteration wander)
         # the contact forces that resolve the pre-stress scale with the soft transverse modulus, so does the tolerance
         opts = NewtonOptions(atol=self.tolerance * fabric.yarn.E_transverse * r * r, rtol=1e-10, max_iter=self.max_iterations,
-                             max_step=self.max_step, xtol=1e-10 * r, max_backtracks=12,
+                             max_step=self.max_step, xtol=1e-10 * r, max_backtracks=12, residual_backtracks=0,
                              max_shift_increases=7, flux_rtol=self.flux_tolerance,
                              correction_rtol=self.correction_tolerance, late_flux_rtol=self.late_flux_tolerance,
                              stall_iterations=self.stall_iterations)
