@@ -26,6 +26,27 @@ def test_minimise_converges_from_far_away():
     assert res.converged and np.allclose(res.x, np.arange(6), atol=1e-8)
 
 
+def test_history_records_the_accepted_step_energy():
+    """Each iteration records the energy of its accepted step as the line search saw it; on a plain energy
+    that is the next iterate's energy (a problem that changes between evaluations shows up as a difference)."""
+    res = minimise(quartic, np.full(6, 50.0), np.ones(6, bool), solve=direct(), options=NewtonOptions(rtol=0.0))
+    steps = [h for h in res.history if "step_energy" in h]
+    assert len(steps) == len(res.history) - 1
+    assert all(a["step_energy"] == b["energy"] for a, b in zip(res.history[:-1], res.history[1:]))
+
+    calls = []
+
+    def drifting(x, order=2):  # the energy gains a constant at every Hessian evaluation: a "pairing change"
+        E, g, H, info = quartic(x, order)
+        if order == 2:
+            calls.append(1)
+        return E + 1e-3 * len(calls), g, H, info
+
+    res = minimise(drifting, np.full(6, 5.0), np.ones(6, bool), solve=direct(), options=NewtonOptions(rtol=0.0))
+    jumps = [b["energy"] - a["step_energy"] for a, b in zip(res.history[:-1], res.history[1:])]
+    assert np.allclose(jumps, 1e-3)
+
+
 def test_fixed_dofs_keep_their_values():
     """DOFs outside the free mask are not moved."""
     free = np.array([True, False, True, True])

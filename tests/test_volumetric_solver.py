@@ -133,6 +133,26 @@ def test_trace_records_every_newton_solve():
         assert all("flux" in h for h in r["history"])
 
 
+def test_trace_summary_of_the_benchmark(tmp_path):
+    """``bench_volumetric.py trace`` gives one row per traced solve, with the residual against the flux and
+    no energy jump between accepted steps and iterates when nothing changes the pairing."""
+    import json
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from bench_volumetric import bench_trace
+
+    path = tmp_path / "trace.jsonl"
+    scene = Scene(load=LoadPath(kind="uniaxial", direction="course", max_strain=0.2, steps=2),
+                  effects={"large_deformation", "anisotropy", "contact"})
+    with open(path, "w") as fh:
+        VolumetricSolver(order=1, seed=0.75, contact_law="mortar").simulate(
+            FABRIC, scene, trace=lambda r: fh.write(json.dumps(r, default=float) + "\n"))
+    rows = bench_trace(type("Args", (), {"trace": str(path)})())
+    assert [r["t"] for r in rows] == [1.0, 2.0] and all(r["converged"] for r in rows)
+    assert all(r["iterations"] > 0 and float(r["largest pairing jump N·mm"]) == 0.0 for r in rows)
+
+
 def test_overlapping_yarns_without_prestress_stop_with_a_diagnostic():
     """Yarns that overlap in the knitted state and no pre-stress: a one-line NumericalError, not NaN."""
 
