@@ -233,16 +233,22 @@ def cylinder(request):
     return mesh, body, surface(mesh, body, arc, top)
 
 
+def pressed(cylinder, seed: int):
+    """Nodes X, DOF count n, a random generator and the displacement u pressing the cylinder 0.01 into the flat."""
+    mesh, body, surf = cylinder
+    X = nodes(mesh)
+    n = 3 * len(X)
+    u = np.zeros(n)
+    u[1::3] = -0.01 * (body == 0)
+    return X, n, np.random.default_rng(seed), u
+
+
 @pytest.mark.parametrize("law", [SolidPenalty(), SolidMortar(), SolidPenalty(smoothing="none"), SolidMortar(smoothing="none")],
                          ids=["penalty", "mortar", "penalty-flat", "mortar-flat"])
 def test_contact_derivatives_match_finite_differences(cylinder, law):
     """Contact gradient = FD of the energy; Hessian = FD of the gradient (exact, on curved P2 facets too)."""
     mesh, body, surf = cylinder
-    X = nodes(mesh)
-    n = 3 * len(X)
-    rng = np.random.default_rng(0)
-    u = np.zeros(n)
-    u[1::3] = -0.01 * (body == 0)
+    X, n, rng, u = pressed(cylinder, 0)
     u += 1e-4 * rng.normal(size=n)
     du = rng.normal(size=n) * np.repeat(body == 0, 3)
 
@@ -359,11 +365,7 @@ def test_held_candidates_reproduce_the_search_and_are_differentiable(cylinder, l
     Hessian; at a moved state they give those of a fresh search, and the gradient and Hessian are
     those of the energy (FD)."""
     mesh, body, surf = cylinder
-    X = nodes(mesh)
-    n = 3 * len(X)
-    rng = np.random.default_rng(1)
-    u = np.zeros(n)
-    u[1::3] = -0.01 * (body == 0)
+    X, n, rng, u = pressed(cylinder, 1)
     E, g, H, info = law.evaluate(surf, X + u.reshape(-1, 3), None, 2, stiffness=1e3, reach=0.1)
     held = info["candidates"]
     assert info["active"] > 0 and len(held.point) > info["active"]

@@ -192,6 +192,19 @@ def test_pipeline_resume_after_a_kill(tmp_path, monkeypatch):
     assert np.allclose(resumed.T1, reference.T1, rtol=1e-9) and np.allclose(resumed.lambda1, reference.lambda1)
 
 
+def count_calls(monkeypatch, cls, name: str) -> list:
+    """Patch method ``name`` of ``cls`` to append to the returned list at every call."""
+    calls = []
+    original = getattr(cls, name)
+
+    def counting(self, *args, **kwargs):
+        calls.append(1)
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(cls, name, counting)
+    return calls
+
+
 @pytest.mark.parametrize("law", ["mortar", "penalty"])
 def test_contact_without_touching_pairs_changes_nothing(law):
     """Contact on, but the rows never touch: the laws see no pairs and the tension is that of the bare yarns."""
@@ -206,14 +219,7 @@ def test_friction_is_frozen_per_increment_only_when_asked(monkeypatch):
     without it the friction state is never computed."""
     from knitframe_contact.mortar import SolidMortar
 
-    calls = []
-    original = SolidMortar.friction_state
-
-    def counting(self, *args, **kwargs):
-        calls.append(1)
-        return original(self, *args, **kwargs)
-
-    monkeypatch.setattr(SolidMortar, "friction_state", counting)
+    calls = count_calls(monkeypatch, SolidMortar, "friction_state")
     effects = {"large_deformation", "anisotropy", "contact"}
     solver = VolumetricSolver(order=1, seed=0.75, contact_law="mortar")
     solver.simulate(FABRIC, attrs.evolve(STRETCH, effects=frozenset(effects)))
@@ -228,14 +234,7 @@ def test_contact_search_once_per_newton_iteration(monkeypatch, search):
     (one per Newton iterate), its candidates held through the line search; "evaluation" searches every time."""
     from knitframe_contact.solid_geometry import SolidSurface
 
-    calls = []
-    original = SolidSurface.candidates
-
-    def counting(self, *args, **kwargs):
-        calls.append(1)
-        return original(self, *args, **kwargs)
-
-    monkeypatch.setattr(SolidSurface, "candidates", counting)
+    calls = count_calls(monkeypatch, SolidSurface, "candidates")
     # a stretch large enough for the Poisson contraction to need Newton iterations with line searches
     scene = Scene(load=LoadPath(kind="uniaxial", direction="course", max_strain=0.2, steps=2),
                   effects={"large_deformation", "anisotropy", "contact"})
