@@ -133,6 +133,17 @@ def test_trace_records_every_newton_solve():
         assert all("flux" in h for h in r["history"])
 
 
+def test_held_contact_search_needs_steps_below_half_the_reach():
+    """A Newton step cap over half the contact reach would let held candidates miss a contact: refused in one line."""
+    from knitframe.errors import ConfigError
+
+    scene = attrs.evolve(STRETCH, effects=frozenset({"large_deformation", "anisotropy", "contact"}))
+    with pytest.raises(ConfigError, match="max_step"):
+        VolumetricSolver(order=1, seed=0.75, max_step=0.3, reach=0.5).simulate(FABRIC, scene)
+    r = VolumetricSolver(order=1, seed=0.75, max_step=0.3, reach=0.5, contact_search="evaluation").simulate(FABRIC, scene)
+    assert r.provenance.converged
+
+
 def test_trace_summary_of_the_benchmark(tmp_path):
     """``bench_volumetric.py trace`` gives one row per traced solve, with the residual against the flux and
     no energy jump between accepted steps and iterates when nothing changes the pairing."""

@@ -150,7 +150,7 @@ class VolumetricSolver:
     late_flux_tolerance: float = attrs.field(default=2e-2, validator=v.non_negative)  #: the flux ratio after 9 iterations (ABAQUS's R_P; 0: flux_tolerance throughout), -
     correction_tolerance: float = attrs.field(default=1e-2, validator=v.positive)  #: ... when the last Newton correction ≤ this × the increment's displacement (ABAQUS's C_n), -
     path_tolerance_factor: float = attrs.field(default=10.0, validator=v.in_range(1.0, 1e6))  #: tolerance of the intermediate pre-stress states / tolerance, -
-    max_step: float = attrs.field(default=0.25, validator=v.positive)  #: largest node move per Newton step / yarn radius, -
+    max_step: float = attrs.field(default=0.25, validator=v.positive)  #: largest node move per Newton step / yarn radius (at most reach / 2 with contact_search = "iteration"), -
     min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))  #: smallest cut-back increment / step, -
     max_iterations: int = attrs.field(default=40, validator=v.in_range(1, 10000))  #: Newton iterations per increment, -
     stall_iterations: int = attrs.field(default=10, validator=v.in_range(0, 10000))  #: cut back once the residual has not improved in this many Newton iterations (0: only after max_iterations), -
@@ -201,6 +201,11 @@ class VolumetricSolver:
         model.friction = law is not None and "friction" in scene.effects
         model.hold_candidates = (self.contact_search == "iteration" and law is not None
                                  and "candidates" in inspect.signature(law.evaluate).parameters)
+        if model.hold_candidates and self.max_step > 0.5 * self.reach:
+            # two nodes each moving max_step could close a gap wider than the reach within one step
+            raise ConfigError("solver.max_step", f"{self.max_step:g} is more than half the contact reach "
+                              f"({self.reach:g}): with contact_search = 'iteration' a step could bring an unseen "
+                              "pair into contact; lower max_step or use contact_search = 'evaluation'")
         return model
 
     def simulate(self, fabric: Fabric, scene: Scene, *, progress=None, output_dir: str | Path | None = None,
