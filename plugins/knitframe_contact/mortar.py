@@ -6,15 +6,16 @@ same yarn), and the penalty energy is integrated over the slave surface::
 
     W = ∫_Γs ½ ε ⟨−g(x)⟩² dA ≈ Σ_f Σ_q ½ ε w_q A_f ⟨−g(x_q)⟩²
 
-(faded out across the last half of the search reach, so that a pair entering the search does not
-make the energy jump; :meth:`SolidContactLaw.band`), so the contact traction ε⟨−g⟩ is a field on the slave surface, not a set of nodal forces: a
-uniform pressure is transmitted as a uniform pressure (contact patch test), and the force on
-the master side is integrated consistently through the master's shape functions at the
-projection points. On linear facets g is the distance to the master triangle's plane; on
-quadratic facets it is n·(x_q − x(ξ*)) at the closest point ξ* of the curved master facet, or
-of its polynomial continuation when the point lies beyond the facet's rim (the curved
-counterpart of the plane; :func:`knitframe_contact.solid_geometry.select_pairs`). On linear
-meshes the master surface is by default smoothed (``smoothing = "nagata"``): each master
+(faded out across the last half of the search reach, so that a pair entering the search does
+not make the energy jump; :meth:`SolidContactLaw.band`), so the contact traction ε⟨−g⟩ is a
+field on the slave surface, not a set of nodal forces: a uniform pressure is transmitted as a
+uniform pressure (contact patch test), and the force on the master side is integrated
+consistently through the master's shape functions at the projection points. On linear facets g
+is the distance to the master triangle's plane; on quadratic facets it is the signed distance to
+the closest point x(ξ*) of the curved master facet, n·(x_q − x(ξ*)) inside it, so that it stays
+continuous where the nearest facet changes (beyond an open edge of the master surface, the
+facet's polynomial continuation; :func:`knitframe_contact.solid_geometry.select_pairs`). On
+linear meshes the master surface is by default smoothed (``smoothing = "nagata"``): each master
 triangle becomes the quadratic patch through its corners' nodal normals
 (:func:`knitframe_contact.solid_geometry.nagata_facets`), with the normals frozen for the
 increment, so that the gap does not kink at facet edges. The gradient
@@ -107,7 +108,7 @@ class SolidMortar(SolidContactLaw):
         Xm = x[elements[cand.triangle]] + cand.shift[:, None, :]
         Xp = self.patches(surface, x, cand.triangle, cand.shift, normals) if smooth else Xm
         chosen = select_pairs(xq[cand.point], cand.point, cand.triangle, Xp, ns_q[cand.point], reach,
-                              open_rim=surface.open_rim(cand.triangle, quadratic) if quadratic or smooth else None)
+                              open_rim=surface.open_rim(cand.triangle, quadratic))
         rows, g = chosen.rows, chosen.g
         point, Xm = cand.point[rows], Xm[rows]
         sel = np.flatnonzero((g < 0) & (g > -reach))

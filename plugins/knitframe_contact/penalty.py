@@ -148,7 +148,7 @@ class SolidPenalty(SolidContactLaw):
             Xm = self.patches(surface, x, cand.triangle, cand.shift, normals)
         ns = node_normals(x, surface.triangles[surface.tri_slave])[slave]
         chosen = select_pairs(x[slave[cand.point]], cand.point, cand.triangle, Xm, ns[cand.point], reach,
-                              open_rim=surface.open_rim(cand.triangle, False) if smooth else None)
+                              open_rim=surface.open_rim(cand.triangle, False))
         rows = chosen.rows
         return {"node": slave[cand.point[rows]], "triangle": cand.triangle[rows], "image": cand.image[rows],
                 "g": chosen.g, "projection": chosen.projection if smooth else None, "candidates": cand}

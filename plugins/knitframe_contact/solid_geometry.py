@@ -37,7 +37,8 @@ from knitframe.errors import NumericalError
 from knitframe.periodic import Lattice, PointMap
 
 __all__ = [
-    "plane_gap", "barycentric", "point_triangle_distance", "nearest", "node_normals", "penalty_terms", "penalty_depth", "combine",
+    "plane_gap", "barycentric", "point_triangle_distance", "nearest", "node_normals", "penalty_terms", "penalty_depth",
+    "combine", "rim_edges",
     "assemble", "SolidSurface", "Candidates", "bezier_points", "distance_bound", "select_pairs", "Selection",
     "p2_shape", "p2_coefficients", "project_p2", "P2Projection", "facet_gap", "p2_gap_derivatives",
     "FrictionState", "friction_potential", "friction_terms", "facet_size", "nagata_facets", "chain_facet_derivatives",
@@ -435,17 +436,16 @@ def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.n
     two normals are within 60° of parallel, where the element is the back of the other body; with
     a bound at 0, the flank of a crossing yarn, whose normal stands at right angles to the
     surface it presses into, flipped in and out of contact from one Newton iterate to the next)
-    and the distance is below ``reach``.
-    Per point the rank is the distance (for flat triangles plus 2·reach when the closest point is
-    on the element's rim rather than a projection into it: their gap is the plane's); equal ranks (an edge or corner shared by several elements, or
+    and the distance is below ``reach``. Per point the rank is the distance (for flat triangles
+    plus 2·reach when the closest point is on the element's rim rather than a projection into
+    it: their gap is the plane's); equal ranks (an edge or corner shared by several elements, or
     coplanar neighbours; equal within 1e-10·reach, so that round-off does not decide) go to the
     element whose plane faces the point most (largest |g|), then to the lower ``element``.
     The gap is the plane gap of a linear triangle (:func:`plane_gap`) or, on quadratic facets,
     the signed distance g = ±|p − x(ξ*)| to the closest point ξ* (:func:`project_p2`), with the
     sign of n·(p − x*); inside the facet (or on its rim with p − x* along n) that is n·(p − x*).
-    Where ξ* is on the rim otherwise, the unit
-    vector ±(p − x*)/|p − x*| is returned as the projection's normal n, the gap's gradient
-    direction. Ranked by distance alone, the gap is the signed distance to the master surface and
+    Where ξ* is on the rim otherwise, the unit vector ±(p − x*)/|p − x*| is returned as the
+    projection's normal n, the gap's gradient direction. Ranked by distance alone, the gap is the signed distance to the master surface and
     stays continuous when the nearest facet changes, also between facets that share only a
     corner (a pair switching between such facets made the energy jump when the gap beyond the
     rim was measured to the facet's polynomial continuation). Only beyond an edge on the master
@@ -519,9 +519,9 @@ def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.n
         # distance to the master surface wherever the point is, continuous when the nearest point
         # passes from one curved facet to another, including facets that share no edge
         rim = np.flatnonzero(~proj["interior"])
+        r = p[rows[chosen]] - proj["x"]  # from the closest point to the query point
         # on the rim but along the normal (a point right over an edge or corner): the facet's own gap
-        r_rim = p[rows[chosen[rim]]] - proj["x"][rim]
-        normal_only = np.linalg.norm(r_rim - proj["g"][rim, None] * proj["n"][rim], axis=1) \
+        normal_only = np.linalg.norm(r[rim] - proj["g"][rim, None] * proj["n"][rim], axis=1) \
             <= 1e-10 * np.maximum(proj["dist"][rim], reach)
         proj["interior"][rim[normal_only]] = True
         rim = rim[~normal_only]
@@ -530,12 +530,11 @@ def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.n
             # the facet's polynomial continuation, as a plane continues a flat triangle, where that has a
             # closest point near the facet that is not folded over (normal within 60° of the corners' plane)
             xi = proj["xi"][rim]
-            on = np.column_stack([xi[:, 1] <= 0.0, xi.sum(axis=1) >= 1.0 - 1e-14, xi[:, 0] <= 0.0])  # edges 01, 12, 20
-            beyond = np.flatnonzero(np.any(on & open_rim[rows[chosen[rim]]], axis=1))
+            beyond = np.flatnonzero(np.any(rim_edges(xi) & open_rim[rows[chosen[rim]]], axis=1))
             if beyond.size:
-                r = rows[chosen[rim[beyond]]]
-                ext = project_p2(p[r], Xe[r], extend=True, start=xi[beyond])
-                valid = ext.interior & unfolded(ext.n, r, 0.5)
+                rb = rows[chosen[rim[beyond]]]
+                ext = project_p2(p[rb], Xe[rb], extend=True, start=xi[beyond])
+                valid = ext.interior & unfolded(ext.n, rb, 0.5)
                 use = rim[beyond[valid]]
                 for f in fields:
                     proj[f][use] = getattr(ext, f)[valid]
@@ -544,7 +543,7 @@ def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.n
         if rim.size:
             d = proj["dist"][rim]
             sign = np.where(g[rim] < 0.0, -1.0, 1.0)
-            r = p[rows[chosen[rim]]] - proj["x"][rim]
+            r = r[rim]
             ok_d = d > 1e-12 * reach
             unit = np.where(ok_d[:, None], r / np.where(ok_d, d, 1.0)[:, None], proj["n"][rim] * sign[:, None])
             proj["n"][rim] = sign[:, None] * unit
@@ -740,9 +739,10 @@ def p2_gap_derivatives(pr: P2Projection, Xf: np.ndarray, weights: np.ndarray | N
 
     on an edge of the triangle (τ its parameter, V_τ = ∂²N/∂ξ∂τ's weights of x_τ; from the
     stationarity r·x_τ = 0 by the implicit function theorem), and ∂²g = U ⊗ U P / g at a corner.
-    Where A is not positive (definite), or the closest point is neither inside nor on the rim (the
-    projection did not converge), the second derivative is set to zero (the Gauss-Newton form of the penalty Hessian). Returns dg (m, K, 3) and
-    Hg (m, K, 3, K, 3) (None for ``order`` < 2).
+    Where A is not positive (definite), or the closest point is neither inside nor on the rim
+    (the projection did not converge), the second derivative is set to zero (the Gauss-Newton
+    form of the penalty Hessian). Returns dg (m, K, 3) and Hg (m, K, 3, K, 3) (None for
+    ``order`` < 2).
     """
     m = len(pr.g)
     w = np.ones((m, 1)) if weights is None else weights
@@ -785,16 +785,20 @@ def p2_gap_derivatives(pr: P2Projection, Xf: np.ndarray, weights: np.ndarray | N
     return dg, Hg
 
 
+def rim_edges(xi: np.ndarray) -> np.ndarray:
+    """(m, 3) flags: the parametric point ξ (m, 2) lies on the triangle's edge 01 (t = 0), 12 (s + t = 1), 20 (s = 0)."""
+    return np.column_stack([xi[:, 1] <= 0.0, xi.sum(axis=1) >= 1.0 - 1e-14, xi[:, 0] <= 0.0])
+
+
 def _rim_gap_hessian(pr: "P2Projection", rows: np.ndarray, U: np.ndarray, V: np.ndarray, a3: np.ndarray,
                      a4: np.ndarray, a5: np.ndarray) -> np.ndarray:
     """∂²g (k, K, 3, K, 3) of the signed distance at closest points on the rim (see :func:`p2_gap_derivatives`)."""
     k, K = U.shape
-    xi, g, n = pr.xi[rows], pr.g[rows], pr.n[rows]
-    s_, t_ = xi[:, 0], xi[:, 1]
-    on = np.column_stack([s_ <= 0.0, t_ <= 0.0, s_ + t_ >= 1.0 - 1e-14])
+    g, n = pr.g[rows], pr.n[rows]
+    on = rim_edges(pr.xi[rows])
     edge = on.sum(axis=1) == 1
-    # the edge's direction in ξ: s = 0 → (0, 1), t = 0 → (1, 0), s + t = 1 → (−1, 1)
-    tau = np.where(on[:, [0]], [0.0, 1.0], np.where(on[:, [1]], [1.0, 0.0], [-1.0, 1.0]))
+    # the edge's direction in ξ: 01 (t = 0) → (1, 0), 12 (s + t = 1) → (−1, 1), 20 (s = 0) → (0, 1)
+    tau = np.where(on[:, [0]], [1.0, 0.0], np.where(on[:, [1]], [-1.0, 1.0], [0.0, 1.0]))
     x_tau = tau[:, :1] * pr.xs[rows] + tau[:, 1:] * pr.xt[rows]
     x_tt = 2.0 * tau[:, :1] ** 2 * a3 + 2.0 * tau[:, :1] * tau[:, 1:] * a4 + 2.0 * tau[:, 1:] ** 2 * a5
     r = g[:, None] * n

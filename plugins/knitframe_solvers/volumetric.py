@@ -248,7 +248,7 @@ class VolumetricSolver:
         total = n_load + (self.prestress_steps if prestress else 0)
         report = progress or (lambda done, tot, msg: None)
         r = model.cm.radius
-        # few backtracks: at a contact-switching kink a cut-back of the load step helps more than α → 0;
+        # few backtracks: where a step fails, a cut-back of the load step helps more than α → 0;
         # Levenberg shifts up to 1e-2 × the mean diagonal: where loops buckle or contact curvature makes the
         # Hessian indefinite the Newton direction climbs, and shifts of 1e-5 had been too small to turn it;
         # no residual-decrease fallback: the contact energy is continuous along a step (candidates held,
