@@ -90,6 +90,29 @@ def test_quadratic_projection_finds_the_closest_point():
     assert pr.xi[1, 1] == 0.0 and np.allclose(pr.xi[2], 0.0)
 
 
+def test_quadratic_projection_does_not_jump_to_a_far_rim_minimum():
+    """A strongly bowed Nagata patch of a jersey cell at 20 % stretch (the state where the energy
+    jumped by 8e-7 N·mm within 1e-20 mm of motion): a full Newton step from the corners' plane
+    overshoots to a local minimum of the distance on the rim, 0.037 mm away, while the closest
+    point lies inside at 0.0028 mm. Steps that do not lower the distance are backtracked."""
+    p = np.array([[0.4407618642255221, 0.291526210328928, 0.1067607992832436]])
+    Xf = np.array([[[0.3731746766708867, 0.25803144511617837, 0.162663772120205],
+                    [0.4858454240960754, 0.2812460431411018, 0.08522744735096027],
+                    [0.41377076440576466, 0.3160315027017038, 0.11573131897514108],
+                    [0.42366621074882976, 0.2768208200886712, 0.12456078336076531],
+                    [0.42868746208262126, 0.3037119402294923, 0.11362306373601246],
+                    [0.3939669607668355, 0.2801387428976035, 0.1421454372121445]]])
+    pr = project_p2(p, Xf)
+    grid = np.linspace(0, 1, 801)
+    S, T = np.meshgrid(grid, grid)
+    keep = S + T <= 1
+    N, _ = p2_shape(np.column_stack([S[keep], T[keep]]))
+    sampled = np.linalg.norm(N @ Xf[0] - p, axis=1).min()
+    assert pr.interior[0]
+    assert sampled - 1e-5 < pr.dist[0] <= sampled + 1e-12
+    assert pr.dist[0] == pytest.approx(0.00279109, rel=1e-5)
+
+
 def prism(n_sides: int, R: float = 1.0, length: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """A closed n-gon prism (nodes on a circle of radius R) split into outward-facing triangles."""
     phi = 2 * np.pi * np.arange(n_sides) / n_sides

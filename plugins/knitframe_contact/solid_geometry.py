@@ -618,7 +618,9 @@ def project_p2(p: np.ndarray, Xf: np.ndarray, iterations: int = 16, tol: float =
     x_α·x_β where that is not positive definite). On the triangle's rim the constraints that the
     descent direction r·x_α pushes against are held: along an edge the step is the Newton step of
     f restricted to the edge, at a corner there is none; ξ is clipped to the triangle after each
-    step. Rows stop once |Δξ| ≤ ``tol`` (the convergence is quadratic, inside and along edges), at
+    step. A step that raises f is halved towards ξ until it does not (a full step of the
+    indefinite or Gauss-Newton model can leave the basin of the closest point for a far local
+    minimum on the rim, and the gap then jumps with p). Rows stop once |Δξ| ≤ ``tol`` (the convergence is quadratic, inside and along edges), at
     most ``iterations``. The point is ``interior`` when it converged off the rim: there p − x is
     along n and the gap n·(p − x) is a smooth function of p and the nodes. ``lam`` (m, 3): the
     barycentric coordinates of p on the corners' plane if already known (the start).
@@ -675,6 +677,11 @@ def project_p2(p: np.ndarray, Xf: np.ndarray, iterations: int = 16, tol: float =
             dt = np.where(edge, step * tt, np.where(nb > 1, 0.0, dt))
             new, _ = _clip_triangle(np.column_stack([s + ds, t + dt]))
             out = np.zeros(len(s), bool)
+        # globalised: a step must not raise f (halved towards ξ otherwise, which stays in the convex
+        # triangle); a full step of the indefinite or Gauss-Newton model can leave the basin of the
+        # closest point for a far local minimum on the rim, and the gap then jumps with p
+        f0 = 0.5 * _dot(r, r)
+        new = _descend(pa, b0, b1, b2, b3, b4, b5, xi[act], new, f0, ~out)
         moved = np.max(np.abs(new - xi[act]), axis=1)
         xi[act[~out]] = new[~out]
         done = (moved <= tol) & ~out
@@ -695,6 +702,24 @@ def project_p2(p: np.ndarray, Xf: np.ndarray, iterations: int = 16, tol: float =
     else:
         inner = (xi[:, 0] > 0.0) & (xi[:, 1] > 0.0) & (xi[:, 0] + xi[:, 1] < 1.0 - 1e-14)
     return P2Projection(xi, x, xs, xt, n, _dot(n, r), np.linalg.norm(r, axis=1), converged & inner)
+
+
+def _descend(p, a0, a1, a2, a3, a4, a5, xi, new, f0, rows, halvings: int = 30) -> np.ndarray:
+    """Backtrack the trial points ``new`` of the selected ``rows`` towards ``xi`` until
+    f(ξ) = ½|p − x(ξ)|² does not exceed f0 (within round-off); a row that finds no such point keeps ξ."""
+    new = new.copy()
+    todo = np.flatnonzero(rows)
+    for _ in range(halvings + 1):
+        if todo.size == 0:
+            break
+        s, t = new[todo, 0:1], new[todo, 1:2]
+        r = p[todo] - (a0[todo] + (a1[todo] + a3[todo] * s + a4[todo] * t) * s + (a2[todo] + a5[todo] * t) * t)
+        f = 0.5 * _dot(r, r)
+        bad = f > f0[todo] * (1.0 + 1e-12) + 1e-300
+        todo = todo[bad]
+        new[todo] = xi[todo] + 0.5 * (new[todo] - xi[todo])
+    new[todo] = xi[todo]
+    return new
 
 
 def _clip_triangle(xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
