@@ -130,6 +130,29 @@ def test_quadratic_projection_finds_the_closest_point_on_bowed_patches(case):
     assert pr.dist[0] == pytest.approx(dist, rel=1e-5)
 
 
+def test_rim_gap_sign_comes_from_the_edge_pseudo_normal():
+    """A point beyond the ridge of a convex roof, in the tangent plane of one roof facet: measured to
+    that facet, its closest point is on the ridge and p − x* lies in the facet's plane, so the sign
+    of n·(p − x*) is round-off (it flipped the gap between ±distance in a jersey cell at 20 %). With
+    the nodal normals interpolated to the closest point, the same vector from both facets, the point
+    is outside from either side."""
+    X = np.array([[0, 0, 0], [1, 0, 0], [0.5, -1, -0.3], [0.5, 1, -0.3]], float)
+    tri = np.array([[1, 0, 2], [0, 1, 3]])
+    nodal = node_normals(X, tri)
+
+    def gap(p, k, corner_normals):
+        c = X[tri[k]]
+        Xe = np.vstack([c, 0.5 * (c[[0, 1, 2]] + c[[1, 2, 0]])])[None]
+        return select_pairs(p, np.array([0]), np.array([k]), Xe, np.array([[0, 0, -1.0]]), 1.0,
+                            corner_normals=corner_normals).g[0]
+
+    for eps in (1e-9, -1e-9):  # just above and just below facet 0's tangent plane, far above facet 1
+        p = np.array([[0.5, 0.5, 0.15 + eps]])
+        assert gap(p, 0, nodal[tri[[0]]]) == pytest.approx(np.hypot(0.5, 0.15))
+        assert gap(p, 1, nodal[tri[[1]]]) > 0
+    assert gap(np.array([[0.5, 0.5, 0.15 - 1e-9]]), 0, None) < 0  # the facet's own normal: the wrong side
+
+
 def prism(n_sides: int, R: float = 1.0, length: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """A closed n-gon prism (nodes on a circle of radius R) split into outward-facing triangles."""
     phi = 2 * np.pi * np.arange(n_sides) / n_sides

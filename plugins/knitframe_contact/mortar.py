@@ -108,7 +108,8 @@ class SolidMortar(SolidContactLaw):
         Xm = x[elements[cand.triangle]] + cand.shift[:, None, :]
         Xp = self.patches(surface, x, cand.triangle, cand.shift, normals) if smooth else Xm
         chosen = select_pairs(xq[cand.point], cand.point, cand.triangle, Xp, ns_q[cand.point], reach,
-                              open_rim=surface.open_rim(cand.triangle, quadratic))
+                              open_rim=surface.open_rim(cand.triangle, quadratic),
+                              corner_normals=self.corner_normals(surface, cand.triangle, normals))
         rows, g = chosen.rows, chosen.g
         point, Xm = cand.point[rows], Xm[rows]
         sel = np.flatnonzero((g < 0) & (g > -reach))

@@ -96,6 +96,15 @@ class SolidContactLaw:
         tri = surface.triangles[used]
         return nagata_facets(x[tri], nodal[tri], blocks=False)[0][where] + shift[:, None, :]
 
+    def corner_normals(self, surface: SolidSurface, triangle: np.ndarray, normals: np.ndarray | None) -> np.ndarray | None:
+        """Nodal normals (m, 3, 3) at the corners of master triangles ``triangle`` (m,) that shape their
+        patches (the edge pseudo-normals of :func:`~knitframe_contact.solid_geometry.select_pairs`), or None
+        when the surface is not smoothed."""
+        if not self.smoothed(surface):
+            return None
+        nodal = self.master_normals(surface) if normals is None else normals
+        return nodal[surface.triangles[triangle]]
+
     def patch_gap_derivatives(self, surface: SolidSurface, Xt: np.ndarray, triangle: np.ndarray, projection,
                               weights: np.ndarray | None, order: int, normals: np.ndarray | None):
         """Gap gradient and Hessian of pairs on patches, in (slave points, the triangles' corners Xt (m, 3, 3))."""
@@ -148,7 +157,8 @@ class SolidPenalty(SolidContactLaw):
             Xm = self.patches(surface, x, cand.triangle, cand.shift, normals)
         ns = node_normals(x, surface.triangles[surface.tri_slave])[slave]
         chosen = select_pairs(x[slave[cand.point]], cand.point, cand.triangle, Xm, ns[cand.point], reach,
-                              open_rim=surface.open_rim(cand.triangle, False))
+                              open_rim=surface.open_rim(cand.triangle, False),
+                              corner_normals=self.corner_normals(surface, cand.triangle, normals))
         rows = chosen.rows
         return {"node": slave[cand.point[rows]], "triangle": cand.triangle[rows], "image": cand.image[rows],
                 "g": chosen.g, "projection": chosen.projection if smooth else None, "candidates": cand}

@@ -427,7 +427,7 @@ class Selection:
 
 def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.ndarray, normal: np.ndarray,
                  reach: float, *, prescreen: float = 0.2, open_rim: np.ndarray | None = None,
-                 facing: float = OPPOSING) -> Selection:
+                 facing: float = OPPOSING, corner_normals: np.ndarray | None = None) -> Selection:
     """For every query point, the nearest opposing master element of its candidates.
 
     A candidate (point p, element at its image, nodes Xe) qualifies when the element's normal at
@@ -453,7 +453,13 @@ def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.n
     master facet continues), the gap is measured to the facet's polynomial continuation, as a
     plane continues a flat triangle, where that has a closest point within 0.5 of the triangle
     whose normal stays within 60° of the corners' plane; the signed distance to an open edge
-    would count a point beside the surface as inside the body. A curved element whose normal at
+    would count a point beside the surface as inside the body. The sign of a rim point's gap is
+    that of n·(p − x*) with the facet's own normal n, or, given ``corner_normals`` (n, 3, 3: the
+    nodal normals at the candidates' corners that shape Nagata patches), with the nodal normals
+    interpolated linearly to ξ*: on an edge that is the same vector from both facets sharing it
+    (an edge pseudo-normal), so the sign does not depend on which of them is chosen; with the
+    facet's own normal, a point in the tangent plane of a facet at its edge had n·(p − x*) ≈ 0
+    and its gap flipped between ±distance with round-off. A curved element whose normal at
     the closest point is turned against its corners' plane (a strongly bowed facet folding over
     near its rim) does not qualify.
 
@@ -542,8 +548,13 @@ def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.n
                 rim = np.setdiff1d(rim, use)
         if rim.size:
             d = proj["dist"][rim]
-            sign = np.where(g[rim] < 0.0, -1.0, 1.0)
             r = r[rim]
+            side = g[rim]
+            if corner_normals is not None:
+                xi = proj["xi"][rim]
+                bary = np.column_stack([1.0 - xi.sum(axis=1), xi])
+                side = _dot(r, np.einsum("mk,mkc->mc", bary, corner_normals[rows[chosen[rim]]]))
+            sign = np.where(side < 0.0, -1.0, 1.0)
             ok_d = d > 1e-12 * reach
             unit = np.where(ok_d[:, None], r / np.where(ok_d, d, 1.0)[:, None], proj["n"][rim] * sign[:, None])
             proj["n"][rim] = sign[:, None] * unit
@@ -683,7 +694,10 @@ def project_p2(p: np.ndarray, Xf: np.ndarray, iterations: int = 30, tol: float =
         # triangle); a full step of the indefinite or Gauss-Newton model can leave the basin of the
         # closest point for a far local minimum on the rim, and the gap then jumps with p
         f0 = 0.5 * _dot(r, r)
-        new = _descend(pa, b0, b1, b2, b3, b4, b5, xi[act], new, f0, ~out)
+        trial = np.max(np.abs(new - xi[act]), axis=1)
+        new, stuck = _descend(pa, b0, b1, b2, b3, b4, b5, xi[act], new, f0, ~out)
+        # no point along a step longer than tol lowers f: not a minimum, so not converged
+        out |= stuck & (trial > tol)
         moved = np.max(np.abs(new - xi[act]), axis=1)
         xi[act[~out]] = new[~out]
         done = (moved <= tol) & ~out
@@ -729,7 +743,8 @@ def _best_start(p, a0, a1, a2, a3, a4, a5, xi) -> np.ndarray:
 
 def _descend(p, a0, a1, a2, a3, a4, a5, xi, new, f0, rows, halvings: int = 30) -> np.ndarray:
     """Backtrack the trial points ``new`` of the selected ``rows`` towards ``xi`` until
-    f(ξ) = ½|p − x(ξ)|² does not exceed f0 (within round-off); a row that finds no such point keeps ξ."""
+    f(ξ) = ½|p − x(ξ)|² does not exceed f0 (within round-off); a row that finds no such point keeps ξ
+    and is flagged in the returned mask ``stuck``."""
     new = new.copy()
     todo = np.flatnonzero(rows)
     for _ in range(halvings + 1):
@@ -742,7 +757,9 @@ def _descend(p, a0, a1, a2, a3, a4, a5, xi, new, f0, rows, halvings: int = 30) -
         todo = todo[bad]
         new[todo] = xi[todo] + 0.5 * (new[todo] - xi[todo])
     new[todo] = xi[todo]
-    return new
+    stuck = np.zeros(len(xi), bool)
+    stuck[todo] = True
+    return new, stuck
 
 
 def _clip_triangle(xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
