@@ -531,6 +531,29 @@ def test_open_edges_of_the_master_surface():
     assert contact_surface(cm, None).open_facet.sum() == 0
 
 
+def test_nagata_normals_match_across_the_periodic_seam():
+    """The end nodes of a periodic tube and the start nodes they stand for get one nodal normal from both
+    fans of triangles, so the smoothed (Nagata) master surface has no step at the seam; from one fan
+    each, the two sides' normals differed and the patches on either side of the seam did not meet."""
+    from knitframe_solvers.volumetric import contact_surface
+
+    cm = cell_mesh(helix_cell(0.2), seed=0.6, check=False)
+    surf = contact_surface(cm, None)
+    law = SolidMortar()
+    tri = surf.triangles[surf.tri_master]
+    end = np.concatenate([e for e, _, _ in cm.end_pairs])
+    start = np.concatenate([s for _, s, _ in cm.end_pairs])
+    x = cm.nodes + 0.01 * np.sin(7.0 * cm.nodes)  # a deformed state, so that the fans differ
+    shift = x[start] - x[end]
+    x[end] = x[start] - shift.mean(axis=0)  # the end nodes an image of the start nodes (a translation)
+    one_sided = node_normals(x, tri)
+    assert np.abs(one_sided[end] - one_sided[start]).max() > 1e-3
+    n = law.master_normals(surf, x)
+    assert np.allclose(n[end], n[start], atol=1e-14)
+    on = np.linalg.norm(one_sided[end], axis=1) > 0  # the end faces' surface nodes (the rest are inside)
+    assert on.sum() > 0 and np.allclose(np.linalg.norm(n[end[on]], axis=1), 1.0)
+
+
 def test_a_flank_at_right_angles_stays_in_contact():
     """A slave point 0.01 inside a master facet whose own normal stands at right angles to the master's
     (the flank of a crossing yarn): it pairs with the same gap whether its normal leans 3° towards or away

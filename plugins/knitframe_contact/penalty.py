@@ -85,7 +85,7 @@ class SolidContactLaw:
         start of each increment and passes them to :meth:`evaluate` as ``normals``."""
         if not self.smoothed(surface):
             return None
-        return node_normals(surface.X if x is None else x, surface.triangles[surface.tri_master])
+        return node_normals(surface.X if x is None else x, surface.triangles[surface.tri_master], surface.identify)
 
     def patches(self, surface: SolidSurface, x: np.ndarray, triangle: np.ndarray, shift: np.ndarray,
                 normals: np.ndarray | None) -> np.ndarray:

@@ -126,13 +126,16 @@ def barycentric(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> n
     return np.stack([1.0 - l1 - l2, l1, l2], axis=1)
 
 
-def node_normals(x: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+def node_normals(x: np.ndarray, triangles: np.ndarray, identify: np.ndarray | None = None) -> np.ndarray:
     """Angle-weighted unit normals (N, 3) at the nodes of a triangle surface (zero off the surface).
 
     n_a ∝ Σ_t α_t,a n_t over the triangles t at node a, α_t,a the interior angle of t at a
     (Thürmer & Wüthrich 1998): unlike area weights, it does not depend on how the facets were
     split into triangles (a quad's two halves share its corner angle), so on a prism or a swept
-    tube the normal at a node is the symmetric one.
+    tube the normal at a node is the symmetric one. With ``identify`` (N,), nodes that stand for
+    the same node (a periodic seam's end nodes and their start nodes, images of each other by a
+    translation) sum their triangles and share one normal, so that the Nagata patches on both
+    sides of the seam meet.
     """
     P = x[triangles]  # (T, 3, 3)
     m = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
@@ -143,6 +146,10 @@ def node_normals(x: np.ndarray, triangles: np.ndarray) -> np.ndarray:
         e2 = P[:, (k + 2) % 3] - P[:, k]
         angle = np.arctan2(np.linalg.norm(np.cross(e1, e2), axis=1), _dot(e1, e2))
         np.add.at(out, triangles[:, k], angle[:, None] * nt)
+    if identify is not None:
+        total = np.zeros_like(out)
+        np.add.at(total, identify, out)
+        out = total[identify]
     nrm = np.linalg.norm(out, axis=1, keepdims=True)
     return out / np.where(nrm > 0, nrm, 1.0)
 
@@ -266,6 +273,7 @@ class SolidSurface:
     tributary: np.ndarray  #: (N,) reference slave area per node (a third of each slave triangle), mm²
     open_facet: np.ndarray  #: (F, 3) master facets' edges (corners 01, 12, 20) on the master surface's open boundary
     open_triangle: np.ndarray  #: (T, 3) the same for the linear triangles of the master facets
+    identify: np.ndarray | None = None  #: (N,) the node each node stands for across a periodic seam (None: itself)
 
     def open_rim(self, element: np.ndarray, quadratic: bool) -> np.ndarray:
         """(m, 3) open-boundary flags of the edges of master elements (facets with ``quadratic``, else triangles)."""
@@ -298,7 +306,7 @@ class SolidSurface:
         return cls(len(X), np.asarray(X, np.float64), facets, np.asarray(slave, np.int64), np.asarray(master, np.int64), topology,
                    float(exclusion), lattice, tri, ts, tri_of(master), area, np.unique(facets[slave]), trib,
                    _open_edges(ident[facets[:, :3]], np.asarray(master, np.int64)),
-                   _open_edges(ident[tri], tri_of(master)))
+                   _open_edges(ident[tri], tri_of(master)), None if identify is None else ident)
 
     def candidates(self, points: np.ndarray, point_node: np.ndarray, x: np.ndarray, h: np.ndarray | None,
                    reach: float, *, quadratic: bool = False, group: int = 1) -> Candidates:
