@@ -15,7 +15,8 @@ linear-solver plugin, with
   the residual, accepting the longest α with |g_f(x + α dx)|₂ ≤ (1 − c·α)·|g_f(x)|₂ (the
   merit function of residual-based line searches in implicit FE codes);
 * a Levenberg shift μ·mean|diag H| added to H_ff when the factorisation fails or dx is not a
-  descent direction, and (the rigid-mode stabilisation) while ``stabilise(info)`` is true.
+  descent direction (μ = 0, 1e-8, 1e-7, … up to 1e-8·10^(k−1), k = ``max_shift_increases``;
+  from there the iteration fails), and (the rigid-mode stabilisation) while ``stabilise(info)`` is true.
   Convergence is always tested on the unshifted gradient, so the shift changes the path, not
   the converged answer;
 * an optional cap on the step size (``step_norm(dx) <= max_step``), which keeps contacts from
@@ -153,6 +154,10 @@ def minimise(
     x_start = x.copy()
     measure = step_norm if step_norm is not None else (lambda d: float(np.max(np.abs(d[free]), initial=0.0)))
     correction = math.inf
+    # the largest shift: the max_shift_increases-th value of 0, 1e-8, 1e-7, … (a shift carried over from
+    # the last iteration starts higher, and without this cap iterations that each needed the largest shift
+    # ratcheted it up to 1e6 × the diagonal: steps too short to matter, dozens of line searches each)
+    max_shift = 1e-8 * 10.0 ** max(options.max_shift_increases - 1, 0)
     for it in range(options.max_iter + 1):
         res = float(np.max(np.abs(g[free]), initial=0.0))
         if not np.isfinite(res):
@@ -182,9 +187,12 @@ def minimise(
         scale = _diag_scale(Hff)
         base = options.stabilisation if (stabilise is not None and stabilise(info)) else 0.0
         shift_rel = shift_rel * 0.1 if shift_rel * 0.1 > max(base, 1e-10) else base
+        shift_rel = min(shift_rel, max_shift)
         accepted = False
         tried = 0.0
         for _ in range(options.max_shift_increases + 1):
+            if shift_rel > max_shift * (1.0 + 1e-9):
+                break
             tried = shift_rel
             A = Hff + sp.identity(Hff.shape[0], format="csc") * (shift_rel * scale) if shift_rel > 0 else Hff
             dx_f = None

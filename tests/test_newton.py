@@ -205,3 +205,21 @@ def test_checkpoints_round_trip_and_ignore_other_runs(tmp_path):
     idx, arrays, meta = a.latest()
     assert idx == 1 and np.array_equal(arrays["q"], np.ones(3)) and meta["phase"] == "load"
     assert StepCheckpoints(tmp_path, "run-b").latest() is None
+
+
+def test_levenberg_shift_is_capped():
+    """A kink the Hessian does not see (E = |x − 0.3| + ½(y − 1)², H = diag(1e-6, 1)) needs ever larger
+    shifts as x nears the kink. The shift never exceeds 1e-8·10^(k−1), k = max_shift_increases: the
+    iteration gives up there (the cut-back's turn) instead of ratcheting the shift, carried from one
+    iteration to the next, up to 1e15 × the diagonal with dozens of line searches per iteration."""
+
+    def kinked(x, order=2):
+        E = float(abs(x[0] - 0.3) + 0.5 * (x[1] - 1) ** 2)
+        g = np.array([np.sign(x[0] - 0.3), x[1] - 1]) if order >= 1 else None
+        H = sp.diags([1e-6, 1.0]).tocsr() if order >= 2 else None
+        return E, g, H, {}
+
+    opts = NewtonOptions(max_shift_increases=14, max_backtracks=3, max_iter=60)
+    with pytest.raises(NumericalError, match=r"shift up to 1e\+05") as err:
+        minimise(kinked, np.array([0.0, 0.0]), np.ones(2, bool), solve=direct(), options=opts)
+    assert max(h["shift"] for h in err.value.history) <= 1e5
