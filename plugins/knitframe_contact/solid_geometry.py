@@ -698,12 +698,13 @@ def project_p2(p: np.ndarray, Xf: np.ndarray, iterations: int = 30, tol: float =
             dt = np.where(edge, step * tt, np.where(nb > 1, 0.0, dt))
             new, _ = _clip_triangle(np.column_stack([s + ds, t + dt]))
             out = np.zeros(len(s), bool)
-        # globalised: a step must not raise f (halved towards ξ otherwise, which stays in the convex
+        # globalised: a step must not raise f (the step is halved otherwise, each trial clipped to the
         # triangle); a full step of the indefinite or Gauss-Newton model can leave the basin of the
         # closest point for a far local minimum on the rim, and the gap then jumps with p
         f0 = 0.5 * _dot(r, r)
         trial = np.max(np.abs(new - xi[act]), axis=1)
-        new, stuck = _descend(pa, b0, b1, b2, b3, b4, b5, xi[act], new, f0, ~out)
+        new, stuck = _descend(pa, b0, b1, b2, b3, b4, b5, xi[act], np.column_stack([ds, dt]), f0, ~out,
+                              clip=not extend)
         # no point along a step longer than tol lowers f: not a minimum, so not converged
         out |= stuck & (trial > tol)
         moved = np.max(np.abs(new - xi[act]), axis=1)
@@ -749,22 +750,27 @@ def _best_start(p, a0, a1, a2, a3, a4, a5, xi) -> np.ndarray:
     return out
 
 
-def _descend(p, a0, a1, a2, a3, a4, a5, xi, new, f0, rows, halvings: int = 30) -> np.ndarray:
-    """Backtrack the trial points ``new`` of the selected ``rows`` towards ``xi`` until
-    f(ξ) = ½|p − x(ξ)|² does not exceed f0 (within round-off); a row that finds no such point keeps ξ
-    and is flagged in the returned mask ``stuck``."""
-    new = new.copy()
+def _descend(p, a0, a1, a2, a3, a4, a5, xi, step, f0, rows, *, clip: bool, halvings: int = 30):
+    """Points ξ + α·``step`` (clipped to the triangle with ``clip``) of the selected ``rows``, α = 1, ½, ¼, …,
+    the first at which f(ξ) = ½|p − x(ξ)|² does not exceed f0 (within round-off); a row that finds none
+    keeps ξ and is flagged in the returned mask ``stuck``. The trials are clipped one by one rather than
+    halving the way to the clipped full step: near an edge that chord is not a descent direction, and the
+    iteration crept along it for 25 iterations (the accepted steps were round-off)."""
+    new = xi.copy()
     todo = np.flatnonzero(rows)
+    alpha = 1.0
     for _ in range(halvings + 1):
         if todo.size == 0:
             break
-        s, t = new[todo, 0:1], new[todo, 1:2]
+        trial = xi[todo] + alpha * step[todo]
+        if clip:
+            trial, _ = _clip_triangle(trial)
+        s, t = trial[:, 0:1], trial[:, 1:2]
         r = p[todo] - (a0[todo] + (a1[todo] + a3[todo] * s + a4[todo] * t) * s + (a2[todo] + a5[todo] * t) * t)
-        f = 0.5 * _dot(r, r)
-        bad = f > f0[todo] * (1.0 + 1e-12) + 1e-300
-        todo = todo[bad]
-        new[todo] = xi[todo] + 0.5 * (new[todo] - xi[todo])
-    new[todo] = xi[todo]
+        ok = 0.5 * _dot(r, r) <= f0[todo] * (1.0 + 1e-12) + 1e-300
+        new[todo[ok]] = trial[ok]
+        todo = todo[~ok]
+        alpha *= 0.5
     stuck = np.zeros(len(xi), bool)
     stuck[todo] = True
     return new, stuck
