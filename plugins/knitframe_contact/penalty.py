@@ -87,11 +87,15 @@ class SolidContactLaw:
             return None
         return node_normals(surface.X if x is None else x, surface.triangles[surface.tri_master], surface.identify)
 
+    def _nodal(self, surface: SolidSurface, normals: np.ndarray | None) -> np.ndarray:
+        """The frozen nodal normals of an evaluation, or the reference configuration's."""
+        return self.master_normals(surface) if normals is None else normals
+
     def patches(self, surface: SolidSurface, x: np.ndarray, triangle: np.ndarray, shift: np.ndarray,
                 normals: np.ndarray | None) -> np.ndarray:
         """Nagata patches (m, 6, 3) of master triangles ``triangle`` (m,) moved by ``shift`` (m, 3): each
         distinct triangle is built once (:func:`~knitframe_contact.solid_geometry.nagata_facets`)."""
-        nodal = self.master_normals(surface) if normals is None else normals
+        nodal = self._nodal(surface, normals)
         used, where = np.unique(triangle, return_inverse=True)
         tri = surface.triangles[used]
         return nagata_facets(x[tri], nodal[tri], blocks=False)[0][where] + shift[:, None, :]
@@ -102,13 +106,13 @@ class SolidContactLaw:
         when the surface is not smoothed."""
         if not self.smoothed(surface):
             return None
-        nodal = self.master_normals(surface) if normals is None else normals
+        nodal = self._nodal(surface, normals)
         return nodal[surface.triangles[triangle]]
 
     def patch_gap_derivatives(self, surface: SolidSurface, Xt: np.ndarray, triangle: np.ndarray, projection,
                               weights: np.ndarray | None, order: int, normals: np.ndarray | None):
         """Gap gradient and Hessian of pairs on patches, in (slave points, the triangles' corners Xt (m, 3, 3))."""
-        nodal = self.master_normals(surface) if normals is None else normals
+        nodal = self._nodal(surface, normals)
         X6, A6 = nagata_facets(Xt, nodal[surface.triangles[triangle]])
         return chain_facet_derivatives(*p2_gap_derivatives(projection, X6, weights, order), A6)
 

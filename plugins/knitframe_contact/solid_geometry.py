@@ -638,10 +638,11 @@ def project_p2(p: np.ndarray, Xf: np.ndarray, iterations: int = 30, tol: float =
     descent direction r·x_α pushes against are held: along an edge the step is the Newton step of
     f restricted to the edge, at a corner there is none; ξ is clipped to the triangle after each
     step; the start is the plane projection or, if closer, the nearest point of a 28-point lattice
-    on the triangle. A step that raises f is halved towards ξ until it does not (a full step of the
-    indefinite or Gauss-Newton model can leave the basin of the closest point for a far local
-    minimum on the rim, and the gap then jumps with p). Rows stop once |Δξ| ≤ ``tol`` (the convergence is quadratic, inside and along edges), at
-    most ``iterations``. The point is ``interior`` when it converged off the rim: there p − x is
+    on the triangle. A step that raises f is halved until it does not, each trial clipped to the
+    triangle (a full step of the indefinite or Gauss-Newton model can leave the basin of the
+    closest point for a far local minimum on the rim, and the gap then jumps with p); a row that
+    finds no lower f is not converged. Rows stop once |Δξ| ≤ ``tol`` (the convergence is
+    quadratic, inside and along edges), at most ``iterations``. The point is ``interior`` when it converged off the rim: there p − x is
     along n and the gap n·(p − x) is a smooth function of p and the nodes. ``lam`` (m, 3): the
     barycentric coordinates of p on the corners' plane if already known (the start).
 
@@ -669,7 +670,7 @@ def project_p2(p: np.ndarray, Xf: np.ndarray, iterations: int = 30, tol: float =
         sc, tc = s[:, None], t[:, None]
         xs = b1 + 2.0 * b3 * sc + b4 * tc
         xt = b2 + b4 * sc + 2.0 * b5 * tc
-        r = pa - (b0 + (b1 + b3 * sc + b4 * tc) * sc + (b2 + b5 * tc) * tc)
+        r = pa - _p2_point((b0, b1, b2, b3, b4, b5), sc, tc)
         G11, G12, G22 = _dot(xs, xs), _dot(xs, xt), _dot(xt, xt)
         H11, H12, H22 = G11 - 2.0 * _dot(r, b3), G12 - _dot(r, b4), G22 - 2.0 * _dot(r, b5)
         det = H11 * H22 - H12 * H12
@@ -702,18 +703,18 @@ def project_p2(p: np.ndarray, Xf: np.ndarray, iterations: int = 30, tol: float =
         # triangle); a full step of the indefinite or Gauss-Newton model can leave the basin of the
         # closest point for a far local minimum on the rim, and the gap then jumps with p
         f0 = 0.5 * _dot(r, r)
-        trial = np.max(np.abs(new - xi[act]), axis=1)
+        full = np.max(np.abs(new - xi[act]), axis=1)
         new, stuck = _descend(pa, b0, b1, b2, b3, b4, b5, xi[act], np.column_stack([ds, dt]), f0, ~out,
                               clip=not extend)
         # no point along a step longer than tol lowers f: not a minimum, so not converged
-        out |= stuck & (trial > tol)
+        out |= stuck & (full > tol)
         moved = np.max(np.abs(new - xi[act]), axis=1)
         xi[act[~out]] = new[~out]
         done = (moved <= tol) & ~out
         converged[act[done]] = True
         act = act[~(done | out)]
     s, t = xi[:, 0:1], xi[:, 1:2]
-    x = a0 + (a1 + a3 * s + a4 * t) * s + (a2 + a5 * t) * t
+    x = _p2_point((a0, a1, a2, a3, a4, a5), s, t)
     xs = a1 + 2.0 * a3 * s + a4 * t
     xt = a2 + a4 * s + 2.0 * a5 * t
     nv = np.cross(xs, xt)
@@ -729,6 +730,12 @@ def project_p2(p: np.ndarray, Xf: np.ndarray, iterations: int = 30, tol: float =
     return P2Projection(xi, x, xs, xt, n, _dot(n, r), np.linalg.norm(r, axis=1), converged & inner)
 
 
+def _p2_point(a, s, t):
+    """x(ξ) = a0 + a1 s + a2 t + a3 s² + a4 s t + a5 t² of a quadratic facet's coefficients a (:func:`p2_coefficients`)."""
+    a0, a1, a2, a3, a4, a5 = a
+    return a0 + (a1 + a3 * s + a4 * t) * s + (a2 + a5 * t) * t
+
+
 #: barycentric lattice (order 6, 28 points) of the start search on curved facets
 _START_GRID = np.array([(i / 6.0, j / 6.0) for i in range(7) for j in range(7 - i)])
 
@@ -739,7 +746,7 @@ def _best_start(p, a0, a1, a2, a3, a4, a5, xi) -> np.ndarray:
     distance has several local minima and flat indefinite regions; from the plane projection
     alone Newton can take 20 iterations to leave them, or settle on a far minimum."""
     s, t = _START_GRID[None, :, 0:1], _START_GRID[None, :, 1:2]
-    x = a0[:, None] + (a1[:, None] + a3[:, None] * s + a4[:, None] * t) * s + (a2[:, None] + a5[:, None] * t) * t
+    x = _p2_point(tuple(a[:, None] for a in (a0, a1, a2, a3, a4, a5)), s, t)
     f = np.einsum("mkc,mkc->mk", p[:, None] - x, p[:, None] - x)
     k = f.argmin(axis=1)
     s0, t0 = xi[:, 0:1], xi[:, 1:2]
@@ -766,7 +773,7 @@ def _descend(p, a0, a1, a2, a3, a4, a5, xi, step, f0, rows, *, clip: bool, halvi
         if clip:
             trial, _ = _clip_triangle(trial)
         s, t = trial[:, 0:1], trial[:, 1:2]
-        r = p[todo] - (a0[todo] + (a1[todo] + a3[todo] * s + a4[todo] * t) * s + (a2[todo] + a5[todo] * t) * t)
+        r = p[todo] - _p2_point(tuple(a[todo] for a in (a0, a1, a2, a3, a4, a5)), s, t)
         ok = 0.5 * _dot(r, r) <= f0[todo] * (1.0 + 1e-12) + 1e-300
         new[todo[ok]] = trial[ok]
         todo = todo[~ok]
