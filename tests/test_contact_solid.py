@@ -99,7 +99,7 @@ BOWED_PATCHES = {
                    [0.42366621074882976, 0.2768208200886712, 0.12456078336076531],
                    [0.42868746208262126, 0.3037119402294923, 0.11362306373601246],
                    [0.3939669607668355, 0.2801387428976035, 0.1421454372121445]], 0.00279109),
-    # from the plane projection Newton sat 12 iterations in an indefinite flat region (0.027 mm)
+    # from the plane projection Newton sat 12 iterations near 0.027 mm and returned an unconverged point
     "slow": ([-0.7267101481682067, 0.18192358125331393, 0.04938587579145677],
              [[-0.6527192980025082, 0.10605802392821007, 0.07153553938907382],
               [-0.7586507267611693, 0.13916489922601594, 0.07097893630598316],
@@ -122,10 +122,10 @@ BOWED_PATCHES = {
 @pytest.mark.parametrize("case", sorted(BOWED_PATCHES))
 def test_quadratic_projection_finds_the_closest_point_on_bowed_patches(case):
     """Strongly bowed Nagata patches of a jersey cell at 20 % stretch, where the contact energy
-    jumped (by 8e-7 and 1e-5 N·mm) within 1e-16 of a Newton step: the projection had returned a
-    far or unconverged point, and the gap changed sign with it. The start is now the better of
-    the plane projection and a lattice on the triangle, and steps that raise the distance are
-    backtracked, so the closest point is found (dense sampling) and converged."""
+    jumped (by 3e-7 to 1e-5 N·mm) within 1e-16 of a Newton step: the projection had returned a
+    far or unconverged point, and the gap changed sign with it. Steps that raise the distance are
+    now backtracked, each trial clipped to the triangle, so the closest point is found (dense
+    sampling) and converged."""
     p, X, dist = BOWED_PATCHES[case]
     p, Xf = np.array([p]), np.array([X])
     pr = project_p2(p, Xf, iterations=16)
