@@ -637,7 +637,8 @@ def project_p2(p: np.ndarray, Xf: np.ndarray, iterations: int = 30, tol: float =
     x_α·x_β where that is not positive definite). On the triangle's rim the constraints that the
     descent direction r·x_α pushes against are held: along an edge the step is the Newton step of
     f restricted to the edge, at a corner there is none; ξ is clipped to the triangle after each
-    step. A step that raises f is halved until it does not, each trial clipped to the
+    step; the start is the plane projection or, if closer, the nearest point of a 28-point lattice
+    on the triangle. A step that raises f is halved until it does not, each trial clipped to the
     triangle (a full step of the indefinite or Gauss-Newton model can leave the basin of the
     closest point for a far local minimum on the rim, and the gap then jumps with p); a row that
     finds no lower f is not converged. Rows stop once |Δξ| ≤ ``tol`` (the convergence is
@@ -657,6 +658,7 @@ def project_p2(p: np.ndarray, Xf: np.ndarray, iterations: int = 30, tol: float =
         if lam is None:
             lam = barycentric(p, Xf[:, 0], Xf[:, 1], Xf[:, 2])
         xi, _ = _clip_triangle(lam[:, 1:].copy())
+        xi = _best_start(p, a0, a1, a2, a3, a4, a5, xi)
     converged = np.zeros(m, bool)
     failed = np.zeros(m, bool)
     act = np.arange(m)
@@ -732,6 +734,27 @@ def _p2_point(a, s, t):
     """x(ξ) = a0 + a1 s + a2 t + a3 s² + a4 s t + a5 t² of a quadratic facet's coefficients a (:func:`p2_coefficients`)."""
     a0, a1, a2, a3, a4, a5 = a
     return a0 + (a1 + a3 * s + a4 * t) * s + (a2 + a5 * t) * t
+
+
+#: barycentric lattice (order 6, 28 points) of the start search on curved facets
+_START_GRID = np.array([(i / 6.0, j / 6.0) for i in range(7) for j in range(7 - i)])
+
+
+def _best_start(p, a0, a1, a2, a3, a4, a5, xi) -> np.ndarray:
+    """The start of the closest-point search: ``xi`` or the point of a 28-point lattice on the
+    triangle with the smallest distance, whichever is closer. On a strongly bowed facet the
+    distance has several local minima and flat indefinite regions; from the plane projection
+    alone Newton can take 20 iterations to leave them, or settle on a far minimum."""
+    s, t = _START_GRID[None, :, 0:1], _START_GRID[None, :, 1:2]
+    x = _p2_point(tuple(a[:, None] for a in (a0, a1, a2, a3, a4, a5)), s, t)
+    f = np.einsum("mkc,mkc->mk", p[:, None] - x, p[:, None] - x)
+    k = f.argmin(axis=1)
+    s0, t0 = xi[:, 0:1], xi[:, 1:2]
+    r0 = p - (a0 + (a1 + a3 * s0 + a4 * t0) * s0 + (a2 + a5 * t0) * t0)
+    use = f[np.arange(len(p)), k] < _dot(r0, r0)
+    out = xi.copy()
+    out[use] = _START_GRID[k[use]]
+    return out
 
 
 def _descend(p, a0, a1, a2, a3, a4, a5, xi, step, f0, rows, *, clip: bool, halvings: int = 30):
