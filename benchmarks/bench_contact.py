@@ -8,6 +8,8 @@ Usage::
     python benchmarks/bench_contact.py --save ref.pkl           # keep the inputs and E, gradient, Hessian
     python benchmarks/bench_contact.py --compare ref.pkl        # same inputs, relative differences to them
     python benchmarks/bench_contact.py --profile mortar-P2-2    # cProfile of one case (top 30 by cumulative time)
+    python benchmarks/bench_contact.py --projection 100000      # closest points on random curved facets, and the
+                                                                # share of the start search in them
 
 The cell is meshed at seed r/3 as the solver does it, the contact surface is the solver's
 two-pass surface with periodic images, and the yarns are shrunk across the fibre about their
@@ -72,6 +74,31 @@ def rel(a, b) -> str:
     return f"{np.linalg.norm(np.atleast_1d(a - b)) / max(np.linalg.norm(np.atleast_1d(b)), 1e-300):.1e}"
 
 
+def projection_time(m: int, repeat: int) -> None:
+    """Time ``project_p2`` on m random bowed quadratic facets, and its start search (the 28-point lattice) alone."""
+    from knitframe_contact import solid_geometry as sg
+
+    rng = np.random.default_rng(0)
+    c = rng.normal(size=(m, 3, 3)) * 0.1 + np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    mid = 0.5 * (c[:, [0, 1, 2]] + c[:, [1, 2, 0]]) + rng.normal(size=(m, 3, 3)) * 0.05
+    X = np.concatenate([c, mid], axis=1)
+    p = rng.uniform(-0.2, 0.8, size=(m, 3)) * [1, 1, 0.3]
+    a = sg.p2_coefficients(X)
+    xi = sg.barycentric(p, X[:, 0], X[:, 1], X[:, 2])[:, 1:].clip(0.0, 1.0)
+
+    def best(f):
+        out = []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            f()
+            out.append(time.perf_counter() - t0)
+        return min(out)
+
+    print("| what | s |\n|---|---|")
+    print(f"| project_p2, {m} facets | {best(lambda: sg.project_p2(p, X)):.3f} |")
+    print(f"| of it the start search (28-point lattice) | {best(lambda: sg._best_start(p, *a, xi)):.3f} |")
+
+
 def main(argv=None) -> None:
     from knitframe_contact.mortar import SolidMortar
     from knitframe_contact.penalty import SolidPenalty
@@ -89,7 +116,11 @@ def main(argv=None) -> None:
     p.add_argument("--save")
     p.add_argument("--compare")
     p.add_argument("--profile", help="law-Pk-order, e.g. mortar-P2-2")
+    p.add_argument("--projection", type=int, help="only time project_p2 on this many random curved facets")
     args = p.parse_args(argv)
+    if args.projection:
+        projection_time(args.projection, args.repeat)
+        return
     laws = {"penalty": SolidPenalty(), "mortar": SolidMortar()}
     ref = None
     if args.compare:

@@ -642,8 +642,8 @@ def project_p2(p: np.ndarray, Xf: np.ndarray, iterations: int = 30, tol: float =
     triangle (a full step of the indefinite or Gauss-Newton model can leave the basin of the
     closest point for a far local minimum on the rim, and the gap then jumps with p); a row that
     finds no lower f is not converged. Rows stop once |Δξ| ≤ ``tol`` (the convergence is
-    quadratic, inside and along edges), at most ``iterations``. The point is ``interior`` when it converged off the rim: there p − x is
-    along n and the gap n·(p − x) is a smooth function of p and the nodes. ``lam`` (m, 3): the
+    quadratic, inside and along edges), at most ``iterations``. The point is ``interior`` when it
+    converged off the rim: there p − x is along n and the gap n·(p − x) is a smooth function of p and the nodes. ``lam`` (m, 3): the
     barycentric coordinates of p on the corners' plane if already known (the start).
 
     With ``extend`` the facet's polynomial map is continued beyond the triangle (as a plane
@@ -750,7 +750,7 @@ def _best_start(p, a0, a1, a2, a3, a4, a5, xi) -> np.ndarray:
     f = np.einsum("mkc,mkc->mk", p[:, None] - x, p[:, None] - x)
     k = f.argmin(axis=1)
     s0, t0 = xi[:, 0:1], xi[:, 1:2]
-    r0 = p - (a0 + (a1 + a3 * s0 + a4 * t0) * s0 + (a2 + a5 * t0) * t0)
+    r0 = p - _p2_point((a0, a1, a2, a3, a4, a5), s0, t0)
     use = f[np.arange(len(p)), k] < _dot(r0, r0)
     out = xi.copy()
     out[use] = _START_GRID[k[use]]
