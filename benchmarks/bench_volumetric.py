@@ -148,7 +148,7 @@ def bench_iteration(args) -> list[dict]:
 def bench_run(args) -> list[dict]:
     from knitframe_solvers.volumetric import VolumetricSolver
 
-    law = {"kind": args.contact, "smoothing": args.smoothing}
+    law = {"kind": args.contact} if args.smoothing is None else {"kind": args.contact, "smoothing": args.smoothing}
     if args.mu is not None:
         law["friction"] = args.mu
     solver = VolumetricSolver(order=args.order, seed=args.seed, contact_law=law,
@@ -262,7 +262,7 @@ def main(argv=None) -> None:
                                    "'trace': the file to summarise")
     p.add_argument("--friction", action="store_true", help="'run': the scene asks for yarn-yarn friction (lagged Coulomb)")
     p.add_argument("--mu", type=float, help="'run': Coulomb friction coefficient of the contact law (default the law's, 0.3)")
-    p.add_argument("--smoothing", default="nagata", help="'run': master surface of P1 contact, nagata or none")
+    p.add_argument("--smoothing", help="'run': master surface of P1 contact of penalty and mortar, nagata (their default) or none")
     p.add_argument("--transverse-ratio", type=float,
                    help="'run': set the yarn's E_transverse to this × E_axial (a diagnostic of the anisotropy)")
     p.add_argument("--stabilisation", type=float, help="'run': the solver's stabilisation (weak foundation) factor")

@@ -118,6 +118,7 @@ def minimise(
     options: NewtonOptions = NewtonOptions(),
     stabilise: Callable[[dict], bool] | None = None,
     step_norm: Callable[[np.ndarray], float] | None = None,
+    step_limit: Callable[[np.ndarray, np.ndarray], float] | None = None,
 ) -> NewtonResult:
     """Minimise the energy of ``fun`` over the DOFs selected by the boolean mask ``free``.
 
@@ -136,6 +137,9 @@ def minimise(
         Hessian while true (rigid modes not yet held by contact).
     step_norm : callable, optional
         Size of a full-length step dx (n,), compared with ``options.max_step``.
+    step_limit : callable, optional
+        ``step_limit(x, dx) -> α_max``: the largest admissible fraction of the step (continuous
+        collision detection of barrier contact); the line search starts from min(1, α_max).
 
     Returns
     -------
@@ -210,7 +214,8 @@ def minimise(
                     if size > options.max_step:
                         dx *= options.max_step / size
                         slope *= options.max_step / size
-                step = _line_search(fun, x, E, g, dx, slope, options, free)
+                alpha0 = 1.0 if step_limit is None else min(1.0, float(step_limit(x, dx)))
+                step = _line_search(fun, x, E, g, dx, slope, options, free, alpha0) if alpha0 > 0 else None
                 if step is not None:
                     alpha, x_new, E_new = step
                     accepted = True
@@ -246,14 +251,15 @@ def _failure(message: str, history: Sequence[dict]) -> NumericalError:
 
 
 def _line_search(fun: Problem, x: np.ndarray, E: float, g: np.ndarray, dx: np.ndarray, slope: float,
-                 options: NewtonOptions, free: np.ndarray | None = None) -> tuple[float, np.ndarray, float] | None:
-    """Backtracking Armijo search on E, then (if no step lowers E) a residual-decrease fallback.
+                 options: NewtonOptions, free: np.ndarray | None = None,
+                 alpha0: float = 1.0) -> tuple[float, np.ndarray, float] | None:
+    """Backtracking Armijo search on E from α = ``alpha0``, then (if no step lowers E) a residual-decrease fallback.
 
     Near round-off level a step that lowers |g| is accepted directly. The fallback tries
-    α = 1, ½, … (``options.residual_backtracks`` values) and accepts the first admissible one with
+    α = α0, α0/2, … (``options.residual_backtracks`` values) and accepts the first admissible one with
     |g_f(x + α dx)|₂ ≤ (1 − c·α)|g_f(x)|₂, c = ``options.armijo``.
     """
-    alpha = 1.0
+    alpha = alpha0
     g_norm = float(np.linalg.norm(g))
     for _ in range(options.max_backtracks):
         x_new = x + alpha * dx
@@ -269,7 +275,7 @@ def _line_search(fun: Problem, x: np.ndarray, E: float, g: np.ndarray, dx: np.nd
         alpha *= 0.5
     mask = slice(None) if free is None else free
     gf_norm = float(np.linalg.norm(g[mask]))
-    alpha = 1.0
+    alpha = alpha0
     for _ in range(options.residual_backtracks):
         x_new = x + alpha * dx
         E_new, g_new, _, _ = fun(x_new, 1)

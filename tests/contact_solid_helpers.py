@@ -87,6 +87,20 @@ def iso(E: float, nu: float) -> YarnLaw:
     return YarnLaw(Isotropic(E_axial=E, radius=1.0, nu=nu))
 
 
+def hertz_supports(mesh, body: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Supports of the cylinder-on-flat Hertz problem: nodes X, fixed DOFs (N, 3) and the cylinder's
+    axis-plane nodes ``sym`` (y = 0, loaded by their prescribed y-displacement): plane strain (z
+    fixed), the flat rigid (all fixed), symmetry at x = 0."""
+    X = nodes(mesh)
+    fixed = np.zeros((len(X), 3), bool)
+    fixed[:, 2] = True
+    fixed[body == 1] = True
+    fixed[(body == 0) & np.isclose(X[:, 0], 0), 0] = True
+    sym = (body == 0) & np.isclose(X[:, 1], 0)
+    fixed[sym, 1] = True
+    return X, fixed, sym
+
+
 def quarter_cylinder_on_flat(R: float, h_contact: float, h_far: float, thickness: float, order: int):
     """Quarter disc x ≥ 0, y ≤ 0 of radius R (one element thick in z) above a flat block touching at (0, −R).
 

@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 import skfem
 
-from contact_solid_helpers import assert_derivatives, image_blocks, iso, nodes, quarter_cylinder_on_flat, solve, stacked_blocks, surface
+from contact_solid_helpers import (
+    assert_derivatives, hertz_supports, image_blocks, iso, nodes, quarter_cylinder_on_flat, solve, stacked_blocks, surface,
+)
 from knitframe.geometry import Centerline, UnitCell
 from knitframe.mesh import cell_mesh
 from knitframe.plugins import get_registry
@@ -347,13 +349,7 @@ def test_hertz_cylinder_on_flat(cylinder, law):
     mesh, body, surf = cylinder
     E, nu, R, t, d = 100.0, 0.3, 1.0, 0.05, 0.02
     forms = SolidForms(mesh, iso(E, nu), None)
-    X = nodes(mesh)
-    fixed = np.zeros((len(X), 3), bool)
-    fixed[:, 2] = True
-    fixed[body == 1] = True
-    fixed[(body == 0) & np.isclose(X[:, 0], 0), 0] = True
-    sym = (body == 0) & np.isclose(X[:, 1], 0)
-    fixed[sym, 1] = True
+    X, fixed, sym = hertz_supports(mesh, body)
     u = np.zeros((len(X), 3))
     u[body == 0, 1] = -d
     h_c = 0.01 if isinstance(mesh, skfem.MeshTet1) and not isinstance(mesh, skfem.MeshTet2) else 0.02

@@ -152,8 +152,8 @@ class VolumetricSolver:
     path_tolerance_factor: float = attrs.field(default=10.0, validator=v.in_range(1.0, 1e6))  #: tolerance of the intermediate pre-stress states / tolerance, -
     max_step: float = attrs.field(default=0.25, validator=v.positive)  #: largest node move per Newton step / yarn radius (at most reach / 2 with contact_search = "iteration"), -
     min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))  #: smallest cut-back increment / step, -
-    max_iterations: int = attrs.field(default=40, validator=v.in_range(1, 10000))  #: Newton iterations per increment, -
-    stall_iterations: int = attrs.field(default=10, validator=v.in_range(0, 10000))  #: cut back once the residual has not improved in this many Newton iterations (0: only after max_iterations), -
+    max_iterations: int | None = attrs.field(default=None, validator=v.optional(v.in_range(1, 10000)))  #: Newton iterations per increment (default 40; 200 with barrier contact, whose CCD-bounded steps are short while contacts engage), -
+    stall_iterations: int = attrs.field(default=10, validator=v.in_range(0, 10000))  #: cut back once the residual has not improved in this many Newton iterations (0: only after max_iterations; barrier contact never: its residual rises while contacts engage and the energy falls), -
     intorder: int = attrs.field(default=2, validator=v.in_range(1, 6))  #: quadrature order of the solid (2: 4 points), -
     stabilisation: float = attrs.field(default=1e-4, validator=v.non_negative)  #: weak foundation on each increment's displacement / (E_transverse / h²), -
     contact_search: Literal["iteration", "evaluation"] = attrs.field(default="iteration", validator=v.one_of(("iteration", "evaluation")))  #: when the broad-phase contact search runs: once per Newton iteration, its candidates held through the line search ("iteration"), or at every energy evaluation, -
@@ -199,6 +199,7 @@ class VolumetricSolver:
         model = VolumetricModel(cell, cm, forms, lattice, T.tocsr(), independent, law, surface, stiffness,
                                 self.reach * cm.radius, t_mesh, damping)
         model.friction = law is not None and "friction" in scene.effects
+        model.barrier = law is not None and hasattr(law, "step_limit")
         model.hold_candidates = (self.contact_search == "iteration" and law is not None
                                  and "candidates" in inspect.signature(law.evaluate).parameters)
         if model.hold_candidates and self.max_step > 0.5 * self.reach:
@@ -255,11 +256,11 @@ class VolumetricSolver:
         # gaps continuous across facets), so a step must lower it (the fallback let the energy climb and
         # the iteration wander)
         # the contact forces that resolve the pre-stress scale with the soft transverse modulus, so does the tolerance
-        opts = NewtonOptions(atol=self.tolerance * fabric.yarn.E_transverse * r * r, rtol=1e-10, max_iter=self.max_iterations,
+        opts = NewtonOptions(atol=self.tolerance * fabric.yarn.E_transverse * r * r, rtol=1e-10, max_iter=self.max_iterations or (200 if model.barrier else 40),
                              max_step=self.max_step, xtol=1e-10 * r, max_backtracks=12, residual_backtracks=0,
                              max_shift_increases=7, flux_rtol=self.flux_tolerance,
                              correction_rtol=self.correction_tolerance, late_flux_rtol=self.late_flux_tolerance,
-                             stall_iterations=self.stall_iterations)
+                             stall_iterations=0 if model.barrier else self.stall_iterations)
         n_ind = 3 * len(model.independent)
         base_free = np.ones(n_ind + N_MACRO, bool)
         base_free[:3] = False  # pin one node: the cell's free translation
@@ -293,7 +294,8 @@ class VolumetricSolver:
             model.anchor(q0 if anchor is None else anchor)
             t0 = time.perf_counter()
             try:
-                res = minimise(model, q0, free, solve=solve, options=options, step_norm=step_norm)
+                res = minimise(model, q0, free, solve=solve, options=options, step_norm=step_norm,
+                               step_limit=model.step_limit if model.barrier else None)
             except NumericalError as e:
                 if trace is not None:
                     trace({"phase": where[0], "t": where[1], "converged": False, "wall_s": time.perf_counter() - t0,
@@ -353,7 +355,10 @@ class VolumetricSolver:
                 def solve_prestress(t: float, q0: np.ndarray):
                     # predictor: the free growth of the tubes, exact away from contacts
                     s_new = s0 + t * (1.0 - s0)
-                    q1 = q0 + model.shrunk(s_new) - model.shrunk(model.s)
+                    grow = model.shrunk(s_new) - model.shrunk(model.s)
+                    if model.barrier:  # a barrier admits no crossing: grow only as far as the tubes stay apart
+                        grow *= 0.9 * model.step_limit(q0, grow)
+                    q1 = q0 + grow
                     model.s = s_new
                     return newton(q1, free, anchor=q0, options=loose if t < 1.0 - 1e-12 else opts, where=("prestress", t))
 
@@ -389,8 +394,15 @@ class VolumetricSolver:
                 pres, vals = lat.constraints(l1, l2)
                 qs = q0.copy()
                 qs[n_ind:][pres] = vals[pres]
-                # predictor: the affine increment (F̄ − I)·X of the macro step on every node
-                qs[:n_ind] += lat.affine(model.X_ind, qs[n_ind:] - q0[n_ind:]).ravel()
+                if model.barrier:
+                    # predictor: the whole current configuration mapped by F̄_new·F̄_old⁻¹ (with the images):
+                    # an affine map keeps a configuration free of crossings, as a barrier needs
+                    M = lat.F(qs[n_ind:]) @ np.linalg.inv(lat.F(q0[n_ind:])) - np.eye(3)
+                    x_ind = model.X_ind + q0[:n_ind].reshape(-1, 3)
+                    qs[:n_ind] += (x_ind @ M.T).ravel()
+                else:
+                    # predictor: the affine increment (F̄ − I)·X of the macro step on every node
+                    qs[:n_ind] += lat.affine(model.X_ind, qs[n_ind:] - q0[n_ind:]).ravel()
                 free = base_free.copy()
                 free[n_ind:] = ~pres
                 return newton(qs, free, anchor=q0, where=("load", tau))
@@ -473,6 +485,7 @@ class VolumetricModel:
         self.normals = None  # nodal normals of the smoothed P1 master surface, frozen per increment (anchor)
         self.hold_candidates = False  # broad-phase contact search at order-2 evaluations only, held for order 0 and 1
         self.held = None
+        self.barrier = False  # a barrier contact law: the line search is bounded by continuous collision detection
         self.evaluations = {"energy": 0, "gradient": 0, "hessian": 0, "linear_solves": 0}
 
     def shrunk(self, s0: float) -> np.ndarray:
@@ -495,6 +508,16 @@ class VolumetricModel:
         if self.friction:
             self.friction_state = self.law.friction_state(self.surface, x, q0[-N_MACRO:], stiffness=self.stiffness,
                                                           reach=self.reach, **self._normals())
+
+    def step_limit(self, q: np.ndarray, dq: np.ndarray) -> float:
+        """Largest fraction α ≤ 1 of the step dq from q along which no yarn surfaces cross (the law's CCD)."""
+        t0 = time.perf_counter()
+        x = self.cm.nodes + (self.T @ q).reshape(-1, 3)
+        dx = (self.T @ dq).reshape(-1, 3)
+        try:
+            return self.law.step_limit(self.surface, x, q[-N_MACRO:], dx, dq[-N_MACRO:], stiffness=self.stiffness)
+        finally:
+            self.timings["contact"] += time.perf_counter() - t0
 
     def _normals(self) -> dict[str, np.ndarray]:
         return {} if self.normals is None else {"normals": self.normals}
