@@ -248,7 +248,7 @@ def main(argv=None) -> None:
     p.add_argument("what", choices=["mesh", "iteration", "run", "law", "trace"])
     p.add_argument("--order", type=int, default=2)
     p.add_argument("--seed", type=float, default=1 / 3)
-    p.add_argument("--contact", default="mortar")
+    p.add_argument("--contact", default="ipc", help="solid contact law: ipc (default), mortar or penalty")
     p.add_argument("--steps", type=int, default=6)
     p.add_argument("--stitch-length", type=float, default=11.0, help="jersey stitch length of 'run' (10, 11, 12)")
     p.add_argument("--prestress", type=int, default=4)

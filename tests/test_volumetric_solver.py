@@ -139,8 +139,9 @@ def test_held_contact_search_needs_steps_below_half_the_reach():
 
     scene = attrs.evolve(STRETCH, effects=frozenset({"large_deformation", "anisotropy", "contact"}))
     with pytest.raises(ConfigError, match="max_step"):
-        VolumetricSolver(order=1, seed=0.75, max_step=0.3, reach=0.5).simulate(FABRIC, scene)
-    r = VolumetricSolver(order=1, seed=0.75, max_step=0.3, reach=0.5, contact_search="evaluation").simulate(FABRIC, scene)
+        VolumetricSolver(order=1, seed=0.75, contact_law="mortar", max_step=0.3, reach=0.5).simulate(FABRIC, scene)
+    r = VolumetricSolver(order=1, seed=0.75, contact_law="mortar", max_step=0.3, reach=0.5,
+                         contact_search="evaluation").simulate(FABRIC, scene)
     assert r.provenance.converged
 
 
@@ -216,7 +217,7 @@ def count_calls(monkeypatch, cls, name: str) -> list:
     return calls
 
 
-@pytest.mark.parametrize("law", ["mortar", "penalty"])
+@pytest.mark.parametrize("law", ["mortar", "penalty", "ipc"])
 def test_contact_without_touching_pairs_changes_nothing(law):
     """Contact on, but the rows never touch: the laws see no pairs and the tension is that of the bare yarns."""
     bare = VolumetricSolver(order=1, seed=0.75).simulate(FABRIC, STRETCH)
@@ -254,3 +255,21 @@ def test_contact_search_once_per_newton_iteration(monkeypatch, search):
     assert r.provenance.converged and ev["energy"] > 0
     expected = ev["hessian"] if search == "iteration" else ev["energy"] + ev["gradient"] + ev["hessian"]
     assert len(calls) == expected
+
+
+def test_barrier_contact_resolves_the_interference_of_the_prestress():
+    """Rows 0.5 apart with dk = 0.52 overlap in the knitted state: the pre-stress grows them from apart into
+    contact under the barrier (law ``ipc``), which pushes the free wale side open; no step crosses."""
+    fat = attrs.evolve(YARN, d0=0.52, dk=0.52)
+    fabric = attrs.evolve(FABRIC, yarn=fat)
+    scene = attrs.evolve(STRETCH, effects=frozenset({"large_deformation", "anisotropy", "contact", "prestress"}))
+    solver = VolumetricSolver(order=1, seed=0.75, contact_law="ipc", prestress_steps=2)
+    r = solver.simulate(fabric, scene)
+    assert r.provenance.converged and np.all(np.isfinite(r.T1))
+    assert r.provenance.extra["prestress_start_radius_over_r"] < 1.0
+    assert r.provenance.extra["max_penetration_over_r"] == 0.0
+    # the rows flatten (soft across the fibre) and push the free wale side open; without contact
+    # nothing acts across the rows and the side stays where it was
+    bare = solver.simulate(fabric, attrs.evolve(scene, effects=scene.effects - {"contact"}))
+    assert bare.lambda2[-1] == pytest.approx(1.0, abs=1e-9) and r.lambda2[-1] > 1.0003
+    assert np.all(np.abs(r.T2) < 1e-2 * np.abs(r.T1).max())  # the free side carries no tension (to the Newton tolerance)

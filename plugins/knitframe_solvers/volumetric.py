@@ -5,9 +5,12 @@ a swept tetrahedral tube (:mod:`knitframe.mesh`, P1 or isoparametric P2, seed r/
 made of the yarn model's hyperelastic law in total-Lagrangian large deformation, with the fibre
 along the centerline (:mod:`knitframe_solvers.volumetric_material`). Yarns touch each other,
 their periodic images under the current F̄ and (with ``self_contact``) distant parts of
-themselves through a solid contact-law plugin (``mortar`` or ``penalty``). With the scene effect
-``friction`` the contact pairs of the start of each increment are frozen (normal force, master
-material point) and the law adds its regularised Coulomb friction on the slip from there.
+themselves through a solid contact-law plugin: ``ipc`` (the default: barrier contact that admits
+no interpenetration, the Newton line search bounded by continuous collision detection; it always
+includes self-contact), ``mortar`` or ``penalty`` (penalty contact on signed gaps). With the
+scene effect ``friction`` the contact pairs of the start of each increment are frozen (normal
+force, master material point or tangent basis) and the law adds its regularised Coulomb
+friction on the slip from there.
 
 Periodicity is the shared macro-DOF mechanism of :mod:`knitframe.periodic`: the end faces of
 each yarn at the course boundary are images of the start faces of their paired yarn,
@@ -138,7 +141,7 @@ class VolumetricSolver:
 
     order: int = attrs.field(default=2, validator=v.in_range(1, 2))  #: polynomial order of the tetrahedra (1 or 2), -
     seed: float = attrs.field(default=1.0 / 3.0, validator=v.in_range(0.05, 1.5))  #: element size / yarn radius, -
-    contact_law: str | dict[str, Any] = "mortar"  #: solid contact-law plugin name or table with ``kind``
+    contact_law: str | dict[str, Any] = "ipc"  #: solid contact-law plugin name or table with ``kind`` (ipc: barrier, the default; mortar, penalty), -
     linear_solver: str | dict[str, Any] = "direct"  #: linear-solver plugin name or table with ``kind``
     contact_modulus: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: modulus scaling the penalty, MPa; default the yarn's E_transverse
     reach: float = attrs.field(default=0.5, validator=v.positive)  #: contact search distance / yarn radius, -
