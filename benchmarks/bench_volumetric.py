@@ -81,8 +81,12 @@ def bench_iteration(args) -> list[dict]:
     q = model.shrunk(s0)
     # half-way through the pre-stress: the yarns are in contact
     s = 0.5 * (s0 + 1.0)
-    q = q + model.shrunk(s) - model.shrunk(s0)
+    grow = model.shrunk(s) - model.shrunk(s0)
     model.s = s
+    if model.barrier:  # a barrier admits no crossing: the tubes grow until they touch (as the solver's predictor)
+        model.anchor(q)
+        grow *= 0.9 * model.step_limit(q, grow)
+    q = q + grow
     model.anchor(q)
     model(q, 2)  # warm-up: sparsity pattern, caches
     for k in model.timings:
@@ -151,6 +155,8 @@ def bench_run(args) -> list[dict]:
     law = {"kind": args.contact} if args.smoothing is None else {"kind": args.contact, "smoothing": args.smoothing}
     if args.mu is not None:
         law["friction"] = args.mu
+    if args.dhat is not None:
+        law["dhat"] = args.dhat
     solver = VolumetricSolver(order=args.order, seed=args.seed, contact_law=law,
                               prestress_steps=args.prestress,
                               linear_solver=args.linear_solver, contact_modulus=args.contact_modulus,
@@ -261,6 +267,7 @@ def main(argv=None) -> None:
     p.add_argument("--trace", help="'run': append every Newton solve (history, diagnostic) to this JSON-lines file; "
                                    "'trace': the file to summarise")
     p.add_argument("--friction", action="store_true", help="'run': the scene asks for yarn-yarn friction (lagged Coulomb)")
+    p.add_argument("--dhat", type=float, help="'run': barrier activation distance of the ipc law / mean surface edge length (default the law's, 0.1)")
     p.add_argument("--mu", type=float, help="'run': Coulomb friction coefficient of the contact law (default the law's, 0.3)")
     p.add_argument("--smoothing", help="'run': master surface of P1 contact of penalty and mortar, nagata (their default) or none")
     p.add_argument("--transverse-ratio", type=float,

@@ -148,6 +148,7 @@ class VolumetricSolver:
     self_contact_exclusion: float = attrs.field(default=np.pi, validator=v.positive)  #: same-strand pairs closer than this × dk along the yarn are the yarn itself, -
     prestress_steps: int = attrs.field(default=8, validator=v.in_range(1, 1000))  #: steps of the radial pre-stress, -
     initial_radius: float = attrs.field(default=0.9, validator=v.in_range(0.05, 1.0))  #: largest start radius of the pre-stress / r, -
+    min_clearance: float = attrs.field(default=0.25, validator=v.in_range(0.05, 2.0))  #: with pre-stress, closest centerline distance / r below which a cell is refused (the pre-stress starts at 0.95 of half of it; without pre-stress the limit is r), -
     tolerance: float = attrs.field(default=1e-3, validator=v.positive)  #: Newton residual tolerance (largest nodal force) / (E_transverse r²), -
     flux_tolerance: float = attrs.field(default=5e-3, validator=v.non_negative)  #: also converged at a residual ≤ this × the average nodal force flux (ABAQUS's R_n; 0: off), -
     late_flux_tolerance: float = attrs.field(default=2e-2, validator=v.non_negative)  #: the flux ratio after 9 iterations (ABAQUS's R_P; 0: flux_tolerance throughout), -
@@ -175,7 +176,10 @@ class VolumetricSolver:
         registry = registry or get_registry()
         cell = unit_cell(fabric, registry)
         t0 = time.perf_counter()
-        cm = cell_mesh(cell, seed=self.seed, order=self.order)
+        # with the pre-stress the yarns start shrunk apart (radius s₀·r below half the closest centerline
+        # distance), so centerlines closer than r (tight stitches) can be meshed and grown into contact
+        limit = self.min_clearance * 0.5 * cell.dk if "prestress" in scene.effects else None
+        cm = cell_mesh(cell, seed=self.seed, order=self.order, min_distance=limit)
         t_mesh = time.perf_counter() - t0
         forms = SolidForms(cm.mesh, YarnLaw.from_yarn(fabric.yarn, registry), cm.node_tangent, intorder=self.intorder,
                            node_offset=cm.node_offset)
