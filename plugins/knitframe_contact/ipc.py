@@ -105,16 +105,24 @@ class PeriodicCollisionMesh:
         node = uniq // (width * width)
         kk = np.column_stack([(uniq // width) % width - span, uniq % width - span])
         center = (kk[:, 0] == 0) & (kk[:, 1] == 0)
-        order = np.argsort(~center, kind="stable")  # central image first
-        rank = np.empty_like(order)
+        faces = inv.reshape(-1, 3)
+        if lat is not None:
+            # image triangles far from the central image only cost time: keep those with a corner in
+            # the central image or within the margin of its bounding box (reference positions)
+            Vr = X[node] + lat.reference_shift(kk)
+            lo, hi = Vr[center].min(axis=0) - grow, Vr[center].max(axis=0) + grow
+            near = center | np.all((Vr >= lo) & (Vr <= hi), axis=1)
+            faces = faces[near[faces].any(axis=1)]
+        used = np.zeros(len(node), bool)
+        used[faces.ravel()] = True
+        used |= center
+        order = np.flatnonzero(used)[np.argsort(~center[used], kind="stable")]  # central image first
+        rank = np.full(len(node), -1, np.int64)
         rank[order] = np.arange(len(order))
         self.node = node[order]
         self.image = kk[order]
         self.n_center = int(center.sum())
-        faces = rank[inv].reshape(-1, 3).astype(np.int32)
-        # triangles whose vertices are all outside the central image and far from it only cost time;
-        # keep those with a vertex within reach of the central image's bounding box
-        self.faces = faces
+        self.faces = rank[faces].astype(np.int32)
         shift = np.zeros((len(self.node), 3)) if lat is None else lat.reference_shift(self.image)
         self.V_rest = X[self.node] + shift
         self.n_nodes = N
@@ -149,7 +157,9 @@ class PeriodicCollisionMesh:
         self.edge_class = ((self.node[first] * N + self.node[second]) * w + rel[:, 0] + w // 2) * w + rel[:, 1] + w // 2
         self.edge_image = self.image[first]
         self.edge_owned = np.all(self.image[first] == 0, axis=1)
-        self.edge_length = float(np.linalg.norm(self.V_rest[self.edges[:, 0]] - self.V_rest[self.edges[:, 1]], axis=1).mean())
+        # mean edge length of the cell's own surface (each triangle edge once per triangle), mm
+        corners = X[tri]
+        self.edge_length = float(np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2).mean())
 
     def positions(self, x: np.ndarray, h: np.ndarray | None) -> np.ndarray:
         """Vertex positions (nv, 3) for node positions x (N, 3) and macro DOFs h."""
