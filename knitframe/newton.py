@@ -21,6 +21,9 @@ linear-solver plugin, with
   the converged answer;
 * an optional cap on the step size (``step_norm(dx) <= max_step``), which keeps contacts from
   being jumped over in one step;
+* an optional bound from continuous collision detection (``step_limit(x, dx)``, barrier
+  contact): the line search starts from the largest crossing-free fraction α of the step, so
+  no iterate passes through a barrier that only acts within a thin layer;
 * besides the absolute test max|g_f| ≤ atol, the force-flux test of implicit FE codes (ABAQUS's
   R_n, C_n): when the problem reports the average nodal force flux q̃ = ``info["flux"]``, an
   iterate with max|g_f| ≤ R_n·q̃ whose last correction c satisfies

@@ -223,3 +223,33 @@ def test_levenberg_shift_is_capped():
     with pytest.raises(NumericalError, match=r"shift up to 1e\+05") as err:
         minimise(kinked, np.array([0.0, 0.0]), np.ones(2, bool), solve=direct(), options=opts)
     assert max(h["shift"] for h in err.value.history) <= 1e5
+
+
+def test_step_limit_keeps_newton_on_the_near_side_of_a_barrier():
+    """A thin barrier wall at x = 1 (b = −κ(d − d̂)² ln(d/d̂) for distance d < d̂) in front of the minimum
+    of ½(x − 2)²: the full Newton step from x = 0 jumps over the wall to the lower energy behind it;
+    bounded by ``step_limit`` (the fraction of a step before it reaches the wall) it stops in front."""
+    dhat, kappa = 0.05, 1e-2
+
+    def fun(x, order=2):
+        d = abs(x[0] - 1.0)
+        if d == 0.0:
+            return np.inf, None, None, {}
+        s = np.sign(x[0] - 1.0)
+        E, g, h = 0.5 * (x[0] - 2.0) ** 2, x[0] - 2.0, 1.0
+        if d < dhat:
+            E += -kappa * (d - dhat) ** 2 * np.log(d / dhat)
+            g += s * -kappa * (2 * (d - dhat) * np.log(d / dhat) + (d - dhat) ** 2 / d)
+            h += -kappa * (2 * np.log(d / dhat) + 4 * (d - dhat) / d - (d - dhat) ** 2 / d**2)
+        return E, np.array([g]), sp.csr_matrix([[h]]), {}
+
+    def limit(x, dx):  # the first contact with the wall along the step, 80 % of the way
+        t = (1.0 - x[0]) / dx[0] if (1.0 - x[0]) * dx[0] > 0 else np.inf
+        return min(1.0, 0.8 * t)
+
+    opts = NewtonOptions(atol=1e-10, rtol=0.0, max_iter=200)
+    free = np.ones(1, bool)
+    jumped = minimise(fun, np.zeros(1), free, solve=direct(), options=opts)
+    assert jumped.converged and jumped.x[0] == pytest.approx(2.0)
+    held = minimise(fun, np.zeros(1), free, solve=direct(), options=opts, step_limit=limit)
+    assert held.converged and 1.0 - dhat < held.x[0] < 1.0
