@@ -263,7 +263,8 @@ class VolumetricSolver:
         # gaps continuous across facets), so a step must lower it (the fallback let the energy climb and
         # the iteration wander)
         # the contact forces that resolve the pre-stress scale with the soft transverse modulus, so does the tolerance
-        opts = NewtonOptions(atol=self.tolerance * fabric.yarn.E_transverse * r * r, rtol=1e-10, max_iter=self.max_iterations or (200 if model.barrier else 40),
+        max_iter = self.max_iterations or (200 if model.barrier else 40)
+        opts = NewtonOptions(atol=self.tolerance * fabric.yarn.E_transverse * r * r, rtol=1e-10, max_iter=max_iter,
                              max_step=self.max_step, xtol=1e-10 * r, max_backtracks=12, residual_backtracks=0,
                              max_shift_increases=7, flux_rtol=self.flux_tolerance,
                              correction_rtol=self.correction_tolerance, late_flux_rtol=self.late_flux_tolerance,
