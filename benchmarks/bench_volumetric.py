@@ -162,7 +162,8 @@ def bench_run(args) -> list[dict]:
                               linear_solver=args.linear_solver, contact_modulus=args.contact_modulus,
                               on_failure="truncate" if args.truncate else "raise",
                               **({} if args.stabilisation is None else {"stabilisation": args.stabilisation}),
-                              **({} if args.max_step is None else {"max_step": args.max_step}))
+                              **({} if args.max_step is None else {"max_step": args.max_step}),
+                              **({} if args.cap_shift is None else {"cap_shift": args.cap_shift}))
     fab = attrs.evolve(fabric(), stitch_length=args.stitch_length)
     if args.transverse_ratio is not None:  # a diagnostic: the same yarn with a milder anisotropy
         y = fab.yarn
@@ -273,6 +274,7 @@ def main(argv=None) -> None:
     p.add_argument("--smoothing", help="'run': master surface of P1 contact of penalty and mortar, nagata (their default) or none")
     p.add_argument("--transverse-ratio", type=float,
                    help="'run': set the yarn's E_transverse to this × E_axial (a diagnostic of the anisotropy)")
+    p.add_argument("--cap-shift", type=float, help="'run': raise the Levenberg shift while a Newton step exceeds this × the cap")
     p.add_argument("--max-step", type=float, help="'run': the solver's cap on a Newton step, node move / r")
     p.add_argument("--stabilisation", type=float, help="'run': the solver's stabilisation (weak foundation) factor")
     p.add_argument("--json")

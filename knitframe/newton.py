@@ -21,6 +21,9 @@ linear-solver plugin, with
   the converged answer;
 * an optional cap on the step size (``step_norm(dx) <= max_step``), which keeps contacts from
   being jumped over in one step;
+* optionally (``cap_shift`` = c > 0), a step over c·``max_step`` raises the Levenberg shift and
+  is solved again instead of being scaled down whole: where a near-singular mode (a yarn that
+  only a few contacts hold) dominates dx, scaling would leave the rest of the step at nothing;
 * an optional bound from continuous collision detection (``step_limit(x, dx)``, barrier
   contact): the line search starts from the largest crossing-free fraction α of the step, so
   no iterate passes through a barrier that only acts within a thin layer;
@@ -86,6 +89,7 @@ class NewtonOptions:
     late_flux_rtol: float = 0.0  #: R_P: the flux ratio from iteration ``late_iteration`` on (0: R_n throughout)
     late_iteration: int = 9  #: I_P: iterations after which R_P replaces R_n
     stall_iterations: int = 0  #: give up when the smallest residual has not improved in this many iterations (0: off)
+    cap_shift: float = 0.0  #: raise the Levenberg shift (instead of scaling the step) while step_norm(dx) > this × max_step (0: off)
 
 
 @attrs.frozen
@@ -214,6 +218,12 @@ def minimise(
                 dx[free] = dx_f
                 if step_norm is not None and np.isfinite(options.max_step):
                     size = step_norm(dx)
+                    if (options.cap_shift and size > options.cap_shift * options.max_step
+                            and max(10.0 * shift_rel, 1e-8) <= max_shift * (1.0 + 1e-9)):
+                        # far outside the cap: a near-singular mode dominates dx, and scaling the whole step
+                        # down would leave the rest of it at nothing; damp that mode with a shift instead
+                        shift_rel = max(10.0 * shift_rel, 1e-8)
+                        continue
                     if size > options.max_step:
                         dx *= options.max_step / size
                         slope *= options.max_step / size

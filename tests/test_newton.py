@@ -253,3 +253,37 @@ def test_step_limit_keeps_newton_on_the_near_side_of_a_barrier():
     assert jumped.converged and jumped.x[0] == pytest.approx(2.0)
     held = minimise(fun, np.zeros(1), free, solve=direct(), options=opts, step_limit=limit)
     assert held.converged and 1.0 - dhat < held.x[0] < 1.0
+
+
+def test_cap_shift_damps_a_floppy_mode_instead_of_shrinking_the_whole_step():
+    """x1 is held only by a tiny spring against a force: its Newton step is far over the step cap. Without
+    ``cap_shift`` the whole step is scaled down, and x0's part with it; with it the Levenberg shift rises
+    (one more solve each time) until the step is within cap_shift × the cap, so x1's step is damped
+    while x0 keeps most of its own."""
+    eps, force = 1e-6, 1e-3
+    steps = []
+
+    def fun(x, order=2):
+        E = 0.5 * (x[0] - 1.0) ** 2 + 0.5 * eps * x[1] ** 2 - force * x[1]
+        return E, np.array([x[0] - 1.0, eps * x[1] - force]), sp.diags([1.0, eps]).tocsr(), {}
+
+    def norm(dx):
+        steps.append(dx.copy())
+        return float(np.max(np.abs(dx)))
+
+    def first_step(cap_shift):
+        steps.clear()
+        solves = []
+        solve = direct()
+        opts = NewtonOptions(atol=1e-9, rtol=0.0, max_iter=1, max_step=0.5, cap_shift=cap_shift)
+        with pytest.raises(NumericalError):  # one iteration is not enough to converge
+            minimise(fun, np.zeros(2), np.ones(2, bool), solve=lambda A, b: solves.append(1) or solve(A, b),
+                     options=opts, step_norm=norm)
+        return steps[0], steps[-1], len(solves)  # the raw first step, the accepted one (its correction)
+
+    raw, scaled, n_scaled = first_step(0.0)
+    _, damped, n_damped = first_step(4.0)
+    assert n_scaled == 1 and raw[1] == pytest.approx(force / eps)  # the raw step: x1 ≫ the cap
+    assert scaled[0] < 1e-3  # scaled whole to the cap: x0 moved 0.5 / 1000 of its Newton step 1
+    assert n_damped > 1  # re-solved with larger shifts until the step was within 4 × the cap
+    assert damped[0] > 0.2 and abs(damped[1]) <= 0.5 + 1e-12  # x0 keeps a quarter of its step or more

@@ -155,6 +155,7 @@ class VolumetricSolver:
     correction_tolerance: float = attrs.field(default=1e-2, validator=v.positive)  #: ... when the last Newton correction ≤ this × the increment's displacement (ABAQUS's C_n), -
     path_tolerance_factor: float = attrs.field(default=10.0, validator=v.in_range(1.0, 1e6))  #: tolerance of the intermediate pre-stress states / tolerance, -
     max_step: float = attrs.field(default=0.25, validator=v.positive)  #: largest node move per Newton step / yarn radius (at most reach / 2 with contact_search = "iteration"), -
+    cap_shift: float = attrs.field(default=0.0, validator=v.non_negative)  #: a Newton step over this × max_step raises the Levenberg shift (damping a near-singular mode, e.g. a yarn only contact holds) instead of being scaled down whole (0: off), -
     min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))  #: smallest cut-back increment / step, -
     max_iterations: int | None = attrs.field(default=None, validator=v.optional(v.in_range(1, 10000)))  #: Newton iterations per increment (default 40; 200 with barrier contact, whose CCD-bounded steps are short while contacts engage), -
     stall_iterations: int = attrs.field(default=10, validator=v.in_range(0, 10000))  #: cut back once the residual has not improved in this many Newton iterations (0: only after max_iterations; barrier contact never: its residual rises while contacts engage and the energy falls), -
@@ -268,7 +269,7 @@ class VolumetricSolver:
                              max_step=self.max_step, xtol=1e-10 * r, max_backtracks=12, residual_backtracks=0,
                              max_shift_increases=7, flux_rtol=self.flux_tolerance,
                              correction_rtol=self.correction_tolerance, late_flux_rtol=self.late_flux_tolerance,
-                             stall_iterations=0 if model.barrier else self.stall_iterations)
+                             stall_iterations=0 if model.barrier else self.stall_iterations, cap_shift=self.cap_shift)
         n_ind = 3 * len(model.independent)
         base_free = np.ones(n_ind + N_MACRO, bool)
         base_free[:3] = False  # pin one node: the cell's free translation
