@@ -109,8 +109,7 @@ def test_periodic_cell_counts_each_pair_once():
     assert i1["active"] > 0 and E1 > 0
     assert E2 == pytest.approx(2 * E1, rel=1e-10)
     n1, n2 = 3 * len(X1), 3 * len(X2)
-    # d/dh of the supercell energy at a fixed supercell state = twice the cell's: the second block's
-    # nodes move with h there only through u2, so compare at the level of the images only
+    # each block of the supercell feels the forces of the cell's block
     assert np.allclose(g2[:n1], g1[:n1], atol=1e-10 * np.abs(g1).max())  # the first block's forces are the cell's
     assert np.allclose(g2[n1:n2], g1[:n1], atol=1e-10 * np.abs(g1).max())
 

@@ -171,9 +171,8 @@ class PeriodicCollisionMesh:
     def displacement(self, dx: np.ndarray, dh: np.ndarray | None) -> np.ndarray:
         """Vertex displacements (nv, 3) for node displacements dx (N, 3) and a macro step dh."""
         dV = np.asarray(dx)[self.node]
-        if self.lattice is not None and dh is not None:
-            S = self.lattice.reference_shift(self.image)
-            dV = dV + S[:, :2] @ np.asarray(dh).reshape(3, 2).T
+        if self.lattice is not None and dh is not None:  # the images' shifts move by ΔH·S_k
+            dV = dV + self.lattice.affine(self.lattice.reference_shift(self.image), dh)
         return dV
 
     def candidates(self, V: np.ndarray, inflation: float):
