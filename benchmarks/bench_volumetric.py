@@ -165,7 +165,8 @@ def bench_run(args) -> list[dict]:
                               on_failure="truncate" if args.truncate else "raise",
                               **({} if args.stabilisation is None else {"stabilisation": args.stabilisation}),
                               **({} if args.max_step is None else {"max_step": args.max_step}),
-                              **({} if args.cap_shift is None else {"cap_shift": args.cap_shift}))
+                              **({} if args.cap_shift is None else {"cap_shift": args.cap_shift}),
+                              **({} if args.tangent is None else {"tangent": args.tangent}))
     fab = attrs.evolve(fabric(), stitch_length=args.stitch_length)
     if args.transverse_ratio is not None:  # a diagnostic: the same yarn with a milder anisotropy
         y = fab.yarn
@@ -276,6 +277,8 @@ def main(argv=None) -> None:
     p.add_argument("--smoothing", help="'run': master surface of P1 contact of penalty and mortar, nagata (their default) or none")
     p.add_argument("--transverse-ratio", type=float,
                    help="'run': set the yarn's E_transverse to this × E_axial (a diagnostic of the anisotropy)")
+    p.add_argument("--tangent", choices=("adaptive", "exact", "projected"),
+                   help="'run': Newton's Hessian (default the solver's, adaptive)")
     p.add_argument("--cap-shift", type=float, help="'run': raise the Levenberg shift while a Newton step exceeds this × the cap")
     p.add_argument("--max-step", type=float, help="'run': the solver's cap on a Newton step, node move / r")
     p.add_argument("--stabilisation", type=float, help="'run': the solver's stabilisation (weak foundation) factor")

@@ -21,6 +21,13 @@ linear-solver plugin, with
   the converged answer;
 * an optional cap on the step size (``step_norm(dx) <= max_step``), which keeps contacts from
   being jumped over in one step;
+* optionally (``projection``), a positive semi-definite Hessian from ``fun(x, 2, projected=True)``
+  (the projected Newton method of barrier contact; the volumetric solid projects its tangent at
+  every quadrature point). ``"always"`` uses it throughout; ``"adaptive"`` switches to it for the
+  rest of the increment when the exact Newton step is not a descent direction or exceeds the cap
+  (negative curvature, for example compressed fibres, sends the exact step far off), and back to
+  the exact Hessian once a projected step is within ``release_step``·``max_step``, so that the
+  last iterations converge quadratically on the exact tangent;
 * optionally (``cap_shift`` = c > 0), a step over c·``max_step`` raises the Levenberg shift and
   is solved again instead of being scaled down whole: where a near-singular mode (a yarn that
   only a few contacts hold) dominates dx, scaling would leave the rest of the step at nothing;
@@ -90,6 +97,8 @@ class NewtonOptions:
     late_iteration: int = 9  #: I_P: iterations after which R_P replaces R_n
     stall_iterations: int = 0  #: give up when the smallest residual has not improved in this many iterations (0: off)
     cap_shift: float = 0.0  #: raise the Levenberg shift (instead of scaling the step) while step_norm(dx) > this × max_step (0: off)
+    projection: str = attrs.field(default="off", validator=attrs.validators.in_(("off", "adaptive", "always")))  #: Hessian: exact ("off"), PSD-projected ("always", fun(x, 2, projected=True)) or projected while exact steps fail ("adaptive")
+    release_step: float = 0.5  #: "adaptive": back to the exact Hessian after a projected step ≤ this × max_step
 
 
 @attrs.frozen
@@ -101,7 +110,7 @@ class NewtonResult:
     gradient: np.ndarray
     iterations: int
     converged: bool
-    history: tuple[dict, ...]  #: per iteration: energy, residual, alpha, shift, step_energy (E at the accepted step, as the line search evaluated it)
+    history: tuple[dict, ...]  #: per iteration: energy, residual, alpha, shift, step_energy (E at the accepted step, as the line search evaluated it), step (size of the Newton step / max_step, before the cap), alpha0 (the line search's first α: 1 or the CCD bound)
     info: dict
 
 
@@ -155,7 +164,12 @@ def minimise(
     """
     x = np.array(x0, dtype=np.float64, copy=True)
     free = np.asarray(free, bool)
-    E, g, H, info = fun(x, 2)
+    projecting = options.projection == "always"
+
+    def evaluate(x: np.ndarray) -> tuple[float, Any, Any, dict]:
+        return fun(x, 2, projected=True) if projecting else fun(x, 2)
+
+    E, g, H, info = evaluate(x)
     if not np.isfinite(E):
         raise NumericalError(f"Newton: the starting state is inadmissible (energy {E}); {info.get('diagnostic', '')}".strip())
     r0 = float(np.max(np.abs(g[free]), initial=0.0))
@@ -201,10 +215,14 @@ def minimise(
         shift_rel = min(shift_rel, max_shift)
         accepted = False
         tried = 0.0
-        for _ in range(options.max_shift_increases + 1):
+        size = math.nan
+        if projecting:
+            history[-1]["projected"] = True
+        for _ in range(options.max_shift_increases + 2):
             if shift_rel > max_shift * (1.0 + 1e-9):
                 break
             tried = shift_rel
+            size = math.nan
             A = Hff + sp.identity(Hff.shape[0], format="csc") * (shift_rel * scale) if shift_rel > 0 else Hff
             dx_f = None
             try:
@@ -213,11 +231,23 @@ def minimise(
             except (RuntimeError, np.linalg.LinAlgError, NumericalError, ValueError):
                 dx_f = None
             slope = float(gf @ dx_f) if dx_f is not None and np.all(np.isfinite(dx_f)) else math.nan
-            if dx_f is not None and np.isfinite(slope) and slope < 0:
+            descent = dx_f is not None and np.isfinite(slope) and slope < 0
+            if descent:
                 dx = np.zeros_like(x)
                 dx[free] = dx_f
                 if step_norm is not None and np.isfinite(options.max_step):
                     size = step_norm(dx)
+            if options.projection == "adaptive" and not projecting and (
+                    not descent or (np.isfinite(size) and size > options.max_step)):
+                # the exact Hessian sends the step uphill or far off: projected Newton for the rest of the increment
+                projecting = True
+                history[-1]["projected"] = True
+                H = fun(x, 2, projected=True)[2]
+                Hff = H[free][:, free].tocsc()
+                scale = _diag_scale(Hff)
+                continue
+            if descent:
+                if np.isfinite(size):
                     if (options.cap_shift and size > options.cap_shift * options.max_step
                             and max(10.0 * shift_rel, 1e-8) <= max_shift * (1.0 + 1e-9)):
                         # far outside the cap: a near-singular mode dominates dx, and scaling the whole step
@@ -228,6 +258,9 @@ def minimise(
                         dx *= options.max_step / size
                         slope *= options.max_step / size
                 alpha0 = 1.0 if step_limit is None else min(1.0, float(step_limit(x, dx)))
+                if np.isfinite(size):
+                    history[-1]["step"] = size / options.max_step
+                history[-1]["alpha0"] = alpha0
                 step = _line_search(fun, x, E, g, dx, slope, options, free, alpha0) if alpha0 > 0 else None
                 if step is not None:
                     alpha, x_new, E_new = step
@@ -242,7 +275,10 @@ def minimise(
         history[-1]["step_energy"] = float(E_new)  # as the line search saw it: the next entry's energy may differ
         correction = measure(x_new - x)
         x = x_new
-        E, g, H, info = fun(x, 2)
+        if projecting and options.projection == "adaptive" and np.isfinite(size) and \
+                size <= options.release_step * options.max_step:
+            projecting = False  # in the basin: the exact tangent converges quadratically
+        E, g, H, info = evaluate(x)
         if alpha == 1.0 and shift_rel == 0.0 and float(np.max(np.abs(dx), initial=0.0)) <= options.xtol:
             res = float(np.max(np.abs(g[free]), initial=0.0))
             history.append({"it": it + 1, "energy": float(E), "residual": res, "shift": 0.0, "xtol": True})

@@ -287,3 +287,59 @@ def test_cap_shift_damps_a_floppy_mode_instead_of_shrinking_the_whole_step():
     assert scaled[0] < 1e-3  # scaled whole to the cap: x0 moved 0.5 / 1000 of its Newton step 1
     assert n_damped > 1  # re-solved with larger shifts until the step was within 4 × the cap
     assert damped[0] > 0.2 and abs(damped[1]) <= 0.5 + 1e-12  # x0 keeps a quarter of its step or more
+
+
+def double_well_chain(x, order=2, projected=False):
+    """E = Σ a(x_i² − 1)²/4 + ½ Σ (x_{i+1} − x_i)², a = 10: each well is concave for |x_i| < 1/√3.
+
+    ``projected`` clamps the wells' curvature a(3x² − 1) at zero (the springs are convex), the
+    per-element PSD projection of projected Newton.
+    """
+    a = 10.0
+    d = np.diff(x)
+    E = float(np.sum(a * (x**2 - 1) ** 2 / 4) + 0.5 * np.sum(d**2))
+    if order == 0:
+        return E, None, None, {}
+    g = a * x * (x**2 - 1)
+    g[:-1] -= d
+    g[1:] += d
+    H = None
+    if order == 2:
+        w = a * (3 * x**2 - 1)
+        if projected:
+            w = np.maximum(w, 0.0)
+        n = len(x)
+        lap = sp.diags([np.r_[1.0, 2.0 * np.ones(n - 2), 1.0], -np.ones(n - 1), -np.ones(n - 1)], [0, 1, -1])
+        H = (sp.diags(w) + lap).tocsr()
+    return E, g, H, {}
+
+
+def _chain(projection):
+    x0 = np.r_[1.0, np.full(7, 0.05)]
+    free = np.r_[False, np.ones(7, bool)]
+    opts = NewtonOptions(atol=1e-12, rtol=0.0, max_iter=100, projection=projection, max_step=0.5)
+    return minimise(double_well_chain, x0, free, solve=direct(), options=opts,
+                    step_norm=lambda dx: float(np.max(np.abs(dx))))
+
+
+@pytest.mark.parametrize("projection", ["adaptive", "always"])
+def test_projected_newton_goes_downhill_to_the_minimum(projection):
+    """From inside the concave band the chain (x₀ held at 1) goes down to x = 1; the adaptive mode switches
+    to the projected Hessian there and back to the exact one near the minimum."""
+    res = _chain(projection)
+    assert res.converged and np.allclose(res.x, 1.0, atol=1e-9)
+    used = [bool(h.get("projected")) for h in res.history[:-1]]
+    if projection == "always":
+        assert all(used)
+    else:
+        assert used[0] and not used[-1]  # projected where the exact step failed, exact at the end
+        assert not any(used[used.index(False):])
+
+
+def test_exact_newton_stops_at_a_saddle_of_the_concave_band():
+    """The same start with the exact (indefinite) Hessian: Newton's steps head for the nearest stationary
+    point, and it converges to a saddle with wells at their tops (x ≈ 0) and a higher energy."""
+    exact, adaptive = _chain("off"), _chain("adaptive")
+    assert exact.converged and not any(h.get("projected") for h in exact.history)
+    assert np.min(np.abs(exact.x)) < 0.2
+    assert exact.energy > adaptive.energy + 1.0

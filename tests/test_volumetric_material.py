@@ -9,7 +9,7 @@ import skfem
 from skfem.helpers import dot
 
 from knitframe.errors import NumericalError
-from knitframe_solvers.volumetric_material import SolidForms, YarnLaw
+from knitframe_solvers.volumetric_material import SolidForms, YarnLaw, psd_project
 from knitframe_yarns.isotropic import Isotropic
 from knitframe_yarns.law import linear_stiffness
 from knitframe_yarns.transverse_isotropic import TransverseIsotropic
@@ -231,3 +231,41 @@ def test_force_flux_does_not_cancel_at_equilibrium():
     top = 3 * np.flatnonzero(np.isclose(X[:, 2], 2.0)) + 2
     P_zz = forms.stress((X @ H.T).ravel())[2, 2].mean()
     assert fluxes[0][top].sum() == pytest.approx(P_zz * 1.0, rel=1e-3)
+
+
+def test_psd_projection_of_the_tangent():
+    """psd_project clamps the eigenvalues of each 9x9 tangent at zero: the result is PSD, idempotent, and a PSD
+    tangent is unchanged."""
+    rng = np.random.default_rng(3)
+    M = rng.normal(size=(5, 7, 9, 9))
+    M = M + np.swapaxes(M, -1, -2)
+    A = np.moveaxis(M, (2, 3), (0, 1)).reshape(3, 3, 3, 3, 5, 7)
+    P = psd_project(A)
+    w = np.linalg.eigvalsh(np.moveaxis(P.reshape(9, 9, 5, 7), (0, 1), (-2, -1)))
+    assert w.min() > -1e-12 * np.abs(w).max()
+    assert np.allclose(psd_project(P), P, atol=1e-12)
+    assert np.min(np.linalg.eigvalsh(M)) < 0 and not np.allclose(P, A)
+    S = np.einsum("...ij,...kj->...ik", M, M)  # PSD
+    B = np.moveaxis(S, (2, 3), (0, 1)).reshape(3, 3, 3, 3, 5, 7)
+    assert np.allclose(psd_project(B), B, atol=1e-10 * np.abs(B).max())
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_projected_tangent_is_psd_where_the_exact_one_is_not(order):
+    """Fibres compressed by 2 % make the exact tangent of a 10³-anisotropic yarn indefinite (dozens of
+    negative eigenvalues, the fibres' buckling modes); the projected one is PSD, with the same energy and
+    residual."""
+    mesh = block(order)
+    X = nodes_of(mesh)
+    n = X.shape[0]
+    forms = SolidForms(mesh, ti(500.0, 0.5), np.tile([0.0, 0.0, 1.0], (n, 1)), node_offset=X - [0.5, 0.5, 0.0])
+    u = np.zeros((n, 3))
+    u[:, 2] = -0.02 * X[:, 2]
+    u = u.ravel()
+    W, R, K = forms.evaluate(u, 1.0, 2)
+    Wp, Rp, Kp = forms.evaluate(u, 1.0, 2, project=True)
+    assert Wp == W and np.array_equal(Rp, R)
+    w = np.linalg.eigvalsh(K.toarray())
+    wp = np.linalg.eigvalsh(Kp.toarray())
+    assert w.min() < -1e-3 * w.max() and np.sum(w < -1e-9 * w.max()) > 10
+    assert wp.min() > -1e-10 * wp.max()

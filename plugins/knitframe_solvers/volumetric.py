@@ -155,6 +155,7 @@ class VolumetricSolver:
     correction_tolerance: float = attrs.field(default=1e-2, validator=v.positive)  #: ... when the last Newton correction ≤ this × the increment's displacement (ABAQUS's C_n), -
     path_tolerance_factor: float = attrs.field(default=10.0, validator=v.in_range(1.0, 1e6))  #: tolerance of the intermediate pre-stress states / tolerance, -
     max_step: float = attrs.field(default=0.25, validator=v.positive)  #: largest node move per Newton step / yarn radius (at most reach / 2 with contact_search = "iteration"), -
+    tangent: Literal["adaptive", "exact", "projected"] = attrs.field(default="adaptive", validator=v.one_of(("adaptive", "exact", "projected")))  #: Newton's Hessian: the exact tangent, its PSD projection per quadrature point, or the projection while exact steps fail ("adaptive": projected Newton far from the solution, exact near it)
     cap_shift: float = attrs.field(default=0.0, validator=v.non_negative)  #: a Newton step over this × max_step raises the Levenberg shift (damping a near-singular mode, e.g. a yarn only contact holds) instead of being scaled down whole (0: off), -
     min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))  #: smallest cut-back increment / step, -
     max_iterations: int | None = attrs.field(default=None, validator=v.optional(v.in_range(1, 10000)))  #: Newton iterations per increment (default 40; 200 with barrier contact, whose CCD-bounded steps are short while contacts engage), -
@@ -269,7 +270,8 @@ class VolumetricSolver:
                              max_step=self.max_step, xtol=1e-10 * r, max_backtracks=12, residual_backtracks=0,
                              max_shift_increases=7, flux_rtol=self.flux_tolerance,
                              correction_rtol=self.correction_tolerance, late_flux_rtol=self.late_flux_tolerance,
-                             stall_iterations=0 if model.barrier else self.stall_iterations, cap_shift=self.cap_shift)
+                             stall_iterations=0 if model.barrier else self.stall_iterations, cap_shift=self.cap_shift,
+                             projection={"exact": "off", "projected": "always"}.get(self.tangent, self.tangent))
         n_ind = 3 * len(model.independent)
         base_free = np.ones(n_ind + N_MACRO, bool)
         base_free[:3] = False  # pin one node: the cell's free translation
@@ -545,7 +547,8 @@ class VolumetricModel:
         loaded = node[node > 0]
         return float(loaded.mean()) if loaded.size else 0.0
 
-    def __call__(self, q: np.ndarray, order: int) -> tuple[float, Any, Any, dict]:
+    def __call__(self, q: np.ndarray, order: int, projected: bool = False) -> tuple[float, Any, Any, dict]:
+        """(E, g, H, info) at q; with ``projected`` the solid's tangent is PSD-projected per quadrature point."""
         self.evaluations[("energy", "gradient", "hessian")[order]] += 1
         t0 = time.perf_counter()
         u = self.T @ q
@@ -553,7 +556,7 @@ class VolumetricModel:
         self.timings["transform"] += time.perf_counter() - t0
         t0 = time.perf_counter()
         try:
-            E, R, K = self.forms.evaluate(u, self.s, order)
+            E, R, K = self.forms.evaluate(u, self.s, order, project=projected)
         except NumericalError as e:  # an inverted element: inadmissible, the line search backs off
             self.timings["material"] += time.perf_counter() - t0
             return np.inf, None, None, {"diagnostic": str(e)}

@@ -38,7 +38,7 @@ import scipy.sparse as sp
 
 from knitframe.errors import NumericalError
 
-__all__ = ["YarnLaw", "SolidForms", "fibre_at_quadrature"]
+__all__ = ["YarnLaw", "SolidForms", "fibre_at_quadrature", "psd_project"]
 
 
 def _inv_det(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -117,6 +117,25 @@ class YarnLaw:
     def evaluate(self, F: np.ndarray, a: np.ndarray, order: int = 2) -> tuple[np.ndarray, Any, Any]:
         """(Ψ, P, A) at once (the yarn model computes them together); ``order`` < 2 skips A, < 1 skips P."""
         return self._evaluate(F, a, order)
+
+
+def psd_project(A: np.ndarray) -> np.ndarray:
+    """Positive semi-definite part of the tangent A_iJkL (3, 3, 3, 3, ...) at every quadrature point.
+
+    A is symmetric as a 9x9 matrix M_(iJ)(kL) (a hyperelastic tangent has major symmetry).
+    With M = V diag(w) Vᵀ, the projection is M⁺ = V diag(max(w, 0)) Vᵀ, the closest PSD matrix in
+    the Frobenius norm. Every element matrix K_e = Σ_q ∇Nᵀ A⁺ ∇N dV is then PSD as well: the
+    projected Newton method of barrier contact (Li et al. 2020), here per quadrature point, where a
+    9x9 eigenproblem replaces the element's 12x12 (P1) or 30x30 (P2) one. Compressive stress makes
+    A indefinite (its geometric part is negative for rotations under compression; a compressed
+    fibre of a 10⁴-anisotropic yarn makes it strongly so).
+    """
+    shape = A.shape
+    M = np.moveaxis(A.reshape(9, 9, -1), -1, 0)
+    M = 0.5 * (M + np.swapaxes(M, 1, 2))
+    w, V = np.linalg.eigh(M)
+    M = np.einsum("pij,pj,pkj->pik", V, np.maximum(w, 0.0), V, optimize=True)
+    return np.moveaxis(M, 0, -1).reshape(shape)
 
 
 def fibre_at_quadrature(basis: Any, node_tangent: np.ndarray) -> np.ndarray:
@@ -265,11 +284,13 @@ class SolidForms:
         """Tangent stiffness K = ∂R/∂u (3N, 3N) as CSR, N/mm."""
         return self.evaluate(u, s, 2)[2]
 
-    def evaluate(self, u: np.ndarray, s: float = 1.0, order: int = 2
+    def evaluate(self, u: np.ndarray, s: float = 1.0, order: int = 2, *, project: bool = False
                  ) -> tuple[float, np.ndarray | None, sp.csr_matrix | None]:
         """(W, R, K) in one pass over the elements: the law is evaluated once per chunk.
 
-        ``order`` 0 gives W only (+inf for an inverted element), 1 adds R, 2 adds K.
+        ``order`` 0 gives W only (+inf for an inverted element), 1 adds R, 2 adds K. With
+        ``project`` the tangent is the positive semi-definite projection of A at every quadrature
+        point (:func:`psd_project`), so K is positive semi-definite (W and R are unchanged).
 
         With ``order >= 1`` the force flux ``self.flux`` (3N,) is kept as well: the sum over
         elements of the absolute element nodal forces, Σ_e |R_e,ai| (N). Unlike R it does not
@@ -307,6 +328,8 @@ class SolidForms:
             if order == 2:
                 if Ti is not None:
                     A = Jt * np.einsum("iMkNeq,JMeq,LNeq->iJkLeq", A, Ti, Ti, optimize=True)
+                if project:
+                    A = psd_project(A)
                 T = np.einsum("aJeq,iJkLeq->aikLeq", G, A, optimize=True)
                 Ke = np.einsum("aikLeq,bLeq,eq->eaibk", T, G, self.dx[sl], optimize=True)
                 lo, hi = sl.start * m * m, sl.stop * m * m
