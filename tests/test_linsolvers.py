@@ -68,3 +68,37 @@ def test_contact_law_check_catches_an_attractive_law():
 
     with pytest.raises(AssertionError):
         check_contact_law(Sticky())
+
+
+def test_symmetry_probe():
+    """is_symmetric accepts A = Aᵀ (also with round-off) and rejects a skew part above its tolerance."""
+    import scipy.sparse as sp
+
+    from knitframe_linsolvers.direct import is_symmetric
+
+    rng = np.random.default_rng(0)
+    B = sp.random(200, 200, density=0.05, random_state=1, format="csr")
+    S = (B + B.T).tocsr()
+    assert is_symmetric(S)
+    assert is_symmetric(S + 1e-15 * sp.random(200, 200, density=0.05, random_state=2))
+    assert not is_symmetric((S + 1e-6 * B).tocsr())
+    assert not is_symmetric(sp.csr_matrix(rng.normal(size=(3, 4))))
+
+
+@pytest.mark.skipif(not __import__("knitframe_linsolvers.direct", fromlist=["available"]).available("pardiso"),
+                    reason="pypardiso is not installed")
+def test_pardiso_symmetric_indefinite_and_unsymmetric():
+    """PARDISO solves a symmetric indefinite system (LDLᵀ of the upper triangle) and an unsymmetric one (LU)."""
+    import scipy.sparse as sp
+
+    from knitframe_linsolvers.direct import direct
+
+    n = 6000
+    lap = sp.diags([2.0 * np.ones(n), -np.ones(n - 1), -np.ones(n - 1)], [0, 1, -1], format="csr")
+    indefinite = (lap - 0.5 * sp.identity(n)).tocsr()  # eigenvalues of lap span (0, 4): some are now negative
+    unsym = (lap + sp.diags([0.3 * np.ones(n - 1)], [1])).tocsr()
+    b = np.random.default_rng(0).normal(size=n)
+    solve = direct("pardiso")
+    for A in (indefinite, unsym):
+        x = solve(A, b)
+        assert np.linalg.norm(A @ x - b) <= 1e-10 * np.linalg.norm(b)
