@@ -166,7 +166,8 @@ def bench_run(args) -> list[dict]:
                               **({} if args.stabilisation is None else {"stabilisation": args.stabilisation}),
                               **({} if args.max_step is None else {"max_step": args.max_step}),
                               **({} if args.cap_shift is None else {"cap_shift": args.cap_shift}),
-                              **({} if args.tangent is None else {"tangent": args.tangent}))
+                              **({} if args.tangent is None else {"tangent": args.tangent}),
+                              **({} if args.step_tol is None else {"step_tolerance": args.step_tol}))
     fab = attrs.evolve(fabric(), stitch_length=args.stitch_length)
     if args.transverse_ratio is not None:  # a diagnostic: the same yarn with a milder anisotropy
         y = fab.yarn
@@ -277,6 +278,7 @@ def main(argv=None) -> None:
     p.add_argument("--smoothing", help="'run': master surface of P1 contact of penalty and mortar, nagata (their default) or none")
     p.add_argument("--transverse-ratio", type=float,
                    help="'run': set the yarn's E_transverse to this × E_axial (a diagnostic of the anisotropy)")
+    p.add_argument("--step-tol", type=float, help="'run': also converged when the exact Newton step is ≤ this × r")
     p.add_argument("--tangent", choices=("adaptive", "exact", "projected"),
                    help="'run': Newton's Hessian (default the solver's, adaptive)")
     p.add_argument("--cap-shift", type=float, help="'run': raise the Levenberg shift while a Newton step exceeds this × the cap")

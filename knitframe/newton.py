@@ -34,6 +34,10 @@ linear-solver plugin, with
 * an optional bound from continuous collision detection (``step_limit(x, dx)``, barrier
   contact): the line search starts from the largest crossing-free fraction α of the step, so
   no iterate passes through a barrier that only acts within a thin layer;
+* optionally (``step_tol`` > 0), the step test of barrier-contact solvers (IPC): converged when
+  the exact, unshifted Newton step is a descent direction with ``step_norm(dx)`` ≤ ``step_tol``.
+  Many barrier pairs (stiff, each switching in and out of d̂) keep the residual bouncing long
+  after the configuration has stopped moving;
 * besides the absolute test max|g_f| ≤ atol, the force-flux test of implicit FE codes (ABAQUS's
   R_n, C_n): when the problem reports the average nodal force flux q̃ = ``info["flux"]``, an
   iterate with max|g_f| ≤ R_n·q̃ whose last correction c satisfies
@@ -98,6 +102,7 @@ class NewtonOptions:
     stall_iterations: int = 0  #: give up when the smallest residual has not improved in this many iterations (0: off)
     cap_shift: float = 0.0  #: raise the Levenberg shift (instead of scaling the step) while step_norm(dx) > this × max_step (0: off)
     projection: str = attrs.field(default="off", validator=attrs.validators.in_(("off", "adaptive", "always")))  #: Hessian: exact ("off"), PSD-projected ("always", fun(x, 2, projected=True)) or projected while exact steps fail ("adaptive")
+    step_tol: float = 0.0  #: also converged when an exact, unshifted Newton step has step_norm(dx) ≤ this (IPC's criterion; 0: off)
     release_step: float = 0.5  #: "adaptive": back to the exact Hessian after a projected step ≤ this × max_step
 
 
@@ -235,7 +240,7 @@ def minimise(
             if descent:
                 dx = np.zeros_like(x)
                 dx[free] = dx_f
-                if step_norm is not None and np.isfinite(options.max_step):
+                if step_norm is not None and (np.isfinite(options.max_step) or options.step_tol > 0):
                     size = step_norm(dx)
             if options.projection == "adaptive" and not projecting and (
                     not descent or (np.isfinite(size) and size > options.max_step)):
@@ -246,6 +251,12 @@ def minimise(
                 Hff = H[free][:, free].tocsc()
                 scale = _diag_scale(Hff)
                 continue
+            if (descent and options.step_tol > 0 and not projecting and shift_rel == 0.0 and np.isfinite(size)
+                    and size <= options.step_tol):
+                # the exact Newton step would move nothing by more than step_tol: x is the solution to that accuracy
+                history[-1]["step"] = size / options.max_step if np.isfinite(options.max_step) else size
+                history[-1]["step_converged"] = True
+                return NewtonResult(x, float(E), g, it, True, tuple(history), info)
             if descent:
                 if np.isfinite(size):
                     if (options.cap_shift and size > options.cap_shift * options.max_step

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import attrs
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -343,3 +344,16 @@ def test_exact_newton_stops_at_a_saddle_of_the_concave_band():
     assert exact.converged and not any(h.get("projected") for h in exact.history)
     assert np.min(np.abs(exact.x)) < 0.2
     assert exact.energy > adaptive.energy + 1.0
+
+
+def test_step_tolerance_stops_when_the_exact_step_is_small():
+    """With ``step_tol`` an iterate whose exact Newton step moves no DOF more than step_tol is converged, even
+    though its residual is above atol; the answer is then within about step_tol of the minimum."""
+    opts = NewtonOptions(atol=1e-300, rtol=0.0, max_iter=100, step_tol=1e-3)
+    res = minimise(quartic, np.full(6, 50.0), np.ones(6, bool), solve=direct(), options=opts,
+                   step_norm=lambda dx: float(np.max(np.abs(dx))))
+    assert res.converged and res.history[-1].get("step_converged")
+    assert res.history[-1]["residual"] > 1e-300 and np.max(np.abs(res.x - np.arange(6))) < 1e-3
+    full = minimise(quartic, np.full(6, 50.0), np.ones(6, bool), solve=direct(),
+                    options=attrs.evolve(opts, step_tol=0.0), step_norm=lambda dx: float(np.max(np.abs(dx))))
+    assert full.iterations > res.iterations and not full.history[-1].get("step_converged")

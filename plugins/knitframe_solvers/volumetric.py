@@ -156,6 +156,7 @@ class VolumetricSolver:
     path_tolerance_factor: float = attrs.field(default=10.0, validator=v.in_range(1.0, 1e6))  #: tolerance of the intermediate pre-stress states / tolerance, -
     max_step: float = attrs.field(default=0.25, validator=v.positive)  #: largest node move per Newton step / yarn radius (at most reach / 2 with contact_search = "iteration"), -
     tangent: Literal["adaptive", "exact", "projected"] = attrs.field(default="adaptive", validator=v.one_of(("adaptive", "exact", "projected")))  #: Newton's Hessian: the exact tangent, its PSD projection per quadrature point, or the projection while exact steps fail ("adaptive": projected Newton far from the solution, exact near it)
+    step_tolerance: float = attrs.field(default=0.01, validator=v.non_negative)  #: also converged when the exact Newton step moves no node more than this × r (IPC's test; 0: off), -
     cap_shift: float = attrs.field(default=0.0, validator=v.non_negative)  #: a Newton step over this × max_step raises the Levenberg shift (damping a near-singular mode, e.g. a yarn only contact holds) instead of being scaled down whole (0: off), -
     min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))  #: smallest cut-back increment / step, -
     max_iterations: int | None = attrs.field(default=None, validator=v.optional(v.in_range(1, 10000)))  #: Newton iterations per increment (default 40; 200 with barrier contact, whose CCD-bounded steps are short while contacts engage), -
@@ -271,7 +272,8 @@ class VolumetricSolver:
                              max_shift_increases=7, flux_rtol=self.flux_tolerance,
                              correction_rtol=self.correction_tolerance, late_flux_rtol=self.late_flux_tolerance,
                              stall_iterations=0 if model.barrier else self.stall_iterations, cap_shift=self.cap_shift,
-                             projection={"exact": "off", "projected": "always"}.get(self.tangent, self.tangent))
+                             projection={"exact": "off", "projected": "always"}.get(self.tangent, self.tangent),
+                             step_tol=self.step_tolerance)
         n_ind = 3 * len(model.independent)
         base_free = np.ones(n_ind + N_MACRO, bool)
         base_free[:3] = False  # pin one node: the cell's free translation
