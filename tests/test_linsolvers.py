@@ -102,3 +102,24 @@ def test_pardiso_symmetric_indefinite_and_unsymmetric():
     for A in (indefinite, unsym):
         x = solve(A, b)
         assert np.linalg.norm(A @ x - b) <= 1e-10 * np.linalg.norm(b)
+
+
+def test_failed_pardiso_falls_back_to_lu_then_superlu_only_for_small_systems(monkeypatch):
+    """When the refined LDLᵀ misses the tolerance the LU is tried; when that fails too, SuperLU takes small
+    systems and a large one raises a NumericalError (SuperLU's fill-in on a P2 cell exhausts memory)."""
+    import scipy.sparse as sp
+
+    import knitframe_linsolvers.direct as d
+    from knitframe.errors import NumericalError
+
+    tried = []
+    monkeypatch.setattr(d, "_pardiso_solver", lambda mtype=d.UNSYMMETRIC: mtype)
+    monkeypatch.setattr(d, "_refined", lambda solver, M, A, b, refine, rtol: tried.append(solver))
+    n = 300
+    A = sp.diags([2.0 * np.ones(n), -np.ones(n - 1), -np.ones(n - 1)], [0, 1, -1], format="csr")
+    b = np.ones(n)
+    x = d._pardiso(A, b)
+    assert tried == [d.SYMMETRIC, d.UNSYMMETRIC] and np.linalg.norm(A @ x - b) < 1e-10 * np.linalg.norm(b)
+    monkeypatch.setattr(d, "SUPERLU_FALLBACK_LIMIT", 100)
+    with pytest.raises(NumericalError, match="SuperLU"):
+        d._pardiso(A, b)

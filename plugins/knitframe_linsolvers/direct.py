@@ -71,6 +71,28 @@ def is_symmetric(A: Any, rtol: float = 1e-12) -> bool:
     return abs(float(x @ Ay) - float(y @ Ax)) <= rtol * scale
 
 
+#: above this many unknowns a failed PARDISO solve is not handed to SuperLU, whose fill-in on a 3-D
+#: P2 cell runs out of memory (279 549 unknowns: over 18 GB); the caller gets a NumericalError instead
+SUPERLU_FALLBACK_LIMIT = 60_000
+
+
+def _refined(solver: Any, M: Any, A: Any, b: np.ndarray, refine: int, rtol: float) -> np.ndarray | None:
+    """Solve with ``solver`` on the matrix M it factorises, refine against A; None unless |b − A x| ≤ rtol |b|."""
+    try:
+        x = np.asarray(solver.solve(M, b))
+        b_norm = float(np.linalg.norm(b)) or 1.0
+        for _ in range(refine + 1):
+            r = b - A @ x
+            if not np.all(np.isfinite(r)):
+                return None
+            if float(np.linalg.norm(r)) <= rtol * b_norm:
+                return x
+            x = x + np.asarray(solver.solve(M, r))
+        return None
+    finally:
+        solver.free_memory(everything=True)
+
+
 def _pardiso(A: Any, b: np.ndarray, refine: int = 4, rtol: float = 1e-10) -> np.ndarray:
     """PARDISO, then iterative refinement on the kept factors.
 
@@ -79,26 +101,24 @@ def _pardiso(A: Any, b: np.ndarray, refine: int = 4, rtol: float = 1e-10) -> np.
     admits the indefinite Hessians of buckling or compressed fibres), at about half the time and
     memory of the LU (type 11) that other matrices get. PARDISO perturbs tiny pivots, which loses
     digits on badly conditioned systems (a rod's EA/EI ratio is ~1e8). Each refinement solves
-    A·δ = b − A·x with the same factorisation until |b − A·x| ≤ rtol·|b|; if that fails the system
-    is refactorised by SuperLU.
+    A·δ = b − A·x with the same factorisation until |b − A·x| ≤ rtol·|b|. If that fails, the LDLᵀ
+    (pivots perturbed by 1e-8) is followed by the LU (1e-13, with matching and scaling), then, for
+    systems up to ``SUPERLU_FALLBACK_LIMIT`` unknowns, by SuperLU; a larger system raises
+    :class:`NumericalError` (Newton then shifts the matrix).
     """
     A = sp.csr_matrix(A)
     b = np.asarray(b, dtype=np.float64)
-    symmetric = is_symmetric(A)
-    solver = _pardiso_solver(SYMMETRIC if symmetric else UNSYMMETRIC)
-    M = sp.triu(A, format="csr") if symmetric else A
-    x = np.asarray(solver.solve(M, b))
-    b_norm = float(np.linalg.norm(b)) or 1.0
-    for _ in range(refine):
-        r = b - A @ x
-        if not np.all(np.isfinite(r)):
-            break
-        if float(np.linalg.norm(r)) <= rtol * b_norm:
-            solver.free_memory(everything=True)
+    if is_symmetric(A):
+        x = _refined(_pardiso_solver(SYMMETRIC), sp.triu(A, format="csr"), A, b, refine, rtol)
+        if x is not None:
             return x
-        x = x + np.asarray(solver.solve(M, r))
-    solver.free_memory(everything=True)
-    return _superlu(A, b)
+    x = _refined(_pardiso_solver(UNSYMMETRIC), A, A, b, refine, rtol)
+    if x is not None:
+        return x
+    if A.shape[0] <= SUPERLU_FALLBACK_LIMIT:
+        return _superlu(A, b)
+    raise NumericalError(f"direct (PARDISO): no solution with |b − A x| ≤ {rtol:g} |b| after {refine} refinements "
+                         f"({A.shape[0]} unknowns, too many for the SuperLU fallback)")
 
 
 def _cholmod(A: Any, b: np.ndarray) -> np.ndarray:
