@@ -28,7 +28,10 @@ A run is
 
 Each increment is solved by the shared Newton driver (:func:`knitframe.newton.minimise`) with a
 linear-solver plugin, whose wall time is kept next to the assembly times (provenance
-``timings_s``). Every converged step is checkpointed; a call with the same inputs and
+``timings_s``). The yarn's tangent is indefinite where fibres are compressed, so by default
+(``tangent = "adaptive"``) an increment switches to the tangent projected to its PSD part at
+every quadrature point once an exact step fails or exceeds the cap, and back near the solution;
+an iterate whose exact Newton step moves no node more than ``step_tolerance``·r is converged. Every converged step is checkpointed; a call with the same inputs and
 checkpoint directory resumes after the last saved step.
 """
 
