@@ -115,7 +115,7 @@ class NewtonResult:
     gradient: np.ndarray
     iterations: int
     converged: bool
-    history: tuple[dict, ...]  #: per iteration: energy, residual, alpha, shift, step_energy (E at the accepted step, as the line search evaluated it), step (size of the Newton step / max_step, before the cap), alpha0 (the line search's first α: 1 or the CCD bound)
+    history: tuple[dict, ...]  #: per iteration: energy, residual, alpha, shift, step_energy (E at the accepted step, as the line search evaluated it), step (size of the Newton step / max_step, before the cap; the size itself without a cap), alpha0 (the line search's first α: 1 or the CCD bound)
     info: dict
 
 
@@ -254,7 +254,7 @@ def minimise(
             if (descent and options.step_tol > 0 and not projecting and shift_rel == 0.0 and np.isfinite(size)
                     and size <= options.step_tol):
                 # the exact Newton step would move nothing by more than step_tol: x is the solution to that accuracy
-                history[-1]["step"] = size / options.max_step if np.isfinite(options.max_step) else size
+                history[-1]["step"] = _step_ratio(size, options)
                 history[-1]["step_converged"] = True
                 return NewtonResult(x, float(E), g, it, True, tuple(history), info)
             if descent:
@@ -270,7 +270,7 @@ def minimise(
                         slope *= options.max_step / size
                 alpha0 = 1.0 if step_limit is None else min(1.0, float(step_limit(x, dx)))
                 if np.isfinite(size):
-                    history[-1]["step"] = size / options.max_step
+                    history[-1]["step"] = _step_ratio(size, options)
                 history[-1]["alpha0"] = alpha0
                 step = _line_search(fun, x, E, g, dx, slope, options, free, alpha0) if alpha0 > 0 else None
                 if step is not None:
@@ -297,6 +297,11 @@ def minimise(
     raise _failure(
         f"Newton: no convergence in {options.max_iter} iterations (residual {history[-1]['residual']:.3g} > "
         f"tol {tol:.3g}); {_fmt(history)}", history)
+
+
+def _step_ratio(size: float, options: NewtonOptions) -> float:
+    """A Newton step's size for the history: over the cap when there is one, else as is."""
+    return size / options.max_step if np.isfinite(options.max_step) else size
 
 
 #: an iteration counts as stalled only while its best residual is this many times the tolerance

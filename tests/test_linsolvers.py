@@ -98,10 +98,24 @@ def test_pardiso_symmetric_indefinite_and_unsymmetric():
     indefinite = (lap - 0.5 * sp.identity(n)).tocsr()  # eigenvalues of lap span (0, 4): some are now negative
     unsym = (lap + sp.diags([0.3 * np.ones(n - 1)], [1])).tocsr()
     b = np.random.default_rng(0).normal(size=n)
+    import knitframe_linsolvers.direct as d
+
     solve = direct("pardiso")
-    for A in (indefinite, unsym):
-        x = solve(A, b)
+    for A, path in ((indefinite, [d.SYMMETRIC]), (unsym, [d.UNSYMMETRIC])):
+        used = []
+        refined = d._refined
+
+        def spy(solver, M, A_, b_, refine, rtol):
+            used.append(solver.mtype)
+            return refined(solver, M, A_, b_, refine, rtol)
+
+        d._refined = spy
+        try:
+            x = solve(A, b)
+        finally:
+            d._refined = refined
         assert np.linalg.norm(A @ x - b) <= 1e-10 * np.linalg.norm(b)
+        assert used == path  # the symmetric matrix got the LDLᵀ and needed no fallback
 
 
 def test_failed_pardiso_falls_back_to_lu_then_superlu_only_for_small_systems(monkeypatch):

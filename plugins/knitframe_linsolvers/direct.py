@@ -81,13 +81,14 @@ def _refined(solver: Any, M: Any, A: Any, b: np.ndarray, refine: int, rtol: floa
     try:
         x = np.asarray(solver.solve(M, b))
         b_norm = float(np.linalg.norm(b)) or 1.0
-        for _ in range(refine + 1):
+        for k in range(refine + 1):  # the first solve and up to ``refine`` corrections, each checked
             r = b - A @ x
             if not np.all(np.isfinite(r)):
                 return None
             if float(np.linalg.norm(r)) <= rtol * b_norm:
                 return x
-            x = x + np.asarray(solver.solve(M, r))
+            if k < refine:
+                x = x + np.asarray(solver.solve(M, r))
         return None
     finally:
         solver.free_memory(everything=True)

@@ -31,8 +31,9 @@ linear-solver plugin, whose wall time is kept next to the assembly times (proven
 ``timings_s``). The yarn's tangent is indefinite where fibres are compressed, so by default
 (``tangent = "adaptive"``) an increment switches to the tangent projected to its PSD part at
 every quadrature point once an exact step fails or exceeds the cap, and back near the solution;
-an iterate whose exact Newton step moves no node more than ``step_tolerance``·r is converged. Every converged step is checkpointed; a call with the same inputs and
-checkpoint directory resumes after the last saved step.
+an iterate whose exact Newton step moves no node more than ``step_tolerance``·r is converged.
+Every converged step is checkpointed; a call with the same inputs and checkpoint directory
+resumes after the last saved step.
 """
 
 from __future__ import annotations
@@ -368,15 +369,14 @@ class VolumetricSolver:
                 t_first = (start_index + 1) / self.prestress_steps
                 targets = [k / self.prestress_steps for k in range(start_index + 2, self.prestress_steps + 1)]
 
+                s_done = [s0 + t_first * (1.0 - s0)]  # the radius factor of the last converged state (not of a failed try)
+
                 def solve_prestress(t: float, q0: np.ndarray):
-                    # predictor: the free growth of the tubes, exact away from contacts
                     s_new = s0 + t * (1.0 - s0)
-                    grow = model.shrunk(s_new) - model.shrunk(model.s)
-                    if model.barrier:  # a barrier admits no crossing: grow only as far as the tubes stay apart
-                        grow *= 0.9 * model.step_limit(q0, grow)
-                    q1 = q0 + grow
-                    model.s = s_new
-                    return newton(q1, free, anchor=q0, options=loose if t < 1.0 - 1e-12 else opts, where=("prestress", t))
+                    q1 = model.grow(q0, s_done[0], s_new)
+                    res = newton(q1, free, anchor=q0, options=loose if t < 1.0 - 1e-12 else opts, where=("prestress", t))
+                    s_done[0] = s_new
+                    return res
 
                 def on_prestress(i: int, t: float, res) -> None:
                     nonlocal q
@@ -510,6 +510,19 @@ class VolumetricModel:
         u = (s0 - 1.0) * self.cm.node_offset[self.independent]
         q[: 3 * len(self.independent)] = u.ravel()
         return q
+
+    def grow(self, q0: np.ndarray, s_from: float, s_to: float) -> np.ndarray:
+        """Pre-stress predictor from q0 (at radius factor s_from) to the stress-free radius s_to·r; sets ``s``.
+
+        The free growth of the tubes, q0 + shrunk(s_to) − shrunk(s_from), exact away from contacts;
+        with a barrier law only 0.9 of the crossing-free fraction of it (CCD), as a barrier admits
+        no crossing.
+        """
+        step = self.shrunk(s_to) - self.shrunk(s_from)
+        if self.barrier:
+            step *= 0.9 * self.step_limit(q0, step)
+        self.s = s_to
+        return q0 + step
 
     def anchor(self, q0: np.ndarray) -> None:
         """Start a load increment at q0: the foundation pulls towards this state, and with friction the
