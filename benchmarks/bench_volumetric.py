@@ -168,7 +168,8 @@ def bench_run(args) -> list[dict]:
                               **({} if args.max_step is None else {"max_step": args.max_step}),
                               **({} if args.cap_shift is None else {"cap_shift": args.cap_shift}),
                               **({} if args.tangent is None else {"tangent": args.tangent}),
-                              **({} if args.step_tol is None else {"step_tolerance": args.step_tol}))
+                              **({} if args.step_tol is None else {"step_tolerance": args.step_tol}),
+                              **({"start_projected": True} if args.start_projected else {}))
     fab = attrs.evolve(fabric(), stitch_length=args.stitch_length)
     if args.transverse_ratio is not None:  # a diagnostic: the same yarn with a milder anisotropy
         y = fab.yarn
@@ -212,11 +213,26 @@ def bench_run(args) -> list[dict]:
 def bench_trace(args) -> list[dict]:
     """One row per Newton solve of a trace file (``run --trace``): outcome, iterations, wall time, the final
     residual against the force flux, active contacts, and the largest energy jump between an accepted
-    line-search step and the next iterate (where the contact pairing changed between them)."""
+    line-search step and the next iterate (where the contact pairing changed between them).
+
+    With ``--iterations``: one row per Newton iteration instead, from the records written as each
+    iteration completed (a solve that was killed or never converged included): residual, energy,
+    the step over the cap, the line search's α, projected tangent or not, wall time."""
     rows = []
     with open(args.trace) as fh:
         for line in fh:
             rec = json.loads(line)
+            if getattr(args, "iterations", False):
+                if rec.get("record") == "iteration":
+                    rows.append({"phase": rec["phase"], "t": round(rec["t"], 5), "it": rec["it"],
+                                 "residual N": f"{rec['residual']:.3g}", "energy N·mm": f"{rec['energy']:.7g}",
+                                 "step/cap": f"{rec['step']:.3g}" if "step" in rec else "",
+                                 "alpha": f"{rec['alpha']:.3g}" if "alpha" in rec else "",
+                                 "shift": f"{rec.get('shift', 0.0):.2g}", "projected": bool(rec.get("projected")),
+                                 "active": int(rec.get("active", 0)), "wall s": round(rec.get("wall_s", 0.0), 1)})
+                continue
+            if rec.get("record") == "iteration":  # the per-iteration records: the solve record repeats them
+                continue
             h = rec.get("history", [])
             last = h[-1] if h else {}
             jumps = [b["energy"] - a["step_energy"] for a, b in zip(h[:-1], h[1:]) if "step_energy" in a]
@@ -279,9 +295,12 @@ def main(argv=None) -> None:
     p.add_argument("--smoothing", help="'run': master surface of P1 contact of penalty and mortar, nagata (their default) or none")
     p.add_argument("--transverse-ratio", type=float,
                    help="'run': set the yarn's E_transverse to this × E_axial (a diagnostic of the anisotropy)")
-    p.add_argument("--step-tol", type=float, help="'run': also converged when the exact Newton step is ≤ this × r")
+    p.add_argument("--step-tol", type=float, help="'run': also converged when the Newton step (exact, or projected) is ≤ this × r")
     p.add_argument("--tangent", choices=("adaptive", "exact", "projected"),
                    help="'run': Newton's Hessian (default the solver's, adaptive)")
+    p.add_argument("--iterations", action="store_true", help="'trace': one row per Newton iteration")
+    p.add_argument("--start-projected", action="store_true",
+                   help="'run': with the adaptive tangent, start every increment on the projected one")
     p.add_argument("--cap-shift", type=float, help="'run': raise the Levenberg shift while a Newton step exceeds this × the cap")
     p.add_argument("--max-step", type=float, help="'run': the solver's cap on a Newton step, node move / r")
     p.add_argument("--stabilisation", type=float, help="'run': the solver's stabilisation (weak foundation) factor")

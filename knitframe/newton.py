@@ -27,7 +27,8 @@ linear-solver plugin, with
   rest of the increment when the exact Newton step is not a descent direction or exceeds the cap
   (negative curvature, for example compressed fibres, sends the exact step far off), and back to
   the exact Hessian once a projected step is within ``release_step``·``max_step``, so that the
-  last iterations converge quadratically on the exact tangent;
+  last iterations converge quadratically on the exact tangent (with ``start_projected`` an
+  increment starts on the projected Hessian);
 * optionally (``cap_shift`` = c > 0), a step over c·``max_step`` raises the Levenberg shift and
   is solved again instead of being scaled down whole: where a near-singular mode (a yarn that
   only a few contacts hold) dominates dx, scaling would leave the rest of the step at nothing;
@@ -35,9 +36,10 @@ linear-solver plugin, with
   contact): the line search starts from the largest crossing-free fraction α of the step, so
   no iterate passes through a barrier that only acts within a thin layer;
 * optionally (``step_tol`` > 0), the step test of barrier-contact solvers (IPC): converged when
-  the exact, unshifted Newton step is a descent direction with ``step_norm(dx)`` ≤ ``step_tol``.
-  Many barrier pairs (stiff, each switching in and out of d̂) keep the residual bouncing long
-  after the configuration has stopped moving;
+  the unshifted Newton step — exact, or projected while the projection is on, which is IPC's own
+  test — is a descent direction with ``step_norm(dx)`` ≤ ``step_tol``. Many barrier pairs (stiff,
+  each switching in and out of d̂) keep the residual bouncing long after the configuration has
+  stopped moving;
 * besides the absolute test max|g_f| ≤ atol, the force-flux test of implicit FE codes (ABAQUS's
   R_n, C_n): when the problem reports the average nodal force flux q̃ = ``info["flux"]``, an
   iterate with max|g_f| ≤ R_n·q̃ whose last correction c satisfies
@@ -65,6 +67,7 @@ import json
 import math
 import os
 import tempfile
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -104,6 +107,7 @@ class NewtonOptions:
     projection: str = attrs.field(default="off", validator=attrs.validators.in_(("off", "adaptive", "always")))  #: Hessian: exact ("off"), PSD-projected ("always", fun(x, 2, projected=True)) or projected while exact steps fail ("adaptive")
     step_tol: float = 0.0  #: also converged when an exact, unshifted Newton step has step_norm(dx) ≤ this (IPC's criterion; 0: off)
     release_step: float = 0.5  #: "adaptive": back to the exact Hessian after a projected step ≤ this × max_step
+    start_projected: bool = False  #: "adaptive": start on the projected Hessian (saves the exact factorisation of a first step that would fail)
 
 
 @attrs.frozen
@@ -140,6 +144,7 @@ def minimise(
     stabilise: Callable[[dict], bool] | None = None,
     step_norm: Callable[[np.ndarray], float] | None = None,
     step_limit: Callable[[np.ndarray, np.ndarray], float] | None = None,
+    on_iteration: Callable[[dict], None] | None = None,
 ) -> NewtonResult:
     """Minimise the energy of ``fun`` over the DOFs selected by the boolean mask ``free``.
 
@@ -161,6 +166,10 @@ def minimise(
     step_limit : callable, optional
         ``step_limit(x, dx) -> α_max``: the largest admissible fraction of the step (continuous
         collision detection of barrier contact); the line search starts from min(1, α_max).
+    on_iteration : callable, optional
+        ``on_iteration(entry)`` with each iteration's history entry as it is completed (after its
+        line search, or as the iterate converges or the iteration fails), ``wall_s`` included: a
+        trace of an increment that is killed or never converges.
 
     Returns
     -------
@@ -169,7 +178,7 @@ def minimise(
     """
     x = np.array(x0, dtype=np.float64, copy=True)
     free = np.asarray(free, bool)
-    projecting = options.projection == "always"
+    projecting = options.projection == "always" or (options.projection == "adaptive" and options.start_projected)
 
     def evaluate(x: np.ndarray) -> tuple[float, Any, Any, dict]:
         return fun(x, 2, projected=True) if projecting else fun(x, 2)
@@ -188,6 +197,7 @@ def minimise(
     # the last iteration starts higher, and without this cap iterations that each needed the largest shift
     # ratcheted it up to 1e6 × the diagonal: steps too short to matter, dozens of line searches each)
     max_shift = 1e-8 * 10.0 ** max(options.max_shift_increases - 1, 0)
+    t_it = time.perf_counter()
     for it in range(options.max_iter + 1):
         res = float(np.max(np.abs(g[free]), initial=0.0))
         if not np.isfinite(res):
@@ -197,10 +207,12 @@ def minimise(
             if key in info:
                 history[-1][key] = float(info[key])
         if res <= tol:
+            _report(on_iteration, history, t_it)
             return NewtonResult(x, float(E), g, it, True, tuple(history), info)
         ratio = options.late_flux_rtol if options.late_flux_rtol > 0 and it >= options.late_iteration else options.flux_rtol
         if ratio > 0 and it > 0 and res <= ratio * float(info.get("flux", 0.0)):
             if correction <= options.correction_rtol * measure(x - x_start):
+                _report(on_iteration, history, t_it)
                 return NewtonResult(x, float(E), g, it, True, tuple(history), info)
         if it == options.max_iter:
             break
@@ -209,6 +221,7 @@ def minimise(
             best_before = min(h["residual"] for h in history[:-options.stall_iterations])
             target = max(tol, ratio * float(info.get("flux", 0.0)))
             if min(window) >= best_before and best_before > STALL_FACTOR * target:
+                _report(on_iteration, history, t_it)
                 raise _failure(
                     f"Newton: stalled, no residual below {best_before:.3g} in the last {options.stall_iterations} "
                     f"iterations (tol {tol:.3g}); {_fmt(history)}", history)
@@ -251,11 +264,13 @@ def minimise(
                 Hff = H[free][:, free].tocsc()
                 scale = _diag_scale(Hff)
                 continue
-            if (descent and options.step_tol > 0 and not projecting and shift_rel == 0.0 and np.isfinite(size)
+            if (descent and options.step_tol > 0 and shift_rel == 0.0 and np.isfinite(size)
                     and size <= options.step_tol):
-                # the exact Newton step would move nothing by more than step_tol: x is the solution to that accuracy
+                # the Newton step would move nothing by more than step_tol: x is the solution to that accuracy
+                # (a projected step is H_p⁻¹g with H_p ⪰ the exact curvature's positive part: IPC's criterion)
                 history[-1]["step"] = _step_ratio(size, options)
                 history[-1]["step_converged"] = True
+                _report(on_iteration, history, t_it)
                 return NewtonResult(x, float(E), g, it, True, tuple(history), info)
             if descent:
                 if np.isfinite(size):
@@ -279,11 +294,14 @@ def minimise(
                     break
             shift_rel = max(10.0 * shift_rel, 1e-8)
         if not accepted:
+            _report(on_iteration, history, t_it)
             raise _failure(
                 f"Newton: no descent step at iteration {it} (residual {res:.3g} > tol {tol:.3g}, shift up to "
                 f"{tried:.2g}); {_fmt(history)}", history)
         history[-1]["alpha"] = alpha
         history[-1]["step_energy"] = float(E_new)  # as the line search saw it: the next entry's energy may differ
+        _report(on_iteration, history, t_it)  # wall_s: this iteration's evaluations, factorisations, line search
+        t_it = time.perf_counter()
         correction = measure(x_new - x)
         x = x_new
         if projecting and options.projection == "adaptive" and np.isfinite(size) and \
@@ -293,10 +311,19 @@ def minimise(
         if alpha == 1.0 and shift_rel == 0.0 and float(np.max(np.abs(dx), initial=0.0)) <= options.xtol:
             res = float(np.max(np.abs(g[free]), initial=0.0))
             history.append({"it": it + 1, "energy": float(E), "residual": res, "shift": 0.0, "xtol": True})
+            _report(on_iteration, history, t_it)
             return NewtonResult(x, float(E), g, it + 1, True, tuple(history), info)
+    _report(on_iteration, history, t_it)
     raise _failure(
         f"Newton: no convergence in {options.max_iter} iterations (residual {history[-1]['residual']:.3g} > "
         f"tol {tol:.3g}); {_fmt(history)}", history)
+
+
+def _report(on_iteration: Callable[[dict], None] | None, history: Sequence[dict], t_start: float) -> None:
+    """Close the last history entry (its wall time since ``t_start``) and pass a copy to ``on_iteration``."""
+    history[-1]["wall_s"] = time.perf_counter() - t_start
+    if on_iteration is not None:
+        on_iteration(dict(history[-1]))
 
 
 def _step_ratio(size: float, options: NewtonOptions) -> float:

@@ -13,7 +13,7 @@ import numpy as np
 
 from knitframe.errors import FieldError
 
-__all__ = ["positive", "non_negative", "in_range", "one_of", "finite", "optional", "subset_of", "finite_array"]
+__all__ = ["positive", "non_negative", "in_range", "one_of", "finite", "optional", "subset_of", "finite_array", "boolean"]
 
 Validator = Callable[[Any, Any, Any], None]
 
@@ -61,6 +61,12 @@ def in_range(lo: float, hi: float, *, lo_open: bool = False, hi_open: bool = Fal
             raise FieldError(attribute.name, f"must be in {lb}{lo}, {hi}{rb}, got {_fmt(value)}")
 
     return check
+
+
+def boolean(instance, attribute, value) -> None:
+    """Value is true or false (not a number or a string that looks like one)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise FieldError(attribute.name, f"must be true or false, got {value!r}")
 
 
 def one_of(choices: Iterable[str]) -> Validator:

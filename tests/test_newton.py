@@ -357,3 +357,54 @@ def test_step_tolerance_stops_when_the_exact_step_is_small():
     full = minimise(quartic, np.full(6, 50.0), np.ones(6, bool), solve=direct(),
                     options=attrs.evolve(opts, step_tol=0.0), step_norm=lambda dx: float(np.max(np.abs(dx))))
     assert full.iterations > res.iterations and not full.history[-1].get("step_converged")
+
+
+def test_step_tolerance_applies_to_the_projected_step():
+    """Under the projection the step test is IPC's: the projected Newton step. The chain converges by it on
+    projected steps alone, within about step_tol of the minimum, without the exact tangent's last iterations."""
+    x0 = np.r_[1.0, np.full(7, 0.05)]
+    free = np.r_[False, np.ones(7, bool)]
+    opts = NewtonOptions(atol=1e-300, rtol=0.0, max_iter=100, projection="always", max_step=0.5, step_tol=1e-4)
+    res = minimise(double_well_chain, x0, free, solve=direct(), options=opts,
+                   step_norm=lambda dx: float(np.max(np.abs(dx))))
+    assert res.converged and res.history[-1].get("step_converged") and res.history[-1].get("projected")
+    assert np.max(np.abs(res.x - 1.0)) < 1e-3
+
+
+def test_each_iteration_is_reported_as_it_completes():
+    """``on_iteration`` gets every history entry (wall time included) as it is made, also when the solve fails."""
+    seen = []
+    res = minimise(quartic, np.full(6, 50.0), np.ones(6, bool), solve=direct(), on_iteration=seen.append,
+                   options=NewtonOptions(atol=1e-10, rtol=0.0, max_iter=100))
+    assert [h["it"] for h in seen] == [h["it"] for h in res.history]
+    assert seen == list(res.history) and all(h["wall_s"] >= 0.0 for h in seen)
+    seen.clear()
+    with pytest.raises(NumericalError) as err:
+        minimise(quartic, np.full(6, 50.0), np.ones(6, bool), solve=direct(), on_iteration=seen.append,
+                 options=NewtonOptions(atol=1e-300, rtol=0.0, max_iter=3))
+    assert [h["it"] for h in seen] == [0, 1, 2, 3] and len(err.value.history) == 4
+
+
+def test_adaptive_newton_can_start_projected():
+    """``start_projected``: the same iterates as the adaptive mode whose first exact step fails, without the
+    exact Hessian (and its factorisation) of that first step."""
+    calls = {False: 0, True: 0}
+
+    def counted(x, order=2, projected=False):
+        if order == 2:
+            calls[projected] += 1
+        return double_well_chain(x, order, projected)
+
+    x0 = np.r_[1.0, np.full(7, 0.05)]
+    free = np.r_[False, np.ones(7, bool)]
+    runs = {}
+    for start in (False, True):
+        calls.update({False: 0, True: 0})
+        opts = NewtonOptions(atol=1e-12, rtol=0.0, max_iter=100, projection="adaptive", max_step=0.5,
+                             start_projected=start)
+        res = minimise(counted, x0, free, solve=direct(), options=opts, step_norm=lambda dx: float(np.max(np.abs(dx))))
+        runs[start] = (res, dict(calls))
+    (plain, c_plain), (started, c_started) = runs[False], runs[True]
+    assert started.converged and np.allclose(started.x, plain.x, atol=1e-12)
+    assert [h["residual"] for h in started.history] == pytest.approx([h["residual"] for h in plain.history])
+    assert c_started[False] == c_plain[False] - 1 and started.history[0].get("projected")

@@ -124,13 +124,21 @@ def test_trace_records_every_newton_solve():
     """``trace`` gets one record per Newton solve with its iteration history; the last residual is the converged one."""
     records = []
     resp = VolumetricSolver(order=1, seed=0.75).simulate(FABRIC, STRETCH, trace=records.append)
-    loads = [r for r in records if r["phase"] == "load"]
+    loads = [r for r in records if r["phase"] == "load" and r["record"] == "solve"]
     assert [r["t"] for r in loads] == [1.0, 2.0] and all(r["converged"] for r in loads)
     for r in loads:
         last = r["history"][-1]
         assert r["iterations"] == len(r["history"]) - 1
         assert last["residual"] <= max(resp.provenance.extra["tolerance_N"], 5e-3 * last["flux"])
         assert all("flux" in h for h in r["history"])
+        # the same iterations were traced one by one, in order, since the previous solve's record
+        k = records.index(r)
+        start = max((i for i in range(k) if records[i]["record"] == "solve"), default=-1) + 1
+        its = records[start:k]
+        assert all(x["record"] == "iteration" and x["t"] == r["t"] for x in its)
+        assert [x["it"] for x in its] == [h["it"] for h in r["history"]]
+        assert [x["residual"] for x in its] == [h["residual"] for h in r["history"]]
+        assert all(x["wall_s"] >= 0.0 for x in its)
 
 
 def test_held_contact_search_needs_steps_below_half_the_reach():

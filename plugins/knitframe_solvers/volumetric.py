@@ -160,6 +160,7 @@ class VolumetricSolver:
     path_tolerance_factor: float = attrs.field(default=10.0, validator=v.in_range(1.0, 1e6))  #: tolerance of the intermediate pre-stress states / tolerance, -
     max_step: float = attrs.field(default=0.25, validator=v.positive)  #: largest node move per Newton step / yarn radius (at most reach / 2 with contact_search = "iteration"), -
     tangent: Literal["adaptive", "exact", "projected"] = attrs.field(default="adaptive", validator=v.one_of(("adaptive", "exact", "projected")))  #: Newton's Hessian: the exact tangent, its PSD projection per quadrature point, or the projection while exact steps fail ("adaptive": projected Newton far from the solution, exact near it)
+    start_projected: bool = attrs.field(default=False, validator=v.boolean)  #: with tangent = "adaptive", start every increment on the projected tangent (an increment's first exact step mostly fails: this saves its evaluation and factorisation)
     step_tolerance: float = attrs.field(default=0.01, validator=v.non_negative)  #: also converged when the exact Newton step moves no node more than this × r (IPC's test; 0: off), -
     cap_shift: float = attrs.field(default=0.0, validator=v.non_negative)  #: a Newton step over this × max_step raises the Levenberg shift (damping a near-singular mode, e.g. a yarn only contact holds) instead of being scaled down whole (0: off), -
     min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))  #: smallest cut-back increment / step, -
@@ -239,10 +240,13 @@ class VolumetricSolver:
             Converged steps are saved there; a later call with the same inputs resumes after
             the last saved step.
         trace : callable, optional
-            ``trace(record)`` after every Newton solve, converged or not: a dict with the phase
-            ("prestress" or "load"), the load parameter t, ``converged``, the wall time, the
-            iteration history (energy, residual, flux, line-search α, shift) and, on failure,
-            the diagnostic. For reproducible convergence studies.
+            ``trace(record)`` after every Newton solve, converged or not: a dict with
+            ``record = "solve"``, the phase ("prestress" or "load"), the load parameter t,
+            ``converged``, the wall time, the iteration history (energy, residual, flux,
+            line-search α, shift, wall time) and, on failure, the diagnostic. Before it, one
+            ``record = "iteration"`` dict per Newton iteration as it completes (phase, t and that
+            iteration's history entry), so a solve that is killed or never ends leaves its
+            iterations. For reproducible convergence studies.
         """
         t_start = time.perf_counter()
         registry = get_registry()
@@ -277,7 +281,7 @@ class VolumetricSolver:
                              correction_rtol=self.correction_tolerance, late_flux_rtol=self.late_flux_tolerance,
                              stall_iterations=0 if model.barrier else self.stall_iterations, cap_shift=self.cap_shift,
                              projection={"exact": "off", "projected": "always"}.get(self.tangent, self.tangent),
-                             step_tol=self.step_tolerance)
+                             step_tol=self.step_tolerance, start_projected=self.start_projected)
         n_ind = 3 * len(model.independent)
         base_free = np.ones(n_ind + N_MACRO, bool)
         base_free[:3] = False  # pin one node: the cell's free translation
@@ -310,16 +314,20 @@ class VolumetricSolver:
                    where: tuple[str, float] = ("prestress", 0.0)):
             model.anchor(q0 if anchor is None else anchor)
             t0 = time.perf_counter()
+            each = None if trace is None else (
+                lambda entry: trace({"record": "iteration", "phase": where[0], "t": where[1], **entry}))
             try:
                 res = minimise(model, q0, free, solve=solve, options=options, step_norm=step_norm,
-                               step_limit=model.step_limit if model.barrier else None)
+                               step_limit=model.step_limit if model.barrier else None, on_iteration=each)
             except NumericalError as e:
                 if trace is not None:
-                    trace({"phase": where[0], "t": where[1], "converged": False, "wall_s": time.perf_counter() - t0,
-                           "history": list(getattr(e, "history", ())), "diagnostic": str(e)})
+                    trace({"record": "solve", "phase": where[0], "t": where[1], "converged": False,
+                           "wall_s": time.perf_counter() - t0, "history": list(getattr(e, "history", ())),
+                           "diagnostic": str(e)})
                 raise
             if trace is not None:
-                trace({"phase": where[0], "t": where[1], "converged": True, "wall_s": time.perf_counter() - t0,
+                trace({"record": "solve", "phase": where[0], "t": where[1], "converged": True,
+                       "wall_s": time.perf_counter() - t0,
                        "iterations": res.iterations, "history": list(res.history),
                        "max_penetration_over_r": float(res.info.get("max_penetration", 0.0)) / r,
                        "stabilisation_share": stab_share(res)})
