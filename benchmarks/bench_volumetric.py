@@ -229,7 +229,10 @@ def bench_trace(args) -> list[dict]:
                                  "step/cap": f"{rec['step']:.3g}" if "step" in rec else "",
                                  "alpha": f"{rec['alpha']:.3g}" if "alpha" in rec else "",
                                  "shift": f"{rec.get('shift', 0.0):.2g}", "projected": bool(rec.get("projected")),
-                                 "active": int(rec.get("active", 0)), "wall s": round(rec.get("wall_s", 0.0), 1)})
+                                 "active": int(rec.get("active", 0)), "wall s": round(rec.get("wall_s", 0.0), 1),
+                                 "material+contact s": round(rec.get("material_s", 0.0) + rec.get("contact_s", 0.0), 1),
+                                 "linear solves": f"{rec.get('n_linear_solves', '')} ({rec.get('linear_solve_s', 0.0):.1f} s)",
+                                 "evaluations (E, H)": f"{rec.get('n_energy', '')}, {rec.get('n_hessian', '')}"})
                 continue
             if rec.get("record") == "iteration":  # the per-iteration records: the solve record repeats them
                 continue

@@ -138,7 +138,12 @@ def test_trace_records_every_newton_solve():
         assert all(x["record"] == "iteration" and x["t"] == r["t"] for x in its)
         assert [x["it"] for x in its] == [h["it"] for h in r["history"]]
         assert [x["residual"] for x in its] == [h["residual"] for h in r["history"]]
-        assert all(x["wall_s"] >= 0.0 for x in its)
+        assert all(x["wall_s"] >= 0.0 and x["material_s"] >= 0.0 and x["n_hessian"] >= 1 for x in its)
+    # each iteration's share of the counters: together they are the run's
+    every = [x for x in records if x["record"] == "iteration"]
+    counts = resp.provenance.extra["newton_evaluations"]
+    assert sum(x["n_linear_solves"] for x in every) == counts["linear_solves"]
+    assert sum(x["n_hessian"] for x in every) == counts["hessian"]
 
 
 def test_held_contact_search_needs_steps_below_half_the_reach():

@@ -314,8 +314,16 @@ class VolumetricSolver:
                    where: tuple[str, float] = ("prestress", 0.0)):
             model.anchor(q0 if anchor is None else anchor)
             t0 = time.perf_counter()
-            each = None if trace is None else (
-                lambda entry: trace({"record": "iteration", "phase": where[0], "t": where[1], **entry}))
+            each = None
+            if trace is not None:
+                last = model.counters()
+
+                def each(entry: dict) -> None:
+                    # with the iteration's share of the wall time per part, and its evaluations and linear solves
+                    now = model.counters()
+                    split = {k: now[k] - last[k] for k in now}
+                    last.update(now)
+                    trace({"record": "iteration", "phase": where[0], "t": where[1], **entry, **split})
             try:
                 res = minimise(model, q0, free, solve=solve, options=options, step_norm=step_norm,
                                step_limit=model.step_limit if model.barrier else None, on_iteration=each)
@@ -511,6 +519,13 @@ class VolumetricModel:
         self.held = None
         self.barrier = False  # a barrier contact law: the line search is bounded by continuous collision detection
         self.evaluations = {"energy": 0, "gradient": 0, "hessian": 0, "linear_solves": 0}
+
+    def counters(self) -> dict[str, float]:
+        """Wall time so far per part (``material_s``, ``contact_s``, ``transform_s``, ``linear_solve_s``) and
+        the numbers of evaluations and linear solves (``n_energy``, ``n_gradient``, ``n_hessian``, ``n_linear_solves``)."""
+        out = {f"{k}_s": v for k, v in self.timings.items() if k != "mesh"}
+        out.update({f"n_{k}": float(n) for k, n in self.evaluations.items()})
+        return out
 
     def shrunk(self, s0: float) -> np.ndarray:
         """q of the yarns shrunk across the fibre to s0·r: u = (s0 − 1)·(transverse offset)."""
