@@ -300,7 +300,7 @@ def main(argv=None) -> None:
                    help="'run': set the yarn's E_transverse to this × E_axial (a diagnostic of the anisotropy)")
     p.add_argument("--step-tol", type=float, help="'run': also converged when the Newton step (exact, or projected) is ≤ this × r")
     p.add_argument("--tangent", choices=("adaptive", "exact", "projected"),
-                   help="'run': Newton's Hessian (default the solver's, adaptive)")
+                   help="'run': Newton's Hessian (default the solver's, projected)")
     p.add_argument("--iterations", action="store_true", help="'trace': one row per Newton iteration")
     p.add_argument("--start-projected", action="store_true",
                    help="'run': with the adaptive tangent, start every increment on the projected one")

@@ -29,9 +29,10 @@ A run is
 Each increment is solved by the shared Newton driver (:func:`knitframe.newton.minimise`) with a
 linear-solver plugin, whose wall time is kept next to the assembly times (provenance
 ``timings_s``). The yarn's tangent is indefinite where fibres are compressed, so by default
-(``tangent = "adaptive"``) an increment switches to the tangent projected to its PSD part at
-every quadrature point once an exact step fails or exceeds the cap, and back near the solution;
-an iterate whose exact Newton step moves no node more than ``step_tolerance``·r is converged.
+(``tangent = "projected"``) Newton uses the tangent projected to its PSD part at every
+quadrature point (IPC's projected Newton), and an iterate whose Newton step moves no node more
+than ``step_tolerance``·r is converged (``"adaptive"`` switches between the exact and the
+projected tangent; ``"exact"`` keeps the exact one).
 Every converged step is checkpointed; a call with the same inputs and checkpoint directory
 resumes after the last saved step.
 """
@@ -159,7 +160,7 @@ class VolumetricSolver:
     correction_tolerance: float = attrs.field(default=1e-2, validator=v.positive)  #: ... when the last Newton correction ≤ this × the increment's displacement (ABAQUS's C_n), -
     path_tolerance_factor: float = attrs.field(default=10.0, validator=v.in_range(1.0, 1e6))  #: tolerance of the intermediate pre-stress states / tolerance, -
     max_step: float = attrs.field(default=0.25, validator=v.positive)  #: largest node move per Newton step / yarn radius (at most reach / 2 with contact_search = "iteration"), -
-    tangent: Literal["adaptive", "exact", "projected"] = attrs.field(default="adaptive", validator=v.one_of(("adaptive", "exact", "projected")))  #: Newton's Hessian: the exact tangent, its PSD projection per quadrature point, or the projection while exact steps fail ("adaptive": projected Newton far from the solution, exact near it)
+    tangent: Literal["adaptive", "exact", "projected"] = attrs.field(default="projected", validator=v.one_of(("adaptive", "exact", "projected")))  #: Newton's Hessian: its PSD projection per quadrature point (projected Newton), the exact tangent, or the projection while exact steps fail ("adaptive": projected far from the solution, exact near it)
     start_projected: bool = attrs.field(default=False, validator=v.boolean)  #: with tangent = "adaptive", start every increment on the projected tangent (an increment's first exact step mostly fails: this saves its evaluation and factorisation)
     step_tolerance: float = attrs.field(default=0.01, validator=v.non_negative)  #: also converged when the exact Newton step moves no node more than this × r (IPC's test; 0: off), -
     cap_shift: float = attrs.field(default=0.0, validator=v.non_negative)  #: a Newton step over this × max_step raises the Levenberg shift (damping a near-singular mode, e.g. a yarn only contact holds) instead of being scaled down whole (0: off), -
