@@ -158,7 +158,7 @@ class VolumetricSolver:
     flux_tolerance: float = attrs.field(default=5e-3, validator=v.non_negative)  #: also converged at a residual ≤ this × the average nodal force flux (ABAQUS's R_n; 0: off), -
     late_flux_tolerance: float = attrs.field(default=2e-2, validator=v.non_negative)  #: the flux ratio after 9 iterations (ABAQUS's R_P; 0: flux_tolerance throughout), -
     correction_tolerance: float = attrs.field(default=1e-2, validator=v.positive)  #: ... when the last Newton correction ≤ this × the increment's displacement (ABAQUS's C_n), -
-    path_tolerance_factor: float = attrs.field(default=10.0, validator=v.in_range(1.0, 1e6))  #: tolerance of the intermediate pre-stress states / tolerance, -
+    path_tolerance_factor: float = attrs.field(default=10.0, validator=v.in_range(1.0, 1e6))  #: tolerances (residual, flux, step) of the intermediate pre-stress states / the final ones, -
     max_step: float = attrs.field(default=0.25, validator=v.positive)  #: largest node move per Newton step / yarn radius (at most reach / 2 with contact_search = "iteration"), -
     tangent: Literal["adaptive", "exact", "projected"] = attrs.field(default="projected", validator=v.one_of(("adaptive", "exact", "projected")))  #: Newton's Hessian: its PSD projection per quadrature point (projected Newton), the exact tangent, or the projection while exact steps fail ("adaptive": projected far from the solution, exact near it)
     start_projected: bool = attrs.field(default=False, validator=v.boolean)  #: with tangent = "adaptive", start every increment on the projected tangent (an increment's first exact step mostly fails: this saves its evaluation and factorisation)
@@ -225,6 +225,34 @@ class VolumetricSolver:
                               "pair into contact; lower max_step or use contact_search = 'evaluation'")
         return model
 
+    def newton_options(self, fabric: Fabric, radius: float, barrier: bool) -> tuple[NewtonOptions, NewtonOptions]:
+        """Newton options of the knitted state and load steps, and the looser ones of the intermediate pre-stress.
+
+        The residual tolerance is ``tolerance``·E_T·r² (the contact forces that resolve the pre-stress
+        scale with the soft transverse modulus); the step test is ``step_tolerance`` (in units of r,
+        as ``max_step``). The intermediate pre-stress states are only a path to s = 1: their residual,
+        flux and step tolerances are ``path_tolerance_factor`` times larger, as in the rod solver.
+        """
+        r = radius
+        # few backtracks: where a step fails, a cut-back of the load step helps more than α → 0;
+        # Levenberg shifts up to 1e-2 × the mean diagonal: where loops buckle or contact curvature makes the
+        # Hessian indefinite the Newton direction climbs, and shifts of 1e-5 had been too small to turn it;
+        # no residual-decrease fallback: the contact energy is continuous along a step (candidates held,
+        # gaps continuous across facets), so a step must lower it (the fallback let the energy climb and
+        # the iteration wander)
+        max_iter = self.max_iterations or (200 if barrier else 40)
+        opts = NewtonOptions(atol=self.tolerance * fabric.yarn.E_transverse * r * r, rtol=1e-10, max_iter=max_iter,
+                             max_step=self.max_step, xtol=1e-10 * r, max_backtracks=12, residual_backtracks=0,
+                             max_shift_increases=7, flux_rtol=self.flux_tolerance,
+                             correction_rtol=self.correction_tolerance, late_flux_rtol=self.late_flux_tolerance,
+                             stall_iterations=0 if barrier else self.stall_iterations, cap_shift=self.cap_shift,
+                             projection={"exact": "off", "projected": "always"}.get(self.tangent, self.tangent),
+                             step_tol=self.step_tolerance, start_projected=self.start_projected)
+        f = self.path_tolerance_factor
+        loose = attrs.evolve(opts, atol=f * opts.atol, flux_rtol=f * opts.flux_rtol,
+                             late_flux_rtol=f * opts.late_flux_rtol, step_tol=f * opts.step_tol)
+        return opts, loose
+
     def simulate(self, fabric: Fabric, scene: Scene, *, progress=None, output_dir: str | Path | None = None,
                  checkpoint_dir: str | Path | None = None, trace=None) -> Response:
         """Pre-stress (if asked) and follow the scene's load path; returns tensions per unit width.
@@ -268,21 +296,7 @@ class VolumetricSolver:
         total = n_load + (self.prestress_steps if prestress else 0)
         report = progress or (lambda done, tot, msg: None)
         r = model.cm.radius
-        # few backtracks: where a step fails, a cut-back of the load step helps more than α → 0;
-        # Levenberg shifts up to 1e-2 × the mean diagonal: where loops buckle or contact curvature makes the
-        # Hessian indefinite the Newton direction climbs, and shifts of 1e-5 had been too small to turn it;
-        # no residual-decrease fallback: the contact energy is continuous along a step (candidates held,
-        # gaps continuous across facets), so a step must lower it (the fallback let the energy climb and
-        # the iteration wander)
-        # the contact forces that resolve the pre-stress scale with the soft transverse modulus, so does the tolerance
-        max_iter = self.max_iterations or (200 if model.barrier else 40)
-        opts = NewtonOptions(atol=self.tolerance * fabric.yarn.E_transverse * r * r, rtol=1e-10, max_iter=max_iter,
-                             max_step=self.max_step, xtol=1e-10 * r, max_backtracks=12, residual_backtracks=0,
-                             max_shift_increases=7, flux_rtol=self.flux_tolerance,
-                             correction_rtol=self.correction_tolerance, late_flux_rtol=self.late_flux_tolerance,
-                             stall_iterations=0 if model.barrier else self.stall_iterations, cap_shift=self.cap_shift,
-                             projection={"exact": "off", "projected": "always"}.get(self.tangent, self.tangent),
-                             step_tol=self.step_tolerance, start_projected=self.start_projected)
+        opts, loose = self.newton_options(fabric, r, model.barrier)
         n_ind = 3 * len(model.independent)
         base_free = np.ones(n_ind + N_MACRO, bool)
         base_free[:3] = False  # pin one node: the cell's free translation
@@ -298,10 +312,6 @@ class VolumetricSolver:
             du = model.T @ dx
             return max(float(np.max(np.abs(du))), float(np.max(np.abs(dx[n_ind:]))) * model.L_max) / r
 
-        # intermediate pre-stress states are only a path to s = 1: a looser tolerance, as in the rod solver
-        loose = attrs.evolve(opts, atol=self.path_tolerance_factor * opts.atol,
-                             flux_rtol=self.path_tolerance_factor * opts.flux_rtol,
-                             late_flux_rtol=self.path_tolerance_factor * opts.late_flux_rtol)
         residuals: list[float] = []
         penetrations: list[float] = []
         shares: list[float] = []
