@@ -309,3 +309,22 @@ def test_intermediate_prestress_states_take_the_loose_tolerances():
         last = rec["history"][-1]
         tol = loose if rec["phase"] == "prestress" and rec["t"] < 1.0 else opts
         assert last.get("step_converged") and last["step"] <= tol.step_tol / solver.max_step
+
+
+def test_secant_predictor_starts_the_next_increment_near_its_solution():
+    """Small strain, no contact: the yarns' fluctuation grows linearly with the load, so the secant predictor
+    (the fluctuation and the free side's contraction extrapolated from the last two converged increments) starts
+    the second and third increments far closer to their solution than the affine map alone; both end at the same
+    tensions."""
+    scene = attrs.evolve(STRETCH, load=LoadPath(kind="uniaxial", direction="course", max_strain=0.03, steps=3))
+    first = {}
+    out = {}
+    for predictor in ("affine", "secant"):
+        records = []
+        out[predictor] = VolumetricSolver(order=1, seed=0.75, predictor=predictor, tolerance=1e-7).simulate(
+            FABRIC, scene, trace=records.append)
+        first[predictor] = [x["history"][0]["residual"] for x in records if x["record"] == "solve"
+                            and x["phase"] == "load"]
+    assert first["secant"][0] == pytest.approx(first["affine"][0], rel=1e-9)  # no history yet: the same start
+    assert first["secant"][1] < 0.1 * first["affine"][1] and first["secant"][2] < 0.1 * first["affine"][2]
+    assert np.allclose(out["secant"].T1, out["affine"].T1, rtol=1e-4, atol=1e-9)

@@ -163,6 +163,7 @@ class VolumetricSolver:
     tangent: Literal["adaptive", "exact", "projected"] = attrs.field(default="projected", validator=v.one_of(("adaptive", "exact", "projected")))  #: Newton's Hessian: its PSD projection per quadrature point (projected Newton), the exact tangent, or the projection while exact steps fail ("adaptive": projected far from the solution, exact near it)
     start_projected: bool = attrs.field(default=False, validator=v.boolean)  #: with tangent = "adaptive", start every increment on the projected tangent (an increment's first exact step mostly fails: this saves its evaluation and factorisation)
     step_tolerance: float = attrs.field(default=0.01, validator=v.non_negative)  #: also converged when the exact Newton step moves no node more than this × r (IPC's test; 0: off), -
+    predictor: Literal["affine", "secant"] = attrs.field(default="affine", validator=v.one_of(("affine", "secant")))  #: start of a load increment: the affine map of the macro step, plus ("secant") the yarns' fluctuation and free macro DOFs extrapolated from the last two converged increments (with a barrier, its crossing-free part; taken only if it lowers the energy)
     cap_shift: float = attrs.field(default=0.0, validator=v.non_negative)  #: a Newton step over this × max_step raises the Levenberg shift (damping a near-singular mode, e.g. a yarn only contact holds) instead of being scaled down whole (0: off), -
     min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))  #: smallest cut-back increment / step, -
     max_iterations: int | None = attrs.field(default=None, validator=v.optional(v.in_range(1, 10000)))  #: Newton iterations per increment (default 40; 200 with barrier contact, whose CCD-bounded steps are short while contacts engage), -
@@ -431,12 +432,24 @@ class VolumetricSolver:
             lam2_path = None if lam2 is None else np.concatenate([[1.0], lam2])
             offset = total - n_load
 
+            path: list[tuple[float, np.ndarray]] = []  # the last two converged load states (τ, q)
+
+            def fluctuation(qv: np.ndarray) -> np.ndarray:
+                """w = u − (F̄ − I)·X of the independent nodes."""
+                return qv[:n_ind] - lat.affine(model.X_ind, qv[n_ind:]).ravel()
+
             def solve_load(tau: float, q0: np.ndarray):
                 l1 = None if lam1_path is None else float(np.interp(tau, np.arange(n_load + 1), lam1_path))
                 l2 = None if lam2_path is None else float(np.interp(tau, np.arange(n_load + 1), lam2_path))
                 pres, vals = lat.constraints(l1, l2)
                 qs = q0.copy()
                 qs[n_ind:][pres] = vals[pres]
+                secant = self.predictor == "secant" and len(path) == 2 and path[-1][1] is q0
+                if secant:
+                    # the free macro DOFs (a free side's contraction) extrapolated from the last two converged states
+                    (t_prev, q_prev), (t_now, _) = path
+                    ratio = (tau - t_now) / (t_now - t_prev)
+                    qs[n_ind:][~pres] += ratio * (q0[n_ind:] - q_prev[n_ind:])[~pres]
                 if model.barrier:
                     # predictor: the whole current configuration mapped by F̄_new·F̄_old⁻¹ (with the images):
                     # an affine map keeps a configuration free of crossings, as a barrier needs
@@ -446,9 +459,26 @@ class VolumetricSolver:
                 else:
                     # predictor: the affine increment (F̄ − I)·X of the macro step on every node
                     qs[:n_ind] += lat.affine(model.X_ind, qs[n_ind:] - q0[n_ind:]).ravel()
+                if secant:
+                    # and the yarns' fluctuation, w ≈ w_n + ratio·(w_n − w_{n−1}); with a barrier only 0.9 of its
+                    # crossing-free part. It is a guess: taken (or half of it, a quarter, …) only where it admits
+                    # no inverted element and lowers the energy below the affine start's, else the affine start
+                    dq = np.zeros_like(qs)
+                    dq[:n_ind] = ratio * (fluctuation(q0) - fluctuation(q_prev))
+                    if model.barrier:
+                        dq *= 0.9 * model.step_limit(qs, dq)
+                    model.anchor(q0)
+                    e_affine = model(qs, 0)[0]
+                    for _ in range(4):
+                        if model(qs + dq, 0)[0] < e_affine:
+                            qs += dq
+                            break
+                        dq *= 0.5
                 free = base_free.copy()
                 free[n_ind:] = ~pres
-                return newton(qs, free, anchor=q0, where=("load", tau))
+                res = newton(qs, free, anchor=q0, where=("load", tau))
+                path[:] = [*path[-1:], (tau, res.x)]
+                return res
 
             def on_load(i: int, tau: float, res) -> None:
                 nonlocal q
@@ -460,6 +490,7 @@ class VolumetricSolver:
                 after("load", k - 1, q, f"load step {k}/{n_load}", offset + k)
 
             first = start_index + 1
+            path.append((float(first), q))
             continuation(solve_load, q, list(np.arange(first + 1, n_load + 1, dtype=float)), t0=float(first),
                          min_fraction=self.min_step_fraction, on_target=on_load)
         except NumericalError as e:
