@@ -105,7 +105,7 @@ class NewtonOptions:
     stall_iterations: int = 0  #: give up when the smallest residual has not improved in this many iterations (0: off)
     cap_shift: float = 0.0  #: raise the Levenberg shift (instead of scaling the step) while step_norm(dx) > this × max_step (0: off)
     projection: str = attrs.field(default="off", validator=attrs.validators.in_(("off", "adaptive", "always")))  #: Hessian: exact ("off"), PSD-projected ("always", fun(x, 2, projected=True)) or projected while exact steps fail ("adaptive")
-    step_tol: float = 0.0  #: also converged when an exact, unshifted Newton step has step_norm(dx) ≤ this (IPC's criterion; 0: off)
+    step_tol: float = 0.0  #: also converged when an unshifted Newton step (exact, or projected while projecting) has step_norm(dx) ≤ this (IPC's criterion; 0: off)
     release_step: float = 0.5  #: "adaptive": back to the exact Hessian after a projected step ≤ this × max_step
     start_projected: bool = False  #: "adaptive": start on the projected Hessian (saves the exact factorisation of a first step that would fail)
 
@@ -119,7 +119,7 @@ class NewtonResult:
     gradient: np.ndarray
     iterations: int
     converged: bool
-    history: tuple[dict, ...]  #: per iteration: energy, residual, alpha, shift, step_energy (E at the accepted step, as the line search evaluated it), step (size of the Newton step / max_step, before the cap; the size itself without a cap), alpha0 (the line search's first α: 1 or the CCD bound)
+    history: tuple[dict, ...]  #: per iteration: energy, residual, alpha, shift, step_energy (E at the accepted step, as the line search evaluated it), step (size of the Newton step / max_step, before the cap; the size itself without a cap), alpha0 (the line search's first α: 1 or the CCD bound), wall_s (the iteration's wall time: its iterate's evaluation, factorisations, line search)
     info: dict
 
 
@@ -183,6 +183,7 @@ def minimise(
     def evaluate(x: np.ndarray) -> tuple[float, Any, Any, dict]:
         return fun(x, 2, projected=True) if projecting else fun(x, 2)
 
+    t_it = time.perf_counter()
     E, g, H, info = evaluate(x)
     if not np.isfinite(E):
         raise NumericalError(f"Newton: the starting state is inadmissible (energy {E}); {info.get('diagnostic', '')}".strip())
@@ -197,7 +198,6 @@ def minimise(
     # the last iteration starts higher, and without this cap iterations that each needed the largest shift
     # ratcheted it up to 1e6 × the diagonal: steps too short to matter, dozens of line searches each)
     max_shift = 1e-8 * 10.0 ** max(options.max_shift_increases - 1, 0)
-    t_it = time.perf_counter()
     for it in range(options.max_iter + 1):
         res = float(np.max(np.abs(g[free]), initial=0.0))
         if not np.isfinite(res):
