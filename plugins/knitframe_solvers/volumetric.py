@@ -323,8 +323,9 @@ class VolumetricSolver:
             return e / abs(res.energy) if res.energy else 0.0
 
         def newton(q0: np.ndarray, free: np.ndarray, anchor: np.ndarray | None = None, options: NewtonOptions = opts,
-                   where: tuple[str, float] = ("prestress", 0.0)):
-            model.anchor(q0 if anchor is None else anchor)
+                   where: tuple[str, float] = ("prestress", 0.0), anchored: bool = False):
+            if not anchored:
+                model.anchor(q0 if anchor is None else anchor)
             t0 = time.perf_counter()
             each = None
             if trace is not None:
@@ -465,8 +466,7 @@ class VolumetricSolver:
                     # no inverted element and lowers the energy below the affine start's, else the affine start
                     dq = np.zeros_like(qs)
                     dq[:n_ind] = ratio * (fluctuation(q0) - fluctuation(q_prev))
-                    if model.barrier:
-                        dq *= 0.9 * model.step_limit(qs, dq)
+                    dq = model.crossing_free(qs, dq)
                     model.anchor(q0)
                     e_affine = model(qs, 0)[0]
                     for _ in range(4):
@@ -476,7 +476,8 @@ class VolumetricSolver:
                         dq *= 0.5
                 free = base_free.copy()
                 free[n_ind:] = ~pres
-                res = newton(qs, free, anchor=q0, where=("load", tau))
+                # (anchored already when the secant was tried: anchoring again would repeat the friction pairing)
+                res = newton(qs, free, anchor=q0, where=("load", tau), anchored=secant)
                 path[:] = [*path[-1:], (tau, res.x)]
                 return res
 
@@ -583,11 +584,14 @@ class VolumetricModel:
         with a barrier law only 0.9 of the crossing-free fraction of it (CCD), as a barrier admits
         no crossing.
         """
-        step = self.shrunk(s_to) - self.shrunk(s_from)
-        if self.barrier:
-            step *= 0.9 * self.step_limit(q0, step)
+        step = self.crossing_free(q0, self.shrunk(s_to) - self.shrunk(s_from))
         self.s = s_to
         return q0 + step
+
+    def crossing_free(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """A predictor's move dq from q as a barrier admits it: 0.9 of its crossing-free fraction (CCD); as is
+        without a barrier law."""
+        return dq * (0.9 * self.step_limit(q, dq)) if self.barrier else dq
 
     def anchor(self, q0: np.ndarray) -> None:
         """Start a load increment at q0: the foundation pulls towards this state, and with friction the
