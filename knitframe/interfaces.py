@@ -85,7 +85,9 @@ class ContactLaw(Protocol):
     discretisation: ClassVar[str]
 
 
-#: ``factory(**options) -> solve`` with ``solve(A: scipy.sparse matrix, b: ndarray) -> ndarray``.
+#: ``factory(**options) -> solve`` with ``solve(A: scipy.sparse matrix, b: ndarray) -> ndarray``. A solver
+#: that factorises may also offer ``solve.factorize(A) -> f``, ``x = f(b)`` with the factors kept for
+#: several right-hand sides and ``f.free()`` to release them (Newton's chord steps reuse them).
 LinearSolverFactory = Callable[..., Callable[[Any, np.ndarray], np.ndarray]]
 
 

@@ -40,6 +40,17 @@ linear-solver plugin, with
   test — is a descent direction with ``step_norm(dx)`` ≤ ``step_tol``. Many barrier pairs (stiff,
   each switching in and out of d̂) keep the residual bouncing long after the configuration has
   stopped moving;
+* optionally (``chord``), chord steps (modified Newton): where the line search had to shorten a
+  Newton step (α < 1: the CCD bound of barrier contact, where many pairs engage and each
+  iteration moves only a fraction of the way), the next steps reuse that factorisation,
+  dx = −H_k⁻¹·g(x), at the cost of a gradient and a back-substitution instead of a Hessian
+  assembly and a factorisation. H_k is positive definite where the Newton step was a descent
+  direction, so the chord step is one too; the same CCD bound and line search apply. Chord steps
+  go on while their energy decrease per second of wall time is at least the last Newton
+  iteration's, for at most ``max_chord`` in a row; then, or when a chord step fails or is
+  within ``step_tol``, the Hessian is evaluated again. Convergence is tested as for any iterate,
+  except the step test, which only a Newton step can pass. The linear solver must offer
+  ``solve.factorize(A)`` (the ``direct`` plugin does); without it there are no chord steps;
 * besides the absolute test max|g_f| ≤ atol, the force-flux test of implicit FE codes (ABAQUS's
   R_n, C_n): when the problem reports the average nodal force flux q̃ = ``info["flux"]``, an
   iterate with max|g_f| ≤ R_n·q̃ whose last correction c satisfies
@@ -108,6 +119,8 @@ class NewtonOptions:
     step_tol: float = 0.0  #: also converged when an unshifted Newton step (exact, or projected while projecting) has step_norm(dx) ≤ this (IPC's criterion; 0: off)
     release_step: float = 0.5  #: "adaptive": back to the exact Hessian after a projected step ≤ this × max_step
     start_projected: bool = False  #: "adaptive": start on the projected Hessian (saves the exact factorisation of a first step that would fail)
+    chord: bool = False  #: after a Newton step the line search shortened (α < 1), reuse its factorisation for chord steps −H_k⁻¹·g(x) while they lower E at least as fast per second as that Newton step (needs ``solve.factorize``)
+    max_chord: int = 12  #: chord steps in a row at most before the Hessian is evaluated and factorised again
 
 
 @attrs.frozen
@@ -198,125 +211,203 @@ def minimise(
     # the last iteration starts higher, and without this cap iterations that each needed the largest shift
     # ratcheted it up to 1e6 × the diagonal: steps too short to matter, dozens of line searches each)
     max_shift = 1e-8 * 10.0 ** max(options.max_shift_increases - 1, 0)
-    for it in range(options.max_iter + 1):
-        res = float(np.max(np.abs(g[free]), initial=0.0))
-        if not np.isfinite(res):
-            raise NumericalError(f"Newton: non-finite gradient at iteration {it}; {_fmt(history)}")
-        history.append({"it": it, "energy": float(E), "residual": res, "shift": shift_rel})
-        for key in ("flux", "active"):
-            if key in info:
-                history[-1][key] = float(info[key])
-        if res <= tol:
-            _report(on_iteration, history, t_it)
-            return NewtonResult(x, float(E), g, it, True, tuple(history), info)
-        ratio = options.late_flux_rtol if options.late_flux_rtol > 0 and it >= options.late_iteration else options.flux_rtol
-        if ratio > 0 and it > 0 and res <= ratio * float(info.get("flux", 0.0)):
-            if correction <= options.correction_rtol * measure(x - x_start):
+    # chord steps: the last Newton iteration's factorisation, kept while it pays (options.chord)
+    factorize = getattr(solve, "factorize", None) if options.chord else None
+    kept = None
+    chord_next = False
+    newton_rate = 0.0
+    n_chord = n_chord_total = 0
+
+    def release() -> None:
+        nonlocal kept
+        if kept is not None:
+            getattr(kept, "free", lambda: None)()
+            kept = None
+
+    try:
+        for it in range(options.max_iter * (1 + options.max_chord) + 1):
+            res = float(np.max(np.abs(g[free]), initial=0.0))
+            if not np.isfinite(res):
+                raise NumericalError(f"Newton: non-finite gradient at iteration {it}; {_fmt(history)}")
+            history.append({"it": it, "energy": float(E), "residual": res, "shift": shift_rel})
+            for key in ("flux", "active"):
+                if key in info:
+                    history[-1][key] = float(info[key])
+            if res <= tol:
                 _report(on_iteration, history, t_it)
                 return NewtonResult(x, float(E), g, it, True, tuple(history), info)
-        if it == options.max_iter:
-            break
-        if options.stall_iterations and it >= options.stall_iterations:
-            window = [h["residual"] for h in history[-options.stall_iterations:]]
-            best_before = min(h["residual"] for h in history[:-options.stall_iterations])
-            target = max(tol, ratio * float(info.get("flux", 0.0)))
-            if min(window) >= best_before and best_before > STALL_FACTOR * target:
+            ratio = options.late_flux_rtol if options.late_flux_rtol > 0 and it >= options.late_iteration else options.flux_rtol
+            if ratio > 0 and it > 0 and res <= ratio * float(info.get("flux", 0.0)):
+                if correction <= options.correction_rtol * measure(x - x_start):
+                    _report(on_iteration, history, t_it)
+                    return NewtonResult(x, float(E), g, it, True, tuple(history), info)
+            if it - n_chord_total == options.max_iter:  # chord steps do not count against max_iter
+                break
+            if options.stall_iterations and it >= options.stall_iterations:
+                window = [h["residual"] for h in history[-options.stall_iterations:]]
+                best_before = min(h["residual"] for h in history[:-options.stall_iterations])
+                target = max(tol, ratio * float(info.get("flux", 0.0)))
+                if min(window) >= best_before and best_before > STALL_FACTOR * target:
+                    _report(on_iteration, history, t_it)
+                    raise _failure(
+                        f"Newton: stalled, no residual below {best_before:.3g} in the last {options.stall_iterations} "
+                        f"iterations (tol {tol:.3g}); {_fmt(history)}", history)
+            if chord_next:
+                chord_next = False
+                chord = _chord_step(fun, x, E, g, kept, free, options, step_norm, step_limit, history[-1])
+                if chord is not None:
+                    alpha, x_new, E_new = chord
+                    _report(on_iteration, history, t_it)
+                    n_chord += 1
+                    n_chord_total += 1
+                    rate = (E - E_new) / max(history[-1]["wall_s"], 1e-9)
+                    chord_next = rate >= newton_rate and n_chord < options.max_chord
+                    t_it = time.perf_counter()
+                    correction = measure(x_new - x)
+                    x = x_new
+                    E, g, H, info = fun(x, 1) if chord_next else evaluate(x)
+                    continue
+                # no chord step (it failed, or it is within step_tol, which only a Newton step may test): the Hessian
+                E, g, H, info = evaluate(x)
+            Hff = H[free][:, free].tocsc()
+            gf = g[free]
+            scale = _diag_scale(Hff)
+            base = options.stabilisation if (stabilise is not None and stabilise(info)) else 0.0
+            shift_rel = shift_rel * 0.1 if shift_rel * 0.1 > max(base, 1e-10) else base
+            shift_rel = min(shift_rel, max_shift)
+            accepted = False
+            tried = 0.0
+            size = math.nan
+            if projecting:
+                history[-1]["projected"] = True
+            for _ in range(options.max_shift_increases + 2):
+                if shift_rel > max_shift * (1.0 + 1e-9):
+                    break
+                tried = shift_rel
+                size = math.nan
+                A = Hff + sp.identity(Hff.shape[0], format="csc") * (shift_rel * scale) if shift_rel > 0 else Hff
+                dx_f = None
+                try:
+                    with np.errstate(all="ignore"):
+                        if factorize is not None:  # kept for chord steps
+                            release()
+                            kept = factorize(A)
+                            dx_f = np.atleast_1d(np.asarray(kept(-gf), dtype=np.float64))
+                        else:
+                            dx_f = np.atleast_1d(np.asarray(solve(A, -gf), dtype=np.float64))
+                except (RuntimeError, np.linalg.LinAlgError, NumericalError, ValueError):
+                    dx_f = None
+                slope = float(gf @ dx_f) if dx_f is not None and np.all(np.isfinite(dx_f)) else math.nan
+                descent = dx_f is not None and np.isfinite(slope) and slope < 0
+                if descent:
+                    dx = np.zeros_like(x)
+                    dx[free] = dx_f
+                    if step_norm is not None and (np.isfinite(options.max_step) or options.step_tol > 0):
+                        size = step_norm(dx)
+                if options.projection == "adaptive" and not projecting and (
+                        not descent or (np.isfinite(size) and size > options.max_step)):
+                    # the exact Hessian sends the step uphill or far off: projected Newton for the rest of the increment
+                    projecting = True
+                    history[-1]["projected"] = True
+                    H = fun(x, 2, projected=True)[2]
+                    Hff = H[free][:, free].tocsc()
+                    scale = _diag_scale(Hff)
+                    continue
+                if (descent and options.step_tol > 0 and shift_rel == 0.0 and np.isfinite(size)
+                        and size <= options.step_tol):
+                    # the Newton step would move nothing by more than step_tol: x is the solution to that accuracy
+                    # (a projected step is H_p⁻¹g with H_p ⪰ the exact curvature's positive part: IPC's criterion)
+                    history[-1]["step"] = _step_ratio(size, options)
+                    history[-1]["step_converged"] = True
+                    _report(on_iteration, history, t_it)
+                    return NewtonResult(x, float(E), g, it, True, tuple(history), info)
+                if descent:
+                    if np.isfinite(size):
+                        if (options.cap_shift and size > options.cap_shift * options.max_step
+                                and max(10.0 * shift_rel, 1e-8) <= max_shift * (1.0 + 1e-9)):
+                            # far outside the cap: a near-singular mode dominates dx, and scaling the whole step
+                            # down would leave the rest of it at nothing; damp that mode with a shift instead
+                            shift_rel = max(10.0 * shift_rel, 1e-8)
+                            continue
+                        if size > options.max_step:
+                            dx *= options.max_step / size
+                            slope *= options.max_step / size
+                    alpha0 = 1.0 if step_limit is None else min(1.0, float(step_limit(x, dx)))
+                    if np.isfinite(size):
+                        history[-1]["step"] = _step_ratio(size, options)
+                    history[-1]["alpha0"] = alpha0
+                    step = _line_search(fun, x, E, g, dx, slope, options, free, alpha0) if alpha0 > 0 else None
+                    if step is not None:
+                        alpha, x_new, E_new = step
+                        accepted = True
+                        break
+                shift_rel = max(10.0 * shift_rel, 1e-8)
+            if not accepted:
                 _report(on_iteration, history, t_it)
                 raise _failure(
-                    f"Newton: stalled, no residual below {best_before:.3g} in the last {options.stall_iterations} "
-                    f"iterations (tol {tol:.3g}); {_fmt(history)}", history)
-        Hff = H[free][:, free].tocsc()
-        gf = g[free]
-        scale = _diag_scale(Hff)
-        base = options.stabilisation if (stabilise is not None and stabilise(info)) else 0.0
-        shift_rel = shift_rel * 0.1 if shift_rel * 0.1 > max(base, 1e-10) else base
-        shift_rel = min(shift_rel, max_shift)
-        accepted = False
-        tried = 0.0
-        size = math.nan
-        if projecting:
-            history[-1]["projected"] = True
-        for _ in range(options.max_shift_increases + 2):
-            if shift_rel > max_shift * (1.0 + 1e-9):
-                break
-            tried = shift_rel
-            size = math.nan
-            A = Hff + sp.identity(Hff.shape[0], format="csc") * (shift_rel * scale) if shift_rel > 0 else Hff
-            dx_f = None
-            try:
-                with np.errstate(all="ignore"):
-                    dx_f = np.atleast_1d(np.asarray(solve(A, -gf), dtype=np.float64))
-            except (RuntimeError, np.linalg.LinAlgError, NumericalError, ValueError):
-                dx_f = None
-            slope = float(gf @ dx_f) if dx_f is not None and np.all(np.isfinite(dx_f)) else math.nan
-            descent = dx_f is not None and np.isfinite(slope) and slope < 0
-            if descent:
-                dx = np.zeros_like(x)
-                dx[free] = dx_f
-                if step_norm is not None and (np.isfinite(options.max_step) or options.step_tol > 0):
-                    size = step_norm(dx)
-            if options.projection == "adaptive" and not projecting and (
-                    not descent or (np.isfinite(size) and size > options.max_step)):
-                # the exact Hessian sends the step uphill or far off: projected Newton for the rest of the increment
-                projecting = True
-                history[-1]["projected"] = True
-                H = fun(x, 2, projected=True)[2]
-                Hff = H[free][:, free].tocsc()
-                scale = _diag_scale(Hff)
-                continue
-            if (descent and options.step_tol > 0 and shift_rel == 0.0 and np.isfinite(size)
-                    and size <= options.step_tol):
-                # the Newton step would move nothing by more than step_tol: x is the solution to that accuracy
-                # (a projected step is H_p⁻¹g with H_p ⪰ the exact curvature's positive part: IPC's criterion)
-                history[-1]["step"] = _step_ratio(size, options)
-                history[-1]["step_converged"] = True
+                    f"Newton: no descent step at iteration {it} (residual {res:.3g} > tol {tol:.3g}, shift up to "
+                    f"{tried:.2g}); {_fmt(history)}", history)
+            history[-1]["alpha"] = alpha
+            history[-1]["step_energy"] = float(E_new)  # as the line search saw it: the next entry's energy may differ
+            _report(on_iteration, history, t_it)  # wall_s: this iteration's evaluations, factorisations, line search
+            if kept is not None and alpha < 1.0 and shift_rel == 0.0:
+                # a shortened step: chord steps on this factorisation while they gain energy at least this fast
+                newton_rate = (E - E_new) / max(history[-1]["wall_s"], 1e-9)
+                chord_next, n_chord = True, 0
+            t_it = time.perf_counter()
+            correction = measure(x_new - x)
+            x = x_new
+            if projecting and options.projection == "adaptive" and np.isfinite(size) and \
+                    size <= options.release_step * options.max_step:
+                projecting = False  # in the basin: the exact tangent converges quadratically
+            E, g, H, info = fun(x, 1) if chord_next else evaluate(x)
+            if alpha == 1.0 and shift_rel == 0.0 and float(np.max(np.abs(dx), initial=0.0)) <= options.xtol:
+                res = float(np.max(np.abs(g[free]), initial=0.0))
+                history.append({"it": it + 1, "energy": float(E), "residual": res, "shift": 0.0, "xtol": True})
                 _report(on_iteration, history, t_it)
-                return NewtonResult(x, float(E), g, it, True, tuple(history), info)
-            if descent:
-                if np.isfinite(size):
-                    if (options.cap_shift and size > options.cap_shift * options.max_step
-                            and max(10.0 * shift_rel, 1e-8) <= max_shift * (1.0 + 1e-9)):
-                        # far outside the cap: a near-singular mode dominates dx, and scaling the whole step
-                        # down would leave the rest of it at nothing; damp that mode with a shift instead
-                        shift_rel = max(10.0 * shift_rel, 1e-8)
-                        continue
-                    if size > options.max_step:
-                        dx *= options.max_step / size
-                        slope *= options.max_step / size
-                alpha0 = 1.0 if step_limit is None else min(1.0, float(step_limit(x, dx)))
-                if np.isfinite(size):
-                    history[-1]["step"] = _step_ratio(size, options)
-                history[-1]["alpha0"] = alpha0
-                step = _line_search(fun, x, E, g, dx, slope, options, free, alpha0) if alpha0 > 0 else None
-                if step is not None:
-                    alpha, x_new, E_new = step
-                    accepted = True
-                    break
-            shift_rel = max(10.0 * shift_rel, 1e-8)
-        if not accepted:
-            _report(on_iteration, history, t_it)
-            raise _failure(
-                f"Newton: no descent step at iteration {it} (residual {res:.3g} > tol {tol:.3g}, shift up to "
-                f"{tried:.2g}); {_fmt(history)}", history)
-        history[-1]["alpha"] = alpha
-        history[-1]["step_energy"] = float(E_new)  # as the line search saw it: the next entry's energy may differ
-        _report(on_iteration, history, t_it)  # wall_s: this iteration's evaluations, factorisations, line search
-        t_it = time.perf_counter()
-        correction = measure(x_new - x)
-        x = x_new
-        if projecting and options.projection == "adaptive" and np.isfinite(size) and \
-                size <= options.release_step * options.max_step:
-            projecting = False  # in the basin: the exact tangent converges quadratically
-        E, g, H, info = evaluate(x)
-        if alpha == 1.0 and shift_rel == 0.0 and float(np.max(np.abs(dx), initial=0.0)) <= options.xtol:
-            res = float(np.max(np.abs(g[free]), initial=0.0))
-            history.append({"it": it + 1, "energy": float(E), "residual": res, "shift": 0.0, "xtol": True})
-            _report(on_iteration, history, t_it)
-            return NewtonResult(x, float(E), g, it + 1, True, tuple(history), info)
-    _report(on_iteration, history, t_it)
-    raise _failure(
-        f"Newton: no convergence in {options.max_iter} iterations (residual {history[-1]['residual']:.3g} > "
-        f"tol {tol:.3g}); {_fmt(history)}", history)
+                return NewtonResult(x, float(E), g, it + 1, True, tuple(history), info)
+        _report(on_iteration, history, t_it)
+        raise _failure(
+            f"Newton: no convergence in {options.max_iter} iterations (residual {history[-1]['residual']:.3g} > "
+            f"tol {tol:.3g}); {_fmt(history)}", history)
+    finally:
+        release()
+
+
+def _chord_step(fun: Problem, x: np.ndarray, E: float, g: np.ndarray, factor: Callable[[np.ndarray], np.ndarray],
+                free: np.ndarray, options: NewtonOptions, step_norm: Callable[[np.ndarray], float] | None,
+                step_limit: Callable[[np.ndarray, np.ndarray], float] | None,
+                entry: dict) -> tuple[float, np.ndarray, float] | None:
+    """A chord step dx = −H_k⁻¹·g(x) on a kept factorisation, capped and bounded as a Newton step; None if it
+    is no descent direction, is within ``step_tol`` (only a Newton step may end the iteration) or finds no α.
+    Records ``chord``, ``step``, ``alpha0``, ``alpha`` and ``step_energy`` in ``entry``."""
+    gf = g[free]
+    try:
+        with np.errstate(all="ignore"):
+            dx_f = np.atleast_1d(np.asarray(factor(-gf), dtype=np.float64))
+    except (RuntimeError, np.linalg.LinAlgError, NumericalError, ValueError):
+        return None
+    slope = float(gf @ dx_f) if np.all(np.isfinite(dx_f)) else math.nan
+    if not (np.isfinite(slope) and slope < 0):
+        return None
+    dx = np.zeros_like(x)
+    dx[free] = dx_f
+    size = step_norm(dx) if step_norm is not None and (np.isfinite(options.max_step) or options.step_tol > 0) \
+        else math.nan
+    if options.step_tol > 0 and np.isfinite(size) and size <= options.step_tol:
+        return None
+    if np.isfinite(size) and size > options.max_step:
+        dx *= options.max_step / size
+        slope *= options.max_step / size
+    alpha0 = 1.0 if step_limit is None else min(1.0, float(step_limit(x, dx)))
+    step = _line_search(fun, x, E, g, dx, slope, options, free, alpha0) if alpha0 > 0 else None
+    if step is None:
+        return None
+    entry["chord"] = True
+    if np.isfinite(size):
+        entry["step"] = _step_ratio(size, options)
+    entry.update(alpha0=alpha0, alpha=step[0], step_energy=float(step[2]))
+    return step
 
 
 def _report(on_iteration: Callable[[dict], None] | None, history: Sequence[dict], t_start: float) -> None:

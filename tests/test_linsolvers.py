@@ -137,3 +137,29 @@ def test_failed_pardiso_falls_back_to_lu_then_superlu_only_for_small_systems(mon
     monkeypatch.setattr(d, "SUPERLU_FALLBACK_LIMIT", 100)
     with pytest.raises(NumericalError, match="SuperLU"):
         d._pardiso(A, b)
+
+
+@pytest.mark.parametrize("backend", ["superlu", "pardiso", "auto"])
+def test_kept_factorisation_solves_several_right_hand_sides(backend):
+    """``solve.factorize(A)`` keeps the factors: each right-hand side gets the answer of a fresh solve, to
+    the refinement tolerance, for a symmetric indefinite matrix (LDLᵀ with PARDISO) and an unsymmetric one."""
+    import scipy.sparse as sp
+
+    from knitframe_linsolvers.direct import available, direct
+
+    if backend == "pardiso" and not available("pardiso"):
+        pytest.skip("pypardiso is not installed")
+    n = 6000
+    lap = sp.diags([2.0 * np.ones(n), -np.ones(n - 1), -np.ones(n - 1)], [0, 1, -1], format="csr")
+    rng = np.random.default_rng(1)
+    solve = direct(backend)
+    for A in ((lap - 0.5 * sp.identity(n)).tocsr(), (lap + sp.diags([0.3 * np.ones(n - 1)], [1])).tocsr()):
+        f = solve.factorize(A)
+        try:
+            for _ in range(3):
+                b = rng.normal(size=n)
+                x = f(b)
+                assert np.linalg.norm(A @ x - b) <= 1e-10 * np.linalg.norm(b)
+                assert np.allclose(x, solve(A, b), rtol=1e-8, atol=1e-10)
+        finally:
+            f.free()

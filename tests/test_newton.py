@@ -408,3 +408,66 @@ def test_adaptive_newton_can_start_projected():
     assert started.converged and np.allclose(started.x, plain.x, atol=1e-12)
     assert [h["residual"] for h in started.history] == pytest.approx([h["residual"] for h in plain.history])
     assert c_started[False] == c_plain[False] - 1 and started.history[0].get("projected")
+
+
+def _slow_hessian_quartic(calls):
+    """``quartic`` whose Hessian costs 20 ms (as a large assembly and factorisation do), counting its calls."""
+
+    def fun(x, order=2, projected=False):
+        calls[order] = calls.get(order, 0) + 1
+        if order == 2:
+            import time
+
+            time.sleep(0.02)
+        return quartic(x, order)
+
+    return fun
+
+
+def _bounded(x, dx):
+    """A CCD-like bound: no DOF moves more than 0.5 in one step."""
+    return min(1.0, 0.5 / float(np.max(np.abs(dx))))
+
+
+@pytest.mark.parametrize("step_tol", [0.0, 1e-6])
+def test_chord_steps_reuse_the_factorisation_while_steps_are_bounded(step_tol):
+    """Where a bound keeps every step short, chord steps on the kept factorisation replace most Hessians:
+    the same minimum with a fraction of the Hessian evaluations, never more than max_chord chord steps in a
+    row, and the step test is passed only by a Newton step."""
+    n = 8
+    x0 = np.full(n, 20.0)
+    results, calls = {}, {}
+    for chord in (False, True):
+        calls[chord] = {}
+        opts = NewtonOptions(atol=1e-9, rtol=0.0, max_iter=200, chord=chord, max_chord=5, step_tol=step_tol)
+        results[chord] = minimise(_slow_hessian_quartic(calls[chord]), x0, np.ones(n, bool), solve=direct(),
+                                  options=opts, step_limit=_bounded)
+    plain, chorded = results[False], results[True]
+    assert plain.converged and chorded.converged
+    assert np.allclose(chorded.x, np.arange(n), atol=1e-6) and np.allclose(plain.x, np.arange(n), atol=1e-6)
+    assert not any(h.get("chord") for h in plain.history)
+    assert calls[True][2] * 3 < calls[False][2]  # Hessians: each of the plain run's ~40 bounded steps needs one
+    flags = [bool(h.get("chord")) for h in chorded.history]
+    assert sum(flags) > len(flags) / 2
+    run = longest = 0
+    for f in flags:
+        run = run + 1 if f else 0
+        longest = max(longest, run)
+    assert longest <= 5
+    for h in chorded.history:
+        if h.get("chord"):
+            assert h["alpha0"] <= 1.0 and h["step_energy"] < h["energy"]
+        if h.get("step_converged"):
+            assert not h.get("chord")
+    if step_tol:
+        assert chorded.history[-1].get("step_converged") or chorded.history[-1]["residual"] <= 1e-9
+
+
+def test_no_chord_steps_without_a_factorising_solver():
+    """A linear solver without ``factorize`` (a plain function) gets Newton steps only, chord option or not."""
+    calls = {}
+    res = minimise(_slow_hessian_quartic(calls), np.full(4, 20.0), np.ones(4, bool),
+                   solve=lambda A, b: direct()(A, b), options=NewtonOptions(rtol=0.0, max_iter=200, chord=True),
+                   step_limit=_bounded)
+    assert res.converged and not any(h.get("chord") for h in res.history)
+    assert calls[2] == len(res.history)

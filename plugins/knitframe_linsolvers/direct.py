@@ -9,6 +9,7 @@ positive definite matrices only) is used when asked for.
 from __future__ import annotations
 
 import importlib.util
+import weakref
 from typing import Any, Callable
 
 import numpy as np
@@ -122,6 +123,90 @@ def _pardiso(A: Any, b: np.ndarray, refine: int = 4, rtol: float = 1e-10) -> np.
                          f"({A.shape[0]} unknowns, too many for the SuperLU fallback)")
 
 
+class _KeptPardiso:
+    """A PARDISO factorisation kept for several right-hand sides (``x = f(b)``), refined against A."""
+
+    def __init__(self, A: Any, refine: int, rtol: float):
+        import pypardiso
+
+        self.A = sp.csr_matrix(A)
+        self.refine, self.rtol = refine, rtol
+        symmetric = is_symmetric(self.A)
+        self.M = sp.triu(self.A, format="csr") if symmetric else self.A.copy()
+        self.M.sort_indices()
+        self.solver = pypardiso.PyPardisoSolver(mtype=SYMMETRIC if symmetric else UNSYMMETRIC)
+        self.solver.set_iparm(8, 0)
+        try:
+            self.solver.factorize(self.M)
+        except Exception as e:  # pypardiso.PyPardisoError: a zero pivot of a singular matrix
+            self.free()
+            raise NumericalError(f"direct (PARDISO): factorisation failed: {e}") from None
+
+    def _apply(self, b: np.ndarray) -> np.ndarray:
+        self.solver.set_phase(33)  # solve only: the factors are kept (pypardiso's solve() would hash A again)
+        return np.asarray(self.solver._call_pardiso(self.M, np.ascontiguousarray(b, dtype=np.float64)))
+
+    def __call__(self, b: np.ndarray) -> np.ndarray:
+        b = np.asarray(b, dtype=np.float64)
+        x = self._apply(b)
+        b_norm = float(np.linalg.norm(b)) or 1.0
+        for k in range(self.refine + 1):
+            r = b - self.A @ x
+            if not np.all(np.isfinite(r)):
+                break
+            if float(np.linalg.norm(r)) <= self.rtol * b_norm:
+                return x
+            if k < self.refine:
+                x = x + self._apply(r)
+        raise NumericalError(f"direct (PARDISO): no solution with |b - A x| <= {self.rtol:g} |b| from the kept "
+                             f"factorisation after {self.refine} refinements")
+
+    def free(self) -> None:
+        self.solver.free_memory(everything=True)
+
+
+def _factorize_pardiso(A: Any, refine: int = 4, rtol: float = 1e-10) -> Callable[[np.ndarray], np.ndarray]:
+    """PARDISO's factorisation of A kept for several right-hand sides: ``f = factorize(A); x = f(b)``.
+
+    The same matrix types and iterative refinement as :func:`_pardiso` (its fallbacks are not
+    tried: a failed kept solve raises NumericalError, and the caller factorises afresh). ``f.free()``
+    releases the factors; they are also released when ``f`` is garbage-collected.
+    """
+    kept = _KeptPardiso(A, refine, rtol)
+    weakref.finalize(kept, kept.solver.free_memory, True)
+    return kept
+
+
+def _factorize_superlu(A: Any) -> Callable[[np.ndarray], np.ndarray]:
+    """SuperLU's LU of A kept for several right-hand sides."""
+    lu = spla.splu(sp.csc_matrix(A))
+
+    def apply(b: np.ndarray) -> np.ndarray:
+        x = lu.solve(np.asarray(b, dtype=np.float64))
+        if not np.all(np.isfinite(x)):
+            raise NumericalError("direct (SuperLU): the solution is not finite (singular matrix?)")
+        return x
+
+    apply.free = lambda: None
+    return apply
+
+
+def _factorize_cholmod(A: Any) -> Callable[[np.ndarray], np.ndarray]:
+    """CHOLMOD's Cholesky factor of A kept for several right-hand sides."""
+    from sksparse.cholmod import CholmodNotPositiveDefiniteError, cholesky
+
+    try:
+        factor = cholesky(sp.csc_matrix(A))
+    except CholmodNotPositiveDefiniteError as e:
+        raise NumericalError(f"direct (CHOLMOD): matrix is not positive definite: {e}") from None
+
+    def apply(b: np.ndarray) -> np.ndarray:
+        return np.asarray(factor(np.asarray(b, dtype=np.float64)))
+
+    apply.free = lambda: None
+    return apply
+
+
 def _cholmod(A: Any, b: np.ndarray) -> np.ndarray:
     from sksparse.cholmod import CholmodNotPositiveDefiniteError, cholesky
 
@@ -148,13 +233,27 @@ def direct(backend: str = "auto") -> Callable[[Any, np.ndarray], np.ndarray]:
         raise ConfigError("backend", f"'{backend}' needs the {mod} package: {how}")
     if backend == "auto":
         if not available("pardiso"):
-            return _superlu
+            return _with_factorize(_superlu, _factorize_superlu)
 
         def auto(A: Any, b: np.ndarray) -> np.ndarray:
             return (_pardiso if A.shape[0] >= AUTO_PARDISO_SIZE else _superlu)(A, b)
 
-        return auto
-    return {"superlu": _superlu, "pardiso": _pardiso, "cholmod": _cholmod}[backend]
+        def auto_factorize(A: Any) -> Callable[[np.ndarray], np.ndarray]:
+            return (_factorize_pardiso if A.shape[0] >= AUTO_PARDISO_SIZE else _factorize_superlu)(A)
+
+        return _with_factorize(auto, auto_factorize)
+    return _with_factorize(*{"superlu": (_superlu, _factorize_superlu), "pardiso": (_pardiso, _factorize_pardiso),
+                             "cholmod": (_cholmod, _factorize_cholmod)}[backend])
+
+
+def _with_factorize(solve: Callable, factorize: Callable) -> Callable[[Any, np.ndarray], np.ndarray]:
+    """``solve(A, b)`` that also offers ``solve.factorize(A) -> f`` with ``x = f(b)`` (the factors kept)."""
+
+    def wrapped(A: Any, b: np.ndarray) -> np.ndarray:
+        return solve(A, b)
+
+    wrapped.factorize = factorize
+    return wrapped
 
 
 direct.description = "sparse direct factorisation: SuperLU (scipy), PARDISO (pypardiso) or CHOLMOD (scikit-sparse) when installed"
