@@ -164,6 +164,7 @@ class VolumetricSolver:
     start_projected: bool = attrs.field(default=False, validator=v.boolean)  #: with tangent = "adaptive", start every increment on the projected tangent (an increment's first exact step mostly fails: this saves its evaluation and factorisation)
     step_tolerance: float = attrs.field(default=0.01, validator=v.non_negative)  #: also converged when the exact Newton step moves no node more than this × r (IPC's test; 0: off), -
     predictor: Literal["affine", "secant"] = attrs.field(default="affine", validator=v.one_of(("affine", "secant")))  #: start of a load increment: the affine map of the macro step, plus ("secant") the yarns' fluctuation and free macro DOFs extrapolated from the last two converged increments (with a barrier, its crossing-free part; taken only if it lowers the energy)
+    eigenvalue_filter: Literal["clamp", "abs", "element"] = attrs.field(default="clamp", validator=v.one_of(("clamp", "abs", "element")))  #: the projected tangent's eigenvalues at each quadrature point: negative ones set to zero ("clamp", the closest PSD matrix) or to their absolute value ("abs": a compressed fibre's mode keeps its stiffness's size)
     chord: bool = attrs.field(default=True, validator=v.boolean)  #: with barrier contact, after a Newton step the CCD bound shortened, chord steps on its factorisation (−H⁻¹ at the new gradients) while they lower the energy at least as fast per second (a gradient and a back-substitution instead of a Hessian and a factorisation; needs a linear solver that factorises)
     cap_shift: float = attrs.field(default=0.0, validator=v.non_negative)  #: a Newton step over this × max_step raises the Levenberg shift (damping a near-singular mode, e.g. a yarn only contact holds) instead of being scaled down whole (0: off), -
     min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))  #: smallest cut-back increment / step, -
@@ -195,6 +196,7 @@ class VolumetricSolver:
         forms = SolidForms(cm.mesh, YarnLaw.from_yarn(fabric.yarn, registry), cm.node_tangent, intorder=self.intorder,
                            node_offset=cm.node_offset)
         forms.element_body = cm.element_body
+        forms.projection = self.eigenvalue_filter
         lattice = Lattice(cell.L1, cell.L2)
         slave = np.concatenate([e for e, _, _ in cm.end_pairs])
         master = np.concatenate([s for _, s, _ in cm.end_pairs])

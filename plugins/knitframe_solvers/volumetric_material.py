@@ -119,7 +119,7 @@ class YarnLaw:
         return self._evaluate(F, a, order)
 
 
-def psd_project(A: np.ndarray) -> np.ndarray:
+def psd_project(A: np.ndarray, method: str = "clamp") -> np.ndarray:
     """Positive semi-definite part of the tangent A_iJkL (3, 3, 3, 3, ...) at every quadrature point.
 
     A is symmetric as a 9x9 matrix M_(iJ)(kL) (a hyperelastic tangent has major symmetry).
@@ -129,13 +129,30 @@ def psd_project(A: np.ndarray) -> np.ndarray:
     9x9 eigenproblem replaces the element's 12x12 (P1) or 30x30 (P2) one. Compressive stress makes
     A indefinite (its geometric part is negative for rotations under compression; a compressed
     fibre of a 10⁴-anisotropic yarn makes it strongly so).
+
+    ``method = "abs"`` takes M⁺ = V diag(|w|) Vᵀ instead (positive definite where M is regular): a
+    negative-curvature mode keeps a stiffness of its own size rather than none, so a Newton step does
+    not run far along it (the absolute-value eigenvalue filter of Chen et al., SIGGRAPH Asia 2024).
     """
+    if method not in ("clamp", "abs"):
+        raise ValueError(f"psd_project: method must be 'clamp' or 'abs', got {method!r}")
     shape = A.shape
     M = np.moveaxis(A.reshape(9, 9, -1), -1, 0)
     M = 0.5 * (M + np.swapaxes(M, 1, 2))
     w, V = np.linalg.eigh(M)
-    M = np.einsum("pij,pj,pkj->pik", V, np.maximum(w, 0.0), V, optimize=True)
+    M = np.einsum("pij,pj,pkj->pik", V, np.abs(w) if method == "abs" else np.maximum(w, 0.0), V, optimize=True)
     return np.moveaxis(M, 0, -1).reshape(shape)
+
+
+def psd_project_elements(Ke: np.ndarray) -> np.ndarray:
+    """Positive semi-definite part of each element matrix Ke (n_el, n, 3, n, 3): V diag(max(w, 0)) Vᵀ of
+    its (3n × 3n) eigen-decomposition (IPC's per-element projection; costlier than the per-point one, but
+    it keeps what the other quadrature points of the element hold up)."""
+    shape = Ke.shape
+    M = Ke.reshape(shape[0], shape[1] * shape[2], -1)
+    M = 0.5 * (M + np.swapaxes(M, 1, 2))
+    w, V = np.linalg.eigh(M)
+    return np.einsum("pij,pj,pkj->pik", V, np.maximum(w, 0.0), V, optimize=True).reshape(shape)
 
 
 def fibre_at_quadrature(basis: Any, node_tangent: np.ndarray) -> np.ndarray:
@@ -191,6 +208,7 @@ class SolidForms:
             o = np.asarray(node_offset, dtype=np.float64)[self.edofs]  # (nl, n_el, 3)
             self.grad_offset = np.einsum("lei,lJeq->iJeq", o, self.grad)
         self.chunk = int(chunk)
+        self.projection = "clamp"  #: eigenvalue filter of the projected tangent (:func:`psd_project`): "clamp" or "abs"
         self.flux: np.ndarray | None = None  #: Σ_e |R_e| of the last evaluate(order >= 1), N
         nl, ne = self.edofs.shape
         self.vdofs = (3 * self.edofs[:, None, :] + np.arange(3)[None, :, None]).reshape(3 * nl, ne)  # (3nl, n_el)
@@ -328,10 +346,12 @@ class SolidForms:
             if order == 2:
                 if Ti is not None:
                     A = Jt * np.einsum("iMkNeq,JMeq,LNeq->iJkLeq", A, Ti, Ti, optimize=True)
-                if project:
-                    A = psd_project(A)
+                if project and self.projection != "element":
+                    A = psd_project(A, self.projection)
                 T = np.einsum("aJeq,iJkLeq->aikLeq", G, A, optimize=True)
                 Ke = np.einsum("aikLeq,bLeq,eq->eaibk", T, G, self.dx[sl], optimize=True)
+                if project and self.projection == "element":
+                    Ke = psd_project_elements(Ke)
                 lo, hi = sl.start * m * m, sl.stop * m * m
                 data += np.bincount(where[lo:hi], Ke.ravel(), minlength=K0.nnz)
         self.flux = flux
