@@ -220,7 +220,7 @@ def bench_trace(args) -> list[dict]:
 
     With ``--iterations``: one row per Newton iteration instead, from the records written as each
     iteration completed (a solve that was killed or never converged included): residual, energy,
-    the step over the cap, the line search's α, projected tangent or not, wall time."""
+    the step over the cap, the line search's α, Newton or chord step, projected tangent or not, wall time."""
     rows = []
     with open(args.trace) as fh:
         for line in fh:
@@ -231,11 +231,13 @@ def bench_trace(args) -> list[dict]:
                                  "residual N": f"{rec['residual']:.3g}", "energy N·mm": f"{rec['energy']:.7g}",
                                  "step/cap": f"{rec['step']:.3g}" if "step" in rec else "",
                                  "alpha": f"{rec['alpha']:.3g}" if "alpha" in rec else "",
+                                 "kind": "chord" if rec.get("chord") else "Newton",
                                  "shift": f"{rec.get('shift', 0.0):.2g}", "projected": bool(rec.get("projected")),
                                  "active": int(rec.get("active", 0)), "wall s": round(rec.get("wall_s", 0.0), 1),
                                  "material+contact s": round(rec.get("material_s", 0.0) + rec.get("contact_s", 0.0), 1),
                                  "linear solves": f"{rec.get('n_linear_solves', '')} ({rec.get('linear_solve_s', 0.0):.1f} s)",
-                                 "evaluations (E, H)": f"{rec.get('n_energy', '')}, {rec.get('n_hessian', '')}"})
+                                 "evaluations (E, g, H)": f"{rec.get('n_energy', '')}, {rec.get('n_gradient', '')}, "
+                                                          f"{rec.get('n_hessian', '')}"})
                 continue
             if rec.get("record") == "iteration":  # the per-iteration records: the solve record repeats them
                 continue
@@ -245,7 +247,8 @@ def bench_trace(args) -> list[dict]:
             jump = max(jumps, key=abs, default=0.0)
             res, flux = last.get("residual", float("nan")), last.get("flux", 0.0)
             rows.append({"phase": rec["phase"], "t": round(rec["t"], 5), "converged": rec["converged"],
-                         "iterations": max(len(h) - 1, 0), "wall s": round(rec["wall_s"], 1),
+                         "iterations": max(len(h) - 1, 0), "chord steps": sum(1 for e in h if e.get("chord")),
+                         "wall s": round(rec["wall_s"], 1),
                          "residual N": f"{res:.3g}", "residual/flux": f"{res / flux:.3g}" if flux else "",
                          "active": int(last.get("active", 0)), "largest pairing jump N·mm": f"{jump:.3g}",
                          "relative jump": f"{abs(jump) / abs(last['energy']):.2g}" if last.get("energy") else ""})

@@ -254,6 +254,8 @@ def minimise(
                         f"iterations (tol {tol:.3g}); {_fmt(history)}", history)
             if chord_next:
                 chord_next = False
+                if projecting:  # the kept factorisation is of the projected Hessian
+                    history[-1]["projected"] = True
                 chord = _chord_step(fun, x, E, g, kept, free, options, step_norm, step_limit, history[-1])
                 if chord is not None:
                     alpha, x_new, E_new = chord
