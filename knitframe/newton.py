@@ -47,8 +47,10 @@ linear-solver plugin, with
   assembly and a factorisation. H_k is positive definite where the Newton step was a descent
   direction, so the chord step is one too; the same CCD bound and line search apply. Chord steps
   go on while their energy decrease per second of wall time is at least the last Newton
-  iteration's, for at most ``max_chord`` in a row; then, or when a chord step fails or is
-  within ``step_tol``, the Hessian is evaluated again. Convergence is tested as for any iterate,
+  iteration's, for at most ``max_chord`` in a row; then, or when a chord step fails, is within
+  ``step_tol`` or is over twice the size of that Newton step (the kept factorisation no longer
+  models the energy there), the Hessian is evaluated again. A Newton step within twice
+  ``step_tol`` starts no chord steps: the next Newton step may pass the step test. Convergence is tested as for any iterate,
   except the step test, which only a Newton step can pass. The linear solver must offer
   ``solve.factorize(A)`` (the ``direct`` plugin does); without it there are no chord steps;
 * besides the absolute test max|g_f| ≤ atol, the force-flux test of implicit FE codes (ABAQUS's
@@ -216,6 +218,7 @@ def minimise(
     kept = None
     chord_next = False
     newton_rate = 0.0
+    newton_size = math.nan
     n_chord = n_chord_total = 0
 
     def release() -> None:
@@ -256,7 +259,8 @@ def minimise(
                 chord_next = False
                 if projecting:  # the kept factorisation is of the projected Hessian
                     history[-1]["projected"] = True
-                chord = _chord_step(fun, x, E, g, kept, free, options, step_norm, step_limit, history[-1])
+                chord = _chord_step(fun, x, E, g, kept, free, options, step_norm, step_limit, history[-1],
+                                    max_size=CHORD_SIZE_FACTOR * newton_size)
                 if chord is not None:
                     alpha, x_new, E_new = chord
                     _report(on_iteration, history, t_it)
@@ -352,9 +356,12 @@ def minimise(
             history[-1]["alpha"] = alpha
             history[-1]["step_energy"] = float(E_new)  # as the line search saw it: the next entry's energy may differ
             _report(on_iteration, history, t_it)  # wall_s: this iteration's evaluations, factorisations, line search
-            if kept is not None and alpha < 1.0 and shift_rel == 0.0:
+            near = options.step_tol > 0 and np.isfinite(size) and size <= CHORD_SIZE_FACTOR * options.step_tol
+            if kept is not None and alpha < 1.0 and shift_rel == 0.0 and not near:
                 # a shortened step: chord steps on this factorisation while they gain energy at least this fast
+                # (not when the step was nearly within step_tol: the next Newton step may end the iteration)
                 newton_rate = (E - E_new) / max(history[-1]["wall_s"], 1e-9)
+                newton_size = size
                 chord_next, n_chord = True, 0
             t_it = time.perf_counter()
             correction = measure(x_new - x)
@@ -379,9 +386,10 @@ def minimise(
 def _chord_step(fun: Problem, x: np.ndarray, E: float, g: np.ndarray, factor: Callable[[np.ndarray], np.ndarray],
                 free: np.ndarray, options: NewtonOptions, step_norm: Callable[[np.ndarray], float] | None,
                 step_limit: Callable[[np.ndarray, np.ndarray], float] | None,
-                entry: dict) -> tuple[float, np.ndarray, float] | None:
+                entry: dict, max_size: float = math.nan) -> tuple[float, np.ndarray, float] | None:
     """A chord step dx = −H_k⁻¹·g(x) on a kept factorisation, capped and bounded as a Newton step; None if it
-    is no descent direction, is within ``step_tol`` (only a Newton step may end the iteration) or finds no α.
+    is no descent direction, is within ``step_tol`` (only a Newton step may end the iteration), is larger than
+    ``max_size`` (the kept factorisation no longer models the energy here) or finds no α.
     Records ``chord``, ``step``, ``alpha0``, ``alpha`` and ``step_energy`` in ``entry``."""
     gf = g[free]
     try:
@@ -397,6 +405,8 @@ def _chord_step(fun: Problem, x: np.ndarray, E: float, g: np.ndarray, factor: Ca
     size = step_norm(dx) if step_norm is not None and (np.isfinite(options.max_step) or options.step_tol > 0) \
         else math.nan
     if options.step_tol > 0 and np.isfinite(size) and size <= options.step_tol:
+        return None
+    if np.isfinite(size) and np.isfinite(max_size) and size > max_size:
         return None
     if np.isfinite(size) and size > options.max_step:
         dx *= options.max_step / size
@@ -423,6 +433,9 @@ def _step_ratio(size: float, options: NewtonOptions) -> float:
     """A Newton step's size for the history: over the cap when there is one, else as is."""
     return size / options.max_step if np.isfinite(options.max_step) else size
 
+
+#: chord steps: none after a Newton step within this × step_tol, and none larger than this × that Newton step
+CHORD_SIZE_FACTOR = 2.0
 
 #: an iteration counts as stalled only while its best residual is this many times the tolerance
 STALL_FACTOR = 10.0

@@ -471,3 +471,30 @@ def test_no_chord_steps_without_a_factorising_solver():
                    step_limit=_bounded)
     assert res.converged and not any(h.get("chord") for h in res.history)
     assert calls[2] == len(res.history)
+
+
+def test_chord_steps_stop_near_convergence_and_when_the_factor_is_stale():
+    """No chord step follows a Newton step within twice step_tol (the next Newton step may pass the step
+    test), and a chord step larger than twice the last Newton step is refused (the kept factorisation no
+    longer models the energy): the Hessian is evaluated instead."""
+    from knitframe.newton import CHORD_SIZE_FACTOR, _chord_step
+
+    def size(dx):
+        return float(np.max(np.abs(dx)))
+
+    calls = {}
+    opts = NewtonOptions(atol=1e-12, rtol=0.0, max_iter=200, chord=True, step_tol=1e-3)
+    res = minimise(_slow_hessian_quartic(calls), np.full(5, 20.0), np.ones(5, bool), solve=direct(), options=opts,
+                   step_limit=_bounded, step_norm=size)
+    assert res.converged and any(h.get("chord") for h in res.history)
+    for a, b in zip(res.history[:-1], res.history[1:]):
+        if not a.get("chord") and "step" in a and a["step"] <= CHORD_SIZE_FACTOR * 1e-3:
+            assert not b.get("chord")
+    x = np.full(3, 5.0)
+    E, g, _, _ = quartic(x, 1)
+    entry = {}
+    # a stale "factorisation" that sends the step 10⁴ times too far
+    assert _chord_step(quartic, x, E, g, lambda b: 1e4 * b, np.ones(3, bool), opts, size, None, entry,
+                       max_size=1.0) is None and not entry
+    step = _chord_step(quartic, x, E, g, lambda b: b / 76.0, np.ones(3, bool), opts, size, None, entry, max_size=10.0)
+    assert step is not None and entry["chord"] and step[2] < E
