@@ -328,17 +328,13 @@ def minimise(
                     _report(on_iteration, history, t_it)
                     return NewtonResult(x, float(E), g, it, True, tuple(history), info)
                 if descent:
-                    if np.isfinite(size):
-                        if (options.cap_shift and size > options.cap_shift * options.max_step
-                                and max(10.0 * shift_rel, 1e-8) <= max_shift * (1.0 + 1e-9)):
-                            # far outside the cap: a near-singular mode dominates dx, and scaling the whole step
-                            # down would leave the rest of it at nothing; damp that mode with a shift instead
-                            shift_rel = max(10.0 * shift_rel, 1e-8)
-                            continue
-                        if size > options.max_step:
-                            dx *= options.max_step / size
-                            slope *= options.max_step / size
-                    alpha0 = 1.0 if step_limit is None else min(1.0, float(step_limit(x, dx)))
+                    if (options.cap_shift and np.isfinite(size) and size > options.cap_shift * options.max_step
+                            and max(10.0 * shift_rel, 1e-8) <= max_shift * (1.0 + 1e-9)):
+                        # far outside the cap: a near-singular mode dominates dx, and scaling the whole step
+                        # down would leave the rest of it at nothing; damp that mode with a shift instead
+                        shift_rel = max(10.0 * shift_rel, 1e-8)
+                        continue
+                    dx, slope, alpha0 = _capped(x, dx, slope, size, options, step_limit)
                     if np.isfinite(size):
                         history[-1]["step"] = _step_ratio(size, options)
                     history[-1]["alpha0"] = alpha0
@@ -383,6 +379,16 @@ def minimise(
         release()
 
 
+def _capped(x: np.ndarray, dx: np.ndarray, slope: float, size: float, options: NewtonOptions,
+            step_limit: Callable[[np.ndarray, np.ndarray], float] | None) -> tuple[np.ndarray, float, float]:
+    """A step of size ``size`` scaled down to ``options.max_step`` (dx and its slope g·dx), and the line
+    search's first α: 1, or the crossing-free fraction ``step_limit(x, dx)`` when smaller."""
+    if np.isfinite(size) and size > options.max_step:
+        dx = dx * (options.max_step / size)
+        slope *= options.max_step / size
+    return dx, slope, 1.0 if step_limit is None else min(1.0, float(step_limit(x, dx)))
+
+
 def _chord_step(fun: Problem, x: np.ndarray, E: float, g: np.ndarray, factor: Callable[[np.ndarray], np.ndarray],
                 free: np.ndarray, options: NewtonOptions, step_norm: Callable[[np.ndarray], float] | None,
                 step_limit: Callable[[np.ndarray, np.ndarray], float] | None,
@@ -408,10 +414,7 @@ def _chord_step(fun: Problem, x: np.ndarray, E: float, g: np.ndarray, factor: Ca
         return None
     if np.isfinite(size) and np.isfinite(max_size) and size > max_size:
         return None
-    if np.isfinite(size) and size > options.max_step:
-        dx *= options.max_step / size
-        slope *= options.max_step / size
-    alpha0 = 1.0 if step_limit is None else min(1.0, float(step_limit(x, dx)))
+    dx, slope, alpha0 = _capped(x, dx, slope, size, options, step_limit)
     step = _line_search(fun, x, E, g, dx, slope, options, free, alpha0) if alpha0 > 0 else None
     if step is None:
         return None

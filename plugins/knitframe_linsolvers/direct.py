@@ -77,20 +77,26 @@ def is_symmetric(A: Any, rtol: float = 1e-12) -> bool:
 SUPERLU_FALLBACK_LIMIT = 60_000
 
 
+def _refine(apply: Callable[[np.ndarray], np.ndarray], A: Any, b: np.ndarray, refine: int,
+            rtol: float) -> np.ndarray | None:
+    """x = apply(b), then up to ``refine`` corrections x += apply(b − A x); None unless |b − A x| ≤ rtol |b|."""
+    x = np.asarray(apply(b))
+    b_norm = float(np.linalg.norm(b)) or 1.0
+    for k in range(refine + 1):  # the first solve and up to ``refine`` corrections, each checked
+        r = b - A @ x
+        if not np.all(np.isfinite(r)):
+            return None
+        if float(np.linalg.norm(r)) <= rtol * b_norm:
+            return x
+        if k < refine:
+            x = x + np.asarray(apply(r))
+    return None
+
+
 def _refined(solver: Any, M: Any, A: Any, b: np.ndarray, refine: int, rtol: float) -> np.ndarray | None:
-    """Solve with ``solver`` on the matrix M it factorises, refine against A; None unless |b − A x| ≤ rtol |b|."""
+    """Solve with ``solver`` on the matrix M it factorises, refine against A (:func:`_refine`), free the factors."""
     try:
-        x = np.asarray(solver.solve(M, b))
-        b_norm = float(np.linalg.norm(b)) or 1.0
-        for k in range(refine + 1):  # the first solve and up to ``refine`` corrections, each checked
-            r = b - A @ x
-            if not np.all(np.isfinite(r)):
-                return None
-            if float(np.linalg.norm(r)) <= rtol * b_norm:
-                return x
-            if k < refine:
-                x = x + np.asarray(solver.solve(M, r))
-        return None
+        return _refine(lambda v: solver.solve(M, v), A, b, refine, rtol)
     finally:
         solver.free_memory(everything=True)
 
@@ -147,17 +153,9 @@ class _KeptPardiso:
         return np.asarray(self.solver._call_pardiso(self.M, np.ascontiguousarray(b, dtype=np.float64)))
 
     def __call__(self, b: np.ndarray) -> np.ndarray:
-        b = np.asarray(b, dtype=np.float64)
-        x = self._apply(b)
-        b_norm = float(np.linalg.norm(b)) or 1.0
-        for k in range(self.refine + 1):
-            r = b - self.A @ x
-            if not np.all(np.isfinite(r)):
-                break
-            if float(np.linalg.norm(r)) <= self.rtol * b_norm:
-                return x
-            if k < self.refine:
-                x = x + self._apply(r)
+        x = _refine(self._apply, self.A, np.asarray(b, dtype=np.float64), self.refine, self.rtol)
+        if x is not None:
+            return x
         raise NumericalError(f"direct (PARDISO): no solution with |b - A x| <= {self.rtol:g} |b| from the kept "
                              f"factorisation after {self.refine} refinements")
 

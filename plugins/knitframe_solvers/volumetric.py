@@ -164,7 +164,7 @@ class VolumetricSolver:
     start_projected: bool = attrs.field(default=False, validator=v.boolean)  #: with tangent = "adaptive", start every increment on the projected tangent (an increment's first exact step mostly fails: this saves its evaluation and factorisation)
     step_tolerance: float = attrs.field(default=0.01, validator=v.non_negative)  #: also converged when the exact Newton step moves no node more than this × r (IPC's test; 0: off), -
     predictor: Literal["affine", "secant"] = attrs.field(default="affine", validator=v.one_of(("affine", "secant")))  #: start of a load increment: the affine map of the macro step, plus ("secant") the yarns' fluctuation and free macro DOFs extrapolated from the last two converged increments (with a barrier, its crossing-free part; taken only if it lowers the energy)
-    eigenvalue_filter: Literal["clamp", "abs", "element"] = attrs.field(default="clamp", validator=v.one_of(("clamp", "abs", "element")))  #: the projected tangent's eigenvalues at each quadrature point: negative ones set to zero ("clamp", the closest PSD matrix) or to their absolute value ("abs": a compressed fibre's mode keeps its stiffness's size)
+    eigenvalue_filter: Literal["clamp", "abs", "element"] = attrs.field(default="clamp", validator=v.one_of(("clamp", "abs", "element")))  #: the projected tangent's negative eigenvalues: set to zero at each quadrature point ("clamp", the closest PSD matrix), to their absolute value there ("abs": a compressed fibre's mode keeps its stiffness's size), or set to zero in each element matrix ("element", IPC's projection; a 30 × 30 eigenproblem per P2 element)
     chord: bool = attrs.field(default=True, validator=v.boolean)  #: with barrier contact, after a Newton step the CCD bound shortened, chord steps on its factorisation (−H⁻¹ at the new gradients) while they lower the energy at least as fast per second (a gradient and a back-substitution instead of a Hessian and a factorisation; needs a linear solver that factorises)
     cap_shift: float = attrs.field(default=0.0, validator=v.non_negative)  #: a Newton step over this × max_step raises the Levenberg shift (damping a near-singular mode, e.g. a yarn only contact holds) instead of being scaled down whole (0: off), -
     min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))  #: smallest cut-back increment / step, -
@@ -287,32 +287,24 @@ class VolumetricSolver:
         model = self.setup(fabric, scene, registry)
         backend = instantiate(registry, "linear_solver", self.linear_solver, "solver.linear_solver")
 
-        def solve(A, b):
-            t0 = time.perf_counter()
-            try:
-                return backend(A, b)
-            finally:
-                model.timings["linear_solve"] += time.perf_counter() - t0
-                model.evaluations["linear_solves"] += 1
-
-        if self.chord and model.barrier and not model.hold_candidates and hasattr(backend, "factorize"):
-            # chord steps reuse a factorisation: each back-substitution counts as a linear solve, the
-            # factorisation's time with the first of them
-            def factorize(A):
+        def timed(fn, count: bool):
+            """fn with its wall time added to the linear-solve time (and, with ``count``, counted as a solve)."""
+            def wrapper(*args):
                 t0 = time.perf_counter()
                 try:
-                    kept = backend.factorize(A)
+                    return fn(*args)
                 finally:
                     model.timings["linear_solve"] += time.perf_counter() - t0
+                    model.evaluations["linear_solves"] += int(count)
+            return wrapper
 
-                def apply(b):
-                    t1 = time.perf_counter()
-                    try:
-                        return kept(b)
-                    finally:
-                        model.timings["linear_solve"] += time.perf_counter() - t1
-                        model.evaluations["linear_solves"] += 1
-
+        solve = timed(backend, True)
+        if self.chord and model.barrier and not model.hold_candidates and hasattr(backend, "factorize"):
+            # chord steps reuse a factorisation: each back-substitution counts as a linear solve, the
+            # factorisation's time goes with them
+            def factorize(A):
+                kept = timed(backend.factorize, False)(A)
+                apply = timed(kept, True)
                 apply.free = getattr(kept, "free", lambda: None)
                 return apply
 

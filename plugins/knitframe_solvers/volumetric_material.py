@@ -136,23 +136,22 @@ def psd_project(A: np.ndarray, method: str = "clamp") -> np.ndarray:
     """
     if method not in ("clamp", "abs"):
         raise ValueError(f"psd_project: method must be 'clamp' or 'abs', got {method!r}")
-    shape = A.shape
-    M = np.moveaxis(A.reshape(9, 9, -1), -1, 0)
+    M = _filter_eigenvalues(np.moveaxis(A.reshape(9, 9, -1), -1, 0), method)
+    return np.moveaxis(M, 0, -1).reshape(A.shape)
+
+
+def _filter_eigenvalues(M: np.ndarray, method: str = "clamp") -> np.ndarray:
+    """Symmetric part of a stack of matrices M (p, n, n) rebuilt as V diag(f(w)) Vᵀ, f(w) = max(w, 0) or |w|."""
     M = 0.5 * (M + np.swapaxes(M, 1, 2))
     w, V = np.linalg.eigh(M)
-    M = np.einsum("pij,pj,pkj->pik", V, np.abs(w) if method == "abs" else np.maximum(w, 0.0), V, optimize=True)
-    return np.moveaxis(M, 0, -1).reshape(shape)
+    return np.einsum("pij,pj,pkj->pik", V, np.abs(w) if method == "abs" else np.maximum(w, 0.0), V, optimize=True)
 
 
 def psd_project_elements(Ke: np.ndarray) -> np.ndarray:
     """Positive semi-definite part of each element matrix Ke (n_el, n, 3, n, 3): V diag(max(w, 0)) Vᵀ of
     its (3n × 3n) eigen-decomposition (IPC's per-element projection; costlier than the per-point one, but
     it keeps what the other quadrature points of the element hold up)."""
-    shape = Ke.shape
-    M = Ke.reshape(shape[0], shape[1] * shape[2], -1)
-    M = 0.5 * (M + np.swapaxes(M, 1, 2))
-    w, V = np.linalg.eigh(M)
-    return np.einsum("pij,pj,pkj->pik", V, np.maximum(w, 0.0), V, optimize=True).reshape(shape)
+    return _filter_eigenvalues(Ke.reshape(Ke.shape[0], Ke.shape[1] * Ke.shape[2], -1)).reshape(Ke.shape)
 
 
 def fibre_at_quadrature(basis: Any, node_tangent: np.ndarray) -> np.ndarray:
@@ -208,7 +207,7 @@ class SolidForms:
             o = np.asarray(node_offset, dtype=np.float64)[self.edofs]  # (nl, n_el, 3)
             self.grad_offset = np.einsum("lei,lJeq->iJeq", o, self.grad)
         self.chunk = int(chunk)
-        self.projection = "clamp"  #: eigenvalue filter of the projected tangent (:func:`psd_project`): "clamp" or "abs"
+        self.projection = "clamp"  #: eigenvalue filter of the projected tangent: "clamp" or "abs" per point (:func:`psd_project`), "element" (:func:`psd_project_elements`)
         self.flux: np.ndarray | None = None  #: Σ_e |R_e| of the last evaluate(order >= 1), N
         nl, ne = self.edofs.shape
         self.vdofs = (3 * self.edofs[:, None, :] + np.arange(3)[None, :, None]).reshape(3 * nl, ne)  # (3nl, n_el)
