@@ -172,7 +172,8 @@ def bench_run(args) -> list[dict]:
                               **({"start_projected": True} if args.start_projected else {}),
                               **({} if args.predictor is None else {"predictor": args.predictor}),
                               **({} if args.chord is None else {"chord": args.chord == "on"}),
-                              **({} if args.eigen is None else {"eigenvalue_filter": args.eigen}))
+                              **({} if args.eigen is None else {"eigenvalue_filter": args.eigen}),
+                              **({} if args.extrapolate is None else {"extrapolation": args.extrapolate}),)
     fab = attrs.evolve(fabric(), stitch_length=args.stitch_length)
     if args.transverse_ratio is not None:  # a diagnostic: the same yarn with a milder anisotropy
         y = fab.yarn
@@ -231,6 +232,7 @@ def bench_trace(args) -> list[dict]:
                                  "residual N": f"{rec['residual']:.3g}", "energy N·mm": f"{rec['energy']:.7g}",
                                  "step/cap": f"{rec['step']:.3g}" if "step" in rec else "",
                                  "alpha": f"{rec['alpha']:.3g}" if "alpha" in rec else "",
+                                 "extrapolated": "yes" if "extrapolated" in rec else "",
                                  "kind": "chord" if rec.get("chord") else "Newton",
                                  "shift": f"{rec.get('shift', 0.0):.2g}", "projected": bool(rec.get("projected")),
                                  "active": int(rec.get("active", 0)), "wall s": round(rec.get("wall_s", 0.0), 1),
@@ -248,6 +250,7 @@ def bench_trace(args) -> list[dict]:
             res, flux = last.get("residual", float("nan")), last.get("flux", 0.0)
             rows.append({"phase": rec["phase"], "t": round(rec["t"], 5), "converged": rec["converged"],
                          "iterations": max(len(h) - 1, 0), "chord steps": sum(1 for e in h if e.get("chord")),
+                         "extrapolated": sum(1 for e in h if "extrapolated" in e),
                          "wall s": round(rec["wall_s"], 1),
                          "residual N": f"{res:.3g}", "residual/flux": f"{res / flux:.3g}" if flux else "",
                          "active": int(last.get("active", 0)), "largest pairing jump N·mm": f"{jump:.3g}",
@@ -309,6 +312,7 @@ def main(argv=None) -> None:
                    help="'run': Newton's Hessian (default the solver's, projected)")
     p.add_argument("--predictor", choices=("affine", "secant"), help="'run': the load increments' predictor (default the solver's)")
     p.add_argument("--eigen", choices=("clamp", "abs", "element"), help="'run': eigenvalue filter of the projected tangent (default the solver's, clamp)")
+    p.add_argument("--extrapolate", type=float, help="'run': longest extrapolated step / full step (default the solver's, 8; 1: off)")
     p.add_argument("--chord", choices=("on", "off"), help="'run': chord steps on a kept factorisation (default the solver's, on)")
     p.add_argument("--iterations", action="store_true", help="'trace': one row per Newton iteration")
     p.add_argument("--start-projected", action="store_true",

@@ -498,3 +498,96 @@ def test_chord_steps_stop_near_convergence_and_when_the_factor_is_stale():
                        max_size=1.0) is None and not entry
     step = _chord_step(quartic, x, E, g, lambda b: b / 76.0, np.ones(3, bool), opts, size, None, entry, max_size=10.0)
     assert step is not None and entry["chord"] and step[2] < E
+
+
+def _stiff_model(calls, soft=0.05):
+    """E = ½ Σ k_i x_i² + ¼ x_0⁴ with k = 1 except a soft last DOF (k = ``soft``), but a Hessian that gives that
+    DOF a stiffness of 1 (as projected Newton overestimates a soft mode's curvature): full Newton steps then
+    reduce the soft DOF only by the factor 1 − soft per iteration."""
+
+    def fun(x, order=2, projected=False):
+        calls.setdefault(order, []).append(x.copy())
+        k = np.ones_like(x)
+        k[-1] = soft
+        E = 0.5 * float(k @ (x * x)) + 0.25 * x[0] ** 4
+        g = k * x
+        g[0] += x[0] ** 3
+        d = np.ones_like(x)
+        d[0] += 3.0 * x[0] ** 2
+        return E, g, sp.diags(d).tocsr(), {}
+
+    return fun
+
+
+def test_extrapolation_speeds_up_full_steps_on_a_too_stiff_model():
+    """Where the Hessian is 20× too stiff along a soft mode, full steps converge linearly (factor 0.95);
+    extrapolating along them reaches the same minimum with half the Hessians or fewer, every extrapolated
+    step within the options' limit and lowering the energy."""
+    x0 = np.array([2.0, -1.0, 3.0, 10.0])
+    runs = {}
+    for extrapolate in (1.0, 8.0):
+        calls = {}
+        opts = NewtonOptions(atol=1e-8, rtol=0.0, max_iter=2000, extrapolate=extrapolate)
+        res = minimise(_stiff_model(calls), x0, np.ones(4, bool), solve=direct(), options=opts)
+        runs[extrapolate] = (res, len(calls[2]))
+    (plain, h_plain), (fast, h_fast) = runs[1.0], runs[8.0]
+    assert plain.converged and fast.converged
+    assert np.allclose(fast.x, 0.0, atol=1e-6) and np.allclose(plain.x, 0.0, atol=1e-6)  # |g| ≤ 1e-8, k = 0.05
+    assert not any("extrapolated" in h for h in plain.history)
+    # plain full steps: 0.95 per iteration; extrapolated ones also move the stiff, converged DOFs off their
+    # minimum, which the next full step restores (a zig-zag, 0.93 per iteration here); 147 against 347 Hessians
+    assert h_fast * 2 < h_plain
+    ext = [h for h in fast.history if "extrapolated" in h]
+    assert ext and all(1.5 <= h["extrapolated"] <= 8.0 for h in ext)
+    assert all(h["step_energy"] < h["energy"] for h in ext)
+    assert all("alpha_star" in h for h in fast.history if h.get("alpha", 0.0) >= 1.0)
+
+
+def test_extrapolation_keeps_to_the_step_cap_and_the_collision_bound():
+    """An extrapolated step is no longer than max_step (by step_norm) and stays within the step bound."""
+    calls = {}
+    norm = lambda dx: float(np.max(np.abs(dx)))  # noqa: E731
+    opts = NewtonOptions(atol=1e-8, rtol=0.0, max_iter=2000, extrapolate=8.0, max_step=2.0)
+    res = minimise(_stiff_model(calls), np.array([0.5, 0.0, 0.0, 10.0]), np.ones(4, bool), solve=direct(),
+                   options=opts, step_norm=norm)
+    assert res.converged and any("extrapolated" in h for h in res.history)
+    iterates = calls[2]
+    assert max(norm(b - a) for a, b in zip(iterates[:-1], iterates[1:])) <= 2.0 * (1 + 1e-12)
+    calls = {}
+    res = minimise(_stiff_model(calls), np.array([0.5, 0.0, 0.0, 10.0]), np.ones(4, bool), solve=direct(),
+                   options=attrs.evolve(opts, max_step=np.inf), step_limit=_bounded)
+    assert res.converged and any("extrapolated" in h for h in res.history)
+    iterates = calls[2]
+    assert max(norm(b - a) for a, b in zip(iterates[:-1], iterates[1:])) <= 0.5 * (1 + 1e-12)
+
+
+def test_extrapolation_backs_off_where_the_energy_rises_beyond_the_full_step():
+    """Where the energy along the step grows faster than quadratically past α = 1 (a barrier), the first
+    trial α* fails and a shorter α between 1.5 and α* that lowers E is taken; where every α > 1 raises E,
+    the full step stands."""
+    from knitframe.newton import _extrapolated
+
+    opts = NewtonOptions(extrapolate=8.0)
+    x, dx = np.zeros(1), np.ones(1)
+
+    def walled(wall):
+        # φ(α) = −α + 0.05 α² (α* = 10) plus a wall (α − wall)⁴·100 beyond α = wall
+        def fun(y, order=0):
+            a = float(y[0])
+            return -a + 0.05 * a * a + 100.0 * max(a - wall, 0.0) ** 4, None, None, {}
+        return fun
+
+    fun = walled(3.0)
+    E0, E1 = fun(x)[0], fun(x + dx)[0]
+    entry = {}
+    alpha, x_new, E_new = _extrapolated(fun, x, E0, dx, -1.0, np.nan, (1.0, x + dx, E1), opts, None, entry)
+    assert entry["alpha_star"] == pytest.approx(10.0)
+    assert 1.5 <= alpha < 8.0 and E_new < E1 and entry["extrapolated"] == alpha
+    fun = walled(1.0)
+    full = (1.0, x + dx, fun(x + dx)[0])
+    entry = {}
+    assert _extrapolated(fun, x, E0, dx, -1.0, np.nan, full, opts, None, entry) is full
+    assert "extrapolated" not in entry
+    # a shortened step (α < 1) is never extrapolated
+    short = (0.5, x + 0.5 * dx, fun(x + 0.5 * dx)[0])
+    assert _extrapolated(fun, x, E0, dx, -1.0, np.nan, short, opts, None, {}) is short
