@@ -49,7 +49,9 @@ linear-solver plugin, with
   go on while their energy decrease per second of wall time is at least the last Newton
   iteration's, for at most ``max_chord`` in a row; then, or when a chord step fails, is within
   ``step_tol`` or is over twice the size of that Newton step (the kept factorisation no longer
-  models the energy there), the Hessian is evaluated again. A Newton step within twice
+  models the energy there), the Hessian is evaluated again. Where the first chord step after a
+  Newton step is refused k times in a row, the next 2^k − 1 chances are skipped (stale factors
+  refuse in streaks, and each refusal costs a gradient). A Newton step within twice
   ``step_tol`` starts no chord steps: the next Newton step may pass the step test. Convergence is tested as for any iterate,
   except the step test, which only a Newton step can pass. The linear solver must offer
   ``solve.factorize(A)`` (the ``direct`` plugin does); without it there are no chord steps;
@@ -225,6 +227,7 @@ def minimise(
     newton_rate = 0.0
     newton_size = math.nan
     n_chord = n_chord_total = 0
+    refused = skip = 0  # first chord steps refused in a row, and chord starts still to skip (back-off)
 
     def release() -> None:
         nonlocal kept
@@ -266,7 +269,13 @@ def minimise(
                     history[-1]["projected"] = True
                 chord = _chord_step(fun, x, E, g, kept, free, options, step_norm, step_limit, history[-1],
                                     max_size=CHORD_SIZE_FACTOR * newton_size)
+                if chord is None and n_chord == 0:
+                    # the first chord step after a Newton step refused: back off, 2^k − 1 chances skipped after
+                    # the k-th such refusal in a row (stale factors refuse them in streaks, each a wasted gradient)
+                    refused += 1
+                    skip = 2 ** refused - 1
                 if chord is not None:
+                    refused = 0
                     alpha, x_new, E_new = chord
                     _report(on_iteration, history, t_it)
                     n_chord += 1
@@ -364,7 +373,8 @@ def minimise(
                 # (not when the step was nearly within step_tol: the next Newton step may end the iteration)
                 newton_rate = (E - E_new) / max(history[-1]["wall_s"], 1e-9)
                 newton_size = size
-                chord_next, n_chord = True, 0
+                chord_next, n_chord = skip == 0, 0
+                skip = max(skip - 1, 0)
             t_it = time.perf_counter()
             correction = measure(x_new - x)
             x = x_new

@@ -591,3 +591,40 @@ def test_extrapolation_backs_off_where_the_energy_rises_beyond_the_full_step():
     # a shortened step (α < 1) is never extrapolated
     short = (0.5, x + 0.5 * dx, fun(x + 0.5 * dx)[0])
     assert _extrapolated(fun, x, E0, dx, -1.0, np.nan, short, opts, None, {}) is short
+
+
+class _StaleFactors:
+    """A linear solver whose kept factorisations go stale: after the Newton step, their steps are 10⁴ times too long."""
+
+    def __init__(self):
+        self.backend = direct()
+
+    def __call__(self, A, b):
+        return self.backend(A, b)
+
+    def factorize(self, A):
+        kept = self.backend.factorize(A)
+        used = []
+
+        def apply(b):
+            used.append(1)
+            return kept(b) * (1.0 if len(used) == 1 else 1e4)
+
+        apply.free = getattr(kept, "free", lambda: None)
+        return apply
+
+
+def test_refused_chord_steps_back_off():
+    """Where every first chord step is refused (stale factors), the k-th refusal in a row skips the next 2^k − 1
+    chances: of ~40 shortened Newton steps only the 1st, 3rd, 7th, 15th, ... try one (each a gradient), and the
+    minimum is the same."""
+    norm = lambda dx: float(np.max(np.abs(dx)))  # noqa: E731
+    calls = {}
+    res = minimise(_slow_hessian_quartic(calls), np.full(6, 20.0), np.ones(6, bool), solve=_StaleFactors(),
+                   options=NewtonOptions(atol=1e-9, rtol=0.0, max_iter=200, chord=True, max_step=1e6),
+                   step_limit=_bounded, step_norm=norm)
+    assert res.converged and np.allclose(res.x, np.arange(6), atol=1e-6)
+    assert not any(h.get("chord") for h in res.history)
+    shortened = sum(1 for h in res.history if h.get("alpha", 1.0) < 1.0)
+    assert shortened > 30
+    assert 1 <= calls[1] <= int(np.log2(shortened)) + 1
