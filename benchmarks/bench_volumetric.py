@@ -173,7 +173,8 @@ def bench_run(args) -> list[dict]:
                               **({} if args.predictor is None else {"predictor": args.predictor}),
                               **({} if args.chord is None else {"chord": args.chord == "on"}),
                               **({} if args.eigen is None else {"eigenvalue_filter": args.eigen}),
-                              **({} if args.extrapolate is None else {"extrapolation": args.extrapolate}))
+                              **({} if args.extrapolate is None else {"extrapolation": args.extrapolate}),
+                              **({} if args.halve_reversals is None else {"halve_reversals": args.halve_reversals == "on"}))
     fab = attrs.evolve(fabric(), stitch_length=args.stitch_length)
     if args.transverse_ratio is not None:  # a diagnostic: the same yarn with a milder anisotropy
         y = fab.yarn
@@ -312,6 +313,7 @@ def main(argv=None) -> None:
                    help="'run': Newton's Hessian (default the solver's, projected)")
     p.add_argument("--predictor", choices=("affine", "secant"), help="'run': the load increments' predictor (default the solver's)")
     p.add_argument("--eigen", choices=("clamp", "abs", "element"), help="'run': eigenvalue filter of the projected tangent (default the solver's, clamp)")
+    p.add_argument("--halve-reversals", choices=("on", "off"), help="'run': halve full Newton steps that reverse the last move (default the solver's)")
     p.add_argument("--extrapolate", type=float, help="'run': longest extrapolated step / full step (default the solver's, 1: off; 8 on P1 cells)")
     p.add_argument("--chord", choices=("on", "off"), help="'run': chord steps on a kept factorisation (default the solver's, on)")
     p.add_argument("--iterations", action="store_true", help="'trace': one row per Newton iteration")

@@ -129,6 +129,7 @@ class NewtonOptions:
     start_projected: bool = False  #: "adaptive": start on the projected Hessian (saves the exact factorisation of a first step that would fail)
     chord: bool = False  #: after a Newton step the line search shortened (α < 1), reuse its factorisation for chord steps −H_k⁻¹·g(x) while they lower E at least as fast per second as that Newton step (needs ``solve.factorize``)
     max_chord: int = 12  #: chord steps in a row at most before the Hessian is evaluated and factorised again
+    halve_reversals: bool = False  #: a full Newton step that reverses the last one where it moves most (a 2-cycle across a kink of the energy, e.g. friction's stick-slip switch) is halved when that lowers E further
     extrapolate: float = 1.0  #: after a full step (α = 1) the energy's curvature along it says the model was too stiff: try α up to this, at the minimum of the quadratic through E(0), g·dx and E(1) (1: off)
 
 
@@ -228,6 +229,7 @@ def minimise(
     newton_size = math.nan
     n_chord = n_chord_total = 0
     refused = skip = 0  # first chord steps refused in a row, and chord starts still to skip (back-off)
+    last_move = None  # the last accepted move x_new − x (options.halve_reversals)
 
     def release() -> None:
         nonlocal kept
@@ -354,6 +356,8 @@ def minimise(
                     history[-1]["alpha0"] = alpha0
                     step = _line_search(fun, x, E, g, dx, slope, options, free, alpha0) if alpha0 > 0 else None
                     step = _extrapolated(fun, x, E, dx, slope, size, step, options, step_limit, history[-1])
+                    if options.halve_reversals:
+                        step = _halved_reversal(fun, x, dx, step, last_move, free, history[-1])
                     if step is not None:
                         alpha, x_new, E_new = step
                         accepted = True
@@ -368,7 +372,7 @@ def minimise(
             history[-1]["step_energy"] = float(E_new)  # as the line search saw it: the next entry's energy may differ
             _report(on_iteration, history, t_it)  # wall_s: this iteration's evaluations, factorisations, line search
             near = options.step_tol > 0 and np.isfinite(size) and size <= CHORD_SIZE_FACTOR * options.step_tol
-            if kept is not None and alpha < 1.0 and shift_rel == 0.0 and not near:
+            if kept is not None and alpha < 1.0 and shift_rel == 0.0 and not near and not history[-1].get("halved"):
                 # a shortened step: chord steps on this factorisation while they gain energy at least this fast
                 # (not when the step was nearly within step_tol: the next Newton step may end the iteration)
                 newton_rate = (E - E_new) / max(history[-1]["wall_s"], 1e-9)
@@ -377,6 +381,7 @@ def minimise(
                 skip = max(skip - 1, 0)
             t_it = time.perf_counter()
             correction = measure(x_new - x)
+            last_move = x_new - x
             x = x_new
             if projecting and options.projection == "adaptive" and np.isfinite(size) and \
                     size <= options.release_step * options.max_step:
@@ -403,6 +408,35 @@ def _capped(x: np.ndarray, dx: np.ndarray, slope: float, size: float, options: N
         dx = dx * (options.max_step / size)
         slope *= options.max_step / size
     return dx, slope, 1.0 if step_limit is None else min(1.0, float(step_limit(x, dx)))
+
+
+def _halved_reversal(fun: Problem, x: np.ndarray, dx: np.ndarray, step: tuple[float, np.ndarray, float] | None,
+                     last_move: np.ndarray | None, free: np.ndarray,
+                     entry: dict) -> tuple[float, np.ndarray, float] | None:
+    """A full step that reverses the last move where it is largest, halved if that lowers the energy further.
+
+    Where the energy has a kink (IPC friction's mollifier is only C¹ at the stick-slip switch), a
+    group of nodes can flip between two states at every full Newton step: in the P2 r/3 pre-stress,
+    60 nodes moved 0.033 r per step, each step at cos −0.99 to the last, for 20 iterations, while the
+    rest of the cell had converged and the Armijo test, satisfied by the rest, accepted every step.
+    The step is compared with the last move on the DOFs where it moves at least half its largest
+    move; at cos < ``REVERSAL_COS`` the midpoint x + dx/2 (the 2-cycle's centre) is evaluated and
+    taken when its energy is below the full step's. Records ``halved`` in ``entry``.
+    """
+    if step is None or step[0] != 1.0 or last_move is None:
+        return step
+    d = dx[free]
+    big = np.abs(d) >= 0.5 * float(np.max(np.abs(d), initial=0.0))
+    a, b = d[big], last_move[free][big]
+    denom = float(np.linalg.norm(a) * np.linalg.norm(b))
+    if denom == 0.0 or float(a @ b) / denom >= REVERSAL_COS:
+        return step
+    x_h = x + 0.5 * dx
+    E_h = fun(x_h, 0)[0]
+    if np.isfinite(E_h) and E_h < step[2]:
+        entry["halved"] = True
+        return 0.5, x_h, E_h
+    return step
 
 
 def _extrapolated(fun: Problem, x: np.ndarray, E: float, dx: np.ndarray, slope: float, size: float,
@@ -504,6 +538,8 @@ CHORD_SIZE_FACTOR = 2.0
 
 #: extrapolation (``NewtonOptions.extrapolate``) only to α of at least this: a shorter gain is not worth its evaluation
 EXTRAPOLATE_MIN = 1.5
+#: a full step whose cosine with the last move (where it moves most) is below this is a reversal
+REVERSAL_COS = -0.5
 #: energy evaluations of an extrapolation at most
 EXTRAPOLATE_TRIALS = 3
 

@@ -628,3 +628,45 @@ def test_refused_chord_steps_back_off():
     shortened = sum(1 for h in res.history if h.get("alpha", 1.0) < 1.0)
     assert shortened > 30
     assert 1 <= calls[1] <= int(np.log2(shortened)) + 1
+
+
+def _kinked_pair(x, order=2, projected=False, k=0.01, eps=1e-3):
+    """E = h(x₀) + ½k·x₀² + ¼x₁⁴ with h the Huber function (|x| beyond ε, x²/2ε within: C¹ at ±ε, like friction's
+    stick-slip switch). In slip the Hessian sees only k, so a full Newton step from any x₀ > ε lands at −1/k and
+    the next one back at +1/k: a 2-cycle that costs no energy, which the Armijo test passes while x₁'s slow
+    convergence (Newton on a quartic: ×2/3 per step) lowers E."""
+    a = abs(x[0])
+    h, dh, d2h = (a - 0.5 * eps, np.sign(x[0]), 0.0) if a > eps else (x[0] ** 2 / (2 * eps), x[0] / eps, 1.0 / eps)
+    E = h + 0.5 * k * x[0] ** 2 + 0.25 * x[1] ** 4
+    if order == 0:
+        return E, None, None, {}
+    g = np.array([dh + k * x[0], x[1] ** 3])
+    H = sp.diags([d2h + k, 3.0 * x[1] ** 2 + 1e-12]).tocsr()
+    return E, g, H, {}
+
+
+def test_halving_breaks_a_two_cycle_across_a_kink():
+    """Full Newton steps flip x₀ between ±1/k while x₁ converges (the 2-cycle of a node group across friction's
+    stick-slip switch); halving a step that reverses the last move puts x₀ at the cycle's centre as soon as the
+    half step's energy is lower (while x₁ is far off, its full step outweighs that: 4 iterates on the cycle),
+    while without the option x₀ flips until x₁'s decrease no longer carries the Armijo test (10). Both reach
+    the same minimum, and without the option no step is halved."""
+    x0 = np.array([50.0, 30.0])
+    runs, iterates = {}, {}
+    for halve in (False, True):
+        seen = iterates[halve] = []
+
+        def fun(x, order=2, projected=False):
+            if order == 2:
+                seen.append(x.copy())
+            return _kinked_pair(x, order)
+
+        opts = NewtonOptions(atol=1e-8, rtol=0.0, max_iter=500, halve_reversals=halve)
+        runs[halve] = minimise(fun, x0, np.ones(2, bool), solve=direct(), options=opts)
+    plain, halved = runs[False], runs[True]
+    assert plain.converged and halved.converged
+    assert abs(halved.x[0]) < 1e-6 and abs(plain.x[0]) < 1e-6
+    assert not any(h.get("halved") for h in plain.history)
+    assert any(h.get("halved") for h in halved.history)
+    cycling = {h: sum(1 for x in iterates[h] if abs(abs(x[0]) - 100.0) < 1e-6) for h in (False, True)}
+    assert cycling[True] * 2 < cycling[False]

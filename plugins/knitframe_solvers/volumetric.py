@@ -166,6 +166,7 @@ class VolumetricSolver:
     predictor: Literal["affine", "secant"] = attrs.field(default="affine", validator=v.one_of(("affine", "secant")))  #: start of a load increment: the affine map of the macro step, plus ("secant") the yarns' fluctuation and free macro DOFs extrapolated from the last two converged increments (with a barrier, its crossing-free part; taken only if it lowers the energy)
     eigenvalue_filter: Literal["clamp", "abs", "element"] = attrs.field(default="clamp", validator=v.one_of(("clamp", "abs", "element")))  #: the projected tangent's negative eigenvalues: set to zero at each quadrature point ("clamp", the closest PSD matrix), to their absolute value there ("abs": a compressed fibre's mode keeps its stiffness's size), or set to zero in each element matrix ("element", IPC's projection; a 30 × 30 eigenproblem per P2 element)
     chord: bool = attrs.field(default=True, validator=v.boolean)  #: with barrier contact, after a Newton step the CCD bound shortened, chord steps on its factorisation (−H⁻¹ at the new gradients) while they lower the energy at least as fast per second (a gradient and a back-substitution instead of a Hessian and a factorisation; needs a linear solver that factorises)
+    halve_reversals: bool = attrs.field(default=False, validator=v.boolean)  #: halve a full Newton step that reverses the last one where it moves most, when that lowers the energy (a node group flipping between two states across friction's stick-slip switch)
     extrapolation: float = attrs.field(default=1.0, validator=v.in_range(1.0, 1e3))  #: after a full Newton or chord step, a longer one (up to this × it, within max_step and the CCD bound) at the minimum of the energy's quadratic along it, if that lowers the energy further (projected Newton steps short along soft modes near a solution: 8 saves a third of the Hessians of P1 cells, but slowed the P2 r/3 cell by 10 %; 1: off), -
     cap_shift: float = attrs.field(default=0.0, validator=v.non_negative)  #: a Newton step over this × max_step raises the Levenberg shift (damping a near-singular mode, e.g. a yarn only contact holds) instead of being scaled down whole (0: off), -
     min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))  #: smallest cut-back increment / step, -
@@ -253,7 +254,8 @@ class VolumetricSolver:
                              stall_iterations=0 if barrier else self.stall_iterations, cap_shift=self.cap_shift,
                              projection={"exact": "off", "projected": "always"}.get(self.tangent, self.tangent),
                              step_tol=self.step_tolerance, start_projected=self.start_projected,
-                             chord=self.chord and barrier, extrapolate=self.extrapolation)
+                             chord=self.chord and barrier, extrapolate=self.extrapolation,
+                             halve_reversals=self.halve_reversals)
         f = self.path_tolerance_factor
         loose = attrs.evolve(opts, atol=f * opts.atol, flux_rtol=f * opts.flux_rtol,
                              late_flux_rtol=f * opts.late_flux_rtol, step_tol=f * opts.step_tol)
