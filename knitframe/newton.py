@@ -59,6 +59,10 @@ linear-solver plugin, with
   too stiff along it: the minimum α* of the quadratic through E(0), g·dx and E(1), up to a (and
   the cap and the CCD bound), when it lowers E further. Projected Newton near a solution steps
   short along soft modes, and its full steps then converge only linearly;
+* optionally (``halve_reversals``), a full step that reverses the last move where it moves most
+  is halved when the midpoint's energy is lower: a node group flipping between two states across a
+  kink of the energy (friction's stick-slip switch) passes the Armijo test on the rest of the
+  step's decrease and would keep the step test from passing;
 * besides the absolute test max|g_f| ≤ atol, the force-flux test of implicit FE codes (ABAQUS's
   R_n, C_n): when the problem reports the average nodal force flux q̃ = ``info["flux"]``, an
   iterate with max|g_f| ≤ R_n·q̃ whose last correction c satisfies
