@@ -143,6 +143,42 @@ def test_step_limit_stops_a_step_before_the_surfaces_cross():
     assert law.step_limit(surf, X, np.zeros(6), -dx, np.zeros(6), stiffness=100.0) == 1.0
 
 
+def test_step_limit_checks_half_steps_when_the_ccd_runs_out_of_memory(monkeypatch):
+    """The IPC Toolkit's CCD can throw std::bad_alloc (MemoryError) on a long step: the bound is then that of
+    the step's first half (scaled), still crossing-free; a step that fails at every length gives a one-line
+    NumericalError."""
+    import ipctk
+
+    from knitframe.errors import NumericalError
+    from knitframe_contact import ipc
+
+    law = SolidIPC(dhat=0.1)
+    X, _, surf = _block_row(1, 0.04)
+    dx = np.zeros_like(X)
+    dx[X[:, 0] > 0.5, 0] = 0.2
+    exact = law.step_limit(surf, X, np.zeros(6), dx, np.zeros(6), stiffness=100.0)
+    real = ipctk.compute_collision_free_stepsize
+    longest = float(np.abs(dx).max())
+
+    def short_only(mesh, V0, V1):
+        if float(np.abs(V1 - V0).max()) > 0.3 * longest:  # "out of memory" on the full and half step
+            raise MemoryError("std::bad_alloc")
+        return real(mesh, V0, V1)
+
+    monkeypatch.setattr(ipctk, "compute_collision_free_stepsize", short_only)
+    a = law.step_limit(surf, X, np.zeros(6), dx, np.zeros(6), stiffness=100.0)
+    assert a == pytest.approx(min(exact, 0.25), rel=0.05)  # the quarter step, within the CCD's own margin
+    assert np.isfinite(law.evaluate(surf, X + a * dx, np.zeros(6), 0, stiffness=100.0, reach=0.1)[0])
+
+    def never(mesh, V0, V1):
+        raise MemoryError("std::bad_alloc")
+
+    monkeypatch.setattr(ipctk, "compute_collision_free_stepsize", never)
+    with pytest.raises(NumericalError, match=f"1/{2 ** ipc.CCD_HALVINGS}") as err:
+        law.step_limit(surf, X, np.zeros(6), dx, np.zeros(6), stiffness=100.0)
+    assert "\n" not in str(err.value)
+
+
 def test_hertz_cylinder_on_flat_with_the_barrier(cylinder):
     """An elastic cylinder pushed onto a rigid flat through the barrier: axis approach within 5 % of Hertz."""
     mesh, body, surf = cylinder

@@ -52,6 +52,9 @@ from knitframe import hookimpl, validators as v
 from knitframe.errors import NumericalError
 from knitframe.periodic import N_MACRO, macro_index
 
+#: halvings of a step whose collision check ran out of memory before the check gives up
+CCD_HALVINGS = 6
+
 __all__ = ["SolidIPC", "PeriodicCollisionMesh"]
 
 
@@ -268,12 +271,26 @@ class SolidIPC:
 
     def step_limit(self, surface, x: np.ndarray, h: np.ndarray | None, dx: np.ndarray, dh: np.ndarray | None,
                    *, stiffness: float) -> float:
-        """Largest α ∈ [0, 1] such that the straight path x + t·α·dx (t ∈ [0, 1]) has no crossing (CCD)."""
+        """Largest α ∈ [0, 1] such that the straight path x + t·α·dx (t ∈ [0, 1]) has no crossing (CCD).
+
+        The IPC Toolkit's CCD can run out of memory on a long step with many near pairs
+        (std::bad_alloc; ipc-toolkit issues #39 and #99: the broad phase's space-time boxes and the
+        narrow phase's interval lists grow with the trajectory). Then the first half of the step is
+        checked instead, α = ½·α(½ dx), down to ``CCD_HALVINGS`` halvings, a conservative bound; past
+        that a NumericalError names the failure.
+        """
         ipctk = _ipctk()
         pcm, _, _ = self._setup(surface, stiffness)
         V0 = pcm.positions(x, h)
-        V1 = np.asfortranarray(V0 + pcm.displacement(dx, dh))
-        return float(ipctk.compute_collision_free_stepsize(pcm.mesh, V0, V1))
+        D = pcm.displacement(dx, dh)
+        scale = 1.0
+        for _ in range(CCD_HALVINGS + 1):
+            try:
+                return scale * float(ipctk.compute_collision_free_stepsize(pcm.mesh, V0, np.asfortranarray(V0 + scale * D)))
+            except MemoryError:
+                scale *= 0.5
+        raise NumericalError(f"ipc: the collision check of a step ran out of memory even for 1/{2 ** CCD_HALVINGS:d} "
+                             f"of it (largest node move {float(np.max(np.abs(D))):.3g} mm)")
 
     def _collisions(self, pcm, V, dhat):
         ipctk = _ipctk()
