@@ -422,7 +422,7 @@ def _halved_reversal(fun: Problem, x: np.ndarray, dx: np.ndarray, step: tuple[fl
 
     Where the energy has a kink (IPC friction's mollifier is only C¹ at the stick-slip switch), a
     group of nodes can flip between two states at every full Newton step: in the P2 r/3 pre-stress,
-    60 nodes moved 0.033 r per step, each step at cos −0.76 to −0.995 to the last, for 20 iterations, while the
+    60 nodes moved 0.033 r per step, each step at cos −0.76 to −0.995 to the last, from iteration 13 to 32, while the
     rest of the cell had converged and the Armijo test, satisfied by the rest, accepted every step.
     The step is compared with the last move on the DOFs where it moves at least half its largest
     move; at cos < ``REVERSAL_COS`` the midpoint x + dx/2 (the 2-cycle's centre) is evaluated and
