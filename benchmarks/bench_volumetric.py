@@ -160,6 +160,8 @@ def bench_run(args) -> list[dict]:
         law["friction"] = args.mu
     if args.dhat is not None:
         law["dhat"] = args.dhat
+    if args.ccd is not None:
+        law["ccd"] = args.ccd
     solver = VolumetricSolver(order=args.order, seed=args.seed, contact_law=law,
                               prestress_steps=args.prestress,
                               linear_solver=args.linear_solver, contact_modulus=args.contact_modulus,
@@ -304,6 +306,8 @@ def main(argv=None) -> None:
                                    "'trace': the file to summarise")
     p.add_argument("--friction", action="store_true", help="'run': the scene asks for yarn-yarn friction (lagged Coulomb)")
     p.add_argument("--dhat", type=float, help="'run': barrier activation distance of the ipc law / mean surface edge length (default the law's, 0.1)")
+    p.add_argument("--ccd", choices=["additive", "tight-inclusion"],
+                   help="'run': narrow-phase CCD of the ipc law (default the law's, additive)")
     p.add_argument("--mu", type=float, help="'run': Coulomb friction coefficient of the contact law (default the law's, 0.3)")
     p.add_argument("--smoothing", help="'run': master surface of P1 contact of penalty and mortar, nagata (their default) or none")
     p.add_argument("--transverse-ratio", type=float,

@@ -130,9 +130,10 @@ def test_periodic_derivatives_in_the_macro_dofs():
     assert np.allclose(H[:, n:] @ dh, (Ep[1] - Em[1]) / (2 * eps), atol=1e-6 * np.abs(H).max())
 
 
-def test_step_limit_stops_a_step_before_the_surfaces_cross():
+@pytest.mark.parametrize("ccd", ["additive", "tight-inclusion"])
+def test_step_limit_stops_a_step_before_the_surfaces_cross(ccd):
     """CCD: a step that would push a block through its image is cut to a crossing-free fraction."""
-    law = SolidIPC(dhat=0.1)
+    law = SolidIPC(dhat=0.1, ccd=ccd)
     gap = 0.04
     X, _, surf = _block_row(1, gap)
     dx = np.zeros_like(X)
@@ -160,17 +161,17 @@ def test_step_limit_checks_half_steps_when_the_ccd_runs_out_of_memory(monkeypatc
     real = ipctk.compute_collision_free_stepsize
     longest = float(np.abs(dx).max())
 
-    def short_only(mesh, V0, V1):
+    def short_only(mesh, V0, V1, **kw):
         if float(np.abs(V1 - V0).max()) > 0.3 * longest:  # "out of memory" on the full and half step
             raise MemoryError("std::bad_alloc")
-        return real(mesh, V0, V1)
+        return real(mesh, V0, V1, **kw)
 
     monkeypatch.setattr(ipctk, "compute_collision_free_stepsize", short_only)
     a = law.step_limit(surf, X, np.zeros(6), dx, np.zeros(6), stiffness=100.0)
     assert a == pytest.approx(min(exact, 0.25), rel=0.05)  # the quarter step, within the CCD's own margin
     assert np.isfinite(law.evaluate(surf, X + a * dx, np.zeros(6), 0, stiffness=100.0, reach=0.1)[0])
 
-    def never(mesh, V0, V1):
+    def never(mesh, V0, V1, **kw):
         raise MemoryError("std::bad_alloc")
 
     monkeypatch.setattr(ipctk, "compute_collision_free_stepsize", never)

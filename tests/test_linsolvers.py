@@ -163,3 +163,28 @@ def test_kept_factorisation_solves_several_right_hand_sides(backend):
                 assert np.allclose(x, solve(A, b), rtol=1e-8, atol=1e-10)
         finally:
             f.free()
+
+
+def test_refinement_takes_a_backward_stable_solution_whose_residual_is_at_the_conditioning_floor():
+    """A soft chain tied by stiff springs (like yarns pressed together by a barrier deep inside d̂): no float64
+    solve gets |b − A x| ≤ 1e-10 |b|, but the factorised solve is backward stable (componentwise backward error
+    of a few ε), so the refinement takes it; a solution that is not (here x = 0) is still refused."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as sla
+
+    import knitframe_linsolvers.direct as d
+
+    n = 2000
+    lap = sp.diags([2.0 * np.ones(n), -np.ones(n - 1), -np.ones(n - 1)], [0, 1, -1])
+    pairs = np.arange(0, n - 1, 2)
+    C = sp.csr_matrix((np.r_[np.ones(len(pairs)), -np.ones(len(pairs))],
+                       (np.r_[np.arange(len(pairs)), np.arange(len(pairs))], np.r_[pairs, pairs + 1])),
+                      shape=(len(pairs), n))
+    A = (1e-3 * lap + 1e-3 * sp.identity(n) + 1e10 * (C.T @ C)).tocsc()
+    b = np.random.default_rng(0).normal(size=n)
+    lu = sla.splu(A)
+    x = lu.solve(b)
+    assert np.linalg.norm(b - A @ x) > 1e-10 * np.linalg.norm(b)  # the residual test alone would refuse it
+    y = d._refine(lu.solve, A, b, 4, 1e-10)
+    assert y is not None and d.backward_error(A, y, b) <= d.BACKWARD_ERROR_TOL
+    assert d._refine(lambda v: np.zeros_like(v), A, b, 4, 1e-10) is None
