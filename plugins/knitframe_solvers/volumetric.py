@@ -67,7 +67,7 @@ from knitframe_solvers.volumetric_material import SolidForms, YarnLaw
 __all__ = ["VolumetricSolver", "contact_surface", "write_solid_vtu"]
 
 #: a converged state whose residual exceeds this × the average nodal force flux gets a note in the Response's
-#: provenance (the step test passed with large forces left: seen on the jammed SL10 cell, 75-800 × the flux;
+#: provenance (the step test passed with large forces left: seen on the jammed SL10 cell, 29-800 × the flux;
 #: the SL11 P2 r/3 run ends its steps at 1-2.6 ×, the coarse P1 run under 0.05 ×)
 IMBALANCE_NOTE = 10.0
 
@@ -387,7 +387,7 @@ class VolumetricSolver:
                 if flux > 0 and residuals[-1] > IMBALANCE_NOTE * flux:
                     # the step test (a Newton step under step_tolerance) can pass where barrier pairs deep inside
                     # d̂ make the Hessian so stiff that a tiny step leaves forces far above the flux: say so
-                    imbalance.append(f"{where[0]} {where[1]:g} converged by the step test with a residual of "
+                    imbalance.append(f"{where[0]} {where[1]:g} converged with a residual of "
                                      f"{residuals[-1]:.3g} N, {residuals[-1] / flux:.3g} × the force flux "
                                      "(its tensions carry that imbalance)")
                 penetrations.append(float(res.info.get("max_penetration", 0.0)))
