@@ -68,7 +68,7 @@ __all__ = ["VolumetricSolver", "contact_surface", "write_solid_vtu"]
 
 #: a converged state whose residual exceeds this × the average nodal force flux gets a note in the Response's
 #: provenance (the step test passed with large forces left: seen on the jammed SL10 cell, 29-800 × the flux;
-#: the SL11 P2 r/3 run ends its steps at 1-2.6 ×, the coarse P1 run under 0.05 ×)
+#: the SL11 P2 r/3 runs end their steps at 0.7-6.6 ×, the coarse P1 run under 0.05 ×)
 IMBALANCE_NOTE = 10.0
 
 
