@@ -152,31 +152,29 @@ def bench_iteration(args) -> list[dict]:
     return rows
 
 
+#: 'run' flags forwarded when given (flag → option of the contact law, or of VolumetricSolver); "on"/"off" become booleans
+LAW_FLAGS = {"smoothing": "smoothing", "mu": "friction", "dhat": "dhat", "ccd": "ccd"}
+SOLVER_FLAGS = {"stabilisation": "stabilisation", "max_step": "max_step", "cap_shift": "cap_shift", "tangent": "tangent",
+                "step_tol": "step_tolerance", "predictor": "predictor", "chord": "chord", "eigen": "eigenvalue_filter",
+                "extrapolate": "extrapolation", "halve_reversals": "halve_reversals"}
+
+
+def _given(args, flags: dict[str, str]) -> dict:
+    """The options of the flags given on the command line (the others keep their defaults)."""
+    out = {opt: getattr(args, flag) for flag, opt in flags.items() if getattr(args, flag) is not None}
+    return {k: (v == "on" if v in ("on", "off") else v) for k, v in out.items()}
+
+
 def bench_run(args) -> list[dict]:
     from knitframe_solvers.volumetric import VolumetricSolver
 
-    law = {"kind": args.contact} if args.smoothing is None else {"kind": args.contact, "smoothing": args.smoothing}
-    if args.mu is not None:
-        law["friction"] = args.mu
-    if args.dhat is not None:
-        law["dhat"] = args.dhat
-    if args.ccd is not None:
-        law["ccd"] = args.ccd
+    law = {"kind": args.contact, **_given(args, LAW_FLAGS)}
     solver = VolumetricSolver(order=args.order, seed=args.seed, contact_law=law,
                               prestress_steps=args.prestress,
                               linear_solver=args.linear_solver, contact_modulus=args.contact_modulus,
                               on_failure="truncate" if args.truncate else "raise",
-                              **({} if args.stabilisation is None else {"stabilisation": args.stabilisation}),
-                              **({} if args.max_step is None else {"max_step": args.max_step}),
-                              **({} if args.cap_shift is None else {"cap_shift": args.cap_shift}),
-                              **({} if args.tangent is None else {"tangent": args.tangent}),
-                              **({} if args.step_tol is None else {"step_tolerance": args.step_tol}),
                               **({"start_projected": True} if args.start_projected else {}),
-                              **({} if args.predictor is None else {"predictor": args.predictor}),
-                              **({} if args.chord is None else {"chord": args.chord == "on"}),
-                              **({} if args.eigen is None else {"eigenvalue_filter": args.eigen}),
-                              **({} if args.extrapolate is None else {"extrapolation": args.extrapolate}),
-                              **({} if args.halve_reversals is None else {"halve_reversals": args.halve_reversals == "on"}))
+                              **_given(args, SOLVER_FLAGS))
     fab = attrs.evolve(fabric(), stitch_length=args.stitch_length)
     if args.transverse_ratio is not None:  # a diagnostic: the same yarn with a milder anisotropy
         y = fab.yarn

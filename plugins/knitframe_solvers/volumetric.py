@@ -341,7 +341,6 @@ class VolumetricSolver:
             return max(float(np.max(np.abs(du))), float(np.max(np.abs(dx[n_ind:]))) * model.L_max) / r
 
         residuals: list[float] = []
-        imbalance: list[str] = []
         penetrations: list[float] = []
         shares: list[float] = []
 
@@ -387,9 +386,9 @@ class VolumetricSolver:
                 if flux > 0 and residuals[-1] > IMBALANCE_NOTE * flux:
                     # the step test (a Newton step under step_tolerance) can pass where barrier pairs deep inside
                     # d̂ make the Hessian so stiff that a tiny step leaves forces far above the flux: say so
-                    imbalance.append(f"{where[0]} {where[1]:g} converged with a residual of "
-                                     f"{residuals[-1]:.3g} N, {residuals[-1] / flux:.3g} × the force flux "
-                                     "(its tensions carry that imbalance)")
+                    notes.append(f"{where[0]} {where[1]:g} converged with a residual of "
+                                 f"{residuals[-1]:.3g} N, {residuals[-1] / flux:.3g} × the force flux "
+                                 "(its tensions carry that imbalance)")
                 penetrations.append(float(res.info.get("max_penetration", 0.0)))
             return res
 
@@ -534,7 +533,6 @@ class VolumetricSolver:
                 raise NumericalError(f"volumetric solver ({fabric.pattern}, {fabric.yarn.name}): {e}") from None
             converged = False
             notes.append(f"stopped after {len(rows)} of {n_load} load steps: {e}")
-        notes.extend(imbalance)
         arr = np.array(rows, dtype=np.float64).reshape(-1, 4)
         load = scene.load
         key = load.response_kind
