@@ -41,7 +41,7 @@ def fabric():
 def scene(steps: int, friction: bool = False):
     from knitframe.records import LoadPath, Scene
 
-    effects = {"large_deformation", "bending", "contact", "prestress", "anisotropy"} | ({"friction"} if friction else set())
+    effects = {"large_deformation", "bending", "contact", "self_contact", "prestress", "anisotropy"} | ({"friction"} if friction else set())
     return Scene(load=LoadPath(kind="equibiaxial", max_strain=0.3, steps=steps), effects=effects)
 
 

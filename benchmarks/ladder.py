@@ -54,7 +54,7 @@ def main() -> None:
     reg = knitframe.get_registry()
     fabric = Fabric(args.pattern, reg["yarn"][args.yarn], stitch_length=args.stitch_length)
     scene = Scene(LoadPath("equibiaxial", max_strain=args.max_strain, steps=args.steps),
-                  effects={"large_deformation", "bending", "contact", "prestress", "anisotropy"})
+                  effects={"large_deformation", "bending", "contact", "self_contact", "prestress", "anisotropy"})
     rows, responses = [], {}
     for spec in args.rungs:
         solver = rung_solver(spec)

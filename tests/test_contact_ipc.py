@@ -248,3 +248,57 @@ def test_energy_stays_continuous_where_the_pair_types_switch():
     ds = s[1] - s[0]
     jump = np.abs(E[2::2] - E[:-2:2] - ds / 3 * (dE[:-2:2] + 4 * dE[1:-1:2] + dE[2::2]))
     assert jump.max() < 1e-2 * np.abs(E[2::2] - E[:-2:2]).max()
+
+
+def _facing_blocks(arc_b: float, strand_b: int, exclusion: float):
+    """Two blocks 0.02 apart across z = 0.5 (no lattice); block 1's nodes at arc ``arc_b`` on strand ``strand_b``."""
+    lower = skfem.MeshTet1.init_tensor(np.linspace(0, 1, 4), np.linspace(0, 1, 4), np.linspace(0, 0.49, 3))
+    upper = skfem.MeshTet1.init_tensor(np.linspace(0, 1, 3), np.linspace(0, 1, 3), np.linspace(0.51, 1.0, 3))
+    m, body = join([lower, upper], 1)
+    facets = surface_facets(m, m.boundary_facets())
+    n = len(body)
+    strand = np.where(body == 1, strand_b, 0)
+    topo = SegmentTopology(strand, np.zeros(n, np.int64), np.where(body == 1, arc_b, 0.0), np.zeros(2, np.int64), np.zeros(2))
+    return m.p.T, SolidSurface.build(m.p.T, facets, np.arange(len(facets)), np.arange(len(facets)), topo, exclusion)
+
+
+@pytest.mark.parametrize(("arc_b", "strand_b", "exclusion", "pairs"), [
+    (0.5, 0, 1.0, False),      # one strand, 0.5 apart along it: the yarn's own material
+    (1.5, 0, 1.0, True),       # one strand, beyond the exclusion: self-contact
+    (0.5, 1, 1.0, True),       # two strands: contact whatever their arcs
+    (1.5, 0, np.inf, False),   # no self-contact (scene without "self_contact"): a strand never meets itself
+])
+def test_pairs_of_a_yarn_with_its_own_material_are_excluded(arc_b, strand_b, exclusion, pairs):
+    """Surfaces 0.02 apart, within d̂: barrier pairs form unless both lie on one strand copy within its exclusion."""
+    law = SolidIPC(dhat=0.5)
+    X, surf = _facing_blocks(arc_b, strand_b, exclusion)
+    assert _dhat(law, surf) > 0.02
+    E, _, _, info = law.evaluate(surf, X, None, 1, stiffness=100.0, reach=0.1)
+    assert (info["active"] > 0) == pairs
+    assert (E > 0) == pairs
+
+
+def test_own_material_filter_excludes_within_three_quarters_of_the_exclusion_and_never_beyond_it():
+    """The staggered binnings: every vertex pair of one strand copy closer than 0.75 × exclusion along it is
+    refused, every pair at least the exclusion apart (or on another strand) is allowed."""
+    rng = np.random.default_rng(5)
+    n = 400
+    X = np.column_stack([rng.uniform(0, 1, n), rng.uniform(0, 1, n), np.zeros(n)])
+    tri = np.arange(n - n % 3).reshape(-1, 3)
+    strand = rng.integers(0, 2, n)
+    arc = rng.uniform(0, 10.0, n)
+    topo = SegmentTopology(strand, np.zeros(n, np.int64), arc, np.zeros(2, np.int64), np.zeros(2))
+    surf = SolidSurface.build(X, tri, np.arange(len(tri)), np.arange(len(tri)), topo, 1.3)
+    pcm = collision_mesh(surf)
+    f = pcm.own_material_filter(surf)
+    i, j = rng.integers(0, len(pcm.node), (2, 20000))
+    i, j = np.minimum(i, j), np.maximum(i, j)
+    keep = i < j
+    i, j = i[keep], j[keep]
+    allowed = np.array([f(int(a), int(b)) for a, b in zip(i, j)])
+    a, b = pcm.node[i], pcm.node[j]
+    same = strand[a] == strand[b]
+    d = np.abs(arc[a] - arc[b])
+    assert not allowed[same & (d < 0.75 * 1.3)].any()
+    assert allowed[~same | (d >= 1.3)].all()
+    assert (~allowed[same & (d >= 0.75 * 1.3) & (d < 1.3)]).any()  # some between: the binnings' slack

@@ -14,7 +14,7 @@ from knitframe_solvers.volumetric import VolumetricSolver
 pytestmark = pytest.mark.slow
 
 SCENE = Scene(load=LoadPath(kind="equibiaxial", max_strain=0.1, steps=2),
-              effects={"large_deformation", "bending", "contact", "prestress", "anisotropy"})
+              effects={"large_deformation", "bending", "contact", "self_contact", "prestress", "anisotropy"})
 
 
 def cases():

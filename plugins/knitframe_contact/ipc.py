@@ -29,7 +29,9 @@ Pᵀ ∂W/∂V and Pᵀ ∂²W/∂V² P with the constant sparse P.
 
 Stiffness: the solver's penalty ε (N/mm³, ``factor``·E/h as for ``penalty`` and ``mortar``) sets
 κ so that the barrier's normal stiffness at d = d̂/2 of a vertex with the mean tributary area A
-equals ε·A. Self-contact is always on (a barrier cannot let a yarn pass through itself).
+equals ε·A. Self-contact: a yarn meets its own other loops, but not its own material: vertices of one
+strand copy closer than the surface's ``exclusion`` along it never form a pair
+(:meth:`PeriodicCollisionMesh.own_material_filter`), as in the ``penalty`` and ``mortar`` laws.
 
 Friction (only with a ``friction_state``): IPC's lagged smooth Coulomb friction, with the normal
 forces and tangent bases of the increment's start state and the slip u_T measured from it::
@@ -54,6 +56,8 @@ from knitframe.periodic import N_MACRO, macro_index
 
 #: halvings of a step whose collision check ran out of memory before the check gives up
 CCD_HALVINGS = 6
+#: staggered binnings of the own-material exclusion (pairs within (1 − 1/n) × exclusion along a strand excluded)
+EXCLUSION_BINNINGS = 4
 
 __all__ = ["SolidIPC", "PeriodicCollisionMesh"]
 
@@ -149,6 +153,9 @@ class PeriodicCollisionMesh:
         edges = ipctk.edges(self.faces)
         self.mesh = ipctk.CollisionMesh(self.V_rest, edges, self.faces)
         self.mesh.can_collide = ipctk.make_static_obstacle_filter(self.n_center)
+        own = self.own_material_filter(surface)
+        if own is not None:
+            self.mesh.can_collide = self.mesh.can_collide & own
         self.edges = np.asarray(self.mesh.edges)
         # each edge's periodic class (its two canonical nodes and their relative image) and owner: the
         # translate whose first end (the smaller canonical node) lies in the central image
@@ -163,6 +170,39 @@ class PeriodicCollisionMesh:
         # mean edge length of the cell's own surface (each triangle edge once per triangle), mm
         corners = X[tri]
         self.edge_length = float(np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2).mean())
+
+    def own_material_filter(self, surface, n_bins: int = EXCLUSION_BINNINGS):
+        """ipctk filter of the pairs of a yarn with its own material: vertices of one strand copy within
+        the surface's ``exclusion`` along it never collide (None when nothing is excluded).
+
+        A vertex (node n, image k) lies on strand copy (strand, k₂, base) at unrolled arc a
+        (:meth:`knitframe.contact_search.SegmentTopology.unrolled`). ipctk filters by vertex patches
+        (equivalence classes), so the exclusion is ``n_bins`` staggered binnings of a into bins of
+        length ℓ = exclusion, offset by ℓ/n_bins: a pair is excluded when its two vertices share a bin
+        in any binning. A pair |Δa| < (1 − 1/n_bins)·ℓ apart shares one (its interval holds at most
+        n_bins − 1 bin boundaries, each of another binning); a pair ≥ ℓ apart shares none. So pairs
+        within 0.75 × exclusion (n_bins = 4) are always excluded and pairs beyond it never, as the
+        ``penalty`` and ``mortar`` laws exclude them: where a transversely soft tube is squashed, its
+        surface folds onto itself, and barrier pairs between the folds (a tube's own material, not a
+        contact) had stalled the Newton steps. ipctk keeps an edge–edge or face–vertex candidate when
+        any of its vertex pairs may collide, so pairs straddling a bin are kept.
+        """
+        ipctk = _ipctk()
+        topo, excl = surface.topology, float(surface.exclusion)
+        if topo is None or not excl > 0.0:
+            return None
+        base, arc = topo.unrolled(self.node, self.image[:, 0])
+        copy = np.column_stack([topo.strand[self.node], self.image[:, 1], base])
+        if not np.isfinite(excl):  # no self-contact: a strand copy never meets itself
+            _, pid = np.unique(copy, axis=0, return_inverse=True)
+            return ipctk.make_vertex_patches_filter(pid.astype(np.int32).reshape(-1, 1))
+        out = None
+        for j in range(n_bins):
+            bins = np.floor(arc / excl + j / n_bins).astype(np.int64)
+            _, pid = np.unique(np.column_stack([copy, bins]), axis=0, return_inverse=True)
+            f = ipctk.make_vertex_patches_filter(pid.astype(np.int32).reshape(-1, 1))
+            out = f if out is None else out & f
+        return out
 
     def positions(self, x: np.ndarray, h: np.ndarray | None) -> np.ndarray:
         """Vertex positions (nv, 3) for node positions x (N, 3) and macro DOFs h."""
