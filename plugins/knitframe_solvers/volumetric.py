@@ -155,7 +155,7 @@ class VolumetricSolver:
     linear_solver: str | dict[str, Any] = "direct"  #: linear-solver plugin name or table with ``kind``
     contact_modulus: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: modulus scaling the penalty, MPa; default the yarn's E_transverse
     reach: float = attrs.field(default=0.5, validator=v.positive)  #: contact search distance / yarn radius, -
-    self_contact_exclusion: float = attrs.field(default=np.pi, validator=v.positive)  #: same-strand pairs closer than this × dk along the yarn are the yarn itself, -
+    self_contact_exclusion: float = attrs.field(default=np.pi, validator=v.positive)  #: same-strand pairs closer than this × dk along the yarn are the yarn itself (the ipc law: all pairs within 0.75 × this, none beyond it), -
     prestress_steps: int = attrs.field(default=8, validator=v.in_range(1, 1000))  #: steps of the radial pre-stress, -
     initial_radius: float = attrs.field(default=0.9, validator=v.in_range(0.05, 1.0))  #: largest start radius of the pre-stress / r, -
     min_clearance: float = attrs.field(default=0.25, validator=v.in_range(0.05, 2.0))  #: with pre-stress, closest centerline distance / r below which a cell is refused (the pre-stress starts at 0.95 of half of it; without pre-stress the limit is r), -
