@@ -153,7 +153,7 @@ def bench_iteration(args) -> list[dict]:
 
 
 #: 'run' flags forwarded when given (flag → option of the contact law, or of VolumetricSolver); "on"/"off" become booleans
-LAW_FLAGS = {"smoothing": "smoothing", "mu": "friction", "dhat": "dhat", "ccd": "ccd"}
+LAW_FLAGS = {"smoothing": "smoothing", "mu": "friction", "dhat": "dhat", "ccd": "ccd", "reuse": "reuse"}
 SOLVER_FLAGS = {"stabilisation": "stabilisation", "max_step": "max_step", "cap_shift": "cap_shift", "tangent": "tangent",
                 "step_tol": "step_tolerance", "predictor": "predictor", "chord": "chord", "eigen": "eigenvalue_filter",
                 "extrapolate": "extrapolation", "halve_reversals": "halve_reversals"}
@@ -306,6 +306,7 @@ def main(argv=None) -> None:
     p.add_argument("--dhat", type=float, help="'run': barrier activation distance of the ipc law / mean surface edge length (default the law's, 0.1)")
     p.add_argument("--ccd", choices=["additive", "tight-inclusion"],
                    help="'run': narrow-phase CCD of the ipc law (default the law's, additive)")
+    p.add_argument("--reuse", type=float, help="'run': the ipc law keeps a broad-phase search while no vertex has moved over this × d̂ (default the law's, 0.5; 0 searches at every evaluation)")
     p.add_argument("--mu", type=float, help="'run': Coulomb friction coefficient of the contact law (default the law's, 0.3)")
     p.add_argument("--smoothing", help="'run': master surface of P1 contact of penalty and mortar, nagata (their default) or none")
     p.add_argument("--transverse-ratio", type=float,

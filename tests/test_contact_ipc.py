@@ -302,3 +302,35 @@ def test_own_material_filter_excludes_within_three_quarters_of_the_exclusion_and
     assert not allowed[same & (d < 0.75 * 1.3)].any()
     assert allowed[~same | (d >= 1.3)].all()
     assert (~allowed[same & (d >= 0.75 * 1.3) & (d < 1.3)]).any()  # some between: the binnings' slack
+
+
+
+def test_held_candidates_give_the_collisions_of_a_fresh_search(cylinder):
+    """A search's candidates are reused while no vertex has moved over ``reuse``·d̂ since it: the pairs,
+    energy and gradient are those of a search at every evaluation (``reuse = 0``), and a move past the
+    reach searches again."""
+    mesh, body, surf = cylinder
+    held, fresh = SolidIPC(), SolidIPC(reuse=0.0)
+    dhat = _dhat(held, surf)
+    X = nodes(mesh)
+    u = np.zeros((len(X), 3))
+    u[:, 1] = 0.45 * dhat * (body == 0)
+    pcm = collision_mesh(surf)
+    pcm.held = None
+    rng = np.random.default_rng(3)
+    searches = []
+    for m in (0.0, 0.2, 0.35, 0.49, 0.3, 1.5, 1.6):  # each vertex of the lifted body moves at most m·d̂ from u
+        du = rng.uniform(-1.0, 1.0, size=(len(X), 3)) * (body == 0)[:, None] / np.sqrt(3.0)
+        x = X + u + m * dhat * du
+        before = pcm.searches
+        E1, g1, _, i1 = held.evaluate(surf, x, None, 1, stiffness=1e3, reach=0.1)
+        searches.append(pcm.searches - before)
+        kept = pcm.held
+        E0, g0, _, i0 = fresh.evaluate(surf, x, None, 1, stiffness=1e3, reach=0.1)
+        pcm.held = kept  # the fresh law's own search replaced the held candidates
+        assert i1["active"] == i0["active"] > 0
+        assert E1 == pytest.approx(E0, rel=1e-12)
+        assert np.abs(g1 - g0).max() <= 1e-12 * np.abs(g0).max()
+    # searched at the first state; the moves within d̂/2 of it reuse its candidates; 1.5 d̂ searches again,
+    # and 1.6 d̂ (another random move, over d̂/2 from the 1.5 state) once more
+    assert searches == [1, 0, 0, 0, 0, 1, 1]
