@@ -358,3 +358,26 @@ def test_a_converged_state_with_forces_far_above_the_flux_gets_a_note(monkeypatc
     noted = VolumetricSolver(order=1, seed=0.75).simulate(FABRIC, STRETCH)
     assert "load 1 converged with a residual of" in noted.provenance.notes
     assert noted.provenance.converged and np.allclose(noted.T1, clean.T1)
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_pull_back_of_the_tangent_is_the_triple_product(order):
+    """model.pull_back(K) = Tᵀ (K + c I) T (the periodic map T, the foundation c), through its fixed-pattern map;
+    a K on another pattern gets its own map."""
+    import scipy.sparse as sp
+
+    solver = VolumetricSolver(order=order, seed=0.75, stabilisation=1e-2)
+    model = solver.setup(FABRIC, STRETCH)
+    assert model.damping > 0 and model.T.shape[0] > model.T.shape[1]  # the end nodes are slaves of the start nodes
+    rng = np.random.default_rng(2)
+    u = 1e-3 * rng.normal(size=model.forms.ndof)
+    _, _, K = model.forms.evaluate(u, 1.0, 2)
+    c = model.damping
+    ref = (model.T.T @ (K + c * sp.identity(K.shape[0])) @ model.T).tocsr()
+    for _ in range(2):  # the map is built at the first call and reused
+        H = model.pull_back(K)
+        assert abs(H - ref).max() <= 1e-13 * abs(ref).max()
+    K2 = sp.csr_matrix(K.toarray() + np.diag(rng.normal(size=K.shape[0])))  # another matrix on another pattern
+    K2 = K2 + sp.csr_matrix(([1.0], ([0], [K.shape[0] - 1])), shape=K.shape)
+    ref2 = (model.T.T @ (K2 + c * sp.identity(K.shape[0])) @ model.T).tocsr()
+    assert abs(model.pull_back(K2) - ref2).max() <= 1e-13 * abs(ref2).max()

@@ -587,7 +587,7 @@ class VolumetricModel:
         self.X_ind = cm.nodes[independent]
         self.damping = float(damping)
         self.u0 = np.zeros(n)
-        self.TtT = (self.TT @ T).tocsr()
+        self._pull_back = None  # (K's indptr and indices, M, K's diagonal positions, H's indices, indptr, shape)
         self.timings = {"mesh": t_mesh, "material": 0.0, "contact": 0.0, "transform": 0.0, "linear_solve": 0.0}
         self.friction = False  # lagged Coulomb friction (scene effect "friction")
         self.friction_state = None
@@ -596,6 +596,32 @@ class VolumetricModel:
         self.held = None
         self.barrier = False  # a barrier contact law: the line search is bounded by continuous collision detection
         self.evaluations = {"energy": 0, "gradient": 0, "hessian": 0, "linear_solves": 0}
+
+    def pull_back(self, K: sp.csr_matrix) -> sp.csr_matrix:
+        """Tᵀ (K + c I) T (c the foundation's ``damping``) for a K on the material's fixed pattern.
+
+        Each entry of H = Tᵀ K T is Σ T_ia K_ij T_jb over the entries of K, linear in K's data: with the
+        pattern fixed, H.data = M·(K.data + c·[diagonal entries]) with a constant sparse M (built once,
+        about one entry per entry of K since most rows of T hold a single 1). A sparse matrix–vector
+        product instead of two sparse matrix products per Hessian (0.1 s against 0.4–1.4 s at P2 r/3).
+        A K on another pattern gets its own map, built again.
+        """
+        cached = self._pull_back
+        same = cached is not None and (cached[0] is K.indptr and cached[1] is K.indices or (
+            cached[0].shape == K.indptr.shape and cached[1].shape == K.indices.shape
+            and np.array_equal(cached[0], K.indptr) and np.array_equal(cached[1], K.indices)))
+        if not same:
+            if not K.has_sorted_indices:
+                K.sort_indices()
+            cached = self._pull_back = (K.indptr, K.indices, *_pull_back_map(K, self.T))
+        _, _, M, diag, indices, indptr, shape = cached
+        v = K.data
+        if self.damping != 0.0:
+            v = v.copy()
+            v[diag] += self.damping
+        H = sp.csr_matrix((M @ v, indices, indptr), shape=shape, copy=False)
+        H.has_sorted_indices = True
+        return H
 
     def counters(self) -> dict[str, float]:
         """Wall time so far per part (``material_s``, ``contact_s``, ``transform_s``, ``linear_solve_s``) and
@@ -714,7 +740,7 @@ class VolumetricModel:
             g = g + self.QT @ gc
         H = None
         if order == 2:
-            H = self.TT @ K @ self.T + self.damping * self.TtT
+            H = self.pull_back(K)
             if Hc is not None and Hc.nnz:
                 H = H + self.QT @ Hc @ self.Q
             H = H.tocsr()
@@ -722,6 +748,35 @@ class VolumetricModel:
         if not np.all(np.isfinite(g)):
             raise NumericalError("volumetric: non-finite residual")
         return E, g, H, info
+
+
+def _pull_back_map(K: sp.csr_matrix, T: sp.csr_matrix):
+    """M with (Tᵀ K T).data = M @ K.data for every K on K's pattern, the positions of K's diagonal, and the
+    pattern (indices, indptr, shape) of Tᵀ K T in sorted CSR order."""
+    T = sp.csr_matrix(T)
+    nk = K.nnz
+    I = np.repeat(np.arange(K.shape[0]), np.diff(K.indptr))
+    J = K.indices.astype(np.int64)
+    cnt = np.diff(T.indptr)
+
+    def expand(p, rows):  # every (entry p, T's entry in row rows[p]): p repeated, T's column and value
+        c = cnt[rows]
+        pe = np.repeat(p, c)
+        start = np.repeat(T.indptr[rows], c)
+        k = np.arange(pe.size) - np.repeat(np.cumsum(c) - c, c)
+        return pe, T.indices[start + k].astype(np.int64), T.data[start + k]
+
+    p1, a, ta = expand(np.arange(nk), I)
+    p2, b, tb = expand(np.arange(p1.size), J[p1])
+    p, a, w = p1[p2], a[p2], ta[p2] * tb
+    n = T.shape[1]
+    key, row = np.unique(a * n + b, return_inverse=True)  # row-major sorted: CSR order
+    M = sp.csr_matrix((w, (row, p)), shape=(key.size, nk))
+    rows_h = key // n
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(rows_h, minlength=n))])
+    idx = np.int32 if max(n, key.size) < 2**31 else np.int64
+    diag = np.flatnonzero(I == J)
+    return M, diag, (key % n).astype(idx), indptr.astype(idx), (n, n)
 
 
 @hookimpl

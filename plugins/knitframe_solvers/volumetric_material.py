@@ -9,8 +9,11 @@ Lagrange basis (vector DOF ``3·node + i``). For a strain energy density Ψ(F) p
     K_aibk(u)  = Σ_q ∂_J N_a A_iJkL ∂_L N_b dV,  A = ∂P/∂F                (N/mm)
 
 The kernels run over (element, quadrature point) at once with ``numpy.einsum`` on scikit-fem's
-basis gradients, quadrature weights and DOF maps, in chunks of elements to bound memory; the
-sparse tangent is summed into a fixed CSR pattern with ``np.bincount``.
+basis gradients, quadrature weights and DOF maps, in chunks of elements to bound memory, the
+chunks on a pool of threads (numpy's kernels release the GIL; BLAS is held to one thread inside
+them so the threads do not oversubscribe the cores). Each chunk's tangent entries are summed by
+``np.bincount`` over the CSR entries that chunk touches (precomputed with the pattern), and the
+chunks are added in their order, so the result does not depend on the thread count or timing.
 
 Thermal pre-stress: an eigenstrain transverse to the fibre a (the centerline tangent), with the
 multiplicative split F = Fe·Fθ and the yarn's stress-free radius s·r::
@@ -30,7 +33,9 @@ P = Jθ Pe(Fe)·Fθ⁻ᵀ and A_iJkL = Jθ Ae_iMkN Fθ⁻¹_JM Fθ⁻¹_LN.
 
 from __future__ import annotations
 
-from typing import Any
+import os
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any, Callable, Iterator
 
 import attrs
 import numpy as np
@@ -55,6 +60,17 @@ def _inv_det(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     c[2, 2] = F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]
     J = F[0, 0] * c[0, 0] + F[0, 1] * c[1, 0] + F[0, 2] * c[2, 0]
     return c / np.where(J == 0, 1.0, J), J
+
+
+def _one_blas_thread():
+    """Context holding BLAS to one thread (threadpoolctl) while the element chunks run on their own threads."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - threadpoolctl is a dependency
+        import contextlib
+
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
 
 
 def _accepts_order(model: Any) -> bool:
@@ -184,10 +200,11 @@ class SolidForms:
         eigenstrain; None disables it (then s must stay 1).
     intorder : quadrature order (default 2: 4 points, like ABAQUS C3D10).
     chunk : elements per einsum batch.
+    threads : threads the chunks run on (default: the CPUs this process may use, at most 8).
     """
 
     def __init__(self, mesh: Any, law: Any, node_tangent: np.ndarray | None = None, *, intorder: int = 2,
-                 chunk: int = 4096, node_offset: np.ndarray | None = None):
+                 chunk: int = 4096, node_offset: np.ndarray | None = None, threads: int | None = None):
         import skfem
 
         elem = skfem.ElementTetP2() if isinstance(mesh, skfem.MeshTet2) else skfem.ElementTetP1()
@@ -212,6 +229,11 @@ class SolidForms:
         nl, ne = self.edofs.shape
         self.vdofs = (3 * self.edofs[:, None, :] + np.arange(3)[None, :, None]).reshape(3 * nl, ne)  # (3nl, n_el)
         self._pattern: tuple[sp.csr_matrix, np.ndarray] | None = None
+        self._scatter: list[tuple[np.ndarray, np.ndarray]] | None = None  # per chunk: CSR entries touched, inverse map
+        if threads is None:
+            threads = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+        self.threads = max(1, min(int(threads), 8))
+        self._pool: ThreadPoolExecutor | None = None
 
     # -- kinematics ------------------------------------------------------------------------------
     def deformation_gradient(self, u: np.ndarray, sl: slice = slice(None)) -> np.ndarray:
@@ -223,10 +245,36 @@ class SolidForms:
         F[2, 2] += 1.0
         return F
 
-    def _chunks(self):
+    def _chunks(self) -> list[slice]:
+        """Slices of at most ``chunk`` elements, and 8 of them for meshes of 2 048 to 8 ``chunk`` elements (work for up
+        to 8 threads); the slicing does not depend on ``threads``, so neither does the summation order."""
         ne = self.edofs.shape[1]
-        for start in range(0, ne, self.chunk):  # batches of thousands of elements, not single ones
-            yield slice(start, min(start + self.chunk, ne))
+        size = max(1, min(self.chunk, max(256, -(-ne // 8))))
+        return [slice(start, min(start + size, ne)) for start in range(0, ne, size)]
+
+    def _map(self, fn: Callable[[slice], Any]) -> Iterator[Any]:
+        """fn(chunk) for every chunk, in chunk order; on ``threads`` threads with BLAS held to one thread each.
+
+        A chunk that raises re-raises here (the first in chunk order)."""
+        chunks = self._chunks()
+        if self.threads == 1 or len(chunks) == 1:
+            yield from map(fn, chunks)
+            return
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(max_workers=self.threads, thread_name_prefix="knitframe-solid")
+        with _one_blas_thread():
+            futures = [self._pool.submit(fn, sl) for sl in chunks]
+            try:
+                for f in futures:
+                    yield f.result()
+            finally:
+                for f in futures:
+                    f.cancel()
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state["_pool"] = None  # threads do not pickle; a copy starts its own
+        return state
 
     def _check(self, F: np.ndarray, sl: slice) -> None:
         _, J = _inv_det(F)
@@ -241,16 +289,16 @@ class SolidForms:
     # -- forms -------------------------------------------------------------------------------------
     def energy(self, u: np.ndarray, s: float = 1.0) -> float:
         """Strain energy W = Σ Jθ Ψ(F Fθ⁻¹) dV, N·mm; +inf if any element is inverted."""
-        total = 0.0
-        for sl in self._chunks():
+        def chunk(sl: slice) -> float:
             F = self.deformation_gradient(u, sl)
             a = self.fibre[:, sl]
             Jt = 1.0
             if s != 1.0:
                 Ti, Jt = self._eigen(s, sl)
                 F = np.einsum("iMeq,MJeq->iJeq", F, Ti)
-            total += float(np.sum(Jt * self.law.energy(F, a) * self.dx[sl]))
-        return total
+            return float(np.sum(Jt * self.law.energy(F, a) * self.dx[sl]))
+
+        return float(sum(self._map(chunk)))
 
     def _eigen(self, s: float, sl: slice) -> tuple[np.ndarray, np.ndarray]:
         if self.grad_offset is None:
@@ -266,20 +314,22 @@ class SolidForms:
 
     def residual(self, u: np.ndarray, s: float = 1.0) -> np.ndarray:
         """Internal force R = ∂W/∂u (3N,), N."""
-        out = np.zeros(self.ndof)
-        for sl in self._chunks():
+        def chunk(sl: slice) -> np.ndarray:
             F = self.deformation_gradient(u, sl)
             self._check(F, sl)
             P = self._stress(F, self.fibre[:, sl], s, sl)
             Re = np.einsum("iJeq,lJeq,eq->lie", P, self.grad[:, :, sl], self.dx[sl])
-            out += np.bincount(self.vdofs[:, sl].ravel(), Re.reshape(-1, Re.shape[-1]).ravel(), minlength=self.ndof)
+            return np.bincount(self.vdofs[:, sl].ravel(), Re.reshape(-1, Re.shape[-1]).ravel(), minlength=self.ndof)
+
+        out = np.zeros(self.ndof)
+        for r in self._map(chunk):
+            out += r
         return out
 
     def stress(self, u: np.ndarray, s: float = 1.0) -> np.ndarray:
         """First Piola-Kirchhoff stress at the quadrature points (3, 3, n_el, n_qp), MPa."""
-        return np.concatenate(
-            [self._stress(self.deformation_gradient(u, sl), self.fibre[:, sl], s, sl) for sl in self._chunks()], axis=2
-        )
+        return np.concatenate(list(self._map(lambda sl: self._stress(self.deformation_gradient(u, sl), self.fibre[:, sl], s, sl))),
+                              axis=2)
 
     def pattern(self) -> tuple[sp.csr_matrix, np.ndarray]:
         """CSR sparsity pattern of the tangent and the map from element-matrix entries to its data."""
@@ -296,6 +346,20 @@ class SolidForms:
             # csr data order is row-major sorted keys, the same order as np.unique's
             self._pattern = (K, where.astype(np.int64 if uniq.size > 2**31 - 1 else np.int32))
         return self._pattern
+
+    def scatter(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Per chunk, the CSR entries of the tangent its elements touch and the map of its element-matrix
+        entries onto them: K.data[touched] += bincount(inverse, Ke.ravel()) sums one chunk (a bincount as
+        long as the chunk's share of the pattern instead of the whole of it)."""
+        if self._scatter is None:
+            _, where = self.pattern()
+            m2 = self.vdofs.shape[0] ** 2
+            out = []
+            for sl in self._chunks():
+                touched, inverse = np.unique(where[sl.start * m2: sl.stop * m2], return_inverse=True)
+                out.append((touched, inverse.astype(np.int32)))
+            self._scatter = out
+        return self._scatter
 
     def tangent(self, u: np.ndarray, s: float = 1.0) -> sp.csr_matrix:
         """Tangent stiffness K = ∂R/∂u (3N, 3N) as CSR, N/mm."""
@@ -316,13 +380,11 @@ class SolidForms:
         """
         if order == 0:
             return self.energy(u, s), None, None
-        K0, where = self.pattern() if order == 2 else (None, None)
-        data = np.zeros(K0.nnz) if order == 2 else None
-        R = np.zeros(self.ndof)
-        flux = np.zeros(self.ndof)
-        W = 0.0
-        m = self.vdofs.shape[0]
-        for sl in self._chunks():
+        K0 = self.pattern()[0] if order == 2 else None
+        scatter = self.scatter() if order == 2 else None
+        chunk_index = {sl.start: k for k, sl in enumerate(self._chunks())}
+
+        def chunk(sl: slice):
             F = self.deformation_gradient(u, sl)
             self._check(F, sl)
             a = self.fibre[:, sl]
@@ -335,13 +397,14 @@ class SolidForms:
                 Psi, P, A = self.law.evaluate(F, a, order)
             else:
                 Psi, P, A = self.law.energy(F, a), self.law.stress(F, a), self.law.tangent(F, a) if order == 2 else None
-            W += float(np.sum(Jt * Psi * self.dx[sl]))
+            W = float(np.sum(Jt * Psi * self.dx[sl]))
             if Ti is not None:
                 P = Jt * np.einsum("iMeq,JMeq->iJeq", P, Ti)
             Re = np.einsum("iJeq,lJeq,eq->lie", P, G, self.dx[sl])
-            R += np.bincount(self.vdofs[:, sl].ravel(), Re.reshape(-1, Re.shape[-1]).ravel(), minlength=self.ndof)
-            flux += np.bincount(self.vdofs[:, sl].ravel(), np.abs(Re).reshape(-1, Re.shape[-1]).ravel(),
-                                minlength=self.ndof)
+            dofs = self.vdofs[:, sl].ravel()
+            R = np.bincount(dofs, Re.reshape(-1, Re.shape[-1]).ravel(), minlength=self.ndof)
+            flux = np.bincount(dofs, np.abs(Re).reshape(-1, Re.shape[-1]).ravel(), minlength=self.ndof)
+            Kc = None
             if order == 2:
                 if Ti is not None:
                     A = Jt * np.einsum("iMkNeq,JMeq,LNeq->iJkLeq", A, Ti, Ti, optimize=True)
@@ -351,11 +414,23 @@ class SolidForms:
                 Ke = np.einsum("aikLeq,bLeq,eq->eaibk", T, G, self.dx[sl], optimize=True)
                 if project and self.projection == "element":
                     Ke = psd_project_elements(Ke)
-                lo, hi = sl.start * m * m, sl.stop * m * m
-                data += np.bincount(where[lo:hi], Ke.ravel(), minlength=K0.nnz)
+                touched, inverse = scatter[chunk_index[sl.start]]
+                Kc = np.bincount(inverse, Ke.ravel(), minlength=touched.size)
+            return W, R, flux, Kc
+
+        data = np.zeros(K0.nnz) if order == 2 else None
+        R = np.zeros(self.ndof)
+        flux = np.zeros(self.ndof)
+        W = 0.0
+        for k, (Wc, Rc, fc, Kc) in enumerate(self._map(chunk)):  # summed in chunk order: deterministic
+            W += Wc
+            R += Rc
+            flux += fc
+            if Kc is not None:
+                data[scatter[k][0]] += Kc
         self.flux = flux
         K = None
-        if order == 2:
-            K = K0.copy()
-            K.data = data
+        if order == 2:  # the pattern's index arrays are shared, not copied (270 MB on a P2 r/3 cell)
+            K = sp.csr_matrix((data, K0.indices, K0.indptr), shape=K0.shape, copy=False)
+            K.has_sorted_indices = True
         return W, R, K
