@@ -6,6 +6,7 @@ Usage::
     python benchmarks/bench_volumetric.py iteration --order 2   # one Newton iteration: assembly, contact, direct vs amg
     python benchmarks/bench_volumetric.py iteration --order 2 --solvers pardiso,amg   # skip SuperLU (its fill-in explodes on P2)
     python benchmarks/bench_volumetric.py run --order 1 --seed 0.6 --steps 6   # pre-stress + equibiaxial 0→30 %
+    python benchmarks/bench_volumetric.py forms --order 2       # the solid's evaluations per thread count; the pull-back
     python benchmarks/bench_volumetric.py law                   # the yarn law alone, per derivative order
     python benchmarks/bench_volumetric.py trace --trace run.jsonl   # summary of a traced run, one row per Newton solve
 
@@ -259,6 +260,43 @@ def bench_trace(args) -> list[dict]:
     return rows
 
 
+def bench_forms(args) -> list[dict]:
+    """The solid's evaluations on the cell at the start of the pre-stress, per order and thread count, and the
+    pull-back of its tangent to the periodic unknowns (fixed-pattern map against two sparse products)."""
+    from knitframe.plugins import get_registry
+    from knitframe_solvers.volumetric import VolumetricSolver
+
+    solver = VolumetricSolver(order=args.order, seed=args.seed)
+    model = solver.setup(fabric(), scene(6), get_registry())
+    r = model.cm.radius
+    s0 = min(solver.initial_radius, 0.95 * model.cm.clearance.minimum / (2 * r))
+    u = model.T @ model.shrunk(s0)
+    rows = []
+    for threads in (int(t) for t in args.threads.split(",")):
+        forms = model.forms
+        forms.threads, forms._pool = threads, None
+        forms.evaluate(u, s0, 2, project=True)  # warm-up: pattern and scatter maps
+        for order in (0, 1, 2):
+            t0 = time.perf_counter()
+            for _ in range(3):
+                forms.evaluate(u, s0, order, project=True)
+            rows.append({"what": f"solid, order {order} ({forms.edofs.shape[1]} elements, {len(forms._chunks())} chunks)",
+                         "threads": threads, "s": round((time.perf_counter() - t0) / 3, 4)})
+    K = model.forms.evaluate(u, s0, 2, project=True)[2]
+    t0 = time.perf_counter()
+    model.pull_back(K)
+    rows.append({"what": "pull-back Tᵀ(K + cI)T: building its map (once)", "threads": "", "s": round(time.perf_counter() - t0, 3)})
+    for label, fn in (("pull-back Tᵀ(K + cI)T: fixed-pattern map", lambda: model.pull_back(K)),
+                      ("pull-back Tᵀ(K + cI)T: sparse products", lambda: (model.TT @ K @ model.T + model.damping * (model.TT @ model.T)).tocsr())):
+        fn()
+        t0 = time.perf_counter()
+        for _ in range(3):
+            fn()
+        rows.append({"what": label, "threads": "", "s": round((time.perf_counter() - t0) / 3, 4)})
+    rows.append({"what": f"DOFs {K.shape[0]}, tangent nnz {K.nnz}, peak RSS MB", "threads": "", "s": round(peak_mb())})
+    return rows
+
+
 def bench_law(args) -> list[dict]:
     """The cotton yarn law at 20 000 random deformation gradients: energy only, + stress, + tangent."""
     from knitframe.plugins import get_registry
@@ -287,7 +325,7 @@ def table(rows: list[dict]) -> str:
 
 def main(argv=None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("what", choices=["mesh", "iteration", "run", "law", "trace"])
+    p.add_argument("what", choices=["mesh", "iteration", "forms", "run", "law", "trace"])
     p.add_argument("--order", type=int, default=2)
     p.add_argument("--seed", type=float, default=1 / 3)
     p.add_argument("--contact", default="ipc", help="solid contact law: ipc (default), mortar or penalty")
@@ -325,9 +363,10 @@ def main(argv=None) -> None:
     p.add_argument("--cap-shift", type=float, help="'run': raise the Levenberg shift while a Newton step exceeds this × the cap")
     p.add_argument("--max-step", type=float, help="'run': the solver's cap on a Newton step, node move / r")
     p.add_argument("--stabilisation", type=float, help="'run': the solver's stabilisation (weak foundation) factor")
+    p.add_argument("--threads", default="1,2", help="'forms': thread counts of the solid's element chunks")
     p.add_argument("--json")
     args = p.parse_args(argv)
-    rows = {"mesh": bench_mesh, "iteration": bench_iteration, "run": bench_run, "law": bench_law,
+    rows = {"mesh": bench_mesh, "iteration": bench_iteration, "forms": bench_forms, "run": bench_run, "law": bench_law,
             "trace": bench_trace}[args.what](args)
     print(table(rows))
     if args.json:

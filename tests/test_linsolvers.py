@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from knitframe.errors import ConfigError
 from knitframe.testing import check_plugin
@@ -188,3 +189,28 @@ def test_refinement_takes_a_backward_stable_solution_whose_residual_is_at_the_co
     y = d._refine(lu.solve, A, b, 4, 1e-10)
     assert y is not None and d.backward_error(A, y, b) <= d.BACKWARD_ERROR_TOL
     assert d._refine(lambda v: np.zeros_like(v), A, b, 4, 1e-10) is None
+
+
+def test_upper_triangle_is_scipys_triu():
+    """upper(A) = scipy's triu(A) (diagonal included), with sorted indices, also from unsorted or empty-row input."""
+    from knitframe_linsolvers.direct import upper
+
+    rng = np.random.default_rng(4)
+    A = sp.random(300, 300, density=0.05, random_state=5, format="csr")
+    A = A + A.T + sp.diags(rng.uniform(1, 2, 300))
+    A = sp.csr_matrix(A)
+    A.data[A.indptr[7]:A.indptr[8]] = 0.0  # an empty row
+    A.eliminate_zeros()
+    assert A.indptr[8] == A.indptr[7]
+    shuffled = A.copy()
+    for i in range(0, 300, 3):  # unsorted column indices in some rows
+        lo, hi = shuffled.indptr[i], shuffled.indptr[i + 1]
+        shuffled.indices[lo:hi] = shuffled.indices[lo:hi][::-1]
+        shuffled.data[lo:hi] = shuffled.data[lo:hi][::-1]
+    shuffled.has_sorted_indices = False
+    for M in (A, shuffled):
+        U = upper(M)
+        ref = sp.triu(A, format="csr")
+        ref.sort_indices()
+        assert U.has_sorted_indices and np.array_equal(U.indptr, ref.indptr)
+        assert np.array_equal(U.indices, ref.indices) and np.array_equal(U.data, ref.data)

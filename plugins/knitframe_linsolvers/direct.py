@@ -97,6 +97,25 @@ def backward_error(A: Any, x: np.ndarray, b: np.ndarray) -> float:
 BACKWARD_ERROR_TOL = 1e-14
 
 
+def upper(A: Any) -> sp.csr_matrix:
+    """The upper triangle (diagonal included) of a CSR matrix as a CSR matrix with sorted indices.
+
+    A mask over the stored entries (col ≥ row) instead of scipy's triu, which goes through COO and
+    takes about three times as long on the 2·10⁷ entries of a P2 r/3 Hessian.
+    """
+    A = sp.csr_matrix(A)
+    if not A.has_sorted_indices:
+        A = A.sorted_indices()
+    n = A.shape[0]
+    rows = np.repeat(np.arange(n, dtype=A.indices.dtype), np.diff(A.indptr))
+    keep = A.indices >= rows
+    indptr = np.zeros(n + 1, dtype=A.indptr.dtype)
+    np.cumsum(np.bincount(rows[keep], minlength=n), out=indptr[1:])
+    U = sp.csr_matrix((A.data[keep], A.indices[keep], indptr), shape=A.shape, copy=False)
+    U.has_sorted_indices = True
+    return U
+
+
 def _refine(apply: Callable[[np.ndarray], np.ndarray], A: Any, b: np.ndarray, refine: int,
             rtol: float) -> np.ndarray | None:
     """x = apply(b), then up to ``refine`` corrections x += apply(b − A x).
@@ -149,7 +168,7 @@ def _pardiso(A: Any, b: np.ndarray, refine: int = 4, rtol: float = 1e-10) -> np.
     A = sp.csr_matrix(A)
     b = np.asarray(b, dtype=np.float64)
     if is_symmetric(A):
-        x = _refined(_pardiso_solver(SYMMETRIC), sp.triu(A, format="csr"), A, b, refine, rtol)
+        x = _refined(_pardiso_solver(SYMMETRIC), upper(A), A, b, refine, rtol)
         if x is not None:
             return x
     x = _refined(_pardiso_solver(UNSYMMETRIC), A, A, b, refine, rtol)
@@ -170,12 +189,13 @@ class _KeptPardiso:
         self.A = sp.csr_matrix(A)
         self.refine, self.rtol = refine, rtol
         symmetric = is_symmetric(self.A)
-        self.M = sp.triu(self.A, format="csr") if symmetric else self.A.copy()
-        self.M.sort_indices()
+        self.M = upper(self.A) if symmetric else self.A.sorted_indices()
         self.solver = pypardiso.PyPardisoSolver(mtype=SYMMETRIC if symmetric else UNSYMMETRIC)
         self.solver.set_iparm(8, 0)
-        try:
-            self.solver.factorize(self.M)
+        try:  # analysis and factorisation (phase 12); pypardiso's factorize() would also hash the matrix
+            self.solver._check_A(self.M)
+            self.solver.set_phase(12)
+            self.solver._call_pardiso(self.M, np.zeros((self.M.shape[0], 1)))
         except Exception as e:  # pypardiso.PyPardisoError: a zero pivot of a singular matrix
             self.free()
             raise NumericalError(f"direct (PARDISO): factorisation failed: {e}") from None
