@@ -100,8 +100,8 @@ BACKWARD_ERROR_TOL = 1e-14
 def upper(A: Any) -> sp.csr_matrix:
     """The upper triangle (diagonal included) of a CSR matrix as a CSR matrix with sorted indices.
 
-    A mask over the stored entries (col ≥ row) instead of scipy's triu, which goes through COO and
-    takes about three times as long on the 2·10⁷ entries of a P2 r/3 Hessian.
+    A mask over the stored entries (col ≥ row) instead of scipy's triu, which goes through COO: 0.19 s
+    against 0.29 s on the 2.2·10⁷ entries of a P2 r/3 Hessian (``bench_volumetric.py forms``).
     """
     A = sp.csr_matrix(A)
     if not A.has_sorted_indices:
