@@ -9,7 +9,6 @@ as easy to move as an angle. Same data, same result, on every machine.
 
 from __future__ import annotations
 
-import contextlib
 import time
 from typing import ClassVar, Iterable
 
@@ -19,21 +18,8 @@ import numpy as np
 from knitframe import hookimpl, validators as v
 from knitframe.errors import NumericalError
 from knitframe.fitting import FitProblem, FitResult, UnitBox, finish, start_design
+from knitframe.parallel import one_blas_thread
 from knitframe.records import Response
-
-
-def _one_blas_thread():
-    """Limit BLAS to one thread while L-BFGS-B runs (needs threadpoolctl; otherwise a no-op).
-
-    L-BFGS-B calls BLAS on 7 × 10 matrices thousands of times; on a busy machine OpenBLAS's
-    worker threads then cost more than the work (measured: a 770-evaluation hgo2m fit took 9.2 s
-    with 2 BLAS threads and 2.5 s with one, on 2 loaded cores).
-    """
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:
-        return contextlib.nullcontext()
-    return threadpool_limits(limits=1, user_api="blas")
 
 
 @attrs.frozen
@@ -63,7 +49,7 @@ class LBFGSFitter:
             return f, g * box.dparams(u)
 
         best = None
-        with _one_blas_thread():
+        with one_blas_thread():
             for _, u0 in start_design(problem, box, self.screen)[: self.starts]:
                 res = minimize(fun, u0, jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * len(u0),
                                options={"maxiter": self.max_iter, "ftol": 1e-12, "gtol": 1e-9})

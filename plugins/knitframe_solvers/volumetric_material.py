@@ -42,6 +42,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from knitframe.errors import NumericalError
+from knitframe.parallel import one_blas_thread
 
 __all__ = ["YarnLaw", "SolidForms", "fibre_at_quadrature", "psd_project"]
 
@@ -60,17 +61,6 @@ def _inv_det(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     c[2, 2] = F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]
     J = F[0, 0] * c[0, 0] + F[0, 1] * c[1, 0] + F[0, 2] * c[2, 0]
     return c / np.where(J == 0, 1.0, J), J
-
-
-def _one_blas_thread():
-    """Context holding BLAS to one thread (threadpoolctl) while the element chunks run on their own threads."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - threadpoolctl is a dependency
-        import contextlib
-
-        return contextlib.nullcontext()
-    return threadpool_limits(limits=1, user_api="blas")
 
 
 def _accepts_order(model: Any) -> bool:
@@ -229,7 +219,7 @@ class SolidForms:
         nl, ne = self.edofs.shape
         self.vdofs = (3 * self.edofs[:, None, :] + np.arange(3)[None, :, None]).reshape(3 * nl, ne)  # (3nl, n_el)
         self._pattern: tuple[sp.csr_matrix, np.ndarray] | None = None
-        self._scatter: list[tuple[np.ndarray, np.ndarray]] | None = None  # per chunk: CSR entries touched, inverse map
+        self._scatter: dict[int, tuple[np.ndarray, np.ndarray]] | None = None  # per chunk start: CSR entries touched, inverse map
         if threads is None:
             threads = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
         self.threads = max(1, min(int(threads), 8))
@@ -262,7 +252,7 @@ class SolidForms:
             return
         if self._pool is None:
             self._pool = ThreadPoolExecutor(max_workers=self.threads, thread_name_prefix="knitframe-solid")
-        with _one_blas_thread():
+        with one_blas_thread():
             futures = [self._pool.submit(fn, sl) for sl in chunks]
             try:
                 for f in futures:
@@ -270,11 +260,6 @@ class SolidForms:
             finally:
                 for f in futures:
                     f.cancel()
-
-    def __getstate__(self) -> dict:
-        state = dict(self.__dict__)
-        state["_pool"] = None  # threads do not pickle; a copy starts its own
-        return state
 
     def _check(self, F: np.ndarray, sl: slice) -> None:
         _, J = _inv_det(F)
@@ -347,17 +332,17 @@ class SolidForms:
             self._pattern = (K, where.astype(np.int64 if uniq.size > 2**31 - 1 else np.int32))
         return self._pattern
 
-    def scatter(self) -> list[tuple[np.ndarray, np.ndarray]]:
-        """Per chunk, the CSR entries of the tangent its elements touch and the map of its element-matrix
+    def scatter(self) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+        """Per chunk (by its first element), the CSR entries of the tangent its elements touch and the map of its element-matrix
         entries onto them: K.data[touched] += bincount(inverse, Ke.ravel()) sums one chunk (a bincount as
         long as the chunk's share of the pattern instead of the whole of it)."""
         if self._scatter is None:
             _, where = self.pattern()
             m2 = self.vdofs.shape[0] ** 2
-            out = []
+            out = {}
             for sl in self._chunks():
                 touched, inverse = np.unique(where[sl.start * m2: sl.stop * m2], return_inverse=True)
-                out.append((touched, inverse.astype(np.int32)))
+                out[sl.start] = (touched, inverse.astype(np.int32))
             self._scatter = out
         return self._scatter
 
@@ -382,7 +367,6 @@ class SolidForms:
             return self.energy(u, s), None, None
         K0 = self.pattern()[0] if order == 2 else None
         scatter = self.scatter() if order == 2 else None
-        chunk_index = {sl.start: k for k, sl in enumerate(self._chunks())}
 
         def chunk(sl: slice):
             F = self.deformation_gradient(u, sl)
@@ -414,20 +398,20 @@ class SolidForms:
                 Ke = np.einsum("aikLeq,bLeq,eq->eaibk", T, G, self.dx[sl], optimize=True)
                 if project and self.projection == "element":
                     Ke = psd_project_elements(Ke)
-                touched, inverse = scatter[chunk_index[sl.start]]
-                Kc = np.bincount(inverse, Ke.ravel(), minlength=touched.size)
+                touched, inverse = scatter[sl.start]
+                Kc = (touched, np.bincount(inverse, Ke.ravel(), minlength=touched.size))
             return W, R, flux, Kc
 
         data = np.zeros(K0.nnz) if order == 2 else None
         R = np.zeros(self.ndof)
         flux = np.zeros(self.ndof)
         W = 0.0
-        for k, (Wc, Rc, fc, Kc) in enumerate(self._map(chunk)):  # summed in chunk order: deterministic
+        for Wc, Rc, fc, Kc in self._map(chunk):  # summed in chunk order: deterministic
             W += Wc
             R += Rc
             flux += fc
             if Kc is not None:
-                data[scatter[k][0]] += Kc
+                data[Kc[0]] += Kc[1]
         self.flux = flux
         K = None
         if order == 2:  # the pattern's index arrays are shared, not copied (270 MB on a P2 r/3 cell)
