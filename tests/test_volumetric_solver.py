@@ -377,6 +377,10 @@ def test_pull_back_of_the_tangent_is_the_triple_product(order):
     for _ in range(2):  # the map is built at the first call and reused
         H = model.pull_back(K)
         assert abs(H - ref).max() <= 1e-13 * abs(ref).max()
+    kept = model._pull_back
+    _, _, K1 = model.forms.evaluate(2.0 * u, 1.0, 2)  # a new tangent on the same pattern keeps the map
+    ref1 = (model.T.T @ (K1 + c * sp.identity(K1.shape[0])) @ model.T).tocsr()
+    assert abs(model.pull_back(K1) - ref1).max() <= 1e-13 * abs(ref1).max() and model._pull_back is kept
     K2 = sp.csr_matrix(K.toarray() + np.diag(rng.normal(size=K.shape[0])))  # another matrix on another pattern
     K2 = K2 + sp.csr_matrix(([1.0], ([0], [K.shape[0] - 1])), shape=K.shape)
     ref2 = (model.T.T @ (K2 + c * sp.identity(K.shape[0])) @ model.T).tocsr()

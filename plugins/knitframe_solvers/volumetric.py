@@ -604,11 +604,14 @@ class VolumetricModel:
         pattern fixed, H.data = M·(K.data + c·[diagonal entries]) with a constant sparse M (built once,
         about one entry per entry of K since most rows of T hold a single 1). A sparse matrix–vector
         product instead of two sparse matrix products per Hessian (0.1 s against 0.4–1.4 s at P2 r/3).
-        A K with other index arrays (another pattern, or a copy) gets its map built again.
+        A K on another pattern gets its own map, built again.
         """
         cached = self._pull_back
-        # the forms' tangents share their pattern's index arrays, so the same pattern is the same objects
-        if cached is None or cached[0] is not K.indptr or cached[1] is not K.indices:
+        # the same pattern: the same index arrays, or equal ones (scipy may copy them when it builds K)
+        same = cached is not None and (cached[0] is K.indptr and cached[1] is K.indices or (
+            cached[0].shape == K.indptr.shape and cached[1].shape == K.indices.shape
+            and np.array_equal(cached[0], K.indptr) and np.array_equal(cached[1], K.indices)))
+        if not same:
             if not K.has_sorted_indices:
                 K.sort_indices()
             cached = self._pull_back = (K.indptr, K.indices, *_pull_back_map(K, self.T))
