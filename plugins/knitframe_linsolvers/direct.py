@@ -204,6 +204,10 @@ class _KeptPardiso:
         self.solver.set_phase(33)  # solve only: the factors are kept (pypardiso's solve() would hash A again)
         return np.asarray(self.solver._call_pardiso(self.M, np.ascontiguousarray(b, dtype=np.float64)))
 
+    def precondition(self, b: np.ndarray) -> np.ndarray:
+        """The factors' solve without refinement (a preconditioner of a nearby matrix)."""
+        return self._apply(b)
+
     def __call__(self, b: np.ndarray) -> np.ndarray:
         x = _refine(self._apply, self.A, np.asarray(b, dtype=np.float64), self.refine, self.rtol)
         if x is not None:
