@@ -158,7 +158,7 @@ LAW_FLAGS = {"smoothing": "smoothing", "mu": "friction", "dhat": "dhat", "ccd": 
 SOLVER_FLAGS = {"stabilisation": "stabilisation", "max_step": "max_step", "cap_shift": "cap_shift", "tangent": "tangent",
                 "step_tol": "step_tolerance", "predictor": "predictor", "chord": "chord", "eigen": "eigenvalue_filter",
                 "extrapolate": "extrapolation", "halve_reversals": "halve_reversals",
-                "krylov": "krylov", "chord_full": "chord_after_full_steps"}
+                "chord_full": "chord_after_full_steps"}
 
 
 def _given(args, flags: dict[str, str]) -> dict:
@@ -368,8 +368,7 @@ def main(argv=None) -> None:
     p.add_argument("--halve-reversals", choices=("on", "off"), help="'run': halve full Newton steps that reverse the last move (default the solver's)")
     p.add_argument("--extrapolate", type=float, help="'run': longest extrapolated step / full step (default the solver's, 1: off; 8 on P1 cells)")
     p.add_argument("--chord", choices=("on", "off"), help="'run': chord steps on a kept factorisation (default the solver's, on)")
-    p.add_argument("--krylov", type=int, help="'run': CG iterations on a new Hessian preconditioned by the last factorisation before factorising it (default the solver's, 0: off)")
-    p.add_argument("--chord-full", choices=("on", "off"), help="'run': chord steps also after full Newton steps (default the solver's, off)")
+    p.add_argument("--chord-full", choices=("on", "off"), help="'run': chord steps also after full Newton steps (default the solver's, on)")
     p.add_argument("--iterations", action="store_true", help="'trace': one row per Newton iteration")
     p.add_argument("--start-projected", action="store_true",
                    help="'run': with the adaptive tangent, start every increment on the projected one")

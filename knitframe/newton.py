@@ -51,21 +51,14 @@ linear-solver plugin, with
   ``step_tol`` or is over twice the size of that Newton step (the kept factorisation no longer
   models the energy there), the Hessian is evaluated again. With ``chord_full`` they also follow full
   steps (α = 1): where projected Newton converges only linearly (its Hessian too stiff along a slow
-  mode), a fresh Hessian buys little over the kept one, and the rate rule decides. Where the first chord step after a
+  mode), a fresh Hessian buys little over the kept one, and the rate rule decides. A full step then
+  counts as within reach of the step test when its size times its ratio to the last Newton step's
+  (the observed rate) is within ``step_tol``, not at twice ``step_tol``. Where the first chord step after a
   Newton step is refused k times in a row, the next 2^k − 1 chances are skipped (stale factors
   refuse in streaks, and each refusal costs a gradient). A Newton step within twice
   ``step_tol`` starts no chord steps: the next Newton step may pass the step test. Convergence is tested as for any iterate,
   except the step test, which only a Newton step can pass. The linear solver must offer
   ``solve.factorize(A)`` (the ``direct`` plugin does); without it there are no chord steps;
-* optionally (``krylov`` = k > 0), Newton steps solved by preconditioned conjugate gradients on the
-  new Hessian, M⁻¹ = the kept factorisation of an earlier one: H_k·dx = −g with |H_k·dx + g| ≤
-  ``krylov_rtol``·|g| in at most k iterations (each a back-substitution and a product with H_k),
-  else H_k is factorised and kept in its place. Within an increment the Hessians differ by the pairs
-  that engage or release and by the tangent along the step, so M⁻¹H_k is the identity plus a
-  perturbation of small rank or norm and CG needs few iterations. An inexact Newton step (forcing term
-  η = ``krylov_rtol``); convergence tests are unchanged. After the j-th failure in a row the next
-  2^j − 1 chances are skipped. The linear solver must offer ``solve.factorize(A)``; a kept object's
-  ``precondition(b)``, where it has one, is its solve without iterative refinement;
 * optionally (``extrapolate`` = a > 1), a longer step where a full step (α = 1) showed the Hessian
   too stiff along it: the minimum α* of the quadratic through E(0), g·dx and E(1), up to a (and
   the cap and the CCD bound), when it lowers E further. Projected Newton near a solution steps
@@ -109,7 +102,6 @@ from typing import Any
 import attrs
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from knitframe.errors import NumericalError
 
@@ -147,8 +139,6 @@ class NewtonOptions:
     chord_full: bool = False  #: with ``chord``, chord steps also after a full Newton step (α = 1): where full steps converge only linearly (a Hessian too stiff along a slow mode) a chord step gains about as much for a gradient and a back-substitution
     max_chord: int = 12  #: chord steps in a row at most before the Hessian is evaluated and factorised again
     halve_reversals: bool = False  #: a full Newton step that reverses the last one where it moves most (a 2-cycle across a kink of the energy, e.g. friction's stick-slip switch) is halved when that lowers E further
-    krylov: int = 0  #: before factorising a new Hessian, up to this many conjugate-gradient iterations on it preconditioned by the kept factorisation of an earlier one (0: off; needs ``solve.factorize``)
-    krylov_rtol: float = 1e-4  #: ... accepted when |A·dx + g_f| ≤ this × |g_f|
     extrapolate: float = 1.0  #: after a full step (α = 1) the energy's curvature along it says the model was too stiff: try α up to this, at the minimum of the quadratic through E(0), g·dx and E(1) (1: off)
 
 
@@ -241,12 +231,12 @@ def minimise(
     # ratcheted it up to 1e6 × the diagonal: steps too short to matter, dozens of line searches each)
     max_shift = 1e-8 * 10.0 ** max(options.max_shift_increases - 1, 0)
     # chord steps: the last Newton iteration's factorisation, kept while it pays (options.chord)
-    factorize = getattr(solve, "factorize", None) if (options.chord or options.krylov > 0) else None
+    factorize = getattr(solve, "factorize", None) if options.chord else None
     kept = None
-    failed_cg = skip_cg = 0  # Krylov solves failed in a row, and chances still to skip (back-off)
     chord_next = False
     newton_rate = 0.0
     newton_size = math.nan
+    last_size = math.nan  # the last Newton step's size (options.chord_full)
     n_chord = n_chord_total = 0
     refused = skip = 0  # first chord steps refused in a row, and chord starts still to skip (back-off)
     last_move = None  # the last accepted move x_new − x (options.halve_reversals)
@@ -332,15 +322,7 @@ def minimise(
                 dx_f = None
                 try:
                     with np.errstate(all="ignore"):
-                        if options.krylov > 0 and kept is not None and skip_cg == 0:
-                            # the new Hessian solved by CG on the kept factors of an earlier one
-                            dx_f, n_cg = _krylov(A, -gf, kept, options)
-                            history[-1]["krylov"] = n_cg if dx_f is not None else -n_cg
-                            failed_cg = 0 if dx_f is not None else failed_cg + 1
-                            skip_cg = 2 ** failed_cg - 1 if dx_f is None else 0
-                        elif skip_cg:
-                            skip_cg -= 1
-                        if dx_f is None and factorize is not None:  # kept for chord steps and Krylov solves
+                        if factorize is not None:  # kept for chord steps
                             release()
                             kept = factorize(A)
                             dx_f = np.atleast_1d(np.asarray(kept(-gf), dtype=np.float64))
@@ -401,6 +383,11 @@ def minimise(
             history[-1]["step_energy"] = float(E_new)  # as the line search saw it: the next entry's energy may differ
             _report(on_iteration, history, t_it)  # wall_s: this iteration's evaluations, factorisations, line search
             near = options.step_tol > 0 and np.isfinite(size) and size <= CHORD_SIZE_FACTOR * options.step_tol
+            if near and options.chord_full and alpha >= 1.0 and np.isfinite(last_size) and last_size > 0:
+                # a full step: the next Newton step is expected at size·ρ, ρ = this step / the last one (under
+                # linear convergence ρ ≈ 1, and a step twice the test is many iterations from passing it)
+                near = size * min(1.0, size / last_size) <= options.step_tol
+            last_size = size
             if (options.chord and kept is not None and (alpha < 1.0 or options.chord_full) and shift_rel == 0.0
                     and not near and not history[-1].get("halved")):
                 # a shortened step (or with chord_full any step): chord steps on this factorisation while they gain
@@ -429,36 +416,6 @@ def minimise(
             f"tol {tol:.3g}); {_fmt(history)}", history)
     finally:
         release()
-
-
-def _krylov(A: Any, b: np.ndarray, kept: Callable[[np.ndarray], np.ndarray],
-            options: NewtonOptions) -> tuple[np.ndarray | None, int]:
-    """A·x = b by preconditioned conjugate gradients, M⁻¹ = the kept factorisation of an earlier matrix.
-
-    Within an increment the Hessian changes by the pairs that engage or release and by the material's
-    tangent along the step; M⁻¹A is then the identity plus a perturbation of low rank or small norm, and
-    CG (scipy's) converges in a few iterations, each a back-substitution (``kept.precondition``, the raw
-    solve without refinement, when it has one) and a product with A: a small fraction of a new
-    factorisation. Accepted when the true residual |b − A·x| ≤ ``krylov_rtol``·|b| after at most
-    ``krylov`` iterations; else ``(None, iterations)`` and the caller factorises A.
-    """
-    precondition = getattr(kept, "precondition", kept)
-    n = A.shape[0]
-    M = spla.LinearOperator((n, n), matvec=lambda v: np.asarray(precondition(np.asarray(v).ravel()), dtype=np.float64),
-                            dtype=np.float64)
-    count = [0]
-
-    def counted(_xk):
-        count[0] += 1
-
-    try:
-        x, _ = spla.cg(A, b, rtol=options.krylov_rtol, atol=0.0, maxiter=options.krylov, M=M, callback=counted)
-    except (RuntimeError, ValueError, NumericalError, np.linalg.LinAlgError):
-        return None, count[0]
-    b_norm = float(np.linalg.norm(b))
-    if not np.all(np.isfinite(x)) or float(np.linalg.norm(b - A @ x)) > options.krylov_rtol * b_norm:
-        return None, count[0]
-    return x, count[0]
 
 
 def _capped(x: np.ndarray, dx: np.ndarray, slope: float, size: float, options: NewtonOptions,

@@ -214,3 +214,53 @@ def test_upper_triangle_is_scipys_triu():
         ref.sort_indices()
         assert U.has_sorted_indices and np.array_equal(U.indptr, ref.indptr)
         assert np.array_equal(U.indices, ref.indices) and np.array_equal(U.data, ref.data)
+
+
+def test_kept_pardiso_factorisations_reuse_the_analysis_while_the_pattern_fits():
+    """Newton's kept factorisations of symmetric matrices skip PARDISO's analysis when the pattern is within the
+    analysed one (the entries it lacks padded with a negligible value): the same solutions to the refinement
+    tolerance. A pattern outside it is analysed on the union, so the earlier pattern fits again afterwards; a
+    factorisation asked for while another is live gets its own handle, and both stay right."""
+    from knitframe_linsolvers.direct import available, direct
+
+    if not available("pardiso"):
+        pytest.skip("pypardiso is not installed")
+    n = 400
+    rng = np.random.default_rng(5)
+    lap = sp.diags([4.0 * np.ones(n), -np.ones(n - 1), -np.ones(n - 1)], [0, 1, -1], format="csr")
+
+    def spd(extra=None, scale=1.0):
+        A = scale * lap + sp.diags(rng.uniform(0.1, 1.0, n))
+        if extra is not None:  # a "contact pair" coupling two distant unknowns
+            i, j = extra
+            E = sp.csr_matrix(([0.5, -0.5, -0.5, 0.5], ([i, i, j, j], [i, j, i, j])), shape=(n, n))
+            A = A + E
+        return sp.csr_matrix(A)
+
+    solve = direct("pardiso")
+    sym = solve.symbolic
+
+    def check(A):
+        f = solve.factorize(A)
+        b = rng.normal(size=n)
+        x = f(b)
+        assert np.linalg.norm(A @ x - b) <= 1e-10 * np.linalg.norm(b)
+        f.free()
+
+    check(spd((3, 300)))
+    assert (sym.analyses, sym.reuses) == (1, 0)
+    check(spd((3, 300), scale=2.0))  # same pattern, other values
+    check(spd())  # a pair released: within the pattern
+    assert (sym.analyses, sym.reuses) == (1, 2)
+    check(spd((10, 200)))  # a new pair: analysed on the union
+    assert (sym.analyses, sym.reuses) == (2, 2)
+    check(spd((3, 300)))  # the first pair again: within the union
+    assert (sym.analyses, sym.reuses) == (2, 3)
+    A1, A2 = spd((3, 300)), spd((10, 200), scale=3.0)
+    f1 = solve.factorize(A1)
+    f2 = solve.factorize(A2)  # f1 is live: f2 gets its own handle
+    b = rng.normal(size=n)
+    assert np.linalg.norm(A1 @ f1(b) - b) <= 1e-10 * np.linalg.norm(b)
+    assert np.linalg.norm(A2 @ f2(b) - b) <= 1e-10 * np.linalg.norm(b)
+    f1.free(), f2.free()
+    assert direct("pardiso", reuse_analysis=False).symbolic is None

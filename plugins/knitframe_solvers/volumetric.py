@@ -171,10 +171,9 @@ class VolumetricSolver:
     predictor: Literal["affine", "secant"] = attrs.field(default="affine", validator=v.one_of(("affine", "secant")))  #: start of a load increment: the affine map of the macro step, plus ("secant") the yarns' fluctuation and free macro DOFs extrapolated from the last two converged increments (with a barrier, its crossing-free part; taken only if it lowers the energy)
     eigenvalue_filter: Literal["clamp", "abs", "element"] = attrs.field(default="clamp", validator=v.one_of(("clamp", "abs", "element")))  #: the projected tangent's negative eigenvalues: set to zero at each quadrature point ("clamp", the closest PSD matrix), to their absolute value there ("abs": a compressed fibre's mode keeps its stiffness's size), or set to zero in each element matrix ("element", IPC's projection; a 30 × 30 eigenproblem per P2 element)
     chord: bool = attrs.field(default=True, validator=v.boolean)  #: with barrier contact, after a Newton step the CCD bound shortened, chord steps on its factorisation (−H⁻¹ at the new gradients) while they lower the energy at least as fast per second (a gradient and a back-substitution instead of a Hessian and a factorisation; needs a linear solver that factorises)
-    chord_after_full_steps: bool = attrs.field(default=False, validator=v.boolean)  #: with chord, chord steps also after a full Newton step (α = 1), while they lower the energy as fast per second: the tails of the load increments, where projected Newton's full steps converge only linearly
+    chord_after_full_steps: bool = attrs.field(default=True, validator=v.boolean)  #: with chord, chord steps also after a full Newton step (α = 1), while they lower the energy as fast per second: the tails of the load increments, where projected Newton's full steps converge only linearly
     halve_reversals: bool = attrs.field(default=True, validator=v.boolean)  #: halve a full Newton step that reverses the last one where it moves most, when that lowers the energy (a node group flipping between two states across a kink of the energy, e.g. friction's stick-slip switch: in the P2 r/3 pre-stress it ended a 2-cycle that had held the step test from iteration 13 to 32: 20 iterations instead of 33)
     extrapolation: float = attrs.field(default=1.0, validator=v.in_range(1.0, 1e3))  #: after a full Newton or chord step, a longer one (up to this × it, within max_step and the CCD bound) at the minimum of the energy's quadratic along it, if that lowers the energy further (projected Newton steps short along soft modes near a solution: 8 saves a third of the Hessians of P1 cells, but slowed the P2 r/3 cell by 10 %; 1: off), -
-    krylov: int = attrs.field(default=0, validator=v.in_range(0, 1000))  #: with barrier contact, before factorising a new Hessian, up to this many conjugate-gradient iterations on it preconditioned by the last factorisation (an increment's Hessians differ by the pairs that engage and the tangent along the step; each iteration is a back-substitution instead of a factorisation; 0: off), -
     cap_shift: float = attrs.field(default=0.0, validator=v.non_negative)  #: a Newton step over this × max_step raises the Levenberg shift (damping a near-singular mode, e.g. a yarn only contact holds) instead of being scaled down whole (0: off), -
     min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))  #: smallest cut-back increment / step, -
     max_iterations: int | None = attrs.field(default=None, validator=v.optional(v.in_range(1, 10000)))  #: Newton iterations per increment (default 40; 200 with barrier contact, whose CCD-bounded steps are short while contacts engage), -
@@ -262,8 +261,7 @@ class VolumetricSolver:
                              projection={"exact": "off", "projected": "always"}.get(self.tangent, self.tangent),
                              step_tol=self.step_tolerance, start_projected=self.start_projected,
                              chord=self.chord and barrier, extrapolate=self.extrapolation,
-                             halve_reversals=self.halve_reversals, krylov=self.krylov if barrier else 0,
-                             chord_full=self.chord_after_full_steps)
+                             halve_reversals=self.halve_reversals, chord_full=self.chord_after_full_steps)
         f = self.path_tolerance_factor
         loose = attrs.evolve(opts, atol=f * opts.atol, flux_rtol=f * opts.flux_rtol,
                              late_flux_rtol=f * opts.late_flux_rtol, step_tol=f * opts.step_tol)
@@ -310,14 +308,13 @@ class VolumetricSolver:
             return wrapper
 
         solve = timed(backend, True)
-        if (self.chord or self.krylov) and model.barrier and not model.hold_candidates and hasattr(backend, "factorize"):
+        if self.chord and model.barrier and not model.hold_candidates and hasattr(backend, "factorize"):
             # chord steps reuse a factorisation: each back-substitution counts as a linear solve, the
             # factorisation's time goes with them
             def factorize(A):
                 kept = timed(backend.factorize, False)(A)
                 apply = timed(kept, True)
                 apply.free = getattr(kept, "free", lambda: None)
-                apply.precondition = timed(getattr(kept, "precondition", kept), True)
                 return apply
 
             solve.factorize = factorize
@@ -545,7 +542,9 @@ class VolumetricSolver:
             kind="simulation", source=f"volumetric {fabric.pattern}", solver=self.name, mesh=model.cm.summary(),
             wall_time=time.perf_counter() - t_start, converged=converged, notes="; ".join(notes),
             extra={"timings_s": {k: round(v_, 3) for k, v_ in model.timings.items()},
-                   "newton_evaluations": model.evaluations,
+                   "newton_evaluations": {**model.evaluations, **(
+                       {"pardiso_analyses": sym.analyses, "pardiso_analyses_reused": sym.reuses}
+                       if (sym := getattr(backend, "symbolic", None)) is not None else {})},
                    "tolerance_N": opts.atol, "max_final_residual_N": max(residuals, default=0.0),
                    "max_penetration_over_r": max(penetrations, default=0.0) / r,
                    "max_stabilisation_share": max(shares, default=0.0), "prestress_start_radius_over_r": s0,
