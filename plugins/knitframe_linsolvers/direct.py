@@ -343,7 +343,7 @@ def _cholmod(A: Any, b: np.ndarray) -> np.ndarray:
         raise NumericalError(f"direct (CHOLMOD): matrix is not positive definite: {e}") from None
 
 
-def direct(backend: str = "auto", reuse_analysis: bool = True) -> Callable[[Any, np.ndarray], np.ndarray]:
+def direct(backend: str = "auto", reuse_analysis: bool = False) -> Callable[[Any, np.ndarray], np.ndarray]:
     """Factory: ``solve(A, b)`` by sparse factorisation.
 
     Parameters
