@@ -180,84 +180,19 @@ def _pardiso(A: Any, b: np.ndarray, refine: int = 4, rtol: float = 1e-10) -> np.
                          f"({A.shape[0]} unknowns, too many for the SuperLU fallback)")
 
 
-#: the value stored in the entries of a reused pattern that a matrix does not have: m + TINY = m exactly in
-#: float64 for every |m| > 1e-284, so the padded matrix is the matrix; PARDISO sees a negligible entry elsewhere
-TINY = 1e-300
-
-
-class _Symbolic:
-    """A PARDISO handle whose symbolic analysis (fill-reducing ordering, elimination tree) is reused.
-
-    Newton factorises a Hessian per iteration whose pattern changes only by the contact pairs that
-    engage or release. A matrix whose upper triangle's pattern is within the kept pattern is padded to it
-    (the kept entries it lacks hold ``TINY``) and factorised numerically only (PARDISO phase 22), skipping
-    the analysis (phase 11; about 2 s of 12 at P2 r/3). Otherwise the analysis runs on the union of the two
-    patterns, so that pairs that come and go stay inside it, unless the union holds more than
-    ``growth`` × the matrix's own entries: then on the matrix's own pattern (the fill of a stale union costs
-    more than an analysis). Only symmetric matrices (the LDLᵀ, type −2) use it.
-
-    One factorisation at a time: the handle holds the factors of the last one, which :class:`_KeptPardiso`
-    uses until it is freed; a factorisation asked for while one is live gets a handle of its own.
-    """
-
-    def __init__(self, growth: float = 0.05):
-        self.growth = growth
-        self.solver = None
-        self.pattern: sp.csr_matrix | None = None  # the analysed upper-triangle pattern, data = TINY
-        self.live: Callable[[], Any] | None = None  # weak reference to the _KeptPardiso using the handle's factors
-        self.analyses = self.reuses = 0
-
-    def factorize(self, M: sp.csr_matrix) -> sp.csr_matrix:
-        """Factorise the upper triangle M (sorted CSR); returns the matrix PARDISO holds (M, or M padded)."""
-        import pypardiso
-
-        if self.solver is None:
-            self.solver = pypardiso.PyPardisoSolver(mtype=SYMMETRIC)
-            self.solver.set_iparm(8, 0)
-            weakref.finalize(self, self.solver.free_memory, True)
-        P = self.pattern
-        phase, target = 12, M
-        if P is not None and P.shape == M.shape:
-            S = (M + P).tocsr()  # the union; on P's entries exactly M's values
-            if S.nnz <= (1.0 + self.growth) * M.nnz:
-                phase, target = (22 if S.nnz == P.nnz else 12), S
-        if not target.has_sorted_indices:
-            target.sort_indices()
-        self.solver._check_A(target)
-        self.solver.set_phase(phase)
-        try:
-            self.solver._call_pardiso(target, np.zeros((target.shape[0], 1)))
-        except Exception:
-            self.pattern = None  # analyse afresh next time
-            raise
-        if phase == 12:
-            self.analyses += 1
-            self.pattern = sp.csr_matrix((np.full(target.nnz, TINY), target.indices, target.indptr), shape=target.shape)
-        else:
-            self.reuses += 1
-        return target
-
-
 class _KeptPardiso:
     """A PARDISO factorisation kept for several right-hand sides (``x = f(b)``), refined against A."""
 
-    def __init__(self, A: Any, refine: int, rtol: float, symbolic: _Symbolic | None = None):
+    def __init__(self, A: Any, refine: int, rtol: float):
         import pypardiso
 
         self.A = sp.csr_matrix(A)
         self.refine, self.rtol = refine, rtol
         symmetric = is_symmetric(self.A)
         self.M = upper(self.A) if symmetric else self.A.sorted_indices()
-        self.symbolic = None
-        try:
-            if symmetric and symbolic is not None and (symbolic.live is None or symbolic.live() is None):
-                self.solver = None
-                self.M = symbolic.factorize(self.M)
-                self.solver, self.symbolic, symbolic.live = symbolic.solver, symbolic, weakref.ref(self)
-                return
-            self.solver = pypardiso.PyPardisoSolver(mtype=SYMMETRIC if symmetric else UNSYMMETRIC)
-            self.solver.set_iparm(8, 0)
-            # analysis and factorisation (phase 12); pypardiso's factorize() would also hash the matrix
+        self.solver = pypardiso.PyPardisoSolver(mtype=SYMMETRIC if symmetric else UNSYMMETRIC)
+        self.solver.set_iparm(8, 0)
+        try:  # analysis and factorisation (phase 12); pypardiso's factorize() would also hash the matrix
             self.solver._check_A(self.M)
             self.solver.set_phase(12)
             self.solver._call_pardiso(self.M, np.zeros((self.M.shape[0], 1)))
@@ -266,8 +201,6 @@ class _KeptPardiso:
             raise NumericalError(f"direct (PARDISO): factorisation failed: {e}") from None
 
     def _apply(self, b: np.ndarray) -> np.ndarray:
-        if self.solver is None:
-            raise NumericalError("direct (PARDISO): the kept factorisation was freed")
         self.solver.set_phase(33)  # solve only: the factors are kept (pypardiso's solve() would hash A again)
         return np.asarray(self.solver._call_pardiso(self.M, np.ascontiguousarray(b, dtype=np.float64)))
 
@@ -279,28 +212,18 @@ class _KeptPardiso:
                              f"factorisation after {self.refine} refinements")
 
     def free(self) -> None:
-        """Release the factors; those of a reused analysis stay with it (the next factorisation overwrites them)."""
-        if self.symbolic is not None:
-            if self.symbolic.live is not None and self.symbolic.live() is self:
-                self.symbolic.live = None
-            self.symbolic = None
-            self.solver = None
-        elif getattr(self, "solver", None) is not None:
-            self.solver.free_memory(everything=True)
+        self.solver.free_memory(everything=True)
 
 
-def _factorize_pardiso(A: Any, refine: int = 4, rtol: float = 1e-10,
-                       symbolic: _Symbolic | None = None) -> Callable[[np.ndarray], np.ndarray]:
+def _factorize_pardiso(A: Any, refine: int = 4, rtol: float = 1e-10) -> Callable[[np.ndarray], np.ndarray]:
     """PARDISO's factorisation of A kept for several right-hand sides: ``f = factorize(A); x = f(b)``.
 
     The same matrix types and iterative refinement as :func:`_pardiso` (its fallbacks are not
     tried: a failed kept solve raises NumericalError, and the caller factorises afresh). ``f.free()``
-    releases the factors; they are also released when ``f`` is garbage-collected. With ``symbolic``
-    (a :class:`_Symbolic`), a symmetric matrix reuses its analysis where the pattern allows.
+    releases the factors; they are also released when ``f`` is garbage-collected.
     """
-    kept = _KeptPardiso(A, refine, rtol, symbolic)
-    if kept.symbolic is None:  # (a reused analysis's handle is freed with its _Symbolic)
-        weakref.finalize(kept, kept.solver.free_memory, True)
+    kept = _KeptPardiso(A, refine, rtol)
+    weakref.finalize(kept, kept.solver.free_memory, True)
     return kept
 
 
@@ -343,7 +266,7 @@ def _cholmod(A: Any, b: np.ndarray) -> np.ndarray:
         raise NumericalError(f"direct (CHOLMOD): matrix is not positive definite: {e}") from None
 
 
-def direct(backend: str = "auto", reuse_analysis: bool = False) -> Callable[[Any, np.ndarray], np.ndarray]:
+def direct(backend: str = "auto") -> Callable[[Any, np.ndarray], np.ndarray]:
     """Factory: ``solve(A, b)`` by sparse factorisation.
 
     Parameters
@@ -352,18 +275,12 @@ def direct(backend: str = "auto", reuse_analysis: bool = False) -> Callable[[Any
         ``auto`` takes PARDISO for systems of at least ``AUTO_PARDISO_SIZE`` unknowns when
         pypardiso is installed, SuperLU otherwise. CHOLMOD is used only when asked for
         (it needs a symmetric positive definite matrix).
-    reuse_analysis : bool
-        PARDISO's kept factorisations (``solve.factorize``, Newton's chord steps) of symmetric matrices
-        reuse the symbolic analysis of the last one while the pattern stays within it (:class:`_Symbolic`).
     """
     if backend not in BACKENDS:
         raise ConfigError("backend", f"must be one of {', '.join(map(repr, BACKENDS))}, got {backend!r}")
     if backend != "superlu" and backend != "auto" and not available(backend):
         mod, how = _MODULES[backend]
         raise ConfigError("backend", f"'{backend}' needs the {mod} package: {how}")
-    if not isinstance(reuse_analysis, bool):
-        raise ConfigError("reuse_analysis", f"must be true or false, got {reuse_analysis!r}")
-    symbolic = _Symbolic() if reuse_analysis and backend in ("auto", "pardiso") and available("pardiso") else None
     if backend == "auto":
         if not available("pardiso"):
             return _with_factorize(_superlu, _factorize_superlu)
@@ -372,18 +289,11 @@ def direct(backend: str = "auto", reuse_analysis: bool = False) -> Callable[[Any
             return (_pardiso if A.shape[0] >= AUTO_PARDISO_SIZE else _superlu)(A, b)
 
         def auto_factorize(A: Any) -> Callable[[np.ndarray], np.ndarray]:
-            if A.shape[0] >= AUTO_PARDISO_SIZE:
-                return _factorize_pardiso(A, symbolic=symbolic)
-            return _factorize_superlu(A)
+            return (_factorize_pardiso if A.shape[0] >= AUTO_PARDISO_SIZE else _factorize_superlu)(A)
 
-        out = _with_factorize(auto, auto_factorize)
-    elif backend == "pardiso":
-        out = _with_factorize(_pardiso, lambda A: _factorize_pardiso(A, symbolic=symbolic))
-    else:
-        out = _with_factorize(*{"superlu": (_superlu, _factorize_superlu),
-                                "cholmod": (_cholmod, _factorize_cholmod)}[backend])
-    out.symbolic = symbolic  # its counters: analyses, reuses
-    return out
+        return _with_factorize(auto, auto_factorize)
+    return _with_factorize(*{"superlu": (_superlu, _factorize_superlu), "pardiso": (_pardiso, _factorize_pardiso),
+                             "cholmod": (_cholmod, _factorize_cholmod)}[backend])
 
 
 def _with_factorize(solve: Callable, factorize: Callable) -> Callable[[Any, np.ndarray], np.ndarray]:
