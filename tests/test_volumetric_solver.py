@@ -277,7 +277,7 @@ def test_barrier_contact_resolves_the_interference_of_the_prestress():
     default step test (0.01 r), and even at 1e-4 r, whether and which way that side moved depended on the path
     (λ2 = 0.99984 without and 1.00003 with extrapolated steps). Solved tightly (residual 1e-8, step 1e-6 r) it
     opens, λ2 = 1.00012-1.00014, with and without chord steps and extrapolated steps (at 1e-10 and 1e-8 r the
-    same values)."""
+    same values); with chord steps after full steps as well, to λ2 = 1.000036 at the same tension."""
     fat = attrs.evolve(YARN, d0=0.52, dk=0.52)
     fabric = attrs.evolve(FABRIC, yarn=fat)
     scene = attrs.evolve(STRETCH, effects=frozenset({"large_deformation", "anisotropy", "contact", "prestress"}))
@@ -285,7 +285,8 @@ def test_barrier_contact_resolves_the_interference_of_the_prestress():
                  flux_tolerance=0.0, late_flux_tolerance=0.0)
     # plain projected Newton, and with chord steps and extrapolated steps (which shortens steps, so chords follow)
     plain = VolumetricSolver(**tight, chord=False).simulate(fabric, scene, trace=(plain_records := []).append)
-    r = VolumetricSolver(**tight, chord=True, extrapolation=8.0).simulate(fabric, scene, trace=(records := []).append)
+    r = VolumetricSolver(**tight, chord=True, extrapolation=8.0, chord_after_full_steps=False).simulate(
+        fabric, scene, trace=(records := []).append)
     assert r.provenance.converged and np.all(np.isfinite(r.T1))
     assert r.provenance.extra["prestress_start_radius_over_r"] < 1.0
     assert r.provenance.extra["max_penetration_over_r"] == 0.0
@@ -298,6 +299,10 @@ def test_barrier_contact_resolves_the_interference_of_the_prestress():
     bare = VolumetricSolver(**tight).simulate(fabric, attrs.evolve(scene, effects=scene.effects - {"contact"}))
     assert bare.lambda2[-1] == pytest.approx(1.0, abs=1e-9) and r.lambda2[-1] - 1.0 > 5e-5
     assert np.allclose(r.lambda2, plain.lambda2, atol=3e-5)
+    # chord steps after full steps too (the default) reach the residual test on a chord iterate: the same
+    # tension, and the soft side opens, less far (λ2 = 1.000036; 1.000037 at a residual of 1e-10)
+    full = VolumetricSolver(**tight, chord=True, extrapolation=8.0).simulate(fabric, scene)
+    assert full.lambda2[-1] - 1.0 > 2e-5 and np.allclose(full.T1, plain.T1, rtol=1e-5)
     assert np.allclose(r.T1, plain.T1, rtol=1e-3)
     assert np.all(np.abs(r.T2) < 1e-4 * np.abs(r.T1).max())  # the free side carries no tension
 
