@@ -214,4 +214,3 @@ def test_upper_triangle_is_scipys_triu():
         ref.sort_indices()
         assert U.has_sorted_indices and np.array_equal(U.indptr, ref.indptr)
         assert np.array_equal(U.indices, ref.indices) and np.array_equal(U.data, ref.data)
-
