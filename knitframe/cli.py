@@ -12,7 +12,7 @@ import sys
 import warnings
 
 from knitframe import __version__
-from knitframe.errors import KnitframeError
+from knitframe.errors import KnitframeError, KnitframeWarning
 
 __all__ = ["main", "COMMANDS"]
 
@@ -39,14 +39,28 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     with warnings.catch_warnings():
         warnings.simplefilter("default")
+        # numpy's floating-point warnings never reach the terminal: a non-finite intermediate is an
+        # error (the code that can name the field raises a ConfigError or NumericalError first)
+        warnings.simplefilter("error", RuntimeWarning)
+        warnings.showwarning = _show_warning
         try:
             return int(args.func(args) or 0)
         except KnitframeError as e:
             print(f"knitframe: error: {e}", file=sys.stderr)
             return e.exit_code
+        except RuntimeWarning as e:
+            print(f"knitframe: error: numerical failure (non-finite value): {e}", file=sys.stderr)
+            return 3
         except KeyboardInterrupt:
             print("knitframe: interrupted", file=sys.stderr)
             return 130
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Warnings as one line on stderr: ``knitframe: warning: <message>`` (no source line)."""
+    text = " ".join(str(message).split())
+    prefix = "knitframe: warning: " if issubclass(category, KnitframeWarning) else f"knitframe: warning: {category.__name__}: "
+    print(prefix + text, file=sys.stderr)
 
 
 if __name__ == "__main__":  # pragma: no cover

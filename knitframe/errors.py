@@ -16,6 +16,7 @@ __all__ = [
     "GeometryError",
     "NumericalError",
     "FieldError",
+    "KnitframeWarning",
 ]
 
 
@@ -107,3 +108,11 @@ class NumericalError(KnitframeError):
     """A computation failed to converge or produced non-finite values; carries a diagnostic."""
 
     exit_code = 3
+
+
+class KnitframeWarning(UserWarning):
+    """A result is suspect but usable: a fit at a bound, a unit converted, a curve that is zero.
+
+    The CLI prints it as one line, ``knitframe: warning: <message>``; the pipeline also records
+    every warning of a run in ``summary.json`` under ``warnings``.
+    """

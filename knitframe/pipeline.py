@@ -7,21 +7,22 @@ an array of tables (``[[fit]]``), one stage run per table. The pipeline
 
 1. validates the whole config — unknown tables, every stage's options, plugin names, files,
    effects — before any work, so bad input leaves nothing behind;
-2. runs the present stages in ``order`` inside ``<out>.partial/``;
-3. writes ``summary.json`` (stages, plugins with versions, timings) and renames the directory to
-   ``<out>`` only when everything succeeded.
+2. takes the output folder through :class:`~knitframe.outdir.OutputDir` (refused if it is the
+   current folder or a parent, a file, unwritable, not empty without ``--resume`` or
+   ``--overwrite``, or locked by another run) and runs the present stages in ``order``, writing
+   into its staging area;
+3. moves the outputs into ``<out>`` and writes ``summary.json`` (stages, plugins with versions,
+   timings, warnings, and exactly the files that are there) only when everything succeeded.
 
 New stages arrive as plugins; nothing here changes when they do.
 """
 
 from __future__ import annotations
 
-import json
-import os
 import platform
-import shutil
 import sys
 import time
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -30,7 +31,8 @@ import attrs
 
 from knitframe import __version__
 from knitframe.config import load_toml
-from knitframe.errors import ConfigError
+from knitframe.errors import ConfigError, KnitframeWarning
+from knitframe.outdir import OutputDir, fingerprint
 from knitframe.plugins import Registry, get_registry
 from knitframe.records import Response
 
@@ -64,7 +66,8 @@ class RunContext:
     """Shared state of a running pipeline; stages read from and add to it."""
 
     registry: Registry
-    out: Path  #: directory the stage writes into (the ``.partial`` directory while running)
+    out: Path  #: directory the stage writes into (the run's staging area until it succeeds)
+    checkpoints: Path | None = None  #: root of the stages' checkpoint folders (kept for ``--resume``)
     responses: list[Response] = attrs.Factory(list)  #: measured or simulated curves
     models: list[Any] = attrs.Factory(list)  #: fitted reduced models
     results: dict[str, Any] = attrs.Factory(dict)  #: per-stage results, by stage name
@@ -82,7 +85,7 @@ class RunContext:
 
     def checkpoint_dir(self, stage: str) -> Path:
         """Directory for a stage's checkpoints; it survives a killed run for ``--resume``."""
-        p = self.out / "checkpoints" / stage
+        p = (self.checkpoints or self.out / "checkpoints") / stage
         p.mkdir(parents=True, exist_ok=True)
         return p
 
@@ -175,53 +178,60 @@ class Pipeline:
     def name(self) -> str:
         return self.config.get("pipeline", {}).get("name", Path(self.source or "pipeline").stem)
 
-    def run(self, out: Path | None, *, resume: bool = False, quiet: bool = False) -> PipelineResult:
-        """Run every stage; outputs appear in ``out`` only if all succeed (None: no files)."""
+    def run(self, out: Path | None, *, resume: bool = False, overwrite: bool = False,
+            quiet: bool = False) -> PipelineResult:
+        """Run every stage; outputs appear in ``out`` only if all succeed (None: no files).
+
+        ``resume`` continues the same config's killed run from its checkpoints; ``overwrite``
+        replaces the outputs of an earlier knitframe run in ``out`` (and nothing else).
+        """
         if out is None:
             import tempfile
 
             with tempfile.TemporaryDirectory(prefix="knitframe-") as tmp:
-                res = self._run_in(Path(tmp) / "run", resume=False, quiet=quiet)
-                return attrs.evolve(res, out=None)
-        return self._run_in(Path(out), resume=resume, quiet=quiet)
+                ctx = RunContext(self.registry, Path(tmp), checkpoints=Path(tmp) / ".checkpoints", quiet=quiet)
+                summary = self._run_stages(ctx)
+                return PipelineResult(None, ctx.responses, ctx.models, ctx.results, summary)
+        with OutputDir(out, command="run", fingerprint=fingerprint(self.config), resume=resume,
+                       overwrite=overwrite) as od:
+            ctx = RunContext(self.registry, od.staging, checkpoints=od.checkpoints, resume=resume, quiet=quiet)
+            summary = od.commit(self._run_stages(ctx))
+        return PipelineResult(od.out, ctx.responses, ctx.models, ctx.results, summary)
 
-    def _run_in(self, out: Path, *, resume: bool, quiet: bool) -> PipelineResult:
-        partial = out.with_name(out.name + ".partial")
-        if partial.exists() and not resume:
-            shutil.rmtree(partial)
-        partial.mkdir(parents=True, exist_ok=True)
-        ctx = RunContext(self.registry, partial, resume=resume, quiet=quiet)
+    def _run_stages(self, ctx: RunContext) -> dict[str, Any]:
+        """Run the stages into ``ctx.out``; returns the summary (without its list of outputs)."""
         t_start = time.perf_counter()
         timings = []
-        try:
+        notes: list[str] = []
+        with warnings.catch_warnings():
+            warnings.simplefilter("always", KnitframeWarning)
+            show = warnings.showwarning
+
+            def keep(message, category, *args, **kwargs):  # shown as usual, and kept for the summary
+                if issubclass(category, KnitframeWarning):
+                    notes.append(str(message))
+                show(message, category, *args, **kwargs)
+
+            warnings.showwarning = keep
             for stage in self.stages:
                 t0 = time.perf_counter()
                 stage.run(ctx)
                 timings.append({"stage": _label(stage), "seconds": round(time.perf_counter() - t0, 6)})
-        except BaseException:
-            # keep the partial directory only if it holds checkpoints worth resuming from
-            ckpt = partial / "checkpoints"
-            if not (ckpt.exists() and any(ckpt.rglob("*"))):
-                shutil.rmtree(partial, ignore_errors=True)
-            raise
-        summary = {
+        missing = sorted(set(ctx.outputs) - {str(p.relative_to(ctx.out)) for p in ctx.out.rglob("*") if p.is_file()})
+        if missing:
+            raise RuntimeError(f"stages declared outputs they did not write: {missing}")
+        return {
             "knitframe": __version__,
             "pipeline": self.name,
             "config": self.source,
             "stages": timings,
             "plugins": dict(sorted(ctx.plugins.items())),
-            "outputs": sorted(set(ctx.outputs)),
             "results": _jsonable(ctx.results),
+            "warnings": notes,
             "wall_time_s": round(time.perf_counter() - t_start, 6),
             "python": sys.version.split()[0],
             "platform": platform.platform(),
         }
-        (partial / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-        shutil.rmtree(partial / "checkpoints", ignore_errors=True)
-        if out.exists():
-            shutil.rmtree(out)
-        os.replace(partial, out)
-        return PipelineResult(out, ctx.responses, ctx.models, ctx.results, summary)
 
 
 def _label(stage: Any) -> str:
@@ -254,7 +264,7 @@ def _jsonable(obj: Any) -> Any:
 
 
 def run(config: str | Path | Mapping[str, Any], out: str | Path | None = None, *, resume: bool = False,
-        quiet: bool = True, registry: Registry | None = None) -> PipelineResult:
+        overwrite: bool = False, quiet: bool = True, registry: Registry | None = None) -> PipelineResult:
     """Run a pipeline from a TOML path or a config dict; the Python twin of ``knitframe run``.
 
     Parameters
@@ -262,12 +272,14 @@ def run(config: str | Path | Mapping[str, Any], out: str | Path | None = None, *
     config : path or mapping
         TOML file, or an already-parsed dict (relative paths then resolve against the cwd).
     out : path, optional
-        Output directory. None runs without keeping files.
+        Output directory. None runs without keeping files. An existing folder that holds anything
+        is refused unless ``resume`` (the same config's run) or ``overwrite`` (replaces only an
+        earlier knitframe run's outputs) is given.
     """
     if isinstance(config, Mapping):
         pipeline = Pipeline(config, base_dir=Path.cwd(), registry=registry)
     else:
         path = Path(config)
         pipeline = Pipeline(load_toml(path), base_dir=path.resolve().parent, source=str(path), registry=registry)
-    return pipeline.run(Path(out) if out is not None else None, resume=resume, quiet=quiet)
+    return pipeline.run(Path(out) if out is not None else None, resume=resume, overwrite=overwrite, quiet=quiet)
 

@@ -44,7 +44,7 @@ def test_bad_config_is_one_line_exit_2_no_output(tmp_path, singal_file, cli, cas
     assert "Traceback" not in proc.stderr
     assert message in lines[0]
     assert lines[0].startswith("knitframe: error: ")
-    assert not out.exists() and not out.with_name("out.partial").exists()
+    assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == sorted(["bad.toml", GOOD_FILE])
 
 
 def test_missing_config_file(tmp_path, cli):

@@ -31,7 +31,8 @@ def test_example_imports_real_data_and_writes_csv_plot_summary(tmp_path):
     assert [s["stage"] for s in summary["stages"]][0] == "data"
     assert summary["plugins"]["reader:singal2024"]["package"] == "knitframe"
     assert "responses.csv" in summary["outputs"]
-    assert not out.with_name("ex.partial").exists()
+    assert not (out / ".knitframe").exists() and sorted(p.name for p in out.iterdir()) == sorted(
+        summary["outputs"] + ["summary.json"])
 
 
 def test_reader_averages_repeats_with_spread(singal_file):
@@ -54,14 +55,14 @@ def test_api_accepts_a_dict_and_runs_without_output(tmp_path, singal_file):
 
 
 def test_existing_output_is_replaced_only_on_success(tmp_path, singal_file):
-    """A failing run leaves a previous good output untouched and no .partial directory."""
+    """A failing run leaves a previous good output untouched and no work folder."""
     out = tmp_path / "out"
     knitframe.run({"data": {"files": [str(singal_file("cotton-rib-x.csv"))]}}, out)
     before = (out / "summary.json").read_text()
     with pytest.raises(ConfigError):
         knitframe.run({"data": {"files": ["missing.csv"]}}, out)
     assert (out / "summary.json").read_text() == before
-    assert not (tmp_path / "out.partial").exists()
+    assert not (out / ".knitframe").exists()
 
 
 def test_stages_run_in_order_and_new_stages_plug_in_without_core_changes(tmp_path, singal_file):

@@ -84,10 +84,10 @@ def test_interrupted_run_resumes_to_the_same_curve(tmp_path, monkeypatch, kill_a
     with pytest.raises(Killed):
         run(config, tmp_path / "out")
     monkeypatch.undo()
-    partial = tmp_path / "out.partial"
+    partial = tmp_path / "out" / ".knitframe"
     assert sorted(p.name for p in (partial / "checkpoints" / "simulate").glob("step-*.npz"))[-1] == \
         f"step-{kill_after - 1:04d}.npz"
-    assert not (tmp_path / "out").exists()
+    assert [p.name for p in (tmp_path / "out").iterdir()] == [".knitframe"]
 
     done = knitframe_cli("run", str(config), "--out", "out", "--resume", "--quiet", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
@@ -104,14 +104,14 @@ def test_sigkilled_cli_run_resumes_from_its_checkpoints(tmp_path):
                             cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             env={**os.environ, "MPLBACKEND": "Agg"})
     # after 8 pre-stress steps and the relaxed lattice
-    first_load_step = tmp_path / "out.partial" / "checkpoints" / "simulate" / "step-0009.npz"
+    first_load_step = tmp_path / "out" / ".knitframe" / "checkpoints" / "simulate" / "step-0009.npz"
     deadline = time.monotonic() + 300
     while not first_load_step.exists() and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.005)
     proc.send_signal(signal.SIGKILL)
     proc.wait(timeout=60)
     assert proc.returncode == -signal.SIGKILL, f"the run ended before it could be killed: {proc.stderr.read()!r}"
-    left = sorted((tmp_path / "out.partial" / "checkpoints" / "simulate").glob("step-*.npz"))
+    left = sorted((tmp_path / "out" / ".knitframe" / "checkpoints" / "simulate").glob("step-*.npz"))
     assert left and left[-1].name >= first_load_step.name
 
     done = knitframe_cli("run", str(config), "--out", "out", "--resume", "--quiet", cwd=tmp_path)

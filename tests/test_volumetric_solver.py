@@ -211,7 +211,7 @@ def test_pipeline_resume_after_a_kill(tmp_path, monkeypatch):
     monkeypatch.setattr(StepCheckpoints, "save", save_then_die)
     with pytest.raises(KeyboardInterrupt):
         knitframe.run(config, tmp_path / "out")
-    assert list((tmp_path / "out.partial" / "checkpoints").rglob("step-*.npz"))
+    assert list((tmp_path / "out" / ".knitframe" / "checkpoints").rglob("step-*.npz"))
     monkeypatch.setattr(StepCheckpoints, "save", save)
     resumed = knitframe.run(config, tmp_path / "out", resume=True).responses[0]
     assert np.allclose(resumed.T1, reference.T1, rtol=1e-9) and np.allclose(resumed.lambda1, reference.lambda1)

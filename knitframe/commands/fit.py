@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from knitframe.outdir import OutputDir, add_overwrite_argument, fingerprint
+
 
 def add_parser(sub) -> None:
     p = sub.add_parser("fit", help="fit a reduced model to test data", description=__doc__)
@@ -16,24 +18,32 @@ def add_parser(sub) -> None:
     p.add_argument("--model", default="hgo", help="homogenizer plugin (default: hgo)")
     p.add_argument("--fitter", default="lbfgs", help="fitter plugin: lbfgs or mads (default: lbfgs)")
     p.add_argument("--reader", default="singal2024", help="reader plugin for the data files (default: singal2024)")
-    p.add_argument("--out", type=Path, required=True, help="output directory (created if missing)")
+    p.add_argument("--out", type=Path, required=True, help="output folder (new, or empty; see --overwrite)")
+    add_overwrite_argument(p)
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
     p.set_defaults(func=main)
 
 
 def main(args) -> int:
+    from knitframe import __version__
     from knitframe.config import instantiate
     from knitframe.fitting import write_fit_outputs
     from knitframe.plugins import get_registry
 
+    od = OutputDir(args.out, command="fit", overwrite=args.overwrite, fingerprint=fingerprint(
+        {"data": [str(p.resolve()) for p in args.data], "model": args.model, "fitter": args.fitter,
+         "reader": args.reader}))
+    od.check()  # before any work
     reg = get_registry()
     reader = instantiate(reg, "reader", args.reader, "--reader")
     model = instantiate(reg, "homogenizer", args.model, "--model")
     fitter = instantiate(reg, "fitter", args.fitter, "--fitter")
     responses = [r for path in args.data for r in reader.read(path)]  # DataError names file, line, column
     result = fitter.fit(model, responses)
-    args.out.mkdir(parents=True, exist_ok=True)
-    write_fit_outputs(result, responses, args.out / "params.json", args.out / "fit.png")
+    with od:
+        write_fit_outputs(result, responses, od.staging / "params.json", od.staging / "fit.png")
+        od.commit({"knitframe": __version__, "command": "fit", "data": [str(p) for p in args.data],
+                   "model": args.model, "fitter": args.fitter})
     if not args.quiet:
         print(result.headline())
         print(f"wrote {args.out / 'params.json'} and {args.out / 'fit.png'}")

@@ -10,6 +10,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from knitframe.outdir import OutputDir, add_overwrite_argument, fingerprint
+
 
 def add_parser(sub) -> None:
     p = sub.add_parser("geometry", help="build and export a pattern's unit-cell geometry", description=__doc__)
@@ -19,18 +21,21 @@ def add_parser(sub) -> None:
     p.add_argument("--yarn", default="cotton", help="yarn name from the library (default cotton)")
     p.add_argument("--course-pitch", type=float, default=None, help="stitch width, mm (default: Munden)")
     p.add_argument("--wale-pitch", type=float, default=None, help="stitch height, mm (default: Munden)")
-    p.add_argument("--out", type=Path, default=None, help="output directory (default: <pattern>-geometry)")
+    p.add_argument("--out", type=Path, default=None, help="output folder, new or empty (default: <pattern>-geometry)")
+    add_overwrite_argument(p)
     p.add_argument("--segments", type=int, default=256, help="polyline segments per yarn in the VTU files")
     p.set_defaults(func=main)
 
 
 def main(args) -> int:
-    from knitframe import __version__
     from knitframe.errors import ConfigError
-    from knitframe.geometry import clearance, plot_views, summary, write_vtu
+    from knitframe.geometry import clearance
     from knitframe.plugins import get_registry
     from knitframe.records import Fabric
 
+    out = args.out or Path(f"{args.pattern}-geometry")
+    od = OutputDir(out, command="geometry", overwrite=args.overwrite, fingerprint=fingerprint(vars(args)))
+    od.check()  # before any work
     reg = get_registry()
     pattern = reg["pattern"][args.pattern]()
     yarn = reg["yarn"][args.yarn]
@@ -46,10 +51,25 @@ def main(args) -> int:
         raise ConfigError("--" + e.path.replace("_", "-"), e.problem) from None
     cell = pattern.cell(fabric)
     clr = clearance(cell)
-    out = args.out or Path(f"{args.pattern}-geometry")
-    out.mkdir(parents=True, exist_ok=True)
-    files = write_vtu(cell, out, n=args.segments)
-    files.append(plot_views(cell, out / "preview.png"))
+    with od:
+        _write(od, cell, clr, args, yarn)
+    print(
+        f"{cell.pattern}: {cell.arc_length_per_stitch:.6g} mm/stitch, pitches {cell.course_pitch:.4g} x "
+        f"{cell.wale_pitch:.4g} mm, min clearance {clr.minimum:.4g} mm ({clr.minimum / cell.dk:.3g} dk), "
+        f"{len(clr.overlaps)} places closer than dk"
+    )
+    print(f"wrote {', '.join(str(out / f) for f in od.committed)}")
+    return 0
+
+
+def _write(od: OutputDir, cell, clr, args, yarn) -> None:
+    """The geometry files, staged and then committed to the output folder."""
+    from knitframe import __version__
+    from knitframe.geometry import plot_views, summary, write_vtu
+
+    out = od.staging
+    write_vtu(cell, out, n=args.segments)
+    plot_views(cell, out / "preview.png")
     info = summary(cell, clr)
     info.update(
         {
@@ -60,11 +80,4 @@ def main(args) -> int:
         }
     )
     (out / "geometry.json").write_text(json.dumps(info, indent=2) + "\n", encoding="utf-8")
-    files.append(out / "geometry.json")
-    print(
-        f"{cell.pattern}: {cell.arc_length_per_stitch:.6g} mm/stitch, pitches {cell.course_pitch:.4g} x "
-        f"{cell.wale_pitch:.4g} mm, min clearance {clr.minimum:.4g} mm ({clr.minimum / cell.dk:.3g} dk), "
-        f"{len(clr.overlaps)} places closer than dk"
-    )
-    print(f"wrote {', '.join(str(f) for f in files)}")
-    return 0
+    od.commit({"knitframe": __version__, "command": "geometry", "pattern": args.pattern})

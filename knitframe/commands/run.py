@@ -1,10 +1,16 @@
-"""``knitframe run CONFIG [--out DIR] [--resume]``: run a config-selected pipeline."""
+"""``knitframe run CONFIG [--out DIR] [--resume | --overwrite]``: run a config-selected pipeline.
+
+The outputs appear in DIR only when the whole run succeeded. An existing DIR that holds anything is
+refused unless ``--resume`` continues the same config's run there, or ``--overwrite`` replaces the
+files an earlier knitframe run wrote there (nothing else is touched).
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from knitframe.errors import ConfigError
+from knitframe.outdir import add_overwrite_argument
 
 
 def add_parser(sub) -> None:
@@ -12,7 +18,9 @@ def add_parser(sub) -> None:
     p.add_argument("config", nargs="?", help="TOML config file")
     p.add_argument("--example", action="store_true", help="run the built-in example config")
     p.add_argument("--out", type=Path, default=None, help="output directory (default: <config name>-out)")
-    p.add_argument("--resume", action="store_true", help="continue a killed run from its checkpoints")
+    mode = p.add_mutually_exclusive_group()
+    mode.add_argument("--resume", action="store_true", help="continue the same config's killed run from its checkpoints")
+    add_overwrite_argument(mode)
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(func=main)
 
@@ -25,7 +33,7 @@ def main(args) -> int:
         raise ConfigError("", "give a CONFIG file or --example (not both)")
     config = example_config() if args.example else Path(args.config)
     out = args.out or Path(f"{Path(config).stem}-out")
-    result = run(config, out, resume=args.resume, quiet=args.quiet)
+    result = run(config, out, resume=args.resume, overwrite=args.overwrite, quiet=args.quiet)
     if not args.quiet:
         for stage in result.summary["stages"]:
             print(f"  {stage['stage']:<12s} {stage['seconds']:9.3f} s")
