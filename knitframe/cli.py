@@ -20,12 +20,18 @@ __all__ = ["main", "COMMANDS"]
 COMMANDS = ("run", "plugins", "geometry", "fit")
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with the house error format: one line, ``knitframe: error: …``, exit code 2."""
+
+    def error(self, message: str):
+        print(f"knitframe: error: {message} (see '{self.prog} --help')", file=sys.stderr)
+        raise SystemExit(2)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="knitframe", description="Mechanics of weft-knitted fabrics: simulate, fit and design."
-    )
+    parser = _Parser(prog="knitframe", description="Mechanics of weft-knitted fabrics: simulate, fit and design.")
     parser.add_argument("--version", action="version", version=f"knitframe {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name in COMMANDS:
         importlib.import_module(f"knitframe.commands.{name}").add_parser(sub)
     return parser

@@ -269,6 +269,8 @@ class OutputDir:
         for p in reversed(self._created):
             try:
                 p.rmdir()  # only if empty: anything another program put there stays
+            except FileNotFoundError:
+                continue
             except OSError:
                 break
         self._created.clear()

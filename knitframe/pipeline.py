@@ -178,7 +178,7 @@ class Pipeline:
     def name(self) -> str:
         return self.config.get("pipeline", {}).get("name", Path(self.source or "pipeline").stem)
 
-    def run(self, out: Path | None, *, resume: bool = False, overwrite: bool = False,
+    def run(self, out: str | Path | None, *, resume: bool = False, overwrite: bool = False,
             quiet: bool = False) -> PipelineResult:
         """Run every stage; outputs appear in ``out`` only if all succeed (None: no files).
 
@@ -281,5 +281,5 @@ def run(config: str | Path | Mapping[str, Any], out: str | Path | None = None, *
     else:
         path = Path(config)
         pipeline = Pipeline(load_toml(path), base_dir=path.resolve().parent, source=str(path), registry=registry)
-    return pipeline.run(Path(out) if out is not None else None, resume=resume, overwrite=overwrite, quiet=quiet)
+    return pipeline.run(out, resume=resume, overwrite=overwrite, quiet=quiet)
 

@@ -17,7 +17,7 @@ def add_parser(sub) -> None:
     p = sub.add_parser("run", help="run a pipeline config", description=__doc__)
     p.add_argument("config", nargs="?", help="TOML config file")
     p.add_argument("--example", action="store_true", help="run the built-in example config")
-    p.add_argument("--out", type=Path, default=None, help="output directory (default: <config name>-out)")
+    p.add_argument("--out", default=None, help="output directory (default: <config name>-out)")
     mode = p.add_mutually_exclusive_group()
     mode.add_argument("--resume", action="store_true", help="continue the same config's killed run from its checkpoints")
     add_overwrite_argument(mode)
@@ -32,7 +32,7 @@ def main(args) -> int:
     if args.example == bool(args.config):
         raise ConfigError("", "give a CONFIG file or --example (not both)")
     config = example_config() if args.example else Path(args.config)
-    out = args.out or Path(f"{Path(config).stem}-out")
+    out = args.out if args.out is not None else f"{Path(config).stem}-out"
     result = run(config, out, resume=args.resume, overwrite=args.overwrite, quiet=args.quiet)
     if not args.quiet:
         for stage in result.summary["stages"]:

@@ -43,3 +43,27 @@ def knit(tmp_path):
                               input=stdin)
 
     return run
+
+
+@pytest.fixture
+def knit_here(capsys, monkeypatch):
+    """Run the CLI in this process (fast), in folder ``cwd``; returns a CompletedProcess-like result.
+
+    An uncaught exception (a traceback for the user) fails the test by propagating.
+    """
+
+    def run(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+        from knitframe.cli import main
+        from knitframe.plugins import reset_registry
+
+        monkeypatch.chdir(cwd)
+        reset_registry()
+        capsys.readouterr()
+        try:
+            code = main([str(a) for a in args])
+        except SystemExit as e:  # argparse
+            code = e.code
+        out, err = capsys.readouterr()
+        return subprocess.CompletedProcess(list(args), code, out, err)
+
+    return run
