@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import logging
 import sys
 import warnings
 
@@ -43,6 +44,7 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    _log_to_stderr(quiet=bool(getattr(args, "quiet", False)))
     with warnings.catch_warnings():
         warnings.simplefilter("default")
         # numpy's floating-point warnings never reach the terminal: a non-finite intermediate is an
@@ -60,6 +62,17 @@ def main(argv: list[str] | None = None) -> int:
         except KeyboardInterrupt:
             print("knitframe: interrupted", file=sys.stderr)
             return 130
+
+
+def _log_to_stderr(*, quiet: bool) -> None:
+    """knitframe's log records (``resuming from step …``) as ``knitframe: <message>`` lines on stderr."""
+    log = logging.getLogger("knitframe")
+    log.handlers = [h for h in log.handlers if not getattr(h, "_knitframe_cli", False)]
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("knitframe: %(message)s"))
+    handler._knitframe_cli = True
+    log.addHandler(handler)
+    log.setLevel(logging.WARNING if quiet else logging.INFO)
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:

@@ -91,6 +91,7 @@ steps so a killed run can resume.
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 import tempfile
@@ -681,6 +682,11 @@ class StepCheckpoints:
             np.savez(fh, **arrays, __meta__=np.array(json.dumps({**meta, "key": self.key, "index": index})))
         os.replace(tmp, path)
         return path
+
+    def announce(self, index: int, total: int) -> None:
+        """Log the one line a resumed run prints: ``resuming from step N of M (checkpoint …)``."""
+        logging.getLogger("knitframe").info("resuming from step %d of %d (checkpoint %s)", index + 1, total,
+                                            self.directory / f"step-{index:04d}.npz")
 
     def latest(self) -> tuple[int, dict[str, np.ndarray], dict[str, Any]] | None:
         """The highest saved step of this run's key, or None."""
