@@ -64,6 +64,8 @@ class ProgressBar:
     def line(self) -> str:
         """The state as one line: step, elapsed time and an estimate of the time left."""
         elapsed = time.perf_counter() - self.t0
+        if not self.total:  # before the first step: meshing, assembly, the first solve
+            return f"knitframe: {self.label}: setting up, {tqdm.format_interval(elapsed)} elapsed"
         left = "unknown" if self.done <= 0 else "about " + tqdm.format_interval(
             elapsed * max(self.total - self.done, 0.0) / self.done)
         what = f" ({self.message})" if self.message else ""
