@@ -33,7 +33,9 @@ from __future__ import annotations
 
 import json
 import math
+import textwrap
 import time
+import warnings
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
@@ -41,7 +43,7 @@ from typing import Any
 import attrs
 import numpy as np
 
-from knitframe.errors import ConfigError, NumericalError
+from knitframe.errors import ConfigError, KnitframeWarning, NumericalError
 from knitframe.records import Provenance, Response
 
 __all__ = [
@@ -58,6 +60,9 @@ __all__ = [
     "predict",
     "write_fit_outputs",
     "plot_fit",
+    "at_bound",
+    "finite_json",
+    "free_side_zero_message",
 ]
 
 #: Smallest free-side stretch the uniaxial solve considers; a model without lateral stiffness
@@ -65,6 +70,8 @@ __all__ = [
 FREE_MIN = 1e-3
 #: Scaled residuals are clipped here so that squares and sums stay finite far outside the data.
 RESIDUAL_CLIP = 1e100
+#: A fitted parameter within this fraction of its range (in the fitters' unit box) is "at a bound".
+AT_BOUND = 1e-4
 DIRECTIONS = ("course", "wale")
 
 
@@ -145,6 +152,18 @@ def solve_free_side(model: Any, params: np.ndarray, lam: np.ndarray, direction: 
     root = bracketed_newton(fdf, lo, hi, x0, increasing=True)
     P = model.stress(params, *_pair(d, lam, root))[d]
     return root.reshape(shape), np.asarray(P).reshape(shape)
+
+
+def free_side_zero_message(model: str, top: float, slack: float, direction: str | int = "course") -> str:
+    """One line: why a free-side curve of a model without lateral stiffness is zero up to loaded stretch ``top``.
+
+    ``slack`` is the stretch where the model starts to carry tension (1/cos θ for the paper's
+    hgo loaded along the course, 1/sin θ along the wale).
+    """
+    trig = "cos" if direction_index(direction) == 0 else "sin"
+    return (f"'{model}' with a free side gives zero tension at every loaded stretch up to {top:.4g}: P_free = 0 "
+            f"forces I4 = 1 until stretch 1/{trig}(theta) = {slack:.4g}; use 'hgo2m', which predicts the free side, "
+            "or a fixed lateral side")
 
 
 def bracketed_newton(fdf, lo: np.ndarray, hi: np.ndarray, x0: np.ndarray, *, xtol: float = 1e-13,
@@ -400,6 +419,8 @@ class FitResult:
     message: str = ""
     labels: tuple[str, ...] = ()  #: labels of the fitted Responses
     diagnostics: dict[str, Any] = attrs.Factory(dict)
+    at_bound: tuple[str, ...] = ()  #: parameters (as named in params.json) that ended at a bound of the model's box
+    warnings: tuple[str, ...] = ()  #: why the result is suspect: unit conversions of its data, parameters at a bound
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -414,7 +435,11 @@ class FitResult:
         return self.model.solve_uniaxial(self.params, lam, direction)
 
     def to_json(self) -> dict[str, Any]:
-        """Plain data: every parameter (θ as ``theta_deg``), ``nrmse`` and run metadata."""
+        """Plain data: every parameter (θ as ``theta_deg``), ``nrmse``, run metadata, ``at_bound`` and ``warnings``.
+
+        Never holds NaN or Infinity: a non-finite number is written as null, its key listed in
+        ``non_finite``, and a line added to ``warnings`` (see :func:`finite_json`).
+        """
         options = attrs.asdict(self.model) if attrs.has(type(self.model)) else {}
         out: dict[str, Any] = {"model": self.model.name, "options": options}
         out.update(params_to_json(self.param_names, self.params))
@@ -425,7 +450,12 @@ class FitResult:
             "fitter": self.fitter, "objective": self.objective, "n_evals": self.n_evals,
             "wall_time_s": round(self.wall_time, 6), "converged": self.converged, "message": self.message,
             "responses": list(self.labels), "diagnostics": self.diagnostics,
+            "at_bound": list(self.at_bound), "warnings": list(self.warnings),
         })
+        out, bad = finite_json(out)
+        if bad:
+            out["non_finite"] = bad
+            out["warnings"].append(f"non-finite values written as null: {', '.join(bad)}")
         return out
 
     @classmethod
@@ -444,7 +474,8 @@ class FitResult:
                    objective=data.get("objective", 0.0), n_evals=data.get("n_evals", 0),
                    wall_time=data.get("wall_time_s", 0.0), fitter=data.get("fitter", ""),
                    converged=data.get("converged", True), message=data.get("message", ""),
-                   labels=tuple(data.get("responses", ())), diagnostics=data.get("diagnostics", {}))
+                   labels=tuple(data.get("responses", ())), diagnostics=data.get("diagnostics", {}),
+                   at_bound=tuple(data.get("at_bound", ())), warnings=tuple(data.get("warnings", ())))
 
     def headline(self) -> str:
         """One line: model, fitter and NRMSE in percent."""
@@ -505,9 +536,63 @@ def start_design(problem: FitProblem, box: UnitBox, n_screen: int = 64) -> list[
     return scored
 
 
+def finite_json(data: Any, path: str = "") -> tuple[Any, list[str]]:
+    """``data`` with every non-finite float replaced by None, and the dotted keys where that happened."""
+    if isinstance(data, dict):
+        out, bad = {}, []
+        for k, v in data.items():
+            out[k], b = finite_json(v, f"{path}.{k}" if path else str(k))
+            bad += b
+        return out, bad
+    if isinstance(data, (list, tuple)):
+        pairs = [finite_json(v, f"{path}[{i}]") for i, v in enumerate(data)]
+        return [v for v, _ in pairs], [b for _, bs in pairs for b in bs]
+    if isinstance(data, (float, np.floating)) and not math.isfinite(data):
+        return None, [path]
+    return data, []
+
+
+def at_bound(model: Any, params: np.ndarray) -> tuple[tuple[str, ...], str]:
+    """Parameters at a bound of the model's box (params.json names) and a one-line description of them.
+
+    A parameter counts when it lies within :data:`AT_BOUND` of its range (log range for
+    log-scaled ones) from either end: the optimum may lie outside the box, so the data do not
+    determine it. Bounds a model declares as symmetry planes (``symmetric_bounds``, e.g. the
+    fibre angle of hgo at 0 and 90°, where I4 is symmetric) are not counted: a fit ending there
+    is at a true stationary point, not cut off. Returns ``((), "")`` when none is.
+    """
+    box = UnitBox(model)
+    u = box.to_unit(params)
+    lo, hi = model.bounds()
+    shown = params_to_json(model.param_names, params)
+    symmetric = getattr(model, "symmetric_bounds", (False,) * len(u))
+    names, parts = [], []
+    for k, (n, key) in enumerate(zip(model.param_names, shown)):
+        side = "lower" if u[k] <= AT_BOUND else "upper" if u[k] >= 1.0 - AT_BOUND else None
+        if symmetric[k]:
+            continue
+        if side:
+            edge = params_to_json([n], [(lo if side == "lower" else hi)[k]])[key]
+            names.append(key)
+            parts.append(f"{key} = {shown[key]:.4g} (its {side} bound is {edge:.4g})")
+    if not names:
+        return (), ""
+    return tuple(names), (f"{model.name} fit: {'; '.join(parts)}: the data do not determine "
+                          f"{'this parameter' if len(names) == 1 else 'these parameters'} inside the model's range "
+                          "(check the data's units and strain range)")
+
+
 def finish(problem: FitProblem, params: np.ndarray, *, fitter: str, t0: float, converged: bool,
            message: str, diagnostics: dict[str, Any] | None = None) -> FitResult:
-    """Build the :class:`FitResult` of a finished optimisation (NRMSE, wall time, evaluations)."""
+    """Build the :class:`FitResult` of a finished optimisation (NRMSE, wall time, evaluations).
+
+    Non-finite parameters are a NumericalError. Parameters at a bound of the model's box are
+    listed in ``at_bound`` and reported by a :class:`~knitframe.errors.KnitframeWarning`; the
+    result's ``warnings`` also carry the unit conversions made while reading its data.
+    """
+    params = np.asarray(params, dtype=np.float64)
+    if not np.all(np.isfinite(params)):
+        raise NumericalError(f"fitter '{fitter}' ended at non-finite parameters {params.tolist()}")
     ten, tra = problem.nrmse(params)
     diag = dict(diagnostics or {})
     fst = problem.free_side_tension(params)
@@ -515,8 +600,14 @@ def finish(problem: FitProblem, params: np.ndarray, *, fitter: str, t0: float, c
         diag["free_side_tension"] = fst
     n_evals = problem.n_evals
     objective = problem.objective(params)
+    notes = [w for r in problem.responses for w in r.provenance.extra.get("warnings", ())]
+    names, bound = at_bound(problem.model, params)
+    if bound:
+        warnings.warn(bound, KnitframeWarning, stacklevel=2)
+        notes.append(bound)
     return FitResult(problem.model, params, ten, tra, objective, n_evals, time.perf_counter() - t0, fitter,
-                     converged, message, tuple(r.label for r in problem.responses), diag)
+                     converged, message, tuple(r.label for r in problem.responses), diag, names,
+                     tuple(dict.fromkeys(notes)))
 
 
 def predict(result: FitResult, response: Response) -> Response:
@@ -586,12 +677,27 @@ def plot_fit(path: Path, result: FitResult, responses: Sequence[Response], *, ti
         bx.set_title("free side: measured" + (" vs model" if result.model.predicts_lateral else " (imposed in the fit)"),
                      fontsize=8)
         bx.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path)
+    notes = result.to_json()["warnings"]
+    if notes:  # suspect results say so on the figure, in red below the axes
+        text = "\n".join(textwrap.fill(f"warning: {w}", 150 if uni else 95) for w in notes)
+        rows = text.count("\n") + 1
+        fig.set_size_inches(fig.get_figwidth(), fig.get_figheight() + 0.16 * rows)
+        fig.text(0.01, 0.01, text, color="red", fontsize=7, va="bottom", ha="left")
+        fig.tight_layout(rect=(0, (0.16 * rows + 0.05) / fig.get_figheight(), 1, 1))
+    else:
+        fig.tight_layout()
+    fig.savefig(path, metadata={"Description": " | ".join(notes) or "no warnings"})
     plt.close(fig)
 
 
 def write_fit_outputs(result: FitResult, responses: Sequence[Response], params_path: Path, plot_path: Path) -> None:
-    """Write ``params.json`` (parameters, θ in degrees, NRMSE, metadata) and the fit plot."""
-    Path(params_path).write_text(json.dumps(result.to_json(), indent=2) + "\n")
+    """Write ``params.json`` (parameters, θ in degrees, NRMSE, metadata, warnings) and the fit plot.
+
+    The JSON is strict: NaN and Infinity cannot be written (see :meth:`FitResult.to_json`); a
+    result that needed cleaning says so by a :class:`~knitframe.errors.KnitframeWarning`.
+    """
+    data = result.to_json()
+    if data.get("non_finite"):
+        warnings.warn(f"{Path(params_path).name}: {data['warnings'][-1]}", KnitframeWarning, stacklevel=2)
+    Path(params_path).write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
     plot_fit(Path(plot_path), result, responses)

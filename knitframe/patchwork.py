@@ -26,14 +26,15 @@ displacement is shared in proportion to each region's slack. Only tension is mod
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from typing import Any, Literal
 
 import attrs
 import numpy as np
 
-from knitframe.errors import NumericalError
-from knitframe.fitting import FREE_MIN, bracketed_newton, direction_index
+from knitframe.errors import KnitframeWarning, NumericalError
+from knitframe.fitting import FREE_MIN, bracketed_newton, direction_index, free_side_zero_message
 from knitframe.records import Provenance, Response
 
 __all__ = ["ResponseCurve", "ModelCurve", "as_curve", "PatchworkResult", "parallel", "series", "grid"]
@@ -113,13 +114,30 @@ class ModelCurve:
     def _state(self, lam: np.ndarray):
         """Free-side stretch (or 1) and tension at loaded stretch λ."""
         if self.lateral == "free":
-            return self.model.solve_uniaxial(self.params, lam, self.direction)
+            with warnings.catch_warnings():  # tabulation and inversion probe stretches; grid() warns on the result
+                warnings.simplefilter("ignore", KnitframeWarning)
+                return self.model.solve_uniaxial(self.params, lam, self.direction)
         one = np.ones_like(lam)
         return one, self.model.stress(self.params, *((lam, one) if self.direction == 0 else (one, lam)))[self.direction]
 
     def tension(self, lam: np.ndarray) -> np.ndarray:
         """Loaded tension at stretch λ, N/mm."""
         return self._state(np.atleast_1d(np.asarray(lam, dtype=np.float64)))[1]
+
+    def slack_warning(self, top: float) -> str | None:
+        """Why this region carries no tension up to loaded stretch ``top``, if that is because of its free side.
+
+        Only models that state their free-side slack (``free_side_slack(params, direction)``, the
+        paper's hgo) can say; for others, and for a fixed lateral side, None.
+        """
+        slack_of = getattr(self.model, "free_side_slack", None)
+        if self.lateral != "free" or getattr(self.model, "predicts_lateral", True) or slack_of is None:
+            return None
+        slack = slack_of(self.params, self.direction)
+        if not 1.0 < top <= slack:
+            return None
+        where = f"patchwork region '{self.label}': " if self.label else "patchwork region: "
+        return where + free_side_zero_message(getattr(self.model, "name", "model"), top, slack, self.direction)
 
     def slope(self, lam: np.ndarray) -> np.ndarray:
         """dT/dλ along the load path: ∂P_l/∂λ_l, condensed by the free side (K_ll − K_lf²/K_ff) when it is free."""
@@ -301,6 +319,11 @@ def grid(regions: Sequence[Sequence[Any]], widths: Sequence[float], lengths: Seq
         Trow[:, i] = T
         lam[:, i, : len(row)] = lr
         disp[:, i, : len(row) - 1] = np.cumsum((lr - 1.0) * ls, axis=1)[:, :-1]
+    for i, row in enumerate(rows):  # a region that stays slack because of its free side says so
+        for j, c in enumerate(row):
+            msg = c.slack_warning(float(np.max(lam[:, i, j]))) if isinstance(c, ModelCurve) else None
+            if msg:
+                warnings.warn(msg, KnitframeWarning, stacklevel=2)
     force = Trow @ w
     Lpad = np.full((len(rows), ncol), np.nan)
     for i, ls in enumerate(L):

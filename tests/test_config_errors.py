@@ -23,7 +23,7 @@ CASES = [
     ("unknown option", f'[data]\nfiles = ["{GOOD_FILE}"]\nreader = {{ kind = "singal2024", smooth = 3 }}\n',
      "data.reader.smooth: unknown key; expected one of average, points"),
     ("unknown plugin", f'[data]\nfiles = ["{GOOD_FILE}"]\nreader = "nope"\n',
-     "data.reader: unknown reader 'nope'; available: generic, singal2024"),
+     "data.reader: unknown reader 'nope'; available: auto, generic, singal2024"),
     ("missing file", '[data]\nfiles = ["missing.csv"]\n', "data.files[0]: file not found: missing.csv"),
     ("malformed toml", "[data\nfiles = 1\n", "malformed TOML"),
     ("unknown table", f'[dataa]\nfiles = ["{GOOD_FILE}"]\n', "dataa: unknown table; expected one of"),

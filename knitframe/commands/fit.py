@@ -1,4 +1,4 @@
-"""``knitframe fit DATA... --model hgo --fitter lbfgs|mads --out DIR [--reader singal2024]``.
+"""``knitframe fit DATA... --model hgo --fitter lbfgs|mads --out DIR [--reader auto|singal2024|generic]``.
 
 Fits one reduced model to every curve in the data files jointly and writes ``DIR/params.json``
 (every parameter, θ as ``theta_deg``, NRMSE per direction and overall) and ``DIR/fit.png``.
@@ -17,7 +17,8 @@ def add_parser(sub) -> None:
     p.add_argument("data", nargs="+", type=Path, help="data files (CSV)")
     p.add_argument("--model", default="hgo", help="homogenizer plugin (default: hgo)")
     p.add_argument("--fitter", default="lbfgs", help="fitter plugin: lbfgs or mads (default: lbfgs)")
-    p.add_argument("--reader", default="singal2024", help="reader plugin for the data files (default: singal2024)")
+    p.add_argument("--reader", default="auto", help="reader plugin for the data files (default: auto, chosen from "
+                   "each file's header: singal2024 or generic)")
     p.add_argument("--out", type=Path, required=True, help="output folder (new, or empty; see --overwrite)")
     add_overwrite_argument(p)
     p.add_argument("--quiet", action="store_true", help="print nothing on success")

@@ -30,13 +30,15 @@ Exports: :meth:`HGO.abaqus` writes an ABAQUS ``*ANISOTROPIC HYPERELASTIC, HOLZAP
 from __future__ import annotations
 
 import math
+import warnings
 from typing import ClassVar
 
 import attrs
 import numpy as np
 
 from knitframe import hookimpl
-from knitframe.fitting import solve_free_side
+from knitframe.errors import KnitframeWarning
+from knitframe.fitting import direction_index, free_side_zero_message, solve_free_side
 
 __all__ = ["HGO", "Z_CAP", "capped_exp", "fibre_terms", "fibre_gh", "abaqus_card", "febio_block"]
 
@@ -230,6 +232,8 @@ class HGO:
     log_scale: ClassVar[tuple[bool, ...]] = (True, True, False)
     #: a free side's stretch is taken from the data, not predicted (P2 = 0 forces I4 = 1)
     predicts_lateral: ClassVar[bool] = False
+    #: bounds that are symmetry planes (I4 is even about θ = 0 and θ = π/2): a fit ending there is not cut off
+    symmetric_bounds: ClassVar[tuple[bool, ...]] = (False, False, True)
 
     compression_fibre: bool = True  #: keep the fibre stress for I4 < 1 (paper); false drops it
 
@@ -272,14 +276,27 @@ class HGO:
         g, h = fibre_gh(a, b, l1 * l1 * c2 + l2 * l2 * s2, self.compression_fibre)
         return g * d1, g * d2, h * d1 * d1 + 2.0 * g * c2, h * d1 * d2, h * d2 * d2 + 2.0 * g * s2
 
+    def free_side_slack(self, params, direction="course") -> float:
+        """Loaded stretch up to which a free side keeps the tension at zero: 1/cos θ (course), 1/sin θ (wale)."""
+        theta = float(params[2])
+        c = math.cos(theta) if direction_index(direction) == 0 else math.sin(theta)
+        return 1.0 / c if c > 1e-12 else math.inf
+
     def solve_uniaxial(self, params, lam, direction="course"):
         """Free-side stretch and loaded tension under uniaxial load: ``(lam_free, P_loaded)``.
 
         P_free = 0 forces I4 = 1 while the loaded stretch is below 1/cos θ (course) or 1/sin θ
         (wale): the tension stays zero there. Beyond it no positive root exists and the free side
         collapses to the solver's lower bound (see :func:`knitframe.fitting.solve_free_side`).
+        A curve that stretches (some λ > 1) but never passes that point is zero everywhere: it
+        gets a :class:`~knitframe.errors.KnitframeWarning`.
         """
-        return solve_free_side(self, params, lam, direction)
+        lf, P = solve_free_side(self, params, lam, direction)
+        top = float(np.max(lam))
+        slack = self.free_side_slack(params, direction)
+        if 1.0 < top <= slack:
+            warnings.warn(free_side_zero_message(self.name, top, slack, direction), KnitframeWarning, stacklevel=2)
+        return lf, P
 
     def abaqus(self, params, *, thickness: float = 1.0, name: str = "KNIT", matrix_fraction: float = 1e-3) -> str:
         """ABAQUS card: k1 = 2a/t, k2 = b, κ = 0, fibre at θ; a small matrix C10 = matrix_fraction·k1/2."""

@@ -3,10 +3,15 @@
 File format: two ``#`` lines, then ``video,frame,strain_axial,strain_transverse,tension_N_per_mm``.
 The file name ends in ``-x`` (stretched along the course) or ``-y`` (along the wale). The specimen
 sides were free, so the lateral strain is measured and the lateral tension is zero.
+
+Units are checked as in the generic reader: strains beyond 5 read as percent and are divided by
+100 (one warning); a tension beyond 20 N/mm reads as a force in N and is divided by the clamp
+width of the ``# ... fabric width at clamp <w> mm`` line (one warning), or refused without it.
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import ClassVar
 
@@ -14,12 +19,23 @@ import attrs
 import numpy as np
 
 from knitframe import hookimpl, validators as v
-from knitframe.csvio import read_table
+from knitframe.csvio import check_loading, check_tension, read_table, strains_as_fractions, tension_per_width
 from knitframe.curves import average_repeats, uniaxial_response  # noqa: F401  (average_repeats re-exported)
 from knitframe.errors import DataError
 from knitframe.records import Provenance, Response
 
 COLUMNS = ("video", "frame", "strain_axial", "strain_transverse", "tension_N_per_mm")
+#: the clamp width in the files' second comment line: "fabric width at clamp 64.48 mm"
+_WIDTH = re.compile(r"width at clamp\s*=?\s*([0-9]+(?:\.[0-9]*)?)\s*mm", re.IGNORECASE)
+
+
+def clamp_width(comments: list[str]) -> float | None:
+    """The specimen width (mm) stated in the comment lines, or None."""
+    for c in comments:
+        m = _WIDTH.search(c)
+        if m and float(m.group(1)) > 0:
+            return float(m.group(1))
+    return None
 
 
 @attrs.frozen
@@ -31,6 +47,13 @@ class Singal2024Reader:
 
     average: bool = True  #: one mean ± sd Response per file; false gives one Response per repeat
     points: int = attrs.field(default=40, validator=v.in_range(2, 100000))  #: grid size when averaging
+    #: the header this reader expects, for the auto reader's message when no reader matches
+    expects: ClassVar[str] = ", ".join(COLUMNS)
+
+    @classmethod
+    def accepts(cls, header: list[str]) -> bool:
+        """True if ``header`` holds every column of the Singal et al. files."""
+        return set(COLUMNS) <= {h.strip() for h in header}
 
     def read(self, path: Path) -> list[Response]:
         path = Path(path)
@@ -43,7 +66,13 @@ class Singal2024Reader:
             load = "uniaxial-wale"
         else:
             raise DataError(path, "cannot tell the direction: the file name must end in -x (course) or -y (wale)")
-        axial, lateral, tension = table["strain_axial"], table["strain_transverse"], table["tension_N_per_mm"]
+        strains = strains_as_fractions(table, {c: table[c] for c in ("strain_axial", "strain_transverse")},
+                                       "strain_axial")
+        axial, lateral = strains["strain_axial"], strains["strain_transverse"]
+        tension = tension_per_width(table, "tension_N_per_mm", table["tension_N_per_mm"], clamp_width(table.comments),
+                                    "divide it by the specimen width, or state the width in a comment line "
+                                    "'# fabric width at clamp <w> mm'")
+        check_tension(table, "tension_N_per_mm", tension)
         for col, arr in (("strain_axial", axial), ("strain_transverse", lateral)):
             if np.any(arr <= -1):
                 i = int(np.flatnonzero(arr <= -1)[0])
@@ -51,10 +80,12 @@ class Singal2024Reader:
         videos = table.text("video")
         ids = list(dict.fromkeys(videos))
         groups = [np.array([vv == k for vv in videos]) for k in ids]
+        check_loading(table, "strain_axial", axial, groups)
         prov = Provenance(
             kind="experiment",
             source=path.name,
             notes="Singal et al. 2024, Nat Commun 15:2622, sabetta/stitch-by-stitch (MIT)",
+            extra={"warnings": list(table.warnings)} if table.warnings else {},
         )
         base = path.stem
         if not self.average:

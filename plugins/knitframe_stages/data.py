@@ -3,7 +3,7 @@
 ::
 
     [data]
-    reader = "singal2024"            # or { kind = "singal2024", average = false }
+    reader = "auto"                  # chosen from each file's header; or "singal2024", { kind = "generic", average = false }
     files = ["cotton-stockinette-x.csv"]
 
 Writes ``responses.csv`` and ``responses.png``.
@@ -28,7 +28,7 @@ class DataTable:
     """Schema of the ``[data]`` table."""
 
     files: list[str]  #: data files, relative to the config file
-    reader: str | dict[str, Any] = "singal2024"  #: reader plugin name, or a table with ``kind`` and options
+    reader: str | dict[str, Any] = "auto"  #: reader plugin name ("auto": chosen from each file's header), or a table with ``kind`` and options
 
     def __attrs_post_init__(self) -> None:
         if not self.files:
@@ -47,21 +47,30 @@ class DataStage:
 
     reader_name: str
     responses: tuple[Response, ...]
+    chosen: tuple[str, ...] = ()  #: the readers the ``auto`` reader chose, one per file
 
     @classmethod
     def from_config(cls, config, ctx) -> "DataStage":
         table = build(DataTable, config["data"], "data", source=ctx.source)
         reader = instantiate(ctx.registry, "reader", table.reader, "data.reader", source=ctx.source)
         responses: list[Response] = []
+        chosen: list[str] = []
         for i, f in enumerate(table.files):
             path = ctx.path(f, f"data.files[{i}]")
-            responses.extend(reader.read(path))  # DataError names the file, line and column
+            if hasattr(reader, "reader_for"):  # the auto reader: record which reader each file got
+                file_reader = reader.reader_for(path)
+                chosen.append(file_reader.name)
+                responses.extend(file_reader.read(path))
+            else:
+                responses.extend(reader.read(path))  # DataError names the file, line and column
         if not responses:
             raise ConfigError("data.files", "the files hold no curves", source=ctx.source)
-        return cls(PluginSpec.parse(table.reader, "data.reader").kind, tuple(responses))
+        return cls(PluginSpec.parse(table.reader, "data.reader").kind, tuple(responses), tuple(chosen))
 
     def run(self, ctx) -> None:
         ctx.used("reader", self.reader_name)
+        for name in dict.fromkeys(self.chosen):
+            ctx.used("reader", name)
         ctx.used("stage", self.name)
         ctx.responses.extend(self.responses)
         write_responses_csv(ctx.output("responses.csv"), self.responses)

@@ -20,6 +20,11 @@
     # row_widths = [10.0, 10.0]
 
 Writes ``patchwork.csv`` and ``patchwork.png``, and adds the patchwork's Response to the run.
+
+With ``lateral = "free"`` (the default) every model region must predict its free side, as
+``hgo2m`` does. The paper's ``hgo`` (also the ``[fit]`` default) cannot: P_free = 0 forces
+I4 = 1, so it carries no tension up to λ = 1/cos θ and then collapses laterally. Such a config is
+refused in one line before any work; fit ``hgo2m`` or set ``lateral = "fixed"``.
 """
 
 from __future__ import annotations
@@ -32,7 +37,8 @@ import attrs
 import numpy as np
 
 from knitframe import hookimpl, validators as v
-from knitframe.errors import ConfigError, FieldError
+from knitframe.config import PluginSpec
+from knitframe.errors import ConfigError, FieldError, KnitframeError
 from knitframe.fitting import FitResult
 from knitframe.patchwork import grid
 from knitframe.report import plot_responses
@@ -116,6 +122,8 @@ class PatchworkStage:
                 files[r.name] = FitResult.from_json(data, ctx.registry, key)
             elif r.source.startswith("fit") and "fit" not in ctx.tables:
                 raise ConfigError(key, "refers to a fitted model but the config has no [fit] table", source=ctx.source)
+        if table.lateral == "free":
+            _check_free_side(table, files, config, ctx)
         return cls(table, files, ctx.source)
 
     def _resolve(self, region: Region, ctx, i: int):
@@ -183,6 +191,47 @@ class PatchworkStage:
                 vals += [res.stretch[k, i, j] for i, row in enumerate(names) for j in range(len(row))]
                 vals += [res.interface_displacement[k, i, j] for i, row in enumerate(names) for j in range(len(row) - 1)]
                 w.writerow([f"{x:.10g}" for x in vals])
+
+
+def _fit_models(config) -> list[tuple[str, bool]]:
+    """``(model kind, is the default)`` of each [fit] table, in run order."""
+    from knitframe_stages.fit import FitTable
+
+    fits = config.get("fit", [])
+    out = []
+    for f in fits if isinstance(fits, list) else [fits]:
+        spec = f.get("model") if isinstance(f, dict) else None
+        if spec is None:
+            out.append((str(attrs.fields(FitTable).model.default), True))
+        else:
+            out.append((PluginSpec.parse(spec, "fit.model").kind, False))
+    return out
+
+
+def _check_free_side(table: PatchworkTable, files: dict[str, FitResult], config, ctx) -> None:
+    """A model region with a free side needs a model that predicts it; name the first that does not."""
+    fits = _fit_models(config)
+    for r in table.regions:
+        kind, _, arg = r.source.partition(":")
+        if kind == "file":
+            name, default, model = files[r.name].model.name, False, files[r.name].model
+        elif kind == "fit" and fits:
+            idx = int(arg) if arg else -1
+            if not -len(fits) <= idx < len(fits):
+                continue  # reported when the stage runs, with the number of fits made
+            name, default = fits[idx]
+            try:
+                model = ctx.registry["homogenizer"][name]
+            except KnitframeError:
+                continue  # the [fit] stage names an unknown model itself
+        else:
+            continue
+        if not getattr(model, "predicts_lateral", True):
+            origin = " (the [fit] default)" if default else ""
+            raise ConfigError("patchwork.lateral", f"'free' needs models that predict their free side, but region "
+                              f"'{r.name}' uses '{name}'{origin}: with a free side P_free = 0 forces I4 = 1, so it "
+                              "carries no tension up to stretch 1/cos(theta) and then collapses; fit 'hgo2m' or set "
+                              "lateral = \"fixed\"", source=ctx.source)
 
 
 @hookimpl
