@@ -4,6 +4,7 @@ Public API::
 
     import knitframe
     result = knitframe.run("example.toml", out="out")   # same as `knitframe run example.toml --out out`
+    sleeve = knitframe.design("example", objective={"kind": "pressure_profile", "target_mmHg": 25})
     registry = knitframe.get_registry()
     registry["pattern"]["jersey"]
 """
@@ -32,11 +33,13 @@ from knitframe.plugins import Registry, get_registry, load_registry  # noqa: E40
 from knitframe.records import EFFECTS, Fabric, LoadPath, Provenance, Response, Scene, Yarn  # noqa: E402
 from knitframe.pipeline import PipelineResult, run  # noqa: E402
 from knitframe.examples import example_config  # noqa: E402
+from knitframe.garment.api import design  # noqa: E402
 
 __all__ = [
     "__version__",
     "hookimpl",
     "run",
+    "design",
     "example_config",
     "get_registry",
     "load_registry",

@@ -122,13 +122,33 @@ class Fitter(Protocol):
 
 @runtime_checkable
 class DesignObjective(Protocol):
-    """Scores a garment assignment; lower is better."""
+    """Scores a garment assignment; lower is better.
+
+    The optimiser of :mod:`knitframe.garment` needs the objective as a sum over elements, so that it
+    can find the best assignment exactly: :meth:`element_cost` is that sum's term. An objective
+    whose target is a free level (uniform tension or pressure, whatever its value) says so with
+    ``relative = True``; the optimiser then searches the level τ as well.
+    """
 
     name: ClassVar[str]
     description: ClassVar[str]
+    #: the per-element field it scores: ``"tension"`` (N/mm) or ``"pressure"`` (mmHg)
+    quantity: ClassVar[str]
+
+    @property
+    def relative(self) -> bool:
+        """True when the target level is free (uniformity): element_cost then takes a level τ."""
 
     def score(self, tension: np.ndarray, area: np.ndarray, radius: np.ndarray | None = None) -> float:
         """Score of per-element circumferential tension (N/mm), element area (mm²), limb radius (mm)."""
+
+    def element_cost(self, value: np.ndarray, area: np.ndarray, position: np.ndarray,
+                     level: float | None = None) -> np.ndarray:
+        """Additive cost of each element's value (shape ``(..., E)``), its area (E,) and its position
+        along the limb (E,, 0 distal to 1 at the top); ``level`` is τ for relative objectives."""
+
+    def evaluate(self, value: np.ndarray, area: np.ndarray, position: np.ndarray) -> float:
+        """The objective of a finished design, as reported (lower is better)."""
 
 
 @runtime_checkable

@@ -70,6 +70,7 @@ class RunContext:
     checkpoints: Path | None = None  #: root of the stages' checkpoint folders (kept for ``--resume``)
     responses: list[Response] = attrs.Factory(list)  #: measured or simulated curves
     models: list[Any] = attrs.Factory(list)  #: fitted reduced models
+    objects: dict[str, Any] = attrs.Factory(dict)  #: rich results by stage label (a Design, …), for the API
     results: dict[str, Any] = attrs.Factory(dict)  #: per-stage results, by stage name
     outputs: list[str] = attrs.Factory(list)  #: files written, relative to ``out``
     plugins: dict[str, dict[str, str]] = attrs.Factory(dict)  #: "kind:name" → {package, version}
@@ -104,6 +105,7 @@ class PipelineResult:
     models: list[Any]
     results: dict[str, Any]
     summary: dict[str, Any]
+    objects: dict[str, Any] = attrs.Factory(dict)  #: rich results by stage label (a Design, …)
 
 
 class Pipeline:
@@ -191,12 +193,12 @@ class Pipeline:
             with tempfile.TemporaryDirectory(prefix="knitframe-") as tmp:
                 ctx = RunContext(self.registry, Path(tmp), checkpoints=Path(tmp) / ".checkpoints", quiet=quiet)
                 summary = self._run_stages(ctx)
-                return PipelineResult(None, ctx.responses, ctx.models, ctx.results, summary)
+                return PipelineResult(None, ctx.responses, ctx.models, ctx.results, summary, ctx.objects)
         with OutputDir(out, command="run", fingerprint=fingerprint(self.config), resume=resume,
                        overwrite=overwrite) as od:
             ctx = RunContext(self.registry, od.staging, checkpoints=od.checkpoints, resume=resume, quiet=quiet)
             summary = od.commit(self._run_stages(ctx))
-        return PipelineResult(od.out, ctx.responses, ctx.models, ctx.results, summary)
+        return PipelineResult(od.out, ctx.responses, ctx.models, ctx.results, summary, ctx.objects)
 
     def _run_stages(self, ctx: RunContext) -> dict[str, Any]:
         """Run the stages into ``ctx.out``; returns the summary (without its list of outputs)."""

@@ -16,7 +16,7 @@ import pytest
 import knitframe
 from knitframe.cli import main as cli
 from knitframe.config import instantiate
-from knitframe.design.library import (
+from knitframe.garment.library import (
     BUILTIN_DATA,
     BUILTIN_FILE,
     FabricEntry,

@@ -1,4 +1,4 @@
-"""The limb input for garment design (knitframe.design.limb): scans, measurements, the example arm."""
+"""The limb input for garment design (knitframe.garment.limb): scans, measurements, the example arm."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pytest
 import trimesh
 from scipy import integrate
 
-from knitframe.design.limb import (
+from knitframe.garment.limb import (
     EXAMPLE_ARM_MEASUREMENTS,
     Limb,
     ellipse_semi_axes,

@@ -19,7 +19,7 @@ def add_parser(sub) -> None:
     p.add_argument("--fitter", default="lbfgs", help="fitter plugin: lbfgs or mads (default: lbfgs)")
     p.add_argument("--reader", default="auto", help="reader plugin for the data files (default: auto, chosen from "
                    "each file's header: singal2024 or generic)")
-    p.add_argument("--out", type=Path, required=True, help="output folder (new, or empty; see --overwrite)")
+    p.add_argument("--out", required=True, help="output folder (new, or empty; see --overwrite)")
     add_overwrite_argument(p)
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
     p.set_defaults(func=main)
@@ -47,5 +47,5 @@ def main(args) -> int:
                    "model": args.model, "fitter": args.fitter})
     if not args.quiet:
         print(result.headline())
-        print(f"wrote {args.out / 'params.json'} and {args.out / 'fit.png'}")
+        print(f"wrote {od.out / 'params.json'} and {od.out / 'fit.png'}")
     return 0

@@ -74,7 +74,7 @@ def _output_arguments(parser, func) -> None:
 
 def main_build(args) -> int:
     from knitframe import __version__
-    from knitframe.design.library import FabricLibrary
+    from knitframe.garment.library import FabricLibrary
 
     n = len(args.params)
     kwargs = {}
@@ -111,7 +111,7 @@ def main_build(args) -> int:
 
 def main_build_builtin(args) -> int:
     from knitframe import __version__
-    from knitframe.design.library import BUILTIN_FITTER, BUILTIN_MODEL, build_builtin
+    from knitframe.garment.library import BUILTIN_FITTER, BUILTIN_MODEL, build_builtin
 
     od = OutputDir(args.out, command="library build-builtin", overwrite=args.overwrite,
                    fingerprint=fingerprint({"builtin": BUILTIN_MODEL, "fitter": BUILTIN_FITTER}))
@@ -174,7 +174,7 @@ def format_table(library) -> str:
 
 
 def main_show(args) -> int:
-    from knitframe.design.library import FabricLibrary, builtin_library
+    from knitframe.garment.library import FabricLibrary, builtin_library
 
     library = builtin_library() if args.library == "builtin" else FabricLibrary.load(args.library)
     print(format_table(library))

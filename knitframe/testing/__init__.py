@@ -66,7 +66,8 @@ def check_executor(obj: Any) -> None:
 
 
 def check_design_objective(obj: Any) -> None:
-    """Scores uniform tension as 0, non-uniform tension as > 0, always finite."""
+    """Scores uniform tension better than non-uniform, always finite; its per-element cost is
+    additive, non-negative and zero where the target (or, for a relative objective, the level) is met."""
     inst = default_instance(obj)
     area = np.array([1.0, 2.0, 1.5, 0.5])
     radius = np.array([30.0, 30.0, 30.0, 30.0])
@@ -74,6 +75,16 @@ def check_design_objective(obj: Any) -> None:
     varied = inst.score(np.array([0.05, 0.07, 0.09, 0.11]), area, radius)
     assert np.isfinite(uniform) and np.isfinite(varied), "scores must be finite"
     assert varied > uniform, f"non-uniform tension must score worse ({varied} <= {uniform})"
+    assert inst.quantity in ("tension", "pressure"), f"quantity must be 'tension' or 'pressure', got {inst.quantity!r}"
+    position = np.linspace(0.0, 1.0, 4)
+    values = np.array([[5.0, 10.0, 15.0, 20.0], [12.0, 12.0, 12.0, 12.0]])
+    level = 12.0 if inst.relative else None
+    cost = np.asarray(inst.element_cost(values, area, position, level))
+    assert cost.shape == values.shape, f"element_cost must keep the shape of the values, got {cost.shape}"
+    assert np.all(np.isfinite(cost)) and np.all(cost >= 0), "element costs must be finite and >= 0"
+    if inst.relative:
+        assert np.allclose(cost[1], 0.0), "a relative objective's cost is zero where every value equals the level"
+    assert np.isfinite(inst.evaluate(values[0], area, position)), "evaluate must be finite"
 
 
 def check_stage(obj: Any) -> None:

@@ -9,7 +9,7 @@ import numpy as np
 
 from knitframe import hookimpl, validators as v
 from knitframe.errors import NumericalError
-from knitframe_objectives.stress_variance import weighted_cv2
+from knitframe_objectives.stress_variance import level_cost, weighted_cv2
 
 #: 1 MPa in mmHg (1 mmHg = 133.322 Pa)
 MPA_TO_MMHG = 1e6 / 133.322
@@ -29,23 +29,46 @@ def laplace_pressure(tension: np.ndarray, radius: np.ndarray) -> np.ndarray:
     return np.asarray(tension, dtype=np.float64) / r * MPA_TO_MMHG
 
 
+def relative_error_cost(value: np.ndarray, area: np.ndarray, target: np.ndarray) -> np.ndarray:
+    r"""Per-element squared relative error to a target: :math:`w_e\,((x_e - x^*_e)/x^*_e)^2`."""
+    t = np.asarray(target, dtype=np.float64)
+    return np.asarray(area, dtype=np.float64) * ((np.asarray(value, dtype=np.float64) - t) / t) ** 2
+
+
+def mean_relative_error(value: np.ndarray, area: np.ndarray, target: np.ndarray) -> float:
+    """Area-weighted mean of the squared relative error to the target (0 when met everywhere)."""
+    w = np.asarray(area, dtype=np.float64)
+    return float(relative_error_cost(value, w, target).sum() / w.sum())
+
+
 @attrs.frozen
 class PressureUniformity:
     """Laplace pressure p = T/r: area-weighted CV² of p, or mean squared relative error to a target."""
 
     name: ClassVar[str] = "pressure_uniformity"
     description: ClassVar[str] = "uniform (or target) interface pressure p = T/r by Laplace's law"
+    quantity: ClassVar[str] = "pressure"
 
     target_mmHg: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: target pressure, mmHg
+
+    @property
+    def relative(self) -> bool:
+        return self.target_mmHg is None
 
     def score(self, tension: np.ndarray, area: np.ndarray, radius: np.ndarray | None = None) -> float:
         if radius is None:
             raise NumericalError("pressure_uniformity needs the limb radius of every element")
-        p = laplace_pressure(tension, radius)
+        return self.evaluate(laplace_pressure(tension, radius), area, None)
+
+    def element_cost(self, value, area, position, level=None) -> np.ndarray:
         if self.target_mmHg is None:
-            return weighted_cv2(p, area)
-        w = np.asarray(area, dtype=np.float64)
-        return float(np.dot(w, ((p - self.target_mmHg) / self.target_mmHg) ** 2) / w.sum())
+            return level_cost(value, area, level)
+        return relative_error_cost(value, area, self.target_mmHg)
+
+    def evaluate(self, value, area, position) -> float:
+        if self.target_mmHg is None:
+            return weighted_cv2(value, area)
+        return mean_relative_error(value, area, self.target_mmHg)
 
 
 @hookimpl

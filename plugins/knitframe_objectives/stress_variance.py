@@ -23,12 +23,28 @@ def weighted_cv2(x: np.ndarray, w: np.ndarray) -> float:
     w = np.asarray(w, dtype=np.float64)
     if x.shape != w.shape or x.size == 0:
         raise NumericalError(f"values and weights must be non-empty and of one shape, got {x.shape} and {w.shape}")
+    x, w = x.ravel(), w.ravel()
+    if x.size == 0:
+        raise NumericalError(f"values and weights must be non-empty and of one shape, got {x.shape} and {w.shape}")
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(w))) or np.any(w < 0) or w.sum() <= 0:
         raise NumericalError("values must be finite and weights finite, non-negative and not all zero")
-    mean = np.dot(w, x) / w.sum()
+    W = w.sum()
+    mean = (w * x).sum() / W  # elementwise sums, not BLAS dot: this runs inside the optimiser's loops
     if mean == 0:
         raise NumericalError("mean value is zero; the coefficient of variation is undefined")
-    return float(np.dot(w, (x - mean) ** 2) / (w.sum() * mean**2))
+    return float((w * (x - mean) ** 2).sum() / (W * mean**2))
+
+
+def level_cost(value: np.ndarray, area: np.ndarray, level: float | None) -> np.ndarray:
+    r"""Per-element term of a uniformity objective at level τ: :math:`w_e (x_e/\tau - 1)^2`.
+
+    For one assignment, :math:`\min_\tau \sum_e w_e (x_e/\tau - 1)^2 = W\,\mathrm{CV}^2/(1 + \mathrm{CV}^2)`
+    (at :math:`\tau = \sum w x^2 / \sum w x`), a strictly increasing function of CV². Minimising
+    this sum over assignments *and* τ therefore minimises the CV exactly; the optimiser searches τ.
+    """
+    if level is None or not level > 0:
+        raise NumericalError(f"a uniformity objective needs a level > 0, got {level}")
+    return np.asarray(area, dtype=np.float64) * (np.asarray(value, dtype=np.float64) / level - 1.0) ** 2
 
 
 @attrs.frozen
@@ -37,9 +53,20 @@ class StressVariance:
 
     name: ClassVar[str] = "stress_variance"
     description: ClassVar[str] = "area-weighted squared coefficient of variation of fabric tension (paper)"
+    quantity: ClassVar[str] = "tension"
+
+    @property
+    def relative(self) -> bool:
+        return True
 
     def score(self, tension: np.ndarray, area: np.ndarray, radius: np.ndarray | None = None) -> float:
         return weighted_cv2(tension, area)
+
+    def element_cost(self, value, area, position, level=None) -> np.ndarray:
+        return level_cost(value, area, level)
+
+    def evaluate(self, value, area, position) -> float:
+        return weighted_cv2(value, area)
 
 
 @hookimpl

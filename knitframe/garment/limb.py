@@ -616,8 +616,8 @@ def example_arm(n_stations: int = 41, n_around: int = 64) -> Limb:
     upper arm                     420 mm       315 mm           0.95
     ============================  ===========  ===============  ===================
 
-    Source: the typical adult values and the standard measuring positions of REFERENCES section 6
-    (limbs): the wrist about 15–17 cm around, the upper arm 26–34 cm and about twice the wrist
+    Source: typical adult values and the standard measuring positions of compression-garment
+    fitting: the wrist about 15–17 cm around, the upper arm 26–34 cm and about twice the wrist
     (here 315/160 = 1.97), measured at the wrist, the largest forearm, the elbow and the upper arm.
     The positions, the lower-forearm value and the ratios (a flattened wrist rounding towards the
     upper arm; slightly elliptical forearm) are illustrative round numbers for an adult arm, not

@@ -77,7 +77,7 @@ course (x) and wale (y) tests of that fabric jointly (mean of the repeats, reade
 Rebuild it (about 40 s on one core) and compare or replace the shipped file::
 
     knitframe library build-builtin --out builtin-out
-    cp builtin-out/library.json knitframe/design/data/library-singal2024.json
+    cp builtin-out/library.json knitframe/garment/data/library-singal2024.json
 
 ``builtin-out/fits/`` then also holds each fabric's ``params.json`` and ``fit.png``. The
 test ``test_builtin_rebuild_reproduces_shipped`` (marked slow) checks that a rebuild reproduces

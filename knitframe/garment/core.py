@@ -1,0 +1,475 @@
+"""Garment design: assign a fabric from a library to every region of a tube worn on a limb.
+
+:func:`design` is the one entry point (the ``[design]`` stage and ``knitframe design`` call it).
+Two methods:
+
+- ``"optimal"`` (default): course bands (stripes, knittable without intarsia), each at least
+  ``min_courses`` long, chosen by an exact solver (:mod:`knitframe.garment.optimise`) for the
+  objective plugin, never over a fabric's limit;
+- ``"paper"``: the paper's procedure, per element in 2-D (paper mode only): start with the base
+  fabric (cotton), switch elements over its limit to the most compliant fabric, choose each
+  element's fabric so the tension is as uniform as possible (iterated to a fixed point), then merge
+  regions smaller than the minimum size into their neighbours until every region is contiguous
+  and large enough. A heuristic, kept to compare with.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from typing import Any
+
+import attrs
+import numpy as np
+from scipy import ndimage
+
+from knitframe.garment.optimise import BandSolution, NoAssignment, check_options, solve_bands, solve_levels
+from knitframe.garment.tube import MMHG_PER_MPA, ElementGeometry, Tube, element_geometry
+from knitframe.errors import ConfigError, KnitframeWarning
+
+__all__ = ["Design", "design", "compression_class", "CLASSES"]
+
+#: RAL-GZ 387 compression classes, mmHg (lower, upper); between them a pressure has no class
+CLASSES = (("I", 18.0, 21.0), ("II", 23.0, 32.0), ("III", 34.0, 46.0), ("IV", 49.0, np.inf))
+
+
+def compression_class(p: float) -> str:
+    """The RAL-GZ 387 class of a pressure in mmHg: I 18–21, II 23–32, III 34–46, IV ≥ 49."""
+    for name, lo, hi in CLASSES:
+        if lo <= p <= hi:
+            return name
+    if p < CLASSES[0][1]:
+        return "below I"
+    below = [name for name, lo, _ in CLASSES if lo > p][0]
+    above = [name for name, _, hi in CLASSES if hi < p][-1]
+    return f"between {above} and {below}"
+
+
+@attrs.frozen(eq=False)
+class Design:
+    """A designed garment: the fabric of every element and the fields it gives on the limb."""
+
+    limb: Any  #: the Limb
+    library: Any  #: the FabricLibrary
+    objective: Any  #: the objective plugin instance
+    tube: Tube  #: the tube as made (needles filled in for knitting mode)
+    method: str
+    geometry: ElementGeometry
+    fabric: np.ndarray  #: (R, A) library index of every element
+    lam1: np.ndarray  #: (R, A) course stretch
+    lam2: np.ndarray  #: (R, A) wale stretch
+    T1: np.ndarray  #: (R, A) course tension, N/mm
+    T2: np.ndarray  #: (R, A) wale tension, N/mm
+    courses: np.ndarray  #: (R,) courses knitted in each element row
+    value: float  #: the objective of this design
+    guarantee: str  #: what the solver guarantees
+    baseline: dict[str, Any]  #: the single-fabric garment (the base fabric everywhere), for comparison
+    pressure_basis: str  #: which radius the pressure objective used: "equivalent" or "local"
+    wall_time: float = 0.0
+    notes: tuple[str, ...] = ()
+
+    @property
+    def pressure_equivalent(self) -> np.ndarray:
+        """(R, A) Laplace pressure with the section's equivalent radius C/2π, mmHg."""
+        return self.T1 / self.geometry.equivalent_radius[:, None] * MMHG_PER_MPA
+
+    @property
+    def pressure_local(self) -> np.ndarray:
+        """(R, A) Laplace pressure with the local radius of curvature (0 where concave), mmHg."""
+        return self.T1 * np.maximum(self.geometry.curvature, 0.0) * MMHG_PER_MPA
+
+    @property
+    def pressure(self) -> np.ndarray:
+        return self.pressure_local if self.pressure_basis == "local" else self.pressure_equivalent
+
+    @property
+    def limits_respected(self) -> bool:
+        return bool(self.over_limit.sum() == 0)
+
+    @property
+    def over_limit(self) -> np.ndarray:
+        """(R, A) True where an element exceeds its fabric's tension or stretch limit."""
+        lib = self.library
+        tmax = np.array([e.max_tension for e in lib.entries])[self.fabric]
+        smax = np.array([e.max_stretch or np.inf for e in lib.entries])[self.fabric]
+        return (self.T1 > tmax * (1 + 1e-9)) | (self.lam1 > smax * (1 + 1e-9))
+
+    def regions(self) -> list[dict[str, Any]]:
+        """Contiguous regions: fabric, element rows and columns, courses, and wale (stitch) range."""
+        out = []
+        labels, n = _periodic_labels(self.fabric)
+        first_course = np.concatenate([[0], np.cumsum(self.courses)])
+        for k in range(1, n + 1):
+            rows, cols = np.nonzero(labels == k)
+            f = int(self.fabric[rows[0], cols[0]])
+            entry = self.library.entries[f]
+            r0, r1 = int(rows.min()), int(rows.max()) + 1
+            out.append({
+                "fabric": entry.name, "pattern": entry.pattern, "yarn": entry.yarn,
+                "stitch_length": entry.stitch_length,
+                "rows": [r0, r1], "columns": sorted({int(c) for c in cols}) if len(set(cols)) < self.fabric.shape[1]
+                else "all", "elements": int(len(rows)),
+                "courses": [round(float(first_course[r0]), 3), round(float(first_course[r1]), 3)],
+                "position_mm": [float(self.geometry.z[r0] - 0.5 * self.geometry.row_length[r0]),
+                                float(self.geometry.z[r1 - 1] + 0.5 * self.geometry.row_length[r1 - 1])],
+            })
+        return out
+
+    def stations(self) -> list[dict[str, Any]]:
+        """Per element row: position, circumference, tension, pressure mean/min/max and class."""
+        g = self.geometry
+        pe, pl = self.pressure_equivalent, self.pressure_local
+        rows = []
+        for i in range(g.shape[0]):
+            p = float(pe[i].mean())
+            rows.append({
+                "row": i, "position_mm": float(g.z[i]), "position": float(g.position[i]),
+                "circumference_mm": float(g.circumference[i]),
+                "fabric": self.library.entries[int(np.bincount(self.fabric[i]).argmax())].name,
+                "lambda1": float(self.lam1[i].mean()), "lambda2": float(self.lam2[i].mean()),
+                "tension_N_per_mm": float(self.T1[i].mean()),
+                "pressure_mmHg": {"equivalent": p, "local_mean": float(pl[i].mean()),
+                                  "local_min": float(pl[i].min()), "local_max": float(pl[i].max())},
+                "class": compression_class(p),
+            })
+        return rows
+
+    def standard_positions(self) -> dict[str, dict[str, float]]:
+        """Pressure at the distal end (wrist or ankle), the largest circumference and the top."""
+        g = self.geometry
+        where = {"distal": 0, "largest": int(np.argmax(g.circumference)), "top": g.shape[0] - 1}
+        pe, pl = self.pressure_equivalent, self.pressure_local
+        return {k: {"position_mm": float(g.z[i]), "circumference_mm": float(g.circumference[i]),
+                    "pressure_equivalent_mmHg": float(pe[i].mean()),
+                    "pressure_local_mean_mmHg": float(pl[i].mean()),
+                    "pressure_local_max_mmHg": float(pl[i].max()), "class": compression_class(float(pe[i].mean()))}
+                for k, i in where.items()}
+
+    def stress_cv(self) -> float:
+        return _cv(self.T1, self.geometry.area)
+
+    def to_json(self) -> dict[str, Any]:
+        """The content of ``design.json``."""
+        t = self.tube
+        return {
+            "objective": {"name": self.objective.name, "options": attrs.asdict(self.objective)
+                          if attrs.has(type(self.objective)) else {}, "value": self.value,
+                          "quantity": self.objective.quantity, "pressure_basis": self.pressure_basis},
+            "method": self.method, "guarantee": self.guarantee,
+            "tube": {"mode": t.mode, "circumference_mm": t.circumference, "length_mm": t.length,
+                     "needles": t.needles, "axial_stretch": t.axial_stretch,
+                     "courses": int(self.courses.sum())},
+            "limb": {"name": self.limb.name, "source": self.limb.source, "stations": len(self.limb.positions),
+                     "around": int(self.fabric.shape[1]), "length_mm": float(self.limb.positions[-1]),
+                     "notes": list(self.limb.notes)},
+            "library": {"name": self.library.name, "source": self.library.source,
+                        "fabrics": [e.name for e in self.library.entries]},
+            "regions": self.regions(),
+            "stations": self.stations(),
+            "standard_positions": self.standard_positions(),
+            "stress_cv": self.stress_cv(),
+            "limits_respected": self.limits_respected,
+            "elements_over_limit": int(self.over_limit.sum()),
+            "baseline": self.baseline,
+            "notes": list(self.notes),
+            "wall_time_s": self.wall_time,
+        }
+
+
+def _cv(x: np.ndarray, w: np.ndarray) -> float:
+    w = np.broadcast_to(w, x.shape)
+    mean = float(np.sum(w * x) / np.sum(w))
+    return float(np.sqrt(np.sum(w * (x - mean) ** 2) / np.sum(w)) / mean) if mean > 0 else float("inf")
+
+
+def _periodic_labels(fabric: np.ndarray) -> tuple[np.ndarray, int]:
+    """Connected regions of equal fabric on the tube (4-neighbours, joined across the seam)."""
+    labels = np.zeros(fabric.shape, dtype=np.int64)
+    n = 0
+    for f in np.unique(fabric):
+        lab, k = ndimage.label(fabric == f)
+        labels[lab > 0] = lab[lab > 0] + n
+        n += k
+    parent = np.arange(n + 1)
+
+    def root(a: int) -> int:
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    seam = (fabric[:, 0] == fabric[:, -1])
+    for a, b in zip(labels[seam, 0], labels[seam, -1]):
+        ra, rb = root(int(a)), root(int(b))
+        if ra != rb:
+            parent[max(ra, rb)] = min(ra, rb)
+    roots = np.array([root(i) for i in range(n + 1)])
+    _, dense = np.unique(roots, return_inverse=True)
+    return dense[labels], int(dense.max())
+
+
+def _evaluate(objective, T1: np.ndarray, geo: ElementGeometry, pressure_basis: str) -> np.ndarray:
+    """The objective's field for tensions T1 (any leading shape, last two (R, A))."""
+    if objective.quantity == "tension":
+        return T1
+    if pressure_basis == "local":
+        return T1 * np.maximum(geo.curvature, 0.0) * MMHG_PER_MPA
+    return T1 / geo.equivalent_radius[:, None] * MMHG_PER_MPA
+
+
+def _fabric_fields(library, tube: Tube, geo: ElementGeometry, distal: float, needles: int | None):
+    """λ1, λ2, T1, T2 of shape (F, R, A), courses (R, F) and the feasibility (F, R, A)."""
+    entries = library.entries
+    c = np.array([e.course_pitch for e in entries])
+    w = np.array([e.wale_pitch for e in entries])
+    lam1, lam2, courses = tube.stretches(geo, c, w, distal, needles)
+    T1 = np.empty(lam1.shape)
+    T2 = np.empty(lam1.shape)
+    for f, e in enumerate(entries):
+        t1, t2 = e.tensions(lam1[f], lam2[f])
+        T1[f], T2[f] = np.maximum(t1, 0.0), np.maximum(t2, 0.0)  # slack fabric carries no compression
+    tmax = np.array([e.max_tension for e in entries])[:, None, None]
+    smax = np.array([e.max_stretch or np.inf for e in entries])[:, None, None]
+    feasible = np.isfinite(T1) & (T1 <= tmax) & (lam1 <= smax)
+    return np.asarray(lam1), np.asarray(lam2), T1, T2, courses, feasible
+
+
+def _solve_bands(objective, V: np.ndarray, feasible: np.ndarray, geo: ElementGeometry, courses: np.ndarray,
+                 min_courses: float, max_fabrics: int | None) -> BandSolution:
+    """Exact course-band assignment for the objective's per-element field V (F, R, A)."""
+    area = geo.area[None]
+    pos = np.broadcast_to(geo.position[:, None], geo.shape)[None]
+    blocked = ~feasible.all(axis=2).T  # (R, F): a row in fabric f with any element over the limit
+
+    def row_cost(level: float | None) -> np.ndarray:
+        c = objective.element_cost(V, area, pos, level).sum(axis=2).T
+        return np.where(blocked, np.inf, c)
+
+    def evaluate(rows: np.ndarray) -> float:
+        v = V[rows, np.arange(len(rows))]
+        return objective.evaluate(v, geo.area, np.broadcast_to(geo.position[:, None], geo.shape))
+
+    if not objective.relative:
+        return solve_bands(row_cost(None), courses, min_courses, max_fabrics)
+    ok = V[feasible & (V > 0)]
+    if not len(ok):
+        raise NoAssignment("every fabric is slack or over its limit everywhere")
+    levels = np.geomspace(np.percentile(ok, 2), np.percentile(ok, 98), 24)
+    return solve_levels(row_cost, courses, levels, evaluate, min_courses=min_courses, max_fabrics=max_fabrics)
+
+
+def _no_fit_message(library, feasible: np.ndarray, lam1: np.ndarray, geo: ElementGeometry) -> str:
+    rows_ok = feasible.all(axis=2).any(axis=0)  # (R,): some fabric fits the whole row
+    if rows_ok.all():
+        return "no assignment meets the limits with regions of at least design.min_courses courses"
+    i = int(np.flatnonzero(~rows_ok)[0])
+    return (f"no fabric in library '{library.name}' can be worn at {geo.z[i]:.0f} mm along the limb "
+            f"(circumference {geo.circumference[i]:.0f} mm, course stretch {lam1[:, i].min():.2f} to "
+            f"{lam1[:, i].max():.2f}): every one is over its limit; add a more compliant fabric or use more needles")
+
+
+def _paper_method(objective, library, T1: np.ndarray, feasible: np.ndarray, geo: ElementGeometry, base: int,
+                  min_elements: int) -> tuple[np.ndarray, list[str]]:
+    """The paper's per-element procedure (steps 5–7); returns the (R, A) assignment and notes."""
+    F = T1.shape[0]
+    fab = np.full(geo.shape, base)
+    over = ~feasible[base]
+    compliant = np.argmin(np.where(feasible, T1, np.inf), axis=0)  # the least tension that fits
+    fab[over] = compliant[over]
+    notes = [f"{int(over.sum())} of {over.size} elements over the limit of "
+             f"{library.entries[base].name}: switched to the most compliant fabric that fits"]
+    for it in range(50):  # choose each element's fabric for the most uniform tension, to a fixed point
+        current = np.take_along_axis(T1, fab[None], 0)[0]
+        tau = float(np.sum(geo.area * current) / np.sum(geo.area))
+        new = np.argmin(np.where(feasible, np.abs(T1 - tau), np.inf), axis=0)
+        new = np.where(feasible[new, np.arange(geo.shape[0])[:, None], np.arange(geo.shape[1])], new, fab)
+        if np.array_equal(new, fab):
+            break
+        fab = new
+    notes.append(f"uniform-tension choice converged after {it + 1} passes")
+    merged = 0
+    while True:  # merge regions below the minimum size into the neighbour they share most boundary with
+        labels, n = _periodic_labels(fab)
+        sizes = np.bincount(labels.ravel(), minlength=n + 1)
+        small = [k for k in range(1, n + 1) if sizes[k] < min_elements]
+        if not small or n == 1:
+            break
+        k = min(small, key=lambda k: sizes[k])
+        mask = labels == k
+        ring = (np.roll(mask, 1, 1) | np.roll(mask, -1, 1) | np.vstack([mask[1:], mask[-1:] & False])
+                | np.vstack([mask[:1] & False, mask[:-1]])) & ~mask
+        neighbours = fab[ring]
+        if not len(neighbours):
+            break
+        fab[mask] = np.bincount(neighbours, minlength=F).argmax()
+        merged += 1
+    notes.append(f"{merged} regions below {min_elements} elements merged into their neighbours")
+    return fab, notes
+
+
+def design(limb, library, objective, *, tube: Tube | None = None, method: str = "optimal",
+           pressure: str = "equivalent", min_courses: float = 10.0, max_fabrics: int | None = None,
+           base: str | None = None) -> Design:
+    """Design a sleeve: the fabric of every element, its stretches, tensions and pressures.
+
+    Parameters
+    ----------
+    limb : Limb
+        The limb (a scan, measurements or the built-in example arm).
+    library : FabricLibrary
+        The candidate fabrics with their fitted models, relaxed pitches and limits.
+    objective : DesignObjective
+        A design objective plugin instance (``stress_variance``, ``pressure_uniformity``,
+        ``pressure_profile`` or a third party's).
+    tube : Tube
+        The paper's wrist cylinder, or a knitting machine's needles (searched when not given).
+    method : "optimal" or "paper"
+    pressure : "equivalent" or "local"
+        Which Laplace radius the pressure objectives use (both are reported).
+    min_courses : float
+        Least courses in each region.
+    max_fabrics : int, optional
+        At most this many distinct fabrics.
+    base : str, optional
+        The single fabric of the comparison garment and the paper method's start (default: the
+        library's first cotton fabric, else its first).
+    """
+    t0 = time.perf_counter()
+    tube = tube or Tube()
+    check_options(min_courses, max_fabrics, len(library.entries))
+    if method not in ("optimal", "paper"):
+        raise ConfigError("design.method", f"must be 'optimal' or 'paper', got {method!r}")
+    if pressure not in ("equivalent", "local"):
+        raise ConfigError("design.pressure", f"must be 'equivalent' or 'local', got {pressure!r}")
+    if method == "paper" and tube.mode != "paper":
+        raise ConfigError("design.method", "the paper's per-element method needs tube.mode = 'paper' (its "
+                                           "2-D map needs intarsia; the knitting mode designs course bands)")
+    names = [e.name for e in library.entries]
+    if base is None:
+        base_i = next((i for i, e in enumerate(library.entries) if "cotton" in e.yarn.lower()), 0)
+    elif base in names:
+        base_i = names.index(base)
+    else:
+        raise ConfigError("design.base", f"no fabric '{base}' in library '{library.name}'; it has {', '.join(names)}")
+    geo = element_geometry(limb)
+    distal = float(limb.circumference[0])
+    notes: list[str] = list(limb.notes)
+
+    where = np.broadcast_to(geo.position[:, None], geo.shape)
+
+    def solve(n: int | None):
+        lam1, lam2, T1, T2, courses, feasible = _fabric_fields(library, tube, geo, distal, n)
+        V = _evaluate(objective, T1, geo, pressure)
+        sol = _solve_bands(objective, V, feasible, geo, courses, min_courses, max_fabrics)
+        value = objective.evaluate(V[sol.rows, np.arange(len(sol.rows))], geo.area, where)
+        return sol, (lam1, lam2, T1, T2, courses, feasible, V), float(value)
+
+    if method == "paper":
+        lam1, lam2, T1, T2, courses, feasible = _fabric_fields(library, tube, geo, distal, None)
+        min_elements = max(1, int(np.ceil(min_courses / courses.mean())))
+        fab, more = _paper_method(objective, library, T1, feasible, geo, base_i, min_elements)
+        notes += more
+        guarantee = "none: the paper's per-element heuristic (steps 5–7)"
+        made = tube
+    else:
+        if tube.mode == "knitting" and tube.needles is None:
+            sol, fields, n = _search_needles(solve, library, geo, distal)
+            made = attrs.evolve(tube, needles=n)
+            notes.append(f"{n} needles chosen with the assignment")
+        else:
+            try:
+                sol, fields, _ = solve(None)
+            except NoAssignment:
+                lam1, _, _, _, _, feasible = _fabric_fields(library, tube, geo, distal, None)
+                raise ConfigError("design", _no_fit_message(library, feasible, lam1, geo)) from None
+            made = tube if tube.mode == "knitting" else attrs.evolve(
+                tube, circumference=tube.circumference or distal, length=tube.length or float(geo.row_length.sum()))
+        lam1, lam2, T1, T2, courses, feasible, _ = fields
+        fab = np.repeat(sol.rows[:, None], geo.shape[1], axis=1)
+        guarantee = sol.guarantee + (f"; level τ = {sol.level:.4g} searched on a grid and refined"
+                                     if sol.level is not None else "")
+    if made.mode == "paper" and made.circumference is None:
+        made = attrs.evolve(made, circumference=distal, length=float(geo.row_length.sum()))
+    R, A = geo.shape
+    ii, jj = np.arange(R)[:, None], np.arange(A)[None, :]
+    pick = lambda X: X[fab, ii, jj]  # noqa: E731
+    T1d = pick(T1)
+    value = objective.evaluate(_evaluate(objective, T1d, geo, pressure), geo.area, where)
+    rows_courses = courses[np.arange(R), fab[:, 0]]  # the course count of the row's first element
+    T1b = T1[base_i]
+    baseline = {"fabric": names[base_i], "stress_cv": _cv(T1b, geo.area),
+                "elements_over_limit": int((~feasible[base_i]).sum()),
+                "max_tension_N_per_mm": float(T1b.max()), "limit_N_per_mm": library.entries[base_i].max_tension}
+    try:
+        baseline["objective"] = float(objective.evaluate(_evaluate(objective, T1b, geo, pressure), geo.area, where))
+    except Exception as e:  # a uniform-stress objective is undefined for a slack garment
+        baseline["objective"] = None
+        baseline["objective_note"] = str(e)
+    d = Design(limb, library, objective, made, method, geo, fab, pick(lam1), pick(lam2), T1d, pick(T2),
+               rows_courses.astype(float), float(value), guarantee, baseline, pressure,
+               time.perf_counter() - t0, tuple(notes))
+    for message in _suspect(d):
+        warnings.warn(message, KnitframeWarning, stacklevel=2)
+    return attrs.evolve(d, notes=d.notes + tuple(_suspect(d)))
+
+
+def _suspect(d: Design) -> list[str]:
+    """What a user must know about a design that is the best the library allows but still poor."""
+    out = []
+    target = getattr(d.objective, "target", None)
+    level = getattr(d.objective, "target_mmHg", None)
+    if d.objective.quantity == "pressure" and (callable(target) or level):
+        want = target(d.geometry.position)[:, None] if callable(target) else np.full((1, 1), level)
+        err = float(np.sqrt(np.sum(d.geometry.area * ((d.pressure - want) / want) ** 2) / d.geometry.area.sum()))
+        if err > 0.25:
+            worst = int(np.argmax(np.abs(d.pressure.mean(axis=1) - want[:, 0])))
+            out.append(f"the design misses the pressure target by {100 * err:.0f} % (RMS; worst at "
+                       f"{d.geometry.z[worst]:.0f} mm: {d.pressure[worst].mean():.1f} mmHg against "
+                       f"{want[min(worst, len(want) - 1), 0]:.1f}): library '{d.library.name}' cannot do better on "
+                       "this limb; add fabrics of other stitch lengths or patterns, or change the tube")
+    if d.T1.max() == 0:
+        out.append("every element is slack: the tube is wider than the limb everywhere")
+    return out
+
+
+def _search_needles(solve, library, geo: ElementGeometry, distal: float):
+    """Knitting mode without a needle count: search N with the assignment (grid, then integer refinement).
+
+    Candidates stretch the distal section by 0–80 % in the median fabric's relaxed course pitch.
+    """
+    c_med = float(np.median([e.course_pitch for e in library.entries]))
+    lo, hi = max(4, int(np.floor(distal / (c_med * 1.8)))), max(5, int(np.ceil(distal / c_med)))
+    tried: dict[int, tuple[float, Any]] = {}
+
+    def score(n: int) -> float:
+        if n not in tried:
+            try:
+                sol, fields, value = solve(n)
+            except NoAssignment:
+                tried[n] = (np.inf, None)
+            else:
+                tried[n] = (value, (sol, fields))
+        return tried[n][0]
+
+    grid = np.unique(np.round(np.geomspace(lo, hi, 12)).astype(int))
+    for n in grid:
+        score(int(n))
+    best = min(tried, key=lambda n: tried[n][0])
+    step = max(1, int(np.ceil((hi - lo) / 12)))
+    while step >= 1:
+        for n in (best - step, best + step):
+            if lo <= n <= hi:
+                score(n)
+        new = min(tried, key=lambda n: tried[n][0])
+        if new == best:
+            step //= 2
+        best = new
+    if not np.isfinite(tried[best][0]):
+        raise ConfigError("design", f"no needle count from {lo} to {hi} gives a garment within the fabrics' "
+                                    "limits; give design.tube.needles or a more compliant library")
+    sol, fields = tried[best][1]
+    if best in (lo, hi):
+        warnings.warn(f"the best needle count, {best}, is at the end of the range searched ({lo}–{hi}: the "
+                      "distal section stretched 80 % to 0 % in the median fabric); give design.tube.needles to go "
+                      "beyond it", KnitframeWarning, stacklevel=3)
+    return sol, fields, best

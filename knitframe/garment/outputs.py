@@ -1,0 +1,134 @@
+"""The files of a design: ``design.json``, ``knit-map.csv``, ``knit-map.png``, ``pressure.png`` and ``design.vtu``."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+
+from knitframe.garment.core import CLASSES, Design
+
+__all__ = ["write_design", "plot_knit_map", "plot_pressure", "write_knit_map"]
+
+
+def write_design(d: Design, folder: Path) -> list[str]:
+    """Write every output of a design into ``folder``; returns the file names."""
+    from knitframe.fitting import finite_json
+
+    data, _ = finite_json(d.to_json())
+    (folder / "design.json").write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+    write_knit_map(d, folder / "knit-map.csv")
+    plot_knit_map(d, folder / "knit-map.png")
+    plot_pressure(d, folder / "pressure.png")
+    d.limb.to_vtu(folder / "design.vtu", cell_data=_cell_fields(d))
+    return ["design.json", "knit-map.csv", "knit-map.png", "pressure.png", "design.vtu"]
+
+
+def _cell_fields(d: Design) -> dict[str, np.ndarray]:
+    return {"fabric": d.fabric.ravel().astype(np.int64), "lambda1": d.lam1.ravel(), "lambda2": d.lam2.ravel(),
+            "T1_N_per_mm": d.T1.ravel(), "T2_N_per_mm": d.T2.ravel(),
+            "pressure_equivalent_mmHg": d.pressure_equivalent.ravel(),
+            "pressure_local_mmHg": d.pressure_local.ravel(), "over_limit": d.over_limit.ravel().astype(np.int64)}
+
+
+def write_knit_map(d: Design, path: Path) -> None:
+    """One row per element: course and wale ranges, fabric, stretches, tensions and pressures."""
+    R, A = d.fabric.shape
+    first = np.concatenate([[0], np.cumsum(d.courses)]).astype(int)
+    needles = d.tube.needles
+    pe, pl = d.pressure_equivalent, d.pressure_local
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(["row", "column", "course_start", "course_end", "wale_start", "wale_end", "position_mm",
+                    "fabric", "pattern", "yarn", "stitch_length", "lambda1", "lambda2", "T1_N_per_mm",
+                    "T2_N_per_mm", "pressure_equivalent_mmHg", "pressure_local_mmHg"])
+        for i in range(R):
+            for j in range(A):
+                e = d.library.entries[int(d.fabric[i, j])]
+                w0, w1 = ((j * needles) // A, ((j + 1) * needles) // A) if needles else ("", "")
+                w.writerow([i, j, first[i], first[i + 1], w0, w1, f"{d.geometry.z[i]:.3f}", e.name, e.pattern,
+                            e.yarn, "" if e.stitch_length is None else f"{e.stitch_length:g}",
+                            f"{d.lam1[i, j]:.6g}", f"{d.lam2[i, j]:.6g}", f"{d.T1[i, j]:.6g}", f"{d.T2[i, j]:.6g}",
+                            f"{pe[i, j]:.4f}", f"{pl[i, j]:.4f}"])
+
+
+def _colours(n: int):
+    import matplotlib
+
+    cmap = matplotlib.colormaps["tab10" if n <= 10 else "tab20"]
+    return [cmap(k % cmap.N) for k in range(n)]
+
+
+def plot_knit_map(d: Design, path: Path) -> None:
+    """The unrolled tube coloured by fabric: wales around (x), courses from the wrist (y)."""
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
+
+    R, A = d.fabric.shape
+    used = sorted(set(int(f) for f in np.unique(d.fabric)))
+    colours = _colours(len(d.library.entries))
+    y = np.concatenate([[0], np.cumsum(d.courses)])
+    needles = d.tube.needles or A
+    x = np.linspace(0, needles, A + 1)
+    fig, ax = plt.subplots(figsize=(7.5, 8.5), layout="constrained")
+    ax.pcolormesh(x, y, d.fabric, cmap=ListedColormap(colours), vmin=-0.5, vmax=len(colours) - 0.5,
+                  edgecolors="none")
+    for r in d.regions():
+        r0 = y[r["rows"][0]]
+        ax.axhline(r0, color="k", lw=0.6)
+    ax.set_xlabel("wale (needle) around the limb" if d.tube.needles else "element column around the limb")
+    ax.set_ylabel("course, from the distal end (wrist or ankle)")
+    ax.set_xlim(0, needles)
+    ax.set_ylim(0, y[-1])
+    title = f"knit map: {len(d.regions())} regions, {int(d.courses.sum())} courses"
+    if d.tube.needles:
+        title += f" × {d.tube.needles} needles"
+    ax.set_title(title)
+    ent = d.library.entries
+    ax.legend(handles=[Patch(color=colours[f], label=f"{ent[f].name} ({ent[f].pattern}, {ent[f].yarn}"
+                             + (f", SL{ent[f].stitch_length:g}" if ent[f].stitch_length else "") + ")")
+                       for f in used], loc="upper center", bbox_to_anchor=(0.5, -0.07), ncol=2, fontsize=8)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_pressure(d: Design, path: Path) -> None:
+    """Left: the local pressure map on the unrolled tube. Right: the pressure along the limb with the
+    RAL-GZ 387 class bands, the local min–max, the equivalent-radius pressure and the target."""
+    import matplotlib.pyplot as plt
+
+    g = d.geometry
+    pe, pl = d.pressure_equivalent, d.pressure_local
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 6.5), layout="constrained", width_ratios=[1, 1.2])
+    A = d.fabric.shape[1]
+    edges = np.concatenate([[g.z[0] - 0.5 * g.row_length[0]], g.z + 0.5 * g.row_length])
+    m = ax1.pcolormesh(np.arange(A + 1), edges, pl, cmap="viridis", shading="flat")
+    fig.colorbar(m, ax=ax1, label="pressure, local radius (mmHg)")
+    ax1.set_xlabel("element column around the limb")
+    ax1.set_ylabel("position along the limb (mm)")
+    ax1.set_title("interface pressure p = T/r (local curvature)")
+    top = max(float(pl.max()), float(pe.max()), 50.0) * 1.08
+    shades = ["#e8f4e8", "#d4ebd4", "#bfe0bf", "#a9d5a9"]
+    for (name, lo, hi), colour in zip(CLASSES, shades):
+        ax2.axvspan(lo, min(hi, top), color=colour, zorder=0)
+        ax2.text(0.5 * (lo + min(hi, top)), g.z[-1], f"class {name}", ha="center", va="top", fontsize=8)
+    ax2.fill_betweenx(g.z, pl.min(axis=1), pl.max(axis=1), color="tab:orange", alpha=0.3,
+                      label="local radius: min–max around")
+    ax2.plot(pe.mean(axis=1), g.z, color="tab:blue", lw=2.0, label="equivalent radius C/2π")
+    ax2.plot(pl.mean(axis=1), g.z, color="tab:red", lw=1.2, ls=":", label="local radius: mean around")
+    target = getattr(d.objective, "target", None)
+    if callable(target):
+        ax2.plot(target(g.position), g.z, "k--", lw=1.2, label="target")
+    elif getattr(d.objective, "target_mmHg", None):
+        ax2.axvline(d.objective.target_mmHg, color="k", ls="--", lw=1.2, label="target")
+    ax2.set_xlim(0, top)
+    ax2.set_ylim(edges[0], edges[-1])
+    ax2.set_xlabel("pressure (mmHg)")
+    ax2.set_ylabel("position along the limb (mm), distal at 0")
+    ax2.set_title("pressure profile with RAL-GZ 387 classes")
+    ax2.legend(loc="lower right", fontsize=8)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
