@@ -22,9 +22,13 @@ a meaningful ``a`` (e^200 ≈ 7e86), so the cap never changes a physically relev
 The b → 0 limit is evaluated without cancellation through ``Φ(z) = (E(z) − 1)/z`` (series near 0):
 ``ψ = a x² Φ(b x²)`` with ``x = I4 − 1``, which tends to ``a (I4 − 1)²``.
 
-Exports: :meth:`HGO.abaqus` writes an ABAQUS ``*ANISOTROPIC HYPERELASTIC, HOLZAPFEL`` card
-(k1 = 2a, k2 = b, κ = 0, fibre at θ) and :meth:`HGO.febio` an FEBio ``solid mixture`` with a
-``fiber-exp-pow`` fibre (ξ = 2a, α = b, β = 2); both state where the host model differs.
+Exports: :meth:`HGO.card` writes the cards of ``knitframe export`` and of the ``[fit]`` option
+``export`` (ABAQUS, CalculiX, a CalculiX check deck, FEBio; see
+:mod:`knitframe_homogenizers.cards`) from the parameters as stored in params.json (θ in degrees).
+The older :meth:`HGO.abaqus` (an ABAQUS ``*ANISOTROPIC HYPERELASTIC, HOLZAPFEL`` card, k1 = 2a,
+k2 = b, κ = 0, D = 0) and :meth:`HGO.febio` (an FEBio ``solid mixture`` with a ``fiber-exp-pow``
+fibre, ξ = 2a, α = b, β = 2) take θ in radians, like every other method here; both state where the
+host model differs.
 """
 
 from __future__ import annotations
@@ -235,6 +239,9 @@ class HGO:
     #: bounds that are symmetry planes (I4 is even about θ = 0 and θ = π/2): a fit ending there is not cut off
     symmetric_bounds: ClassVar[tuple[bool, ...]] = (False, False, True)
 
+    #: formats :meth:`card` writes (see :mod:`knitframe.export`)
+    card_formats: ClassVar[tuple[str, ...]] = ("abaqus", "calculix", "calculix-deck", "febio")
+
     compression_fibre: bool = True  #: keep the fibre stress for I4 < 1 (paper); false drops it
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
@@ -297,6 +304,17 @@ class HGO:
         if 1.0 < top <= slack:
             warnings.warn(free_side_zero_message(self.name, top, slack, direction), KnitframeWarning, stacklevel=2)
         return lf, P
+
+    def card(self, fmt: str, params, **options) -> str:
+        """Material card in ``fmt`` (one of :attr:`card_formats`) from the parameters as stored in params.json.
+
+        ``params`` maps ``a`` (N/mm), ``b`` and ``theta_deg`` (degrees, as stored: no radians);
+        ``options``: ``thickness`` (mm), ``name``, ``matrix_fraction``, ``bulk_ratio``,
+        ``max_stretch`` (check deck) and ``source`` (a phrase about the fit for the header).
+        """
+        from knitframe_homogenizers.cards import write_card
+
+        return write_card(fmt, self, dict(params), **options)
 
     def abaqus(self, params, *, thickness: float = 1.0, name: str = "KNIT", matrix_fraction: float = 1e-3) -> str:
         """ABAQUS card: k1 = 2a/t, k2 = b, κ = 0, fibre at θ; a small matrix C10 = matrix_fraction·k1/2."""

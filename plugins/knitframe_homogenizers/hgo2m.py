@@ -63,6 +63,14 @@ class HGO2M:
     log_scale: ClassVar[tuple[bool, ...]] = (True,) * 7
     predicts_lateral: ClassVar[bool] = True
 
+    #: no format of :mod:`knitframe.export` can hold this model (:attr:`card_refusal` says why)
+    card_formats: ClassVar[tuple[str, ...]] = ()
+    card_refusal: ClassVar[str] = (
+        "its membrane is orthotropic (mu1 != mu2) and compressible in the plane (Poisson ratio K/(2 mu + K), which "
+        "can exceed the 0.5 a 3-D solid allows), while the matrix of ABAQUS HOLZAPFEL, CalculiX ELASTIC_FIBER and "
+        "FEBio Holzapfel-Gasser-Ogden is an isotropic solid; fit 'hgo' for a card"
+    )
+
     compression_fibre: bool = False  #: keep the fibre stress in compression (false: tension-only fibres)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
