@@ -19,9 +19,10 @@ from typing import Any
 
 import attrs
 
-from knitframe.errors import ConfigError, KnitframeError, UnknownPluginError
+from knitframe.errors import ConfigError, FieldError, KnitframeError, UnknownPluginError
 from knitframe.plugins import Registry
 from knitframe.schema import build
+from knitframe.validators import shown
 
 __all__ = ["load_toml", "instantiate", "PluginSpec"]
 
@@ -41,6 +42,10 @@ def load_toml(path: str | Path) -> dict[str, Any]:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ConfigError("", f"malformed TOML: {e}", source=str(p)) from None
+    except RecursionError:  # tomllib parses nested arrays and inline tables recursively
+        raise ConfigError("", "malformed TOML: arrays or inline tables nested too deeply", source=str(p)) from None
+    except ValueError as e:  # e.g. an integer of more digits than Python converts
+        raise ConfigError("", f"malformed TOML: {' '.join(str(e).split(';')[0].split())}", source=str(p)) from None
 
 
 @attrs.frozen
@@ -61,9 +66,9 @@ class PluginSpec:
             if "kind" not in value:
                 raise ConfigError(f"{path}.kind", "required key is missing")
             if not isinstance(value["kind"], str):
-                raise ConfigError(f"{path}.kind", f"expected a string, got {value['kind']!r}")
+                raise ConfigError(f"{path}.kind", f"expected a string, got {shown(value['kind'])}")
             return cls(value["kind"], {k: v for k, v in value.items() if k != "kind"})
-        raise ConfigError(path, f"expected a plugin name or a table with 'kind', got {value!r}")
+        raise ConfigError(path, f"expected a plugin name or a table with 'kind', got {shown(value)}")
 
 
 def instantiate(registry: Registry, kind: str, value: Any, path: str, *, source: str | None = None) -> Any:
@@ -72,7 +77,10 @@ def instantiate(registry: Registry, kind: str, value: Any, path: str, *, source:
     attrs classes are built from the options with full validation; other classes and factory
     functions are called with the options as keyword arguments.
     """
-    spec = PluginSpec.parse(value, path)
+    try:
+        spec = PluginSpec.parse(value, path)
+    except ConfigError as e:
+        raise ConfigError(e.path, e.problem, source=source) from None
     try:
         impl = registry[kind][spec.kind]
     except UnknownPluginError as e:
@@ -85,6 +93,10 @@ def instantiate(registry: Registry, kind: str, value: Any, path: str, *, source:
             return impl(**spec.options)
         except TypeError as e:
             raise ConfigError(path, f"bad options for {kind} '{spec.kind}': {e}", source=source) from None
+        except FieldError as e:  # a factory checking its options names them relative to its table
+            raise ConfigError(f"{path}.{e.field}", e.problem, source=source) from None
+        except ConfigError as e:
+            raise ConfigError(f"{path}.{e.path}" if e.path else path, e.problem, source=source) from None
         except KnitframeError:
             raise
     if spec.options:

@@ -62,6 +62,9 @@ __all__ = [
     "write_vtu",
     "plot_views",
     "summary",
+    "ARC_LENGTH_RANGE_DK",
+    "MIN_PITCH_DK",
+    "checked_cell",
 ]
 
 
@@ -908,6 +911,70 @@ def unit_cell(fabric: "Fabric", registry=None) -> UnitCell:
     reaches every solver. Errors in the options name the TOML path ``fabric.pattern_options.<key>``.
     """
     return pattern_for(fabric, registry).cell(fabric)
+
+
+#: Yarn per stitch a pattern can realise, in multiples of the knitted diameter dk: a loop wraps at
+#: least half a turn round the yarn it holds (π dk); past 200 dk (five times the loosest knits) a
+#: stitch is no longer a stitch, and sampling it every dk/10 would take unbounded memory.
+ARC_LENGTH_RANGE_DK = (np.pi, 200.0)
+#: Smallest course or wale pitch in multiples of dk: closer stitches pass through each other.
+MIN_PITCH_DK = 0.5
+
+
+def checked_cell(fabric: "Fabric", registry=None) -> UnitCell:
+    """The unit cell of ``fabric``, its dimensions checked before it is built; errors name the ``fabric.*`` key.
+
+    Refused, each with a ConfigError: a machine setting missing from the pattern's
+    ``stitch_lengths`` table (``fabric.stitch_length``); yarn per stitch outside
+    :data:`ARC_LENGTH_RANGE_DK` times dk (``fabric.arc_length``, or ``fabric.stitch_length`` when
+    the table gave it); a pitch under :data:`MIN_PITCH_DK` dk, or longer than the yarn of a stitch
+    can span (the course pitch at most the arc length, the wale pitch half of it, since each
+    loop climbs one wale and comes back); and every request the pattern itself cannot meet
+    (its GeometryError or NumericalError), named at the pitch the user gave, else the arc length.
+    The simulate stage calls this while validating the config and ``knitframe geometry`` before
+    it writes, so an impossible request leaves nothing behind.
+    """
+    from knitframe.errors import ConfigError
+
+    pattern = pattern_for(fabric, registry)
+    arc_key = "fabric.arc_length" if fabric.arc_length is not None else "fabric.stitch_length"
+    table = getattr(pattern, "stitch_lengths", None)
+    arc = None if fabric.arc_length is None else float(fabric.arc_length)
+    if arc is None and isinstance(table, dict):
+        setting = float(fabric.stitch_length)
+        arc = next((float(length) for key, length in table.items() if float(key) == setting), None)
+        if arc is None:
+            keys = ", ".join(sorted(table, key=float))
+            raise ConfigError("fabric.stitch_length", f"{setting:g} is not in the stitch-length table ({keys}); "
+                              "give fabric.arc_length in mm")
+    dk = float(fabric.yarn.dk)
+    given = [k for k in ("course_pitch", "wale_pitch") if getattr(fabric, k) is not None]
+
+    def check_arc(length: float) -> None:
+        lo, hi = ARC_LENGTH_RANGE_DK
+        if not lo * dk <= length <= hi * dk:
+            what = f"{length:g} mm per stitch" if arc_key == "fabric.arc_length" else \
+                f"setting {float(fabric.stitch_length):g} gives {length:g} mm per stitch, which"
+            raise ConfigError(arc_key, f"{what} is outside [{lo * dk:.4g}, {hi * dk:.4g}] mm, the yarn per stitch "
+                              f"a yarn of dk {dk:g} mm can knit (pi to {hi:g} times dk)")
+
+    if arc is not None:
+        check_arc(arc)
+    for key in given:
+        value, span = float(getattr(fabric, key)), (1.0 if key == "course_pitch" else 0.5)
+        if value < MIN_PITCH_DK * dk:
+            raise ConfigError(f"fabric.{key}", f"{value:g} mm is under {MIN_PITCH_DK:g} dk = {MIN_PITCH_DK * dk:.4g} mm: "
+                              "neighbouring stitches would pass through each other")
+        if arc is not None and value > span * arc:
+            raise ConfigError(f"fabric.{key}", f"{value:g} mm is more than the {span * arc:.4g} mm that "
+                              f"{arc:g} mm of yarn per stitch can span")
+    try:
+        cell = pattern.cell(fabric)
+    except (GeometryError, NumericalError) as e:
+        raise ConfigError(f"fabric.{given[0]}" if given else arc_key, str(e)) from None
+    if arc is None:
+        check_arc(float(cell.arc_length_per_stitch))
+    return cell
 
 
 def pattern_for(fabric: "Fabric", registry=None) -> Any:

@@ -71,6 +71,14 @@ def _f64_opt(value: Any) -> np.ndarray | None:
     return None if value is None else _f64(value)
 
 
+#: Yarn diameters, mm: from a micrometre (finer than any fibre) to 100 mm (a rope).
+DIAMETER_RANGE = (1e-3, 100.0)
+#: Yarn moduli, MPa: from 1 Pa to 1 TPa (stiffer than any fibre).
+MODULUS_RANGE = (1e-6, 1e6)
+_DIAMETER = attrs.validators.and_(v.positive, v.at_least(DIAMETER_RANGE[0]), v.at_most(DIAMETER_RANGE[1]))
+_MODULUS = attrs.validators.and_(v.positive, v.at_least(MODULUS_RANGE[0]), v.at_most(MODULUS_RANGE[1]))
+
+
 @attrs.frozen
 class Yarn(Record):
     """A yarn: geometry in the free and the knitted state, and its stiffness.
@@ -80,11 +88,11 @@ class Yarn(Record):
     """
 
     name: str  #: library key, e.g. "cotton"
-    d0: float = attrs.field(validator=v.positive)  #: free (relaxed) diameter, mm
-    dk: float = attrs.field(validator=v.positive)  #: knitted (compressed) diameter, mm
-    E_axial: float = attrs.field(validator=v.positive)  #: axial Young's modulus, MPa
-    E_transverse: float = attrs.field(validator=v.positive)  #: transverse Young's modulus, MPa
-    G_axial: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: axial shear modulus, MPa
+    d0: float = attrs.field(validator=_DIAMETER)  #: free (relaxed) diameter, mm
+    dk: float = attrs.field(validator=_DIAMETER)  #: knitted (compressed) diameter, mm
+    E_axial: float = attrs.field(validator=_MODULUS)  #: axial Young's modulus, MPa
+    E_transverse: float = attrs.field(validator=_MODULUS)  #: transverse Young's modulus, MPa
+    G_axial: float | None = attrs.field(default=None, validator=v.optional(_MODULUS))  #: axial shear modulus, MPa
     nu: float = attrs.field(default=0.3, validator=v.in_range(-1.0, 0.5, lo_open=True, hi_open=True))  #: Poisson ratio, -
     failure_strain: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: axial strain at failure, -
     bending_stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: measured EI, N·mm²; unset: solid section E_axial·π·dk⁴/64
@@ -94,6 +102,10 @@ class Yarn(Record):
     def __attrs_post_init__(self) -> None:
         if self.dk > self.d0 * (1 + 1e-12):
             raise FieldError("dk", f"must be <= d0 = {self.d0}, got {self.dk}")
+        solid = self.E_axial * np.pi * self.d0**4 / 64.0
+        if self.bending_stiffness is not None and self.bending_stiffness > solid:
+            raise FieldError("bending_stiffness", f"must be <= {solid:.4g} N·mm², the solid rod of diameter d0 and "
+                             f"modulus E_axial (no yarn is stiffer), got {self.bending_stiffness:g}")
 
     @property
     def rk(self) -> float:
@@ -127,6 +139,13 @@ class Fabric(Record):
             raise FieldError("stitch_length", "give stitch_length (machine setting) or arc_length (mm)")
 
 
+#: Stretches a load path may prescribe: a fabric squeezed to a tenth of its size has no room for its
+#: yarns, and 6 is the largest stretch of ``max_strain`` (5).
+STRETCH_RANGE = (0.1, 6.0)
+#: Most points of a load path (as ``steps``).
+MAX_LOAD_POINTS = 100000
+
+
 @attrs.frozen
 class LoadPath(Record):
     """Macroscopic load path of the unit cell.
@@ -137,7 +156,7 @@ class LoadPath(Record):
 
     kind: Literal["equibiaxial", "uniaxial", "general"] = "equibiaxial"  #: load-path type
     max_strain: float = attrs.field(default=0.3, validator=v.in_range(0.0, 5.0, lo_open=True))  #: engineering strain, -
-    steps: int = attrs.field(default=10, validator=v.in_range(1, 100000))  #: load increments, -
+    steps: int = attrs.field(default=10, validator=v.in_range(1, MAX_LOAD_POINTS))  #: load increments, -
     direction: Literal["course", "wale"] = "course"  #: loaded direction for ``uniaxial``
     lambda1: tuple[float, ...] = ()  #: course stretch path for ``general``, -
     lambda2: tuple[float, ...] = ()  #: wale stretch path for ``general``, -
@@ -146,8 +165,13 @@ class LoadPath(Record):
         if self.kind == "general":
             if not self.lambda1 or len(self.lambda1) != len(self.lambda2):
                 raise FieldError("lambda1", "general load path needs lambda1 and lambda2 of equal, non-zero length")
-            if min(self.lambda1 + self.lambda2) <= 0:
-                raise FieldError("lambda1", "stretches must be > 0")
+            if len(self.lambda1) > MAX_LOAD_POINTS:
+                raise FieldError("lambda1", f"must hold at most {MAX_LOAD_POINTS} points, got {len(self.lambda1)}")
+            lo, hi = STRETCH_RANGE
+            for name in ("lambda1", "lambda2"):
+                for i, lam in enumerate(getattr(self, name)):
+                    if not lo <= lam <= hi:
+                        raise FieldError(f"{name}[{i}]", f"stretch must be in [{lo:g}, {hi:g}], got {lam:g}")
 
     @property
     def response_kind(self) -> str:

@@ -24,6 +24,7 @@ import attrs
 import numpy as np
 
 from knitframe.errors import ConfigError, FieldError
+from knitframe.validators import shown
 
 __all__ = ["build", "to_dict", "field_names", "type_name"]
 
@@ -70,8 +71,8 @@ def _coerce(value: Any, tp: Any, path: str, source: str | None) -> Any:
     """Check ``value`` against annotation ``tp`` and convert it; raise ConfigError at ``path``."""
 
     def fail(expected: str) -> ConfigError:
-        shown = value if not isinstance(value, (dict, list)) else type(value).__name__
-        return ConfigError(path, f"expected {expected}, got {shown!r}", source=source)
+        what = value if not isinstance(value, (dict, list)) else type(value).__name__
+        return ConfigError(path, f"expected {expected}, got {shown(what)}", source=source)
 
     origin = get_origin(tp)
     if tp is Any:
@@ -94,7 +95,7 @@ def _coerce(value: Any, tp: Any, path: str, source: str | None) -> Any:
     if origin is Literal:
         if value not in get_args(tp):
             raise ConfigError(
-                path, f"must be one of {', '.join(map(repr, get_args(tp)))}, got {value!r}", source=source
+                path, f"must be one of {', '.join(map(repr, get_args(tp)))}, got {shown(value)}", source=source
             )
         return value
     if tp is bool:
@@ -111,7 +112,7 @@ def _coerce(value: Any, tp: Any, path: str, source: str | None) -> Any:
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
             raise fail("a number")
         if not math.isfinite(float(value)):
-            raise ConfigError(path, f"must be finite, got {value!r}", source=source)
+            raise ConfigError(path, f"must be finite, got {shown(value)}", source=source)
         return float(value)
     if tp is str:
         if not isinstance(value, str):
@@ -169,7 +170,7 @@ def build(cls: type, table: dict[str, Any], path: str = "", *, source: str | Non
         File name shown in front of the path.
     """
     if not isinstance(table, dict):
-        raise ConfigError(path, f"expected a table, got {table!r}", source=source)
+        raise ConfigError(path, f"expected a table, got {shown(table)}", source=source)
     prefix = f"{path}." if path else ""
     fields = {(f.alias or f.name): f for f in attrs.fields(cls) if f.init}
     unknown = [k for k in table if k not in fields]

@@ -13,7 +13,8 @@ import numpy as np
 
 from knitframe.errors import FieldError
 
-__all__ = ["positive", "non_negative", "in_range", "one_of", "finite", "optional", "subset_of", "finite_array", "boolean"]
+__all__ = ["shown", "positive", "non_negative", "at_least", "at_most", "in_range", "one_of", "finite", "optional", "subset_of", "finite_array", "boolean",
+           "within_model_bounds", "near_own", "OVERRIDE_FACTOR"]
 
 Validator = Callable[[Any, Any, Any], None]
 
@@ -25,11 +26,17 @@ def _fmt(value: Any) -> str:
     return repr(value.item() if isinstance(value, np.generic) else value)
 
 
+def shown(value: Any, limit: int = 60) -> str:
+    """``repr`` of a value for an error line, cut to about ``limit`` characters (a pasted array stays short)."""
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
+
+
 def _num(attribute, value) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise FieldError(attribute.name, f"must be a number, got {value!r}")
+        raise FieldError(attribute.name, f"must be a number, got {shown(value)}")
     if not math.isfinite(float(value)):
-        raise FieldError(attribute.name, f"must be finite, got {value!r}")
+        raise FieldError(attribute.name, f"must be finite, got {shown(value)}")
     return float(value)
 
 
@@ -63,10 +70,30 @@ def in_range(lo: float, hi: float, *, lo_open: bool = False, hi_open: bool = Fal
     return check
 
 
+def at_least(lo: float) -> Validator:
+    """Value is a finite number >= ``lo`` (pair it with :func:`positive` to keep "must be > 0" for signs)."""
+
+    def check(instance, attribute, value) -> None:
+        if _num(attribute, value) < lo:
+            raise FieldError(attribute.name, f"must be >= {_fmt(lo)}, got {_fmt(value)}")
+
+    return check
+
+
+def at_most(hi: float) -> Validator:
+    """Value is a finite number <= ``hi``."""
+
+    def check(instance, attribute, value) -> None:
+        if _num(attribute, value) > hi:
+            raise FieldError(attribute.name, f"must be <= {_fmt(hi)}, got {_fmt(value)}")
+
+    return check
+
+
 def boolean(instance, attribute, value) -> None:
     """Value is true or false (not a number or a string that looks like one)."""
     if not isinstance(value, (bool, np.bool_)):
-        raise FieldError(attribute.name, f"must be true or false, got {value!r}")
+        raise FieldError(attribute.name, f"must be true or false, got {shown(value)}")
 
 
 def one_of(choices: Iterable[str]) -> Validator:
@@ -75,7 +102,7 @@ def one_of(choices: Iterable[str]) -> Validator:
 
     def check(instance, attribute, value) -> None:
         if value not in allowed:
-            raise FieldError(attribute.name, f"must be one of {', '.join(map(repr, allowed))}, got {value!r}")
+            raise FieldError(attribute.name, f"must be one of {', '.join(map(repr, allowed))}, got {shown(value)}")
 
     return check
 
@@ -112,3 +139,40 @@ def finite_array(instance, attribute, value) -> None:
     if not np.all(np.isfinite(arr)):
         i = int(np.flatnonzero(~np.isfinite(arr.ravel()))[0])
         raise FieldError(attribute.name, f"must be finite, got {arr.ravel()[i]} at index {i}")
+
+
+def within_model_bounds(model: Any, params: Any) -> None:
+    """Reduced-model parameters inside the model's own box ``model.bounds()``; FieldError names the first outside.
+
+    The field is the parameter as a config or a params.json writes it (``a``, ``theta_deg``), and
+    the message gives the bounds the same way (angles in degrees). Values within 1e-9 (relative)
+    of a bound count as on it, so a fit that stopped at a bound is accepted. A model without
+    ``bounds`` takes any finite values.
+    """
+    from knitframe.fitting import params_to_json
+
+    if getattr(model, "bounds", None) is None:
+        return
+    lo, hi = (np.asarray(b, dtype=np.float64) for b in model.bounds())
+    p = np.asarray(params, dtype=np.float64)
+    names = tuple(model.param_names)
+    shown, low, high = (params_to_json(names, x) for x in (p, lo, hi))
+    slack = 1e-9 * np.maximum(np.abs(lo), np.abs(hi))
+    for i, key in enumerate(shown):
+        if not lo[i] - slack[i] <= p[i] <= hi[i] + slack[i]:
+            raise FieldError(key, f"must be in [{_fmt(low[key])}, {_fmt(high[key])}] (the bounds of model "
+                                  f"'{getattr(model, 'name', type(model).__name__)}'), got {_fmt(shown[key])}")
+
+
+#: Furthest a stiffness override may be from the value it replaces, as a factor either way.
+OVERRIDE_FACTOR = 1e6
+
+
+def near_own(field: str, value: float | None, own: float, unit: str) -> None:
+    """An override ``value`` within :data:`OVERRIDE_FACTOR` of the yarn's ``own`` value it replaces; else FieldError.
+
+    Further off is a slip of units rather than a yarn, and it overflows the solvers' arithmetic.
+    """
+    if value is not None and not own / OVERRIDE_FACTOR <= value <= own * OVERRIDE_FACTOR:
+        raise FieldError(field, f"{_fmt(value)} {unit} is more than {OVERRIDE_FACTOR:g} times off the yarn's own "
+                                f"{own:.4g} {unit}")

@@ -8,9 +8,22 @@ Example: ``knitframe geometry jersey --stitch-length 11 --yarn cotton --out jers
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 from knitframe.outdir import OutputDir, add_overwrite_argument, fingerprint
+
+
+#: most polyline segments per yarn in the VTU files (each tube has 16 sides per segment)
+MAX_SEGMENTS = 100_000
+#: a ``fabric.<key>`` path in an error, named as the command's option instead
+_FABRIC_KEY = re.compile(r"\bfabric\.[a-z_]+")
+
+
+def _option(path: str) -> str:
+    """The command-line name of a ``fabric.*`` config path: ``fabric.arc_length`` -> ``--arc-length``."""
+    key = path.removeprefix("fabric.")
+    return "PATTERN" if key == "pattern" else "--" + key.replace("_", "-")
 
 
 def add_parser(sub) -> None:
@@ -29,27 +42,26 @@ def add_parser(sub) -> None:
 
 def main(args) -> int:
     from knitframe.errors import ConfigError
-    from knitframe.geometry import clearance
+    from knitframe.geometry import checked_cell, clearance
     from knitframe.plugins import get_registry
     from knitframe.records import Fabric
+    from knitframe.yarns import resolve_yarn
 
     out = args.out or Path(f"{args.pattern}-geometry")
     od = OutputDir(out, command="geometry", overwrite=args.overwrite, fingerprint=fingerprint(vars(args)))
     od.check()  # before any work
     reg = get_registry()
-    pattern = reg["pattern"][args.pattern]()
-    yarn = reg["yarn"][args.yarn]
-    if args.segments < 8:
-        raise ConfigError("--segments", f"must be >= 8, got {args.segments}")
+    yarn = resolve_yarn(reg, args.yarn, "--yarn")
+    if not 8 <= args.segments <= MAX_SEGMENTS:
+        raise ConfigError("--segments", f"must be in [8, {MAX_SEGMENTS}], got {args.segments}")
     table = {"pattern": args.pattern, "yarn": yarn}
     for key in ("stitch_length", "arc_length", "course_pitch", "wale_pitch"):
         if getattr(args, key) is not None:
             table[key] = getattr(args, key)
     try:
-        fabric = Fabric.from_dict(table)
+        cell = checked_cell(Fabric.from_dict(table, "fabric"), reg)  # every refusal before any output
     except ConfigError as e:
-        raise ConfigError("--" + e.path.replace("_", "-"), e.problem) from None
-    cell = pattern.cell(fabric)
+        raise ConfigError(_option(e.path), _FABRIC_KEY.sub(lambda m: _option(m.group(0)), e.problem)) from None
     clr = clearance(cell)
     with od:
         _write(od, cell, clr, args, yarn)

@@ -309,7 +309,7 @@ class SolidIPC:
     stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: ε, N/mm³; default factor·E/h
     factor: float = attrs.field(default=10.0, validator=v.positive)  #: ε = factor · E / h when stiffness is not given, -
     dhat: float = attrs.field(default=0.1, validator=v.in_range(1e-4, 1.0))  #: activation distance d̂ / mean surface edge length, -
-    friction: float = attrs.field(default=0.3, validator=v.non_negative)  #: Coulomb coefficient μ (used only with a friction state), -
+    friction: float = attrs.field(default=0.3, validator=v.in_range(0.0, 10.0))  #: Coulomb coefficient μ (used only with a friction state), -
     slip: float = attrs.field(default=0.05, validator=v.positive)  #: friction regularisation ε_v / mean surface edge length, -
     psd: bool = True  #: project each pair's Hessian to positive semi-definite (IPC's projected Newton)
     reuse: float = attrs.field(default=0.5, validator=v.in_range(0.0, 10.0))  #: broad-phase candidates are kept while no vertex has moved over reuse·d̂ since the search, which inflates each box by (½ + reuse)·d̂ (exact: a pair now within d̂ was then within d̂ + 2·reuse·d̂); 0 searches at every evaluation, -

@@ -29,10 +29,11 @@ import numpy as np
 
 from knitframe import hookimpl
 from knitframe.effects import require_effects
-from knitframe.errors import ConfigError, NumericalError
+from knitframe.errors import ConfigError, FieldError, NumericalError
 from knitframe.fitting import FREE_MIN, FitResult, params_from_json, params_to_json
 from knitframe.plugins import get_registry
 from knitframe.records import Provenance, Response
+from knitframe.validators import within_model_bounds
 
 
 @attrs.frozen
@@ -51,7 +52,7 @@ class ReducedSolver:
     params_file: str | None = None  #: params.json of a fit (relative to the working directory); overrides ``model``/``params``
 
     def __attrs_post_init__(self) -> None:
-        self.resolved()  # fail at configuration time, not in the middle of a run
+        self.resolved("")  # fail at configuration time, not in the middle of a run (paths below [solver])
 
     @classmethod
     def from_fit(cls, result: FitResult) -> "ReducedSolver":
@@ -59,22 +60,38 @@ class ReducedSolver:
         options = attrs.asdict(result.model) if attrs.has(type(result.model)) else {}
         return cls({"kind": result.model.name, **options}, params_to_json(result.param_names, result.params))
 
-    def resolved(self) -> tuple[Any, np.ndarray]:
-        """The homogenizer instance and its parameter array (radians)."""
+    def resolved(self, table: str = "solver") -> tuple[Any, np.ndarray]:
+        """The homogenizer instance and its parameter array (radians), inside the model's own bounds.
+
+        ConfigErrors name the key below ``table``, the config table of the solver ("" for paths
+        relative to it, as the schema wants while it builds the solver).
+        """
         from knitframe.config import instantiate
+
+        def at(key: str) -> str:
+            return f"{table}.{key}" if table else key
 
         if self.params_file is not None:
             p = Path(self.params_file)
             try:
-                data = json.loads(p.read_text())
-            except (OSError, json.JSONDecodeError) as e:
-                raise ConfigError("solver.params_file", f"cannot read {p}: {e}") from None
-            fit = FitResult.from_json(data, path="solver.params_file")
-            return fit.model, fit.params
-        model = instantiate(get_registry(), "homogenizer", self.model, "solver.model")
-        if not self.params:
-            return model, np.asarray(model.x0(), dtype=np.float64)
-        return model, params_from_json(model.param_names, self.params, "solver.params")
+                data = json.loads(p.read_text(encoding="utf-8"))
+            except (OSError, ValueError, RecursionError) as e:
+                raise ConfigError(at("params_file"), f"cannot read {p}: {e}") from None
+            if not isinstance(data, dict) or not isinstance(data.get("options", {}), dict):
+                raise ConfigError(at("params_file"), f"{p} is not a params.json of a fit (a table with 'model' "
+                                  "and the parameters)")
+            fit = FitResult.from_json(data, path=at("params_file"))
+            model, params, where = fit.model, fit.params, at("params_file")
+        else:
+            model = instantiate(get_registry(), "homogenizer", self.model, at("model"))
+            where = at("params")
+            params = (params_from_json(model.param_names, self.params, where) if self.params
+                      else np.asarray(model.x0(), dtype=np.float64))
+        try:
+            within_model_bounds(model, params)
+        except FieldError as e:
+            raise ConfigError(f"{where}.{e.field}", e.problem) from None
+        return model, params
 
     def simulate(self, fabric: Any, scene, *, progress=None) -> Response:
         t0 = time.perf_counter()

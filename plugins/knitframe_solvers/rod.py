@@ -54,11 +54,12 @@ from knitframe.report import write_pvd
 from knitframe.geometry import unit_cell
 from knitframe import hookimpl, validators as v
 from knitframe.config import instantiate
-from knitframe.errors import ConfigError, NumericalError
+from knitframe.errors import ConfigError, FieldError, NumericalError
 from knitframe.newton import NewtonOptions, StepCheckpoints, continuation, minimise
 from knitframe.periodic import macro_index
 from knitframe.plugins import get_registry
 from knitframe.records import Fabric, Provenance, Response, Scene
+from knitframe.yarns import yarn_model
 
 from knitframe_solvers.rod_contact import line_energy
 from knitframe_solvers.rod_model import RodEnergy, RodModel, from_cell
@@ -149,16 +150,42 @@ class RodSolver:
     contact_quadrature: int = attrs.field(default=4, validator=v.in_range(1, 16))  #: Gauss points per segment (each way) of the contact integral, -
 
     # ------------------------------------------------------------------------------------- setup
+    def validate(self, fabric: Fabric, scene: Scene, registry=None) -> None:
+        """The checks that need no geometry, made while the config is validated; ConfigErrors name the key.
+
+        The linear solver and the rod contact law by name with their options (the law even when the
+        scene has no contact: a wrong name is wrong either way), the yarn's model with its numbers,
+        and the stiffness overrides (``EA``, ``EI``, the contact stiffness) within
+        :data:`~knitframe.validators.OVERRIDE_FACTOR` of the yarn's own: everything :meth:`simulate`
+        builds or refuses before its first step.
+        """
+        registry = registry or get_registry()
+        instantiate(registry, "linear_solver", self.linear_solver, "solver.linear_solver")
+        yarn_model(registry, fabric.yarn)
+        law = self.make_contact_law(registry)
+        own = rod_stiffness(fabric.yarn, registry)
+        try:
+            v.near_own("EA", self.EA, own["EA"], "N")
+            v.near_own("EI", self.EI, own["EI"], "N·mm²")
+            for key, value in (("contact_stiffness", self.contact_stiffness),
+                               ("contact_law.stiffness", getattr(law, "stiffness", None))):
+                v.near_own(key, value, own["k_line"], "N/mm²")
+        except FieldError as e:
+            raise ConfigError(f"solver.{e.field}", e.problem) from None
+
+    def make_contact_law(self, registry=None) -> Any:
+        """The rod contact law named by ``contact_law``; ConfigError if it is unknown or not for rods."""
+        law = instantiate(registry or get_registry(), "contact_law", self.contact_law, "solver.contact_law")
+        if getattr(law, "discretisation", None) != "rod":
+            raise ConfigError("solver.contact_law", f"contact law '{law.name}' is for '{law.discretisation}', not rods")
+        return law
+
     def setup(self, fabric: Fabric, scene: Scene, registry=None) -> tuple[RodModel, RodEnergy, Any]:
         """Rod model, energy and unit cell for a fabric and the effects of a scene."""
         registry = registry or get_registry()
         cell = unit_cell(fabric, registry)
         model = from_cell(cell, self.segments(cell))
-        law = None
-        if "contact" in scene.effects:
-            law = instantiate(registry, "contact_law", self.contact_law, "solver.contact_law")
-            if getattr(law, "discretisation", None) != "rod":
-                raise ConfigError("solver.contact_law", f"contact law '{law.name}' is for '{law.discretisation}', not rods")
+        law = self.make_contact_law(registry) if "contact" in scene.effects else None
         stiff = rod_stiffness(fabric.yarn, registry, law,
                               line_stiffness=self.contact_stiffness or getattr(law, "stiffness", None))
         energy = RodEnergy(

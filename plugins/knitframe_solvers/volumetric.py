@@ -55,12 +55,13 @@ from knitframe.geometry import unit_cell
 from knitframe import hookimpl, validators as v
 from knitframe.config import instantiate
 from knitframe.contact_search import SegmentTopology
-from knitframe.errors import ConfigError, NumericalError
+from knitframe.errors import ConfigError, FieldError, NumericalError
 from knitframe.memory import retain_freed_memory
 from knitframe.newton import NewtonOptions, StepCheckpoints, continuation, minimise
 from knitframe.periodic import N_MACRO, Lattice, macro_index, periodic_transform
 from knitframe.plugins import get_registry
 from knitframe.records import Fabric, Provenance, Response, Scene
+from knitframe.yarns import yarn_model
 
 from knitframe_contact.solid_geometry import SolidSurface
 from knitframe_solvers.volumetric_material import SolidForms, YarnLaw
@@ -214,10 +215,7 @@ class VolumetricSolver:
         T, independent = periodic_transform(cm.n_nodes, slave, master, images, lattice)
         law, surface = None, None
         if "contact" in scene.effects:
-            law = instantiate(registry, "contact_law", self.contact_law, "solver.contact_law")
-            if getattr(law, "discretisation", None) != "solid":
-                raise ConfigError("solver.contact_law",
-                                  f"contact law '{law.name}' is for '{law.discretisation}', not solid meshes")
+            law = self.make_contact_law(registry)
             surface = contact_surface(cm, lattice, self.self_contact_exclusion * cell.dk)
             if "self_contact" not in scene.effects:
                 surface = attrs.evolve(surface, exclusion=np.inf)
@@ -230,14 +228,77 @@ class VolumetricSolver:
                                 self.reach * cm.radius, t_mesh, damping)
         model.friction = law is not None and "friction" in scene.effects
         model.barrier = law is not None and hasattr(law, "step_limit")
-        model.hold_candidates = (self.contact_search == "iteration" and law is not None
-                                 and "candidates" in inspect.signature(law.evaluate).parameters)
-        if model.hold_candidates and self.max_step > 0.5 * self.reach:
-            # two nodes each moving max_step could close a gap wider than the reach within one step
+        model.hold_candidates = self.holds_candidates(law)
+        return model
+
+    def validate(self, fabric: Fabric, scene: Scene, registry=None) -> None:
+        """The checks that need no mesh, made while the config is validated; ConfigErrors name the key.
+
+        The linear solver and the solid contact law by name with their options (the law even when
+        the scene has no contact: a wrong name is wrong either way), the yarn's model with its
+        numbers, ``max_step`` against the contact reach, ``contact_modulus`` within
+        :data:`~knitframe.validators.OVERRIDE_FACTOR` of the yarn's transverse modulus, and the
+        cell's clearance (:meth:`check_clearance`): everything :meth:`simulate` builds or refuses
+        before its first step.
+        """
+        registry = registry or get_registry()
+        instantiate(registry, "linear_solver", self.linear_solver, "solver.linear_solver")
+        yarn_model(registry, fabric.yarn)
+        law = self.make_contact_law(registry)
+        self.holds_candidates(law if "contact" in scene.effects else None)
+        try:
+            v.near_own("contact_modulus", self.contact_modulus, fabric.yarn.E_transverse, "MPa")
+        except FieldError as e:
+            raise ConfigError(f"solver.{e.field}", e.problem) from None
+        self.check_clearance(unit_cell(fabric, registry), scene)
+
+    def check_clearance(self, cell: Any, scene: Scene) -> None:
+        """Refuse a knitted cell whose closest centerlines the mesh or the first step cannot take (ConfigError).
+
+        With the pre-stress the tubes start shrunk, and centerlines closer than ``min_clearance``·r
+        cross (``solver.min_clearance``); without it the knitted yarns must not overlap by more than
+        2 % of r with contact (the run would start interpenetrated) nor come closer than r without
+        (``scene.effects``). The same limits :meth:`setup` and :meth:`simulate` apply, found before
+        anything is meshed.
+        """
+        from knitframe.geometry import clearance
+
+        r = 0.5 * cell.dk
+        clear = clearance(cell).minimum
+        if "prestress" in scene.effects:
+            if clear < self.min_clearance * r:
+                raise ConfigError("solver.min_clearance", f"the knitted centerlines come {clear:.4g} mm close, under "
+                                  f"min_clearance × r = {self.min_clearance * r:.4g} mm: the tubes cross; loosen the "
+                                  "stitch or lower min_clearance")
+        elif "contact" in scene.effects and 2.0 * r - clear > 0.02 * r:
+            raise ConfigError("scene.effects", f"the knitted yarns overlap by {2.0 * r - clear:.3g} mm (centerlines "
+                              f"{clear:.4g} mm apart, dk = {2 * r:.4g} mm); add 'prestress' to scene.effects")
+        elif clear < r:
+            raise ConfigError("scene.effects", f"the knitted centerlines come {clear:.4g} mm close, under the yarn "
+                              f"radius {r:.4g} mm: the tubes cross; add 'contact' and 'prestress' to scene.effects")
+
+    def make_contact_law(self, registry=None) -> Any:
+        """The solid contact law named by ``contact_law``; ConfigError if it is unknown or not for solids."""
+        law = instantiate(registry or get_registry(), "contact_law", self.contact_law, "solver.contact_law")
+        if getattr(law, "discretisation", None) != "solid":
+            raise ConfigError("solver.contact_law",
+                              f"contact law '{law.name}' is for '{law.discretisation}', not solid meshes")
+        return law
+
+    def holds_candidates(self, law: Any) -> bool:
+        """Whether the contact candidates are held through each Newton iteration's line search.
+
+        They are with ``contact_search = "iteration"`` and a law that takes them; then ``max_step``
+        must be at most half the reach (ConfigError otherwise): two nodes each moving max_step
+        could close a gap wider than the reach within one step.
+        """
+        held = (self.contact_search == "iteration" and law is not None
+                and "candidates" in inspect.signature(law.evaluate).parameters)
+        if held and self.max_step > 0.5 * self.reach:
             raise ConfigError("solver.max_step", f"{self.max_step:g} is more than half the contact reach "
                               f"({self.reach:g}): with contact_search = 'iteration' a step could bring an unseen "
                               "pair into contact; lower max_step or use contact_search = 'evaluation'")
-        return model
+        return held
 
     def newton_options(self, fabric: Fabric, radius: float, barrier: bool) -> tuple[NewtonOptions, NewtonOptions]:
         """Newton options of the knitted state and load steps, and the looser ones of the intermediate pre-stress.

@@ -15,7 +15,9 @@
     effects = ["large_deformation", "bending", "contact", "prestress"]
     load = { kind = "equibiaxial", max_strain = 0.3, steps = 10 }
 
-The scene's effects and load are checked against the solver before any work. Writes
+The scene's effects and load are checked against the solver before any work, the fabric's cell is
+built once to refuse dimensions no stitch can have, and a solver with a ``validate(fabric, scene,
+registry)`` method makes its own checks (plugins by name, yarn model) then too. Writes
 ``simulated.csv`` and ``simulated.png`` (and ``vtu/`` when the scene's outputs include "vtu");
 every converged step is checkpointed so ``knitframe run --resume`` continues a killed run.
 """
@@ -28,7 +30,7 @@ from typing import Any, ClassVar
 import attrs
 
 from knitframe import hookimpl
-from knitframe.geometry import pattern_for
+from knitframe.geometry import checked_cell
 from knitframe.yarns import config_yarns, resolve_yarn
 from knitframe.config import PluginSpec, instantiate
 from knitframe.effects import require_effects
@@ -88,11 +90,19 @@ class SimulateStage:
             raise ConfigError(e.path, e.problem, source=src) from None
         fabric = build(Fabric, table, "fabric", source=src)
         try:
-            pattern_for(fabric, ctx.registry)  # validates the pattern name and its options before any work
+            # the pattern and its options, the stitch-length table, dimensions a stitch can have, and
+            # whatever else the pattern refuses: the cell is built once here, cheaply, before any work
+            checked_cell(fabric, ctx.registry)
         except ConfigError as e:
             raise ConfigError(e.path, e.problem, source=src) from None
         scene = build(Scene, config.get("scene", {}), "scene", source=src)
         require_effects(scene, solver, ctx.registry, name=spec.kind)
+        validate = getattr(solver, "validate", None)
+        if validate is not None:
+            try:
+                validate(fabric, scene, ctx.registry)  # the solver's own checks: plugins by name, yarn model ...
+            except ConfigError as e:
+                raise ConfigError(e.path, e.problem, source=src) from None
         return cls(spec.kind, solver, fabric, scene)
 
     def run(self, ctx) -> None:
