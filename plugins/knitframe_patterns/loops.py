@@ -127,6 +127,10 @@ class LoopRow:
 
 
 _check_table = check_stitch_lengths
+#: Munden's constants of real knits lie near 4 to 9; outside [1, 20] the pitches are no knit's
+_MUNDEN = attrs.validators.and_(v.positive, v.in_range(1.0, 20.0))
+#: loops flatter than a tenth of dk pass through the yarns they hold, deeper than 10 dk they are no loops
+_DEPTH = attrs.validators.and_(v.positive, v.in_range(0.1, 10.0))
 
 
 @attrs.frozen
@@ -142,10 +146,10 @@ class KnitLoopPattern:
     layout: ClassVar[tuple[tuple[str, str], tuple[str, str]]] = (("k", "k"), ("k", "k"))
 
     stitch_lengths: dict[str, float] = attrs.field(factory=lambda: dict(STITCH_LENGTHS), validator=_check_table)  #: machine setting -> yarn length per stitch, mm
-    Kc: float = attrs.field(default=KC, validator=v.positive)  #: Munden course constant (courses/cm = Kc/ℓ[cm]), -
-    Kw: float = attrs.field(default=KW, validator=v.positive)  #: Munden wale constant (wales/cm = Kw/ℓ[cm]), -
+    Kc: float = attrs.field(default=KC, validator=_MUNDEN)  #: Munden course constant (courses/cm = Kc/ℓ[cm]), -
+    Kw: float = attrs.field(default=KW, validator=_MUNDEN)  #: Munden wale constant (wales/cm = Kw/ℓ[cm]), -
     roundness: float = attrs.field(default=1.5, validator=v.in_range(0.0, 10.0))  #: Crane's a, -
-    depth: float = attrs.field(default=0.625, validator=v.positive)  #: out-of-plane amplitude D / dk (Crane: 1/1.6), -
+    depth: float = attrs.field(default=0.625, validator=_DEPTH)  #: out-of-plane amplitude D / dk (Crane: 1/1.6), -
     sharpness: float = attrs.field(default=3.0, validator=v.in_range(0.0, 50.0, lo_open=True))  #: knit/purl blend κ, -
 
     def pitches(self, arc: float, fabric: Fabric) -> tuple[float, float]:

@@ -155,9 +155,10 @@ class RodSolver:
 
         The linear solver and the rod contact law by name with their options (the law even when the
         scene has no contact: a wrong name is wrong either way), the yarn's model with its numbers,
-        and the stiffness overrides (``EA``, ``EI``, the contact stiffness) within
-        :data:`~knitframe.validators.OVERRIDE_FACTOR` of the yarn's own: everything :meth:`simulate`
-        builds or refuses before its first step.
+        the stiffness overrides (``EA``, ``EI``, the contact stiffness) within
+        :data:`~knitframe.validators.OVERRIDE_FACTOR` of the yarn's own, and, with contact but no
+        pre-stress, the knitted cell's overlap (:meth:`knitted_overlap`): everything
+        :meth:`simulate` builds or refuses before its first step.
         """
         registry = registry or get_registry()
         instantiate(registry, "linear_solver", self.linear_solver, "solver.linear_solver")
@@ -172,6 +173,22 @@ class RodSolver:
                 v.near_own(key, value, own["k_line"], "N/mm²")
         except FieldError as e:
             raise ConfigError(f"solver.{e.field}", e.problem) from None
+        if "contact" in scene.effects and "prestress" not in scene.effects:
+            model, energy, cell = self.setup(fabric, scene, registry)
+            problem = self.knitted_overlap(energy, cell, np.zeros(model.n_dof))
+            if problem is not None:
+                raise ConfigError("scene.effects", problem.removeprefix("rod: "))
+
+    @staticmethod
+    def knitted_overlap(energy: RodEnergy, cell: Any, q: np.ndarray) -> str | None:
+        """Why state ``q`` cannot start a run without the pre-stress (centerlines inside the contact core), or None."""
+        with np.errstate(all="ignore"):
+            E0 = energy(q, 0)[0]
+        if np.isfinite(E0):
+            return None
+        d_min = float(energy.pairs(q).distance.min(initial=cell.dk))
+        return (f"rod: the knitted centerlines overlap (closest centre distance {d_min:.4g} mm < "
+                f"{getattr(energy.law, 'core', 0) * cell.dk:.4g} mm); add 'prestress' to scene.effects")
 
     def make_contact_law(self, registry=None) -> Any:
         """The rod contact law named by ``contact_law``; ConfigError if it is unknown or not for rods."""
@@ -373,12 +390,9 @@ class RodSolver:
                     notes[-1] = f"{notes[-1]}; converged from the knitted shape instead"
                 state.update(phase="load", target=-1)
             elif energy.law is not None and state["phase"] == "prestress":
-                E0 = energy(q, 0)[0]
-                if not np.isfinite(E0):
-                    d_min = float(energy.pairs(q).distance.min(initial=cell.dk))
-                    raise NumericalError(
-                        f"rod: the knitted centerlines overlap (closest centre distance {d_min:.4g} mm < "
-                        f"{getattr(energy.law, 'core', 0) * cell.dk:.4g} mm); add 'prestress' to scene.effects")
+                problem = self.knitted_overlap(energy, cell, q)
+                if problem is not None:
+                    raise NumericalError(problem)
                 state.update(phase="load", target=-1)
             start_index = int(state["target"])
 

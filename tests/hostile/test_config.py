@@ -81,6 +81,10 @@ CASES: list[tuple[str, Any, str, dict[str, str]]] = [
     ("pattern-option-unknown", edit(ROD, {"fabric.pattern_options": {"loops": 3}}), "fabric.pattern_options.loops", {}),
     ("pattern-option-out-of-range", edit(ROD, {"fabric.pattern_options": {"roundness": 100}}),
      "fabric.pattern_options.roundness", {}),
+    ("pattern-option-Kc-1e300", edit(ROD, {"fabric.pattern_options": {"Kc": 1e300}}), "fabric.pattern_options.Kc", {}),
+    ("pattern-option-Kw-1e-300", edit(ROD, {"fabric.pattern_options": {"Kw": 1e-300}}), "fabric.pattern_options.Kw", {}),
+    ("pattern-option-depth-1e300", edit(ROD, {"fabric.pattern_options": {"depth": 1e300}}),
+     "fabric.pattern_options.depth", {}),
     ("pattern-unknown", edit(ROD, {"fabric.pattern": "jersy"}), "fabric.pattern", {}),
     ("fabric-key-unknown", edit(ROD, {"fabric.colour": "red"}), "fabric.colour", {}),
     ("fabric-missing", edit(ROD, {"fabric": DROP}), "fabric", {}),
@@ -142,6 +146,7 @@ CASES: list[tuple[str, Any, str, dict[str, str]]] = [
     ("rod-tolerance-negative", edit(ROD, {"solver.tolerance": -1}), "solver.tolerance", {}),
     ("rod-prestress-start-unknown", edit(ROD, {"solver.prestress_start": "sideways"}), "solver.prestress_start", {}),
     ("rod-option-unknown", edit(ROD, {"solver.colour": "red"}), "solver.colour", {}),
+    ("rod-overlap-without-prestress", edit(ROD, {"fabric.stitch_length": 10}), "scene.effects", {}),
     # ---- [solver] volumetric
     ("volumetric-contact-law-for-rods", edit(VOLUMETRIC, {"solver.contact_law": "rod_penalty"}), "solver.contact_law", {}),
     ("volumetric-linear-solver-unknown", edit(VOLUMETRIC, {"solver.linear_solver": "nope"}), "solver.linear_solver", {}),
