@@ -16,8 +16,18 @@
     mode = "knitting"                # or "paper": a cylinder of wrist circumference mapped element for element
     # needles = 120                  # stitches per course (knitting; searched when not given)
 
-Writes ``design.json``, ``knit-map.csv``, ``knit-map.png``, ``pressure.png`` and ``design.vtu``.
-The same as ``knitframe design`` and :func:`knitframe.design`.
+    [design.machine]                 # optional: also knit it on a V-bed machine (docs/machine-output.md)
+    machine = "SWG091N2"
+    gauge = 15
+    # width = 540                    # needles per bed the program may use
+    # carriers = { acrylic = 3 }     # yarn -> carrier (default 1, 2, ... in the order the tube uses them)
+    # stitch_numbers = { "11" = 5, default = 5 }   # stitch length -> x-stitch-number, over the defaults
+    # dat = true                     # also sleeve.dat (Shima DAT) through knitout-to-dat-python
+
+Writes ``design.json``, ``knit-map.csv``, ``knit-map.png``, ``pressure.png`` and ``design.vtu``;
+with ``[design.machine]`` also ``sleeve.k`` (knitout, checked by knitout-interpreter),
+``sleeve-chart.png`` and, with ``dat``, ``sleeve.dat``. The same as ``knitframe design`` (then
+``knitframe knitout``) and :func:`knitframe.design`.
 """
 
 from __future__ import annotations
@@ -45,6 +55,29 @@ class TubeTable:
 
 
 @attrs.frozen
+class MachineTable:
+    """Schema of ``[design.machine]``: knit the sleeve on a V-bed machine (knitframe.garment.knitout)."""
+
+    machine: str = "SWG091N2"  #: knitout ;;Machine: (the model knitout-interpreter simulates)
+    gauge: int = 15  #: needles per inch of the machine; the tube is knitted at half gauge
+    width: int | None = None  #: needles per bed the program may use (default: the machine's, 540)
+    carriers: dict[str, int] = attrs.Factory(dict)  #: yarn -> carrier number (default: the lowest free, in the order the tube uses the yarns)
+    stitch_numbers: dict[str, int] = attrs.Factory(dict)  #: stitch length ("11") or "default" -> x-stitch-number, over the built-in table
+    dat: bool = False  #: also write sleeve.dat (Shima DAT) through knitout-to-dat-python
+    check: bool = True  #: run sleeve.k through knitout-interpreter before writing it (about 25 s for the example)
+
+    def __attrs_post_init__(self) -> None:
+        self.spec()  # every field checked; a FieldError names it
+
+    def spec(self) -> Any:
+        """The :class:`~knitframe.garment.knitout.MachineSpec` of this table."""
+        from knitframe.garment.knitout import MachineSpec
+
+        return MachineSpec(self.machine, self.gauge, self.width, dict(self.carriers), dict(self.stitch_numbers),
+                           self.dat)
+
+
+@attrs.frozen
 class DesignTable:
     """Schema of the ``[design]`` table."""
 
@@ -60,6 +93,7 @@ class DesignTable:
     around: int = attrs.field(default=64, validator=v.in_range(8, 2000))  #: points around each section
     axis: list[float] | None = None  #: a scan's axis direction (default: its longest principal axis)
     tube: TubeTable = attrs.Factory(TubeTable)  #: how the tube is made
+    machine: MachineTable | None = None  #: knit it on a V-bed machine: sleeve.k, sleeve-chart.png (and sleeve.dat)
 
     def __attrs_post_init__(self) -> None:
         if self.axis is not None and len(self.axis) != 3:
@@ -131,6 +165,8 @@ class DesignStage:
         if table.method == "paper" and table.tube.mode != "paper":
             raise ConfigError("design.method", "the paper's per-element method needs design.tube.mode = 'paper'",
                               source=ctx.source)
+        if table.machine is not None:
+            library = check_machine(table, library, ctx)
         limb = load_limb(table.limb, ctx, table)
         Tube(**attrs.asdict(table.tube))
         return cls(table, limb, library, objective, PluginSpec.parse(table.objective, "design.objective").kind)
@@ -147,6 +183,7 @@ class DesignStage:
                    pressure=t.pressure, min_courses=t.min_courses, max_fabrics=t.max_fabrics, base=t.base)
         for name in write_design(d, ctx.out):
             ctx.outputs.append(name)
+        machine = self._machine_outputs(d, ctx) if t.machine is not None else None
         ctx.objects[self.name] = d
         pe = d.standard_positions()
         ctx.results[self.name] = {
@@ -159,6 +196,72 @@ class DesignStage:
                          f"{d.stress_cv():.3f} (one fabric: {d.baseline['stress_cv']:.3f}); "
                          f"limits {'respected' if d.limits_respected else 'EXCEEDED'}"),
         }
+        if machine is not None:
+            ctx.results[self.name]["machine"] = machine
+            ctx.results[self.name]["headline"] += (
+                f"; sleeve.k: {machine['needles']} stitches × {machine['courses']} courses, "
+                + (f"checked by {machine['check']['interpreter']}" if machine["check"] else "not checked"))
+
+    def _machine_outputs(self, d: Any, ctx: Any) -> dict[str, Any]:
+        """sleeve.k, sleeve-chart.png (and sleeve.dat) of the design, checked by knitout-interpreter."""
+        from knitframe.garment.knitout import KnitMap, plan, program, write_machine_outputs
+
+        m = self.options.machine
+        try:
+            kmap = KnitMap.from_design(d)
+            spec = m.spec()  # carriers of library yarns this design does not use are not needed
+            p = plan(kmap, attrs.evolve(spec, carriers={y: c for y, c in spec.carriers.items() if y in kmap.yarns}))
+        except FieldError as e:
+            where = {"tube": "design.tube.mode", "pattern": "design.machine"}.get(e.field, f"design.machine.{e.field}")
+            raise ConfigError(where, e.problem) from None
+        lines, report = program(p, check=m.check)
+        names, info = write_machine_outputs(p, lines, ctx.out, dat=m.dat)
+        ctx.outputs.extend(names)
+        return {**info, "check": report}
+
+
+def check_machine(table: DesignTable, library: Any, ctx: Any) -> Any:
+    """Every check of ``[design.machine]`` the config allows, before any work; returns the library to design
+    from: without the fabrics whose pattern the machine output cannot knit (with a warning naming them)."""
+    import warnings
+
+    from knitframe.errors import KnitframeWarning
+    from knitframe.garment.knitout import PAPER_MODE, PATTERNS, missing
+
+    m = table.machine
+    if table.tube.mode != "knitting":
+        raise ConfigError("design.tube.mode", PAPER_MODE, source=ctx.source)
+    for key, problem in (("check", missing(check=m.check)), ("dat", missing(check=False, dat=m.dat))):
+        if problem:
+            raise ConfigError(f"design.machine.{key}", problem, source=ctx.source)
+    spec = m.spec()
+    if table.tube.needles is not None and table.tube.needles > spec.bed_width:
+        raise ConfigError("design.machine.width", f"the tube needs {table.tube.needles} needles per bed (half gauge: "
+                          f"one per stitch of the course, design.tube.needles) but the machine width is "
+                          f"{spec.bed_width}", source=ctx.source)
+    kept = [e for e in library.entries if e.pattern in PATTERNS]
+    if not kept:
+        raise ConfigError("design.library", f"no fabric of library '{library.name}' can be knitted by the machine "
+                          f"output (patterns {', '.join(PATTERNS)})", source=ctx.source)
+    left_out = [e.name for e in library.entries if e.pattern not in PATTERNS]
+    if left_out:
+        if table.base in left_out:
+            raise ConfigError("design.base", f"fabric '{table.base}' cannot be knitted by the machine output (its "
+                              f"pattern is not one of {', '.join(PATTERNS)})", source=ctx.source)
+        warnings.warn(f"design.machine: fabrics {', '.join(left_out)} are left out of the library: the machine "
+                      f"output knits only {', '.join(PATTERNS)}", KnitframeWarning, stacklevel=2)
+        library = attrs.evolve(library, entries=kept)
+    yarns = list(dict.fromkeys(e.yarn for e in kept))
+    for yarn in spec.carriers:
+        if yarn not in yarns:
+            raise ConfigError(f"design.machine.carriers.{yarn}", f"library '{library.name}' has no yarn '{yarn}'; it "
+                              f"has {', '.join(yarns)}", source=ctx.source)
+    for e in kept:
+        try:
+            spec.stitch_number(e.stitch_length, e.name)
+        except FieldError as err:
+            raise ConfigError(f"design.machine.{err.field}", err.problem, source=ctx.source) from None
+    return library
 
 
 @hookimpl
