@@ -174,5 +174,5 @@ def near_own(field: str, value: float | None, own: float, unit: str) -> None:
     Further off is a slip of units rather than a yarn, and it overflows the solvers' arithmetic.
     """
     if value is not None and not own / OVERRIDE_FACTOR <= value <= own * OVERRIDE_FACTOR:
-        raise FieldError(field, f"{_fmt(value)} {unit} is more than {OVERRIDE_FACTOR:g} times off the yarn's own "
+        raise FieldError(field, f"{value:.4g} {unit} is more than {OVERRIDE_FACTOR:g} times off the yarn's own "
                                 f"{own:.4g} {unit}")

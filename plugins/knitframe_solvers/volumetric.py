@@ -181,7 +181,7 @@ class VolumetricSolver:
     max_iterations: int | None = attrs.field(default=None, validator=v.optional(v.in_range(1, 10000)))  #: Newton iterations per increment (default 40; 200 with barrier contact, whose CCD-bounded steps are short while contacts engage), -
     stall_iterations: int = attrs.field(default=10, validator=v.in_range(0, 10000))  #: cut back once the residual has not improved in this many Newton iterations (0: only after max_iterations; barrier contact never: its residual rises while contacts engage and the energy falls), -
     intorder: int = attrs.field(default=2, validator=v.in_range(1, 6))  #: quadrature order of the solid (2: 4 points), -
-    stabilisation: float = attrs.field(default=1e-4, validator=v.non_negative)  #: weak foundation on each increment's displacement / (E_transverse / h²), -
+    stabilisation: float = attrs.field(default=1e-4, validator=v.in_range(0.0, 1.0))  #: weak foundation on each increment's displacement / (E_transverse / h²), -
     contact_search: Literal["iteration", "evaluation"] = attrs.field(default="iteration", validator=v.one_of(("iteration", "evaluation")))  #: when the broad-phase contact search runs: once per Newton iteration, its candidates held through the line search ("iteration"), or at every energy evaluation, -
     on_failure: Literal["raise", "truncate"] = "raise"  #: "truncate" returns the converged steps (converged = false)
     retain_freed_memory: bool = attrs.field(default=True, validator=v.boolean)  #: keep freed memory in the process for the run (glibc: large blocks from the heap, never trimmed), so that the factors and tangents of each Newton iteration reuse pages instead of faulting them in afresh (in one P2 r/3 run: 135 million page faults, 13 % of the CPU time); the process keeps its peak heap until it exits
@@ -236,10 +236,10 @@ class VolumetricSolver:
 
         The linear solver and the solid contact law by name with their options (the law even when
         the scene has no contact: a wrong name is wrong either way), the yarn's model with its
-        numbers, ``max_step`` against the contact reach, ``contact_modulus`` within
-        :data:`~knitframe.validators.OVERRIDE_FACTOR` of the yarn's transverse modulus, and the
-        cell's clearance (:meth:`check_clearance`): everything :meth:`simulate` builds or refuses
-        before its first step.
+        numbers, ``max_step`` against the contact reach, ``contact_modulus`` and the law's penalty
+        within :data:`~knitframe.validators.OVERRIDE_FACTOR` of the yarn's transverse modulus and of
+        the law's default penalty for this yarn and seed, and the cell's clearance
+        (:meth:`check_clearance`): everything :meth:`simulate` builds or refuses before its first step.
         """
         registry = registry or get_registry()
         instantiate(registry, "linear_solver", self.linear_solver, "solver.linear_solver")
@@ -248,6 +248,11 @@ class VolumetricSolver:
         self.holds_candidates(law if "contact" in scene.effects else None)
         try:
             v.near_own("contact_modulus", self.contact_modulus, fabric.yarn.E_transverse, "MPa")
+            if hasattr(law, "penalty"):  # the penalty the run will use, against the law's default for this yarn
+                h = self.seed * 0.5 * fabric.yarn.dk
+                key = "stiffness" if getattr(law, "stiffness", None) is not None else "factor"
+                v.near_own(f"contact_law.{key}", law.penalty(self.contact_modulus or fabric.yarn.E_transverse, h),
+                           type(law)().penalty(fabric.yarn.E_transverse, h), "N/mm³ penalty")
         except FieldError as e:
             raise ConfigError(f"solver.{e.field}", e.problem) from None
         self.check_clearance(unit_cell(fabric, registry), scene)

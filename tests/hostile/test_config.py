@@ -162,6 +162,11 @@ CASES: list[tuple[str, Any, str, dict[str, str]]] = [
     ("volumetric-contact-modulus-1e300", edit(VOLUMETRIC, {"solver.contact_modulus": 1e300}), "solver.contact_modulus", {}),
     ("volumetric-ipc-dhat-out-of-range", edit(VOLUMETRIC, {"solver.contact_law": {"kind": "ipc", "dhat": 5.0}}),
      "solver.contact_law.dhat", {}),
+    ("volumetric-stabilisation-1e300", edit(VOLUMETRIC, {"solver.stabilisation": 1e300}), "solver.stabilisation", {}),
+    ("volumetric-ipc-stiffness-1e300", edit(VOLUMETRIC, {"solver.contact_law": {"kind": "ipc", "stiffness": 1e300}}),
+     "solver.contact_law.stiffness", {}),
+    ("volumetric-penalty-factor-1e300", edit(VOLUMETRIC, {"solver.contact_law": {"kind": "penalty", "factor": 1e300}}),
+     "solver.contact_law.factor", {}),
     ("volumetric-ipc-friction-1e300", edit(VOLUMETRIC, {"solver.contact_law": {"kind": "ipc", "friction": 1e300}}),
      "solver.contact_law.friction", {}),
     # ---- [solver] reduced: parameters inside the model's own bounds, params files
