@@ -35,7 +35,7 @@ def load_toml(path: str | Path) -> dict[str, Any]:
     if not p.is_file():
         raise ConfigError("", f"config path is not a file: {p}")
     try:
-        text = p.read_text(encoding="utf-8")
+        text = p.read_text(encoding="utf-8-sig")  # a byte-order mark from a Windows editor is fine
     except (OSError, UnicodeDecodeError) as e:
         raise ConfigError("", f"cannot read config file: {e}", source=str(p)) from None
     try:

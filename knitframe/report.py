@@ -10,7 +10,7 @@ import numpy as np
 
 from knitframe.records import Response
 
-__all__ = ["write_responses_csv", "plot_responses", "curve", "write_pvd"]
+__all__ = ["write_responses_csv", "plot_responses", "curve"]
 
 CSV_COLUMNS = (
     "label", "load", "n_samples", "lambda1", "lambda2", "T1_N_per_mm", "T2_N_per_mm",
@@ -80,10 +80,3 @@ def plot_responses(
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
-
-
-def write_pvd(path: Path, files: list[tuple[float, str]]) -> None:
-    """ParaView collection file listing ``(time, vtu file name)`` pairs, one time step each."""
-    rows = "\n".join(f'    <DataSet timestep="{t:.10g}" file="{f}"/>' for t, f in files)
-    path.write_text(f'<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n{rows}\n'
-                    "  </Collection>\n</VTKFile>\n")

@@ -34,7 +34,7 @@ def add_parser(sub) -> None:
     p.add_argument("--yarn", default="cotton", help="yarn name from the library (default cotton)")
     p.add_argument("--course-pitch", type=float, default=None, help="stitch width, mm (default: Munden)")
     p.add_argument("--wale-pitch", type=float, default=None, help="stitch height, mm (default: Munden)")
-    p.add_argument("--out", type=Path, default=None, help="output folder, new or empty (default: <pattern>-geometry)")
+    p.add_argument("--out", default=None, help="output folder, new or empty (default: <pattern>-geometry)")
     add_overwrite_argument(p)
     p.add_argument("--segments", type=int, default=256, help="polyline segments per yarn in the VTU files")
     p.set_defaults(func=main)
@@ -47,7 +47,7 @@ def main(args) -> int:
     from knitframe.records import Fabric
     from knitframe.yarns import resolve_yarn
 
-    out = args.out or Path(f"{args.pattern}-geometry")
+    out = args.out if args.out is not None else f"{args.pattern}-geometry"
     od = OutputDir(out, command="geometry", overwrite=args.overwrite, fingerprint=fingerprint(vars(args)))
     od.check()  # before any work
     reg = get_registry()
@@ -70,7 +70,7 @@ def main(args) -> int:
         f"{cell.wale_pitch:.4g} mm, min clearance {clr.minimum:.4g} mm ({clr.minimum / cell.dk:.3g} dk), "
         f"{len(clr.overlaps)} places closer than dk"
     )
-    print(f"wrote {', '.join(str(out / f) for f in od.committed)}")
+    print(f"wrote {', '.join(str(od.out / f) for f in od.committed)}")
     return 0
 
 

@@ -50,7 +50,7 @@ import attrs
 import numpy as np
 import scipy.sparse as sp
 
-from knitframe.report import write_pvd
+from knitframe.stepfiles import StepSeries
 from knitframe.geometry import unit_cell
 from knitframe import hookimpl, validators as v
 from knitframe.config import instantiate
@@ -249,7 +249,7 @@ class RodSolver:
         t_load, lam1, lam2 = scene.load.stretches()
         n_load = len(t_load)
         prestress = "prestress" in scene.effects and energy.law is not None
-        total = n_load + (self.prestress_steps if prestress else 0)
+        total = n_load + (self.prestress_steps if prestress else 0) + 1  # + the relaxed lattice
         report = progress or (lambda done, tot, msg: None)
         opts = NewtonOptions(atol=self.tolerance * energy.EA, rtol=1e-10, max_iter=self.max_iterations,
                              stabilisation=self.stabilisation, max_step=self.max_step,
@@ -269,10 +269,6 @@ class RodSolver:
         base_free = np.ones(model.n_dof, bool)
         base_free[:3] = False  # pin node 0: the cell's free translation
         vtu = "vtu" in scene.outputs and output_dir is not None
-        out_dir = Path(output_dir) if output_dir is not None else None
-        if vtu:
-            out_dir.mkdir(parents=True, exist_ok=True)
-        vtu_files: list[tuple[float, str]] = []
         ckpt = StepCheckpoints(checkpoint_dir, self._key(fabric, scene)) if checkpoint_dir is not None else None
 
         def newton(q0: np.ndarray, free: np.ndarray, options: NewtonOptions = opts):
@@ -318,18 +314,17 @@ class RodSolver:
             state.update({k: meta.get(k) for k in state})
             energy.dk = float(meta["dk"])
             step_counter[0] = index + 1
+            ckpt.announce(index, total)
+        series = StepSeries(output_dir, "rod", step_counter[0]) if vtu else None
         notes: list[str] = []
         converged = True
 
         def after(phase: str, index: int, qv: np.ndarray, message: str, done: int) -> None:
             state.update(phase=phase, target=index, dk=energy.dk)
+            if series is not None:  # before the checkpoint: every checkpointed step has its file
+                series.write(step_counter[0], lambda path: write_rod_vtu(path, model, qv, 0.5 * energy.dk))
             if ckpt is not None:
                 ckpt.save(step_counter[0], {"q": qv, "rows": np.array(rows, dtype=np.float64).reshape(-1, 4)}, state)
-            if vtu:
-                name = f"rod-{step_counter[0]:04d}.vtu"
-                write_rod_vtu(out_dir / name, model, qv, 0.5 * energy.dk)
-                vtu_files.append((float(step_counter[0]), name))
-                write_pvd(out_dir / "rod.pvd", vtu_files)
             step_counter[0] += 1
             report(done, total, message)
 

@@ -50,7 +50,7 @@ import attrs
 import numpy as np
 import scipy.sparse as sp
 
-from knitframe.report import write_pvd
+from knitframe.stepfiles import StepSeries
 from knitframe.geometry import unit_cell
 from knitframe import hookimpl, validators as v
 from knitframe.config import instantiate
@@ -400,10 +400,6 @@ class VolumetricSolver:
         base_free = np.ones(n_ind + N_MACRO, bool)
         base_free[:3] = False  # pin one node: the cell's free translation
         vtu = "vtu" in scene.outputs and output_dir is not None
-        out_dir = Path(output_dir) if output_dir is not None else None
-        if vtu:
-            out_dir.mkdir(parents=True, exist_ok=True)
-        vtu_files: list[tuple[float, str]] = []
         ckpt = StepCheckpoints(checkpoint_dir, self._key(fabric, scene, model.law)) if checkpoint_dir is not None else None
         lat = model.lattice
 
@@ -478,21 +474,22 @@ class VolumetricSolver:
             rows = [tuple(x) for x in arrays["rows"].tolist()]
             start_phase, start_index = meta["phase"], int(meta["target"])
             s0 = float(meta["s0"])
+            ckpt.announce(last, total)
+        series = StepSeries(output_dir, "solid", next_checkpoint) if vtu else None
         notes: list[str] = []
         converged = True
         step_counter = [next_checkpoint]
 
+        def write_step(path: Path, qv: np.ndarray) -> None:
+            _, _, _, info = model(qv, 0)
+            write_solid_vtu(path, model.forms, model.T @ qv, model.s, info.get("pressure", np.zeros(model.cm.n_nodes)))
+
         def after(phase: str, index: int, qv: np.ndarray, message: str, done: int) -> None:
+            if series is not None:  # before the checkpoint: every checkpointed step has its file
+                series.write(step_counter[0], lambda path: write_step(path, qv))
             if ckpt is not None:
                 ckpt.save(step_counter[0], {"q": qv, "rows": np.array(rows, dtype=np.float64).reshape(-1, 4)},
                           {"phase": phase, "target": index, "s0": s0})
-            if vtu:
-                name = f"solid-{step_counter[0]:04d}.vtu"
-                u = model.T @ qv
-                _, _, _, info = model(qv, 0)
-                write_solid_vtu(out_dir / name, model.forms, u, model.s, info.get("pressure", np.zeros(model.cm.n_nodes)))
-                vtu_files.append((float(step_counter[0]), name))
-                write_pvd(out_dir / "solid.pvd", vtu_files)
             step_counter[0] += 1
             report(done, total, message)
 
