@@ -14,6 +14,7 @@ step, the elapsed time and an estimate of the time left; and one last line at th
 from __future__ import annotations
 
 import os
+import shutil
 import sys
 import threading
 import time
@@ -23,7 +24,12 @@ from tqdm import tqdm
 
 __all__ = ["ProgressBar"]
 
-_BAR = "{desc} [{bar}] {percentage:5.1f}%  {postfix}  {elapsed}<{remaining}"
+
+
+def _bar_format(message: str) -> str:
+    """``label [####....]  35.7%  message  00:04<00:07`` (the message's braces escaped for tqdm)."""
+    text = message.replace("{", "{{").replace("}", "}}")
+    return "{desc} [{bar}] {percentage:5.1f}%  " + text + "  {elapsed}<{remaining}"
 
 
 def _interval() -> float:
@@ -47,8 +53,11 @@ class ProgressBar:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         if self.tty:
-            self._bar = tqdm(total=1, desc=label, bar_format=_BAR, ascii=".#", file=self.stream, leave=True,
-                             dynamic_ncols=True, mininterval=0)
+            # a terminal that reports no size (a fresh pseudo-terminal) would get no bar at all
+            size = shutil.get_terminal_size((100, 24))
+            self._bar = tqdm(total=1, desc=label, bar_format=_bar_format(""), ascii=".#", file=self.stream,
+                             leave=True, ncols=size.columns if size.columns >= 40 else 100,
+                             nrows=size.lines if size.lines >= 2 else 24, mininterval=0)
         else:
             self._thread = threading.Thread(target=self._tick, name="knitframe-progress", daemon=True)
             self._thread.start()
@@ -58,7 +67,7 @@ class ProgressBar:
         if self._bar is not None:
             self._bar.total = max(total, 1)
             self._bar.n = min(max(done, 0), max(total, 1))
-            self._bar.set_postfix_str(message, refresh=False)
+            self._bar.bar_format = _bar_format(message)
             self._bar.refresh()
 
     def line(self) -> str:
