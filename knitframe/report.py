@@ -10,7 +10,7 @@ import numpy as np
 
 from knitframe.records import Response
 
-__all__ = ["write_responses_csv", "plot_responses", "curve"]
+__all__ = ["write_responses_csv", "plot_responses", "curve", "compare", "plot_comparison"]
 
 CSV_COLUMNS = (
     "label", "load", "n_samples", "lambda1", "lambda2", "T1_N_per_mm", "T2_N_per_mm",
@@ -72,6 +72,91 @@ def plot_responses(
                 ax.plot(strain[order], np.asarray(P)[order], ls, color="k", lw=1.0, alpha=0.8)
     if model is not None:
         ax.plot([], [], "k-", lw=1.0, label="fitted model")
+    ax.set_xlabel("engineering strain in the loaded direction, -")
+    ax.set_ylabel("tension per unit width, N/mm")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="upper left")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+#: strains at which simulated and measured tensions are compared
+COMPARE_AT = (0.10, 0.20, 0.30)
+
+
+def compare(simulated: Sequence[Response], measured: Sequence[Response]) -> dict[str, dict[str, float]]:
+    """Ratio of simulated to measured tension at 10, 20 and 30 % strain, per load and direction.
+
+    Only for the loads both have, at strains inside both curves. A simulated path starts from the
+    relaxed cell at zero strain and zero tension. Keys: ``"uniaxial-course"`` (or
+    ``"equibiaxial course"`` … for a load with two loaded directions), then ``"10 %"`` …
+    """
+    out: dict[str, dict[str, float]] = {}
+    for sim in simulated:
+        for mea in (m for m in measured if m.load == sim.load):
+            for (name, es, Ts, _), (_, em, Tm, _) in zip(curve(sim), curve(mea)):
+                key = sim.load if sim.loaded_direction is not None else f"{sim.load} {name}"
+                es, Ts = from_origin(*_sorted(es, Ts))
+                row = {}
+                for e in COMPARE_AT:
+                    if max(em.min(), 0.0) <= e <= min(es.max(), em.max()):
+                        ts = np.interp(e, es, Ts)
+                        tm = np.interp(e, *_sorted(em, Tm))
+                        if tm > 0:
+                            row[f"{100 * e:.0f} %"] = float(ts / tm)
+                if row:
+                    out[key] = row
+            break
+    return out
+
+
+def _sorted(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    order = np.argsort(x)
+    return x[order], y[order]
+
+
+def from_origin(strain: np.ndarray, tension: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A simulated load path with its start, the relaxed cell at zero strain and tension, put first."""
+    if strain[0] > 0:
+        return np.concatenate([[0.0], strain]), np.concatenate([[0.0], tension])
+    return strain, tension
+
+
+def plot_comparison(path: Path, simulated: Sequence[Response], measured: Sequence[Response], *, title: str = "",
+                    ratios: dict[str, dict[str, float]] | None = None) -> None:
+    """Simulated curves (solid, from the relaxed cell at zero tension) over the measured ones of the
+    same load (dashed, ±1 sd band), one colour per load and direction, with the tension ratios."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.8, 4.6), dpi=110)
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    k = 0
+    for sim in simulated:
+        same = [m for m in measured if m.load == sim.load]
+        for name, e, T, _ in curve(sim):
+            c = colors[k % len(colors)]
+            k += 1
+            x, y = from_origin(*_sorted(e, T))
+            ax.plot(x, y, "-", color=c, lw=1.6, marker=".", label=f"simulated {sim.load} ({name})")
+            for m in same[:1]:
+                for mname, em, Tm, sd in curve(m):
+                    if mname != name:
+                        continue
+                    xm, ym = _sorted(em, Tm)
+                    ax.plot(xm, ym, "--", color=c, lw=1.2, label=f"measured {m.label or m.load} ({name})")
+                    if sd is not None:
+                        order = np.argsort(em)
+                        ax.fill_between(xm, (Tm - sd)[order], (Tm + sd)[order], color=c, alpha=0.15, lw=0)
+    if ratios:
+        text = "\n".join(f"{load}: " + ", ".join(f"{v:.2g}" for v in row.values()) + " at " + ", ".join(row)
+                         for load, row in ratios.items())
+        ax.text(0.98, 0.02, "simulated / measured tension\n" + text, transform=ax.transAxes, ha="right",
+                va="bottom", fontsize=7, bbox={"facecolor": "white", "alpha": 0.85, "lw": 0.5})
     ax.set_xlabel("engineering strain in the loaded direction, -")
     ax.set_ylabel("tension per unit width, N/mm")
     ax.set_title(title)

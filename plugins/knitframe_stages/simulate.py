@@ -37,7 +37,7 @@ from knitframe.effects import require_effects
 from knitframe.errors import ConfigError
 from knitframe.progress import ProgressBar
 from knitframe.records import Fabric, Scene
-from knitframe.report import plot_responses, write_responses_csv
+from knitframe.report import compare, plot_comparison, write_responses_csv
 from knitframe.schema import build
 
 
@@ -69,7 +69,8 @@ class SimulateStage:
     solver_name: str
     solver: Any
     fabric: Fabric
-    scene: Scene
+    scene: Scene  #: the first (or only) scene
+    scenes: tuple[Scene, ...] = ()  #: every scene, one per load of ``scene.load = [...]``
 
     @classmethod
     def from_config(cls, config, ctx) -> "SimulateStage":
@@ -95,52 +96,91 @@ class SimulateStage:
             checked_cell(fabric, ctx.registry)
         except ConfigError as e:
             raise ConfigError(e.path, e.problem, source=src) from None
-        scene = build(Scene, config.get("scene", {}), "scene", source=src)
-        require_effects(scene, solver, ctx.registry, name=spec.kind)
+        scenes = _scenes(config.get("scene", {}), src)
         validate = getattr(solver, "validate", None)
-        if validate is not None:
-            try:
-                validate(fabric, scene, ctx.registry)  # the solver's own checks: plugins by name, yarn model ...
-            except ConfigError as e:
-                raise ConfigError(e.path, e.problem, source=src) from None
-        return cls(spec.kind, solver, fabric, scene)
+        for scene in scenes:
+            require_effects(scene, solver, ctx.registry, name=spec.kind)
+            if validate is not None:
+                try:
+                    validate(fabric, scene, ctx.registry)  # the solver's own checks: plugins by name, yarn model ...
+                except ConfigError as e:
+                    raise ConfigError(e.path, e.problem, source=src) from None
+        return cls(spec.kind, solver, fabric, scenes[0], tuple(scenes))
 
     def run(self, ctx) -> None:
         ctx.used("solver", self.solver_name)
         ctx.used("stage", self.name)
         ctx.used("pattern", self.fabric.pattern)
+        scenes = self.scenes or (self.scene,)
+        responses = [self._simulate(ctx, scene, len(scenes) > 1) for scene in scenes]
+        ctx.responses.extend(responses)
+        write_responses_csv(ctx.output("simulated.csv"), responses)
+        measured = [r for r in ctx.responses if r.provenance.kind == "experiment"]
+        ratios = compare(responses, measured)
+        plot_comparison(ctx.output("simulated.png"), responses, measured,
+                        title=f"{self.solver_name}: {responses[0].label}", ratios=ratios)
+        headline = "; ".join(f"{r.label} {r.load}: {len(r)} steps, converged={r.provenance.converged}, "
+                             f"{r.provenance.wall_time or 0:.1f} s" for r in responses)
+        if ratios:
+            headline += "; simulated/measured tension " + ", ".join(
+                f"{load} " + "/".join(f"{v:.2g}" for v in row.values()) + " at " + "/".join(row) for load, row in
+                ratios.items())
+        first = responses[0]
+        ctx.results[self.name] = {
+            "solver": self.solver_name,
+            "label": first.label,
+            "load": first.load if len(responses) == 1 else [r.load for r in responses],
+            "points": len(first) if len(responses) == 1 else [len(r) for r in responses],
+            "converged": all(r.provenance.converged for r in responses),
+            "wall_time_s": sum(r.provenance.wall_time or 0 for r in responses),
+            "max_T1_N_per_mm": max(float(r.T1.max()) for r in responses),
+            "max_T2_N_per_mm": max(float(r.T2.max()) for r in responses),
+            "simulated_over_measured": ratios,
+            "headline": headline,
+        }
+
+    def _simulate(self, ctx, scene: Scene, several: bool) -> Any:
+        """One scene through the solver, with progress, checkpoints and VTU files where asked."""
         kwargs: dict[str, Any] = {}
         bar = None
         if not ctx.quiet:
-            bar = ProgressBar(f"{self.solver_name} {self.fabric.pattern}")
+            bar = ProgressBar(f"{self.solver_name} {self.fabric.pattern}"
+                              + (f" {scene.load.response_kind}" if several else ""))
             kwargs["progress"] = bar
         if _accepts(self.solver.simulate, "checkpoint_dir"):
-            kwargs["checkpoint_dir"] = ctx.checkpoint_dir("simulate")
-        if "vtu" in self.scene.outputs and _accepts(self.solver.simulate, "output_dir"):
-            kwargs["output_dir"] = ctx.out / "vtu"
+            kwargs["checkpoint_dir"] = ctx.checkpoint_dir("simulate")  # checkpoints are keyed by fabric and scene
+        vtu = "vtu" + (f"/{scene.load.response_kind}" if several else "")
+        if "vtu" in scene.outputs and _accepts(self.solver.simulate, "output_dir"):
+            kwargs["output_dir"] = ctx.out / vtu
         try:
-            response = self.solver.simulate(self.fabric, self.scene, **kwargs)
+            response = self.solver.simulate(self.fabric, scene, **kwargs)
         finally:
             if bar is not None:
                 bar.close()
         if "output_dir" in kwargs:
-            ctx.outputs.extend(f"vtu/{p.name}" for p in sorted((ctx.out / "vtu").glob("*")))
-        ctx.responses.append(response)
-        write_responses_csv(ctx.output("simulated.csv"), [response])
-        plot_responses(ctx.output("simulated.png"), [response], title=f"{self.solver_name}: {response.label}")
-        prov = response.provenance
-        ctx.results[self.name] = {
-            "solver": self.solver_name,
-            "label": response.label,
-            "load": response.load,
-            "points": len(response),
-            "converged": prov.converged,
-            "wall_time_s": prov.wall_time,
-            "max_T1_N_per_mm": float(response.T1.max()),
-            "max_T2_N_per_mm": float(response.T2.max()),
-            "headline": f"{response.label}: {len(response)} steps, converged={prov.converged}, "
-                        f"{prov.wall_time or 0:.1f} s",
-        }
+            ctx.outputs.extend(f"{vtu}/{p.name}" for p in sorted((ctx.out / vtu).glob("*")))
+        return response
+
+
+def _scenes(table: Any, source: str | None) -> list[Scene]:
+    """One Scene per load: ``load`` may be a table or an array of tables (``[{...}, {...}]``)."""
+    if not isinstance(table, dict) or not isinstance(table.get("load"), list):
+        return [build(Scene, table, "scene", source=source)]
+    loads = table["load"]
+    if not loads:
+        raise ConfigError("scene.load", "an array of loads needs at least one load table", source=source)
+    scenes = []
+    for i, load in enumerate(loads):
+        try:
+            scenes.append(build(Scene, {**table, "load": load}, "scene", source=source))
+        except ConfigError as e:
+            path = e.path.replace("scene.load", f"scene.load[{i}]", 1) if e.path.startswith("scene.load") else e.path
+            raise ConfigError(path, e.problem, source=source) from None
+    kinds = [s.load.response_kind for s in scenes]
+    dup = next((k for k in kinds if kinds.count(k) > 1), None)
+    if dup is not None:
+        raise ConfigError("scene.load", f"two loads of the same kind ({dup}); give each load once", source=source)
+    return scenes
 
 
 @hookimpl
