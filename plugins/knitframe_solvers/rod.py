@@ -43,6 +43,7 @@ from __future__ import annotations
 import hashlib
 import json
 import time
+import warnings
 from pathlib import Path
 from typing import Any, ClassVar, Literal
 
@@ -54,7 +55,7 @@ from knitframe.stepfiles import StepSeries
 from knitframe.geometry import unit_cell
 from knitframe import hookimpl, validators as v
 from knitframe.config import instantiate
-from knitframe.errors import ConfigError, FieldError, NumericalError
+from knitframe.errors import KnitframeWarning, ConfigError, FieldError, NumericalError
 from knitframe.newton import NewtonOptions, StepCheckpoints, continuation, minimise
 from knitframe.periodic import macro_index
 from knitframe.plugins import get_registry
@@ -446,6 +447,13 @@ class RodSolver:
             notes.append(f"stopped after {len(rows)} of {n_load} load steps: {e}")
         arr = np.array(rows, dtype=np.float64).reshape(-1, 4)
         load = scene.load
+        jumps = branch_jumps(arr, load)
+        for j in jumps:
+            message = (f"rod solver ({fabric.pattern}, {fabric.yarn.name}): load step {j['step']} jumped to another "
+                       f"equilibrium branch: the free {j['free']} stretch went {j['from']:.3f} -> {j['to']:.3f} while "
+                       f"the loaded stretch changed by {j['loaded_change']:.3f}; the curve after it is another state")
+            notes.append(message)
+            warnings.warn(message, KnitframeWarning, stacklevel=2)
         key = load.response_kind
         size = f"SL{fabric.stitch_length:g}" if fabric.stitch_length is not None else f"{fabric.arc_length:g} mm/stitch"
         prov = Provenance(
@@ -455,11 +463,35 @@ class RodSolver:
             extra={"EA_N": energy.EA, "EI_Nmm2": energy.EI, "k_line_N_per_mm2": energy.k_line,
                    "dk_mm": cell.dk, "L1_mm": lat.L1.tolist(), "L2_mm": lat.L2.tolist(),
                    "effects": sorted(scene.effects), "options": attrs.asdict(self),
-                   "prestress_start": state["start"], "relaxed_stretch": state["lam_ref"],
+                   "prestress_start": state["start"], "relaxed_stretch": state["lam_ref"], "branch_jumps": jumps,
                    "relaxed_energy_Nmm": state["relaxed_energy"]},
         )
         return Response(arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3], load=key,
                         label=f"rod {fabric.pattern} {size} {fabric.yarn.name}", provenance=prov)
+
+
+def branch_jumps(rows: np.ndarray, load: Any, *, ratio: float = 3.0, floor: float = 0.02) -> list[dict[str, Any]]:
+    r"""Load steps where the free side's stretch jumps: a snap to another equilibrium branch.
+
+    ``rows`` holds (λ1, λ2, T1, T2) per converged load step, from the relaxed lattice (λ = 1).
+    Under a uniaxial load a step k is a jump when the free stretch changes by more than ``ratio``
+    times the loaded stretch's change and by more than ``floor``:
+    :math:`|\Delta\lambda_{free}| > \max(\mathrm{ratio}\,|\Delta\lambda_{load}|, \mathrm{floor})`.
+    A smooth lateral contraction stays well below that (knit Poisson ratios are of order one).
+    Equibiaxial and general paths have no free side and are not checked here.
+    """
+    if getattr(load, "kind", None) != "uniaxial" or len(rows) == 0:
+        return []
+    k_load = 0 if load.direction == "course" else 1
+    k_free = 1 - k_load
+    lam = np.vstack([[1.0, 1.0], rows[:, :2]])
+    d_load = np.abs(np.diff(lam[:, k_load]))
+    d_free = np.diff(lam[:, k_free])
+    out = []
+    for k in np.flatnonzero(np.abs(d_free) > np.maximum(ratio * d_load, floor)):
+        out.append({"step": int(k) + 1, "free": "wale" if k_free else "course", "from": float(lam[k, k_free]),
+                    "to": float(lam[k + 1, k_free]), "loaded_change": float(d_load[k])})
+    return out
 
 
 @hookimpl
