@@ -34,12 +34,14 @@ from knitframe.records import EFFECTS, Fabric, LoadPath, Provenance, Response, S
 from knitframe.pipeline import PipelineResult, run  # noqa: E402
 from knitframe.examples import example_config  # noqa: E402
 from knitframe.garment.api import design  # noqa: E402
+from knitframe.ladder import ladder  # noqa: E402
 
 __all__ = [
     "__version__",
     "hookimpl",
     "run",
     "design",
+    "ladder",
     "example_config",
     "get_registry",
     "load_registry",

@@ -76,6 +76,7 @@ class RunContext:
     plugins: dict[str, dict[str, str]] = attrs.Factory(dict)  #: "kind:name" → {package, version}
     resume: bool = False  #: continue from checkpoints left by a killed run
     quiet: bool = False
+    no_cache: bool = False  #: executors neither read nor keep cached job results (``--no-cache``)
 
     def output(self, name: str) -> Path:
         """Path of an output file; records it for the summary."""
@@ -181,22 +182,25 @@ class Pipeline:
         return self.config.get("pipeline", {}).get("name", Path(self.source or "pipeline").stem)
 
     def run(self, out: str | Path | None, *, resume: bool = False, overwrite: bool = False,
-            quiet: bool = False) -> PipelineResult:
+            quiet: bool = False, no_cache: bool = False) -> PipelineResult:
         """Run every stage; outputs appear in ``out`` only if all succeed (None: no files).
 
         ``resume`` continues the same config's killed run from its checkpoints; ``overwrite``
-        replaces the outputs of an earlier knitframe run in ``out`` (and nothing else).
+        replaces the outputs of an earlier knitframe run in ``out`` (and nothing else); ``no_cache``
+        makes the stages' executors compute every job afresh, without reading or keeping results.
         """
         if out is None:
             import tempfile
 
             with tempfile.TemporaryDirectory(prefix="knitframe-") as tmp:
-                ctx = RunContext(self.registry, Path(tmp), checkpoints=Path(tmp) / ".checkpoints", quiet=quiet)
+                ctx = RunContext(self.registry, Path(tmp), checkpoints=Path(tmp) / ".checkpoints", quiet=quiet,
+                                 no_cache=no_cache)
                 summary = self._run_stages(ctx)
                 return PipelineResult(None, ctx.responses, ctx.models, ctx.results, summary, ctx.objects)
         with OutputDir(out, command="run", fingerprint=fingerprint(self.config), resume=resume,
                        overwrite=overwrite) as od:
-            ctx = RunContext(self.registry, od.staging, checkpoints=od.checkpoints, resume=resume, quiet=quiet)
+            ctx = RunContext(self.registry, od.staging, checkpoints=od.checkpoints, resume=resume, quiet=quiet,
+                             no_cache=no_cache)
             summary = od.commit(self._run_stages(ctx))
         return PipelineResult(od.out, ctx.responses, ctx.models, ctx.results, summary, ctx.objects)
 
@@ -266,7 +270,8 @@ def _jsonable(obj: Any) -> Any:
 
 
 def run(config: str | Path | Mapping[str, Any], out: str | Path | None = None, *, resume: bool = False,
-        overwrite: bool = False, quiet: bool = True, registry: Registry | None = None) -> PipelineResult:
+        overwrite: bool = False, quiet: bool = True, registry: Registry | None = None,
+        no_cache: bool = False) -> PipelineResult:
     """Run a pipeline from a TOML path or a config dict; the Python twin of ``knitframe run``.
 
     Parameters
@@ -277,11 +282,13 @@ def run(config: str | Path | Mapping[str, Any], out: str | Path | None = None, *
         Output directory. None runs without keeping files. An existing folder that holds anything
         is refused unless ``resume`` (the same config's run) or ``overwrite`` (replaces only an
         earlier knitframe run's outputs) is given.
+    no_cache : bool
+        Compute every executor job afresh: cached results are neither read nor written.
     """
     if isinstance(config, Mapping):
         pipeline = Pipeline(config, base_dir=Path.cwd(), registry=registry)
     else:
         path = Path(config)
         pipeline = Pipeline(load_toml(path), base_dir=path.resolve().parent, source=str(path), registry=registry)
-    return pipeline.run(out, resume=resume, overwrite=overwrite, quiet=quiet)
+    return pipeline.run(out, resume=resume, overwrite=overwrite, quiet=quiet, no_cache=no_cache)
 

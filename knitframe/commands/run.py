@@ -1,4 +1,4 @@
-"""``knitframe run CONFIG [--out DIR] [--resume | --overwrite]``: run a config-selected pipeline.
+"""``knitframe run CONFIG [--out DIR] [--resume | --overwrite] [--no-cache]``: run a config-selected pipeline.
 
 The outputs appear in DIR only when the whole run succeeded. An existing DIR that holds anything is
 refused unless ``--resume`` continues the same config's run there, or ``--overwrite`` replaces the
@@ -22,6 +22,8 @@ def add_parser(sub) -> None:
     mode.add_argument("--resume", action="store_true", help="continue the same config's killed run from its checkpoints")
     add_overwrite_argument(mode)
     p.add_argument("--quiet", action="store_true", help="no progress output")
+    p.add_argument("--no-cache", action="store_true",
+                   help="compute every executor job afresh (a sweep's points): cached results are neither read nor kept")
     p.set_defaults(func=main)
 
 
@@ -33,7 +35,7 @@ def main(args) -> int:
         raise ConfigError("", "give a CONFIG file or --example (not both)")
     config = example_config() if args.example else Path(args.config)
     out = args.out if args.out is not None else f"{Path(config).stem}-out"
-    result = run(config, out, resume=args.resume, overwrite=args.overwrite, quiet=args.quiet)
+    result = run(config, out, resume=args.resume, overwrite=args.overwrite, quiet=args.quiet, no_cache=args.no_cache)
     if not args.quiet:
         for stage in result.summary["stages"]:
             print(f"  {stage['stage']:<12s} {stage['seconds']:9.3f} s")

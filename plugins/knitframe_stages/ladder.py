@@ -1,0 +1,452 @@
+"""Stage ``[ladder]``: one fabric and scene through rungs of fidelity, with what each costs.
+
+::
+
+    [ladder]
+    rungs = ["reduced", "rod:8", "rod:16", "rod:32", "volumetric:p1:coarse"]   # default: see below
+    max_time = 900                   # s: skip rungs whose estimated time is over it
+    executor = "local"               # or { kind = "dask", workers = 2 }: rungs of a wave run in parallel
+    solver_options = { volumetric = { contact_modulus = 1.2 } }   # for every rung of that solver
+
+    [fabric]                         # read as the [solver] stage reads them
+    pattern = "jersey"
+    stitch_length = 11
+    yarn = "cotton"
+
+    [scene]
+    effects = ["large_deformation", "bending", "contact", "self_contact", "prestress", "anisotropy"]
+    load = { kind = "equibiaxial", max_strain = 0.3, steps = 6 }
+
+The rungs are :data:`knitframe.ladder.RUNGS`. Each simulated rung simulates the scene's effects
+that its solver models (the rod has no anisotropic section, for instance; the CSV lists them). The
+best rung that converged is the reference; ``reduced`` is the paper's model fitted to it (hgo;
+hgo2m when a side is free), so its error is what the three-parameter model costs in accuracy. With
+a ``[data]`` table, the measured curves of the same load are compared as well (their points up to
+the path's largest stretch).
+
+Rungs run in waves, cheapest first, through the executor (``executor.map``): each rung in a fresh
+process, whose wall time and peak memory are the rung's. Before a wave, each rung's estimated time
+and memory are logged, from :class:`knitframe.ladder.CostModel` fitted to the rungs already run,
+the ``timings`` files and the shipped timings; a rung estimated over ``max_time`` is skipped with a
+one-line notice. Finished rungs are kept in the executor's cache (``cache_dir``), so a rerun only
+runs what is new.
+
+Writes ``ladder.csv``, ``ladder.md``, ``ladder.png`` (time against error, log axes),
+``curves.png`` and ``ladder-curves.csv``.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+import warnings
+from pathlib import Path
+from typing import Any, ClassVar
+
+import attrs
+import numpy as np
+
+from knitframe import __version__, hookimpl, validators as v
+from knitframe.config import PluginSpec, instantiate
+from knitframe.errors import ConfigError, KnitframeError, KnitframeWarning, NumericalError
+from knitframe.ladder import (
+    DEFAULT_RUNGS, RUNGS, CostModel, LadderResult, TimingPoint, _response, format_duration, format_memory,
+    plot_curves, plot_pareto, read_timings, run_rung, shipped_timings_path, tension_errors,
+    within_range, write_csv, write_table,
+)
+from knitframe.records import Scene
+from knitframe.report import write_responses_csv
+from knitframe.schema import build
+
+log = logging.getLogger("knitframe.ladder")
+
+#: a wave holds the pending rungs estimated at most this many times the cheapest one ...
+WAVE_SPAN = 10.0
+#: ... or at most this many seconds
+WAVE_FLOOR_S = 30.0
+#: a crashed rung found in the cache is run again, at most this many times in one ladder
+MAX_ATTEMPTS = 20
+
+
+@attrs.frozen
+class LadderTable:
+    """Schema of the ``[ladder]`` table."""
+
+    rungs: list[str] = attrs.Factory(lambda: list(DEFAULT_RUNGS))  #: rung names (docs/ladder.md); default: reduced, rod:8, rod:16, rod:32, volumetric:p1:coarse, volumetric:p1:r/3, volumetric:p2:r/1.67
+    max_time: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: skip the rungs whose estimated wall time is over this, s; unset: run them all
+    executor: str | dict[str, Any] = "local"  #: executor plugin name, or a table with ``kind`` and its options; the rungs of a wave go through its ``map``
+    cache: bool = True  #: keep finished rungs in the executor's cache and reuse them
+    cache_dir: str | None = None  #: where the finished rungs are kept; unset: knitframe/ladder in the user's cache folder ($XDG_CACHE_HOME or ~/.cache)
+    timings: list[str] = attrs.Factory(list)  #: measured timings for the cost model: ladder.csv files of earlier ladders, or JSON files like the shipped one
+    shipped_timings: bool = True  #: let the cost model use the timings shipped with knitframe
+    solver_options: dict[str, Any] = attrs.Factory(dict)  #: solver options for every rung of a solver, by solver name: ``{ volumetric = { contact_modulus = 1.2 } }``
+    reduced_model: str | dict[str, Any] = "auto"  #: the reduced rung's homogenizer; "auto": hgo, or hgo2m when the load leaves a side free
+    reduced_fitter: str | dict[str, Any] = "lbfgs"  #: the reduced rung's fitter name, or a table with ``kind`` and options
+
+
+def default_cache_dir() -> Path:
+    """``$XDG_CACHE_HOME/knitframe/ladder`` (``~/.cache/knitframe/ladder``)."""
+    import os
+
+    root = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(root) / "knitframe" / "ladder"
+
+
+def _fabric_label(fabric: Any) -> str:
+    size = f"SL{fabric.stitch_length:g}" if fabric.stitch_length else f"{fabric.arc_length:g} mm per stitch"
+    return f"{fabric.pattern} {size} {fabric.yarn.name}"
+
+
+def _scene_label(scene: Scene) -> str:
+    load = scene.load
+    kind = f"uniaxial ({load.direction}, free side)" if load.kind == "uniaxial" else load.kind
+    text = f"{kind} 0→{100 * load.max_strain:g} % in {load.steps} steps" if load.kind != "general" else (
+        f"general path of {len(load.lambda1)} points")
+    return ("pre-stress + " if "prestress" in scene.effects else "") + text
+
+
+@attrs.frozen
+class LadderStage:
+    """Run the rungs of the accuracy ladder on the config's fabric and scene and compare them."""
+
+    name: ClassVar[str] = "ladder"
+    description: ClassVar[str] = "accuracy ladder: one fabric and scene through rungs of fidelity, with time, memory and error"
+    order: ClassVar[int] = 40
+    uses: ClassVar[tuple[str, ...]] = ("fabric", "scene", "yarns")
+    schema: ClassVar[type] = LadderTable
+
+    settings: LadderTable  #: the validated [ladder] table
+    rungs: tuple[str, ...]  #: in the order of RUNGS
+    stages: dict[str, Any]  #: each simulated rung's validated simulate stage (solver, fabric, scene)
+    jobs: dict[str, dict[str, Any]]  #: each simulated rung's executor job (plain data)
+    reduced: dict[str, Any] | None  #: the reduced rung's job without its reference curve
+    scene: Scene
+    executor: Any
+    executor_name: str
+    timings: tuple[TimingPoint, ...]
+    source: str | None = None
+
+    @classmethod
+    def from_config(cls, config, ctx) -> "LadderStage":
+        src = ctx.source
+        table = build(LadderTable, config["ladder"], "ladder", source=src)
+        names = _check_rungs(table.rungs, src)
+        scene_table = config.get("scene", {})
+        if isinstance(scene_table, dict) and isinstance(scene_table.get("load"), list):
+            raise ConfigError("scene.load", "the ladder follows one load path: give one load table (an array of "
+                              "loads is for the [solver] stage)", source=src)
+        scene = build(Scene, scene_table, "scene", source=src)
+        simulate = ctx.registry["stage"]["simulate"]
+        used_solvers = {RUNGS[n].solver for n in names if n != "reduced"}
+        options = _check_solver_options(table.solver_options, used_solvers, src)
+        stages, jobs = {}, {}
+        for name in names:
+            rung = RUNGS[name]
+            if rung.solver == "reduced":
+                continue
+            solver_cls = ctx.registry["solver"][rung.solver]
+            effects = sorted(scene.effects & solver_cls.effects)
+            solver_table = {"kind": rung.solver, "on_failure": "truncate", **options.get(rung.solver, {}),
+                            **rung.options}
+            sub = {"solver": solver_table, "scene": {**scene_table, "effects": effects, "outputs": ["response"]}}
+            sub.update({k: config[k] for k in ("fabric", "yarns") if k in config})
+            try:
+                stages[name] = simulate.from_config(sub, ctx)
+            except ConfigError as e:
+                path = e.path
+                if path.startswith("solver."):
+                    path = f"ladder.solver_options.{rung.solver}.{path[len('solver.'):]}"
+                raise ConfigError(path, e.problem, source=src) from None
+            jobs[name] = {"rung": name, "solver": solver_table, "config": sub, "knitframe": __version__,
+                          "attempt": 0}
+        reduced = None
+        if "reduced" in names:
+            reduced = _reduced_job(table, scene, scene_table, ctx.registry, src)
+        executor, executor_name = _executor(table, ctx)
+        timings: list[TimingPoint] = []
+        for i, f in enumerate(table.timings):
+            timings += read_timings(ctx.path(f, f"ladder.timings[{i}]"), "given")
+        if table.shipped_timings and shipped_timings_path().is_file():
+            timings += read_timings(shipped_timings_path(), "shipped")
+        return cls(table, names, stages, jobs, reduced, scene, executor, executor_name, tuple(timings), src)
+
+    # ------------------------------------------------------------------------------------ run
+    def run(self, ctx) -> None:
+        executor = self.executor
+        if getattr(ctx, "no_cache", False) and "cache_dir" in _fields(executor):  # a run without the cache
+            executor = attrs.evolve(executor, cache_dir=None)
+        ctx.used("stage", self.name)
+        ctx.used("executor", self.executor_name)
+        for st in self.stages.values():
+            ctx.used("solver", st.solver_name)
+        first = next(iter(self.stages.values()))
+        fabric = first.fabric
+        ctx.used("pattern", fabric.pattern)
+        t_start = time.time()
+        rows: dict[str, dict[str, Any]] = {}
+        curves: dict[str, Any] = {}
+        for name, st in self.stages.items():
+            rung = RUNGS[name]
+            dofs, increments = _size(st, ctx.registry)
+            rows[name] = {"rung": name, "family": rung.family, "solver": rung.solver,
+                          "options": dict(self.jobs[name]["solver"]), "effects": " ".join(sorted(st.scene.effects)),
+                          "dofs": dofs, "increments": increments, "fabric": _fabric_label(fabric),
+                          "load": self.scene.load.response_kind, "cached": False, "reference": False}
+        cost = CostModel(self.timings)
+        pending = list(self.stages)
+        budget = self.settings.max_time
+        while pending:
+            est = {n: cost.estimate(rows[n]["family"], rows[n]["dofs"], rows[n]["increments"]) for n in pending}
+            for n in pending:
+                e = est[n]
+                rows[n].update(estimated_time_s=None if e is None else e.seconds,
+                               estimated_rss_mb=None if e is None else e.rss_mb,
+                               estimate_basis=None if e is None else e.basis)
+                if budget is not None and e is not None and e.seconds > budget:
+                    rows[n]["status"] = (f"skipped: {e.text()}, over max_time {format_duration(budget)}")
+                    log.warning(f"ladder: skipping {n}: {e.text()}, over max_time {format_duration(budget)} "
+                                f"({budget:g} s)")
+            pending = [n for n in pending if "status" not in rows[n]]
+            if not pending:
+                break
+            known = [est[n].seconds for n in pending if est[n] is not None]
+            limit = max(WAVE_SPAN * min(known), WAVE_FLOOR_S) if known else np.inf
+            wave = [n for n in pending if est[n] is None or est[n].seconds <= limit]
+            if not self._parallel():  # one rung at a time: each estimate uses every rung before it
+                wave = wave[:1]
+            for n in wave:
+                e = est[n]
+                what = f"{e.text()} ({e.basis})" if e is not None else "no estimate (no timings of its family)"
+                dofs = f"{rows[n]['dofs']:,}".replace(",", " ")
+                log.info(f"ladder: {n} ({dofs} DOFs): {what}")
+            results = _map(executor, [self.jobs[n] for n in wave], t_start)
+            for n, res in zip(wave, results):
+                self._record(rows[n], res, t_start, curves)
+                if rows[n]["status"] == "ok":
+                    cost.add(TimingPoint(rows[n]["family"], rows[n]["dofs"], rows[n]["increments"],
+                                         rows[n]["wall_time_s"], rows[n].get("peak_rss_mb"), "run", n))
+            pending = [n for n in pending if n not in wave]
+
+        finished = [n for n in self.rungs if rows.get(n, {}).get("status") == "ok"]
+        reference = finished[-1] if finished else None
+        if self.reduced is not None:
+            rows["reduced"] = self._run_reduced(executor, reference, curves, t_start, fabric)
+        if not curves:
+            statuses = "; ".join(f"{n}: {rows[n].get('status')}" for n in self.rungs if n in rows)
+            if all(str(r.get("status", "")).startswith("skipped") for r in rows.values()):
+                raise ConfigError("ladder.max_time", f"every rung was skipped ({statuses})", source=self.source)
+            raise NumericalError(f"no rung of the ladder finished: {statuses}")
+        measured = self._measured(ctx)
+        self._compare(rows, curves, reference, measured)
+        ordered = [rows[n] for n in self.rungs if n in rows]
+        self._write(ctx, ordered, curves, measured, fabric, reference)
+
+    def _parallel(self) -> bool:
+        """Whether the executor runs a wave's jobs side by side (the local one with one worker does not)."""
+        return self.executor_name != "local" or getattr(self.executor, "workers", 1) > 1
+
+    def _record(self, row: dict[str, Any], res: dict[str, Any], t_start: float, curves: dict[str, Any]) -> None:
+        row["status"] = res.get("status", "crashed: no result")
+        row["cached"] = res.get("finished_unix", t_start) < t_start
+        row["wall_time_s"] = res.get("wall_time_s")
+        row["peak_rss_mb"] = res.get("peak_rss_mb")
+        row["notes"] = res.get("mesh") or res.get("notes") or ""
+        if res.get("curve"):
+            r = _response(res["curve"], label=row["rung"])
+            curves[row["rung"]] = r
+            row["T1_end_N_per_mm"], row["T2_end_N_per_mm"] = float(r.T1[-1]), float(r.T2[-1])
+        for w in res.get("warnings", []):
+            warnings.warn(f"ladder rung {row['rung']}: {w}", KnitframeWarning, stacklevel=2)
+        if row["wall_time_s"] is not None:
+            mem = "" if row["peak_rss_mb"] is None else f", {format_memory(row['peak_rss_mb'])}"
+            log.info(f"ladder: {row['rung']}: {row['status']}, {format_duration(row['wall_time_s'])}{mem}"
+                     + (" (cached)" if row["cached"] else ""))
+        else:
+            log.warning(f"ladder: {row['rung']}: {row['status']}")
+
+    def _run_reduced(self, executor: Any, reference: str | None, curves: dict[str, Any], t_start: float,
+                     fabric: Any) -> dict:
+        job = dict(self.reduced)
+        model = job["solver"]["model"]
+        row = {"rung": "reduced", "family": "reduced", "solver": "reduced", "fabric": _fabric_label(fabric),
+               "load": self.scene.load.response_kind, "effects": " ".join(job["scene"]["effects"]),
+               "cached": False, "reference": False, "increments": self.scene.load.steps,
+               "options": {"model": model, "fitter": job["solver"]["fitter"]}}
+        if reference is None:
+            row["status"] = "skipped: no rung converged to fit the reduced model to"
+            return row
+        ref = curves[reference]
+        job["reference"] = {"lambda1": ref.lambda1.tolist(), "lambda2": ref.lambda2.tolist(),
+                            "T1": ref.T1.tolist(), "T2": ref.T2.tolist(), "load": ref.load, "label": reference}
+        res = _map(executor, [job], t_start)[0]
+        self._record(row, res, t_start, curves)
+        if res.get("params"):
+            row["dofs"] = len(res["params"])
+            row["options"] = {**row["options"], "model": res.get("model", model), "params": res["params"],
+                              "fitted_to": reference}
+            row["notes"] = (f"fitted to {reference} in {format_duration(res.get('fit_time_s') or 0.0)}; "
+                            f"time is one evaluation of the path")
+        return row
+
+    def _measured(self, ctx) -> list[Any]:
+        kind = self.scene.load.response_kind
+        experiments = [r for r in ctx.responses if r.provenance.kind == "experiment"]
+        same = [r for r in experiments if r.load == kind]
+        other = [r.label for r in experiments if r.load != kind]
+        if other:
+            log.info(f"ladder: measured curves of another load are not compared: {', '.join(other)}")
+        if experiments and not same:
+            warnings.warn(f"ladder: no measured curve is {kind} (the scene's load); the rungs are compared "
+                          f"with the best rung only", KnitframeWarning, stacklevel=2)
+        _, lam1, lam2 = self.scene.load.stretches()
+        top = max(float(np.max(x)) for x in (lam1, lam2) if x is not None)
+        out = []
+        for r in same:
+            cut = within_range(r, top)
+            if cut is None:
+                warnings.warn(f"ladder: measured curve '{r.label}' has fewer than 2 points within the path "
+                              f"(stretch ≤ {top:g}); not compared", KnitframeWarning, stacklevel=2)
+            else:
+                out.append(cut)
+        return out
+
+    def _compare(self, rows, curves, reference, measured) -> None:
+        ref = curves.get(reference) if reference else None
+        for name, r in curves.items():
+            row = rows[name]
+            row["reference"] = name == reference
+            if ref is not None:
+                e = tension_errors(ref, r)
+                row.update(nrmse_vs_best=e["overall"], nrmse_course_vs_best=e["course"], nrmse_wale_vs_best=e["wale"])
+            if measured:
+                errs = [tension_errors(m, r) for m in measured]
+                for key, col in (("overall", "nrmse_vs_measured"), ("course", "nrmse_course_vs_measured"),
+                                 ("wale", "nrmse_wale_vs_measured")):
+                    vals = [e[key] for e in errs if e[key] is not None]
+                    row[col] = float(np.mean(vals)) if vals else None
+
+    def _write(self, ctx, rows, curves, measured, fabric, reference) -> None:
+        title = f"{_fabric_label(fabric)}, {_scene_label(self.scene)}"
+        labels = [m.label for m in measured]
+        write_csv(ctx.output("ladder.csv"), rows)
+        table = write_table(ctx.output("ladder.md"), rows, title=title, measured=labels)
+        plot_pareto(ctx.output("ladder.png"), rows, title=title)
+        ordered = {n: curves[n] for n in self.rungs if n in curves}
+        plot_curves(ctx.output("curves.png"), ordered, measured, title=title, load=self.scene.load.response_kind,
+                    reference=reference)
+        write_responses_csv(ctx.output("ladder-curves.csv"), list(ordered.values()))
+        done = [r for r in rows if r.get("wall_time_s") is not None]
+        skipped = [r["rung"] for r in rows if str(r.get("status", "")).startswith("skipped")]
+        headline = (f"{len(done)} of {len(rows)} rungs ran, best {reference or 'none'}"
+                    + (f"; skipped {', '.join(skipped)}" if skipped else "")
+                    + (f"; measured: {', '.join(labels)}" if labels else ""))
+        ctx.results[self.name] = {"reference": reference, "rungs": rows, "measured": labels, "headline": headline}
+        ctx.objects[self.name] = LadderResult(rows, ordered, measured, reference, table)
+
+
+# ------------------------------------------------------------------------------------ helpers
+def _check_rungs(names: list[str], source: str | None) -> tuple[str, ...]:
+    """The rung names, checked and put in the order of RUNGS; one ConfigError naming a bad one."""
+    if not names:
+        raise ConfigError("ladder.rungs", "name at least one rung", source=source)
+    seen: set[str] = set()
+    for i, name in enumerate(names):
+        if name not in RUNGS:
+            raise ConfigError(f"ladder.rungs[{i}]", f"unknown rung {name!r}; the rungs are {', '.join(RUNGS)}",
+                              source=source)
+        if name in seen:
+            raise ConfigError(f"ladder.rungs[{i}]", f"rung {name!r} is named twice", source=source)
+        seen.add(name)
+    if seen == {"reduced"}:
+        raise ConfigError("ladder.rungs", "'reduced' is fitted to the best simulated rung: name at least one "
+                          "rod or volumetric rung as well", source=source)
+    return tuple(n for n in RUNGS if n in seen)
+
+
+def _check_solver_options(table: dict[str, Any], solvers: set[str], source: str | None) -> dict[str, dict]:
+    out = {}
+    for solver, opts in table.items():
+        path = f"ladder.solver_options.{solver}"
+        if solver not in {r.solver for r in RUNGS.values() if r.solver != "reduced"}:
+            raise ConfigError(path, "unknown solver; expected rod or volumetric", source=source)
+        if not isinstance(opts, dict):
+            raise ConfigError(path, f"expected a table of solver options, got {opts!r}", source=source)
+        fixed = {k for r in RUNGS.values() if r.solver == solver for k in r.options} | {"kind"}
+        for k in opts:
+            if k in fixed:
+                raise ConfigError(f"{path}.{k}", "is set by each rung (choose the rungs instead)", source=source)
+        if solver in solvers:
+            out[solver] = dict(opts)
+    return out
+
+
+def _reduced_job(table: LadderTable, scene: Scene, scene_table: dict, registry, source) -> dict[str, Any]:
+    model = table.reduced_model
+    if model == "auto":
+        model = "hgo2m" if scene.load.kind == "uniaxial" else "hgo"
+    instantiate(registry, "homogenizer", model, "ladder.reduced_model", source=source)
+    instantiate(registry, "fitter", table.reduced_fitter, "ladder.reduced_fitter", source=source)
+    effects = sorted(scene.effects & registry["solver"]["reduced"].effects)
+    sub_scene = {**scene_table, "effects": effects, "outputs": ["response"]}
+    build(Scene, sub_scene, "scene", source=source)
+    return {"rung": "reduced", "solver": {"kind": "reduced", "model": model, "fitter": table.reduced_fitter},
+            "scene": sub_scene, "knitframe": __version__, "attempt": 0}
+
+
+def _executor(table: LadderTable, ctx) -> tuple[Any, str]:
+    spec = PluginSpec.parse(table.executor, "ladder.executor")
+    try:
+        impl = ctx.registry["executor"][spec.kind]
+    except KnitframeError as e:
+        key = "ladder.executor.kind" if isinstance(table.executor, dict) else "ladder.executor"
+        raise ConfigError(key, str(e), source=ctx.source) from None
+    options = dict(spec.options)
+    takes_cache = "cache_dir" in _fields(impl)
+    if takes_cache and "cache_dir" not in options:
+        if not table.cache:
+            options["cache_dir"] = None
+        elif table.cache_dir is not None:
+            options["cache_dir"] = str(ctx.path(table.cache_dir, "ladder.cache_dir", must_exist=False))
+        else:
+            options["cache_dir"] = str(default_cache_dir())
+    return instantiate(ctx.registry, "executor", {"kind": spec.kind, **options}, "ladder.executor",
+                       source=ctx.source), spec.kind
+
+
+def _map(executor: Any, jobs: list[dict[str, Any]], t_start: float) -> list[dict[str, Any]]:
+    """executor.map over the jobs; a crash that comes from the cache (an earlier run's) is run again."""
+    results = list(executor.map(run_rung, jobs))
+    for _ in range(MAX_ATTEMPTS):
+        stale = [i for i, r in enumerate(results) if r.get("crashed") and r.get("finished_unix", 0) < t_start]
+        if not stale:
+            break
+        retry = [{**jobs[i], "attempt": jobs[i]["attempt"] + 1} for i in stale]
+        for i, job in zip(stale, retry):
+            jobs[i] = job
+        for i, r in zip(stale, executor.map(run_rung, retry)):
+            results[i] = r
+    return results
+
+
+def _fields(obj: Any) -> dict[str, Any]:
+    """An attrs class's (or instance's) fields by name; empty for anything else."""
+    cls = obj if isinstance(obj, type) else type(obj)
+    return attrs.fields_dict(cls) if attrs.has(cls) else {}
+
+
+def _size(stage: Any, registry) -> tuple[int, int]:
+    """A simulated rung's unknowns (the solver's own set-up: mesh or rod nodes) and its load increments."""
+    solver, scene = stage.solver, stage.scene
+    model = solver.setup(stage.fabric, scene, registry)
+    model = model[0] if isinstance(model, tuple) else model
+    cm = getattr(model, "cm", None)
+    dofs = 3 * int(cm.n_nodes) if cm is not None else int(model.n_dof)
+    steps = len(scene.load.stretches()[0])
+    if "prestress" in scene.effects:
+        steps += int(getattr(solver, "prestress_steps", 0))
+    return dofs, steps
+
+
+@hookimpl
+def register_stages(register):
+    register(LadderStage)
