@@ -142,7 +142,7 @@ class Estimate:
 
     seconds: float
     rss_mb: float | None
-    basis: str  #: e.g. "2 rungs of this run" or "3 shipped timings"
+    basis: str  #: e.g. "2 timings of this run" or "3 timings shipped"
 
     def text(self) -> str:
         mem = "" if self.rss_mb is None else f", {format_memory(self.rss_mb)}"
@@ -301,8 +301,9 @@ def run_rung(job: Mapping[str, Any]) -> dict[str, Any]:
     The result holds ``status`` ("ok", "stopped: …" for a solver that stopped early with the
     converged steps, "failed: …", or "crashed: …" when the process died without a result),
     ``wall_time_s`` (the solve, measured in that process), ``peak_rss_mb`` (its peak resident memory),
-    ``curve`` (the Response as lists), ``warnings`` and ``finished_unix``.
+    ``curve`` (the Response as lists), ``warnings``, ``started_unix`` and ``finished_unix``.
     """
+    started = time.time()
     with tempfile.TemporaryDirectory(prefix="knitframe-rung-") as tmp:
         job_path, out_path = Path(tmp) / "job.json", Path(tmp) / "result.json"
         job_path.write_text(json.dumps(job), encoding="utf-8")
@@ -316,7 +317,7 @@ def run_rung(job: Mapping[str, Any]) -> dict[str, Any]:
                    else f"exit code {proc.returncode}")
             result = {"status": f"crashed: {how}" + (f": {lines[-1].strip()}" if lines else ""), "crashed": True}
     result.setdefault("rung", job.get("rung"))
-    result["finished_unix"] = time.time()
+    result["started_unix"], result["finished_unix"] = started, time.time()
     return result
 
 
@@ -625,8 +626,8 @@ def plot_pareto(path: Path, rows: Sequence[Mapping[str, Any]], *, title: str) ->
     if ref is not None and ref.get("wall_time_s"):
         # the best rung has no error against itself: a vertical line at its time
         ax.axvline(ref["wall_time_s"], color="C0", ls=":", lw=1.2)
-        ax.annotate(f"{ref['rung']} (best rung)", (ref["wall_time_s"], 0.5), xycoords=("data", "axes fraction"),
-                    rotation=90, ha="right", va="center", fontsize=7.5, color="C0", xytext=(-3, 0),
+        ax.annotate(f"{ref['rung']} (best rung)", (ref["wall_time_s"], 0.03), xycoords=("data", "axes fraction"),
+                    rotation=90, ha="right", va="bottom", fontsize=7.5, color="C0", xytext=(-3, 0),
                     textcoords="offset points")
         if not plotted:
             ax.set_xscale("log")
@@ -667,15 +668,17 @@ def plot_curves(path: Path, curves: Mapping[str, Response], measured: Sequence[R
             if sd is not None:
                 scale = 1.0 if what == "T" else 100.0
                 ax.fill_between(x, y - scale * sd, y + scale * sd, color="k", alpha=0.12, lw=0)
-        ends = []
+        ends, low = [], np.inf
         for i, (rung, r) in enumerate(curves.items()):
             x, y = xy(r, d, what)
             best = rung == reference
             ax.plot(x, y, "-", marker=".", ms=3, lw=2.6 if best else 1.3, color=f"C{i % 10}",
                     label=f"{rung} (best rung)" if best else rung, zorder=2 if best else 3)
             ends.append(float(y[-1]))
+            low = min(low, float(np.min(y[y > 0], initial=np.inf)))
         if what == "T" and ends and min(ends) > 0 and max(ends) > 10 * min(ends):
             ax.set_yscale("log")
+            ax.set_ylim(bottom=0.5 * low)  # the rungs' range: a measured point near zero strain is below it
         strain = "course" if d == 0 else "wale"
         ax.set_xlabel(f"{strain} strain, %")
         ax.set_ylabel(f"{name} tension, N/mm" if what == "T" else "lateral strain (free side), %")

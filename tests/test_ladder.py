@@ -197,6 +197,23 @@ def test_cached_rungs_are_not_recomputed(tmp_path, capsys):
     # another scene is another job: not taken from the cache
     other = {**config, "scene": {**config["scene"], "load": {**SHORT, "steps": 3}}}
     assert not knitframe.ladder(other, rungs=["rod:8"]).row("rod:8")["cached"]
+    # and a run without the cache (knitframe run --no-cache) computes the rung again
+    fresh = knitframe.run({**config, "ladder": {**config["ladder"], "rungs": ["rod:8"]}}, no_cache=True)
+    assert not fresh.objects["ladder"].row("rod:8")["cached"]
+
+
+def test_a_configs_executor_table_runs_the_rungs_of_a_wave_side_by_side(tmp_path):
+    """With [executor] kind = "local", workers = 2, the two rod rungs of one wave run at the same time, in their own processes."""
+    config = singal_config(tmp_path)
+    config["executor"] = {"kind": "local", "workers": 2, "cache_dir": str(tmp_path / "jobs")}
+    result = knitframe.ladder(config, rungs=["rod:8", "rod:16"])
+    a, b = result.row("rod:8"), result.row("rod:16")
+    assert a["status"] == b["status"] == "ok"
+    assert a["started_unix"] < b["finished_unix"] and b["started_unix"] < a["finished_unix"]  # overlapping
+    assert list((tmp_path / "jobs").glob("*.pkl")) and not (tmp_path / "cache").exists()
+    config["ladder"]["executor"] = "local"
+    with pytest.raises(knitframe.ConfigError, match=r"ladder\.executor: the config has an \[executor\] table"):
+        knitframe.ladder(config)
 
 
 def test_every_rung_has_solver_options_a_family_and_a_known_solver():
@@ -212,13 +229,16 @@ def test_every_rung_has_solver_options_a_family_and_a_known_solver():
 
 
 @pytest.mark.slow
-def test_volumetric_rung_on_dask_runs_beside_a_rod_rung(tmp_path):
-    """The coarse P1 rung and a rod rung run in parallel on a Dask LocalCluster; the volumetric one is the reference."""
+def test_rungs_of_a_wave_run_in_parallel_on_dask_and_a_volumetric_rung_is_the_best(tmp_path):
+    """On a Dask LocalCluster the two rod rungs of one wave run at the same time; the coarse P1 rung is the reference."""
     config = singal_config(tmp_path, executor={"kind": "dask", "workers": 2})
     config["scene"]["load"] = {"kind": "uniaxial", "direction": "course", "max_strain": 0.1, "steps": 1}
-    result = knitframe.ladder(config, out=tmp_path / "out", rungs=["rod:8", "volumetric:p1:coarse", "reduced"])
+    result = knitframe.ladder(config, out=tmp_path / "out",
+                              rungs=["rod:8", "rod:16", "volumetric:p1:coarse", "reduced"])
+    a, b = result.row("rod:8"), result.row("rod:16")
+    assert a["started_unix"] < b["finished_unix"] and b["started_unix"] < a["finished_unix"]  # overlapping
     vol = result.row("volumetric:p1:coarse")
     assert vol["status"] == "ok" and result.reference == "volumetric:p1:coarse"
     assert vol["dofs"] == 3 * int(vol["notes"].split(" nodes")[0].split()[-1])
-    assert vol["peak_rss_mb"] > result.row("rod:8")["peak_rss_mb"]
-    assert result.row("rod:8")["nrmse_vs_best"] > 0 and result.row("reduced")["nrmse_vs_measured"] > 0
+    assert vol["peak_rss_mb"] > a["peak_rss_mb"]
+    assert a["nrmse_vs_best"] > 0 and result.row("reduced")["nrmse_vs_measured"] > 0

@@ -6,6 +6,7 @@
     rungs = ["reduced", "rod:8", "rod:16", "rod:32", "volumetric:p1:coarse"]   # default: see below
     max_time = 900                   # s: skip rungs whose estimated time is over it
     executor = "local"               # or { kind = "dask", workers = 2 }: rungs of a wave run in parallel
+                                     # (a config's [executor] table, if it has one, is used instead)
     solver_options = { volumetric = { contact_modulus = 1.2 } }   # for every rung of that solver
 
     [fabric]                         # read as the [solver] stage reads them
@@ -162,7 +163,7 @@ class LadderStage:
         reduced = None
         if "reduced" in names:
             reduced = _reduced_job(table, scene, scene_table, ctx.registry, src)
-        executor, executor_name = _executor(table, ctx)
+        executor, executor_name = _executor(table, config, ctx)
         timings: list[TimingPoint] = []
         for i, f in enumerate(table.timings):
             timings += read_timings(ctx.path(f, f"ladder.timings[{i}]"), "given")
@@ -248,6 +249,7 @@ class LadderStage:
     def _record(self, row: dict[str, Any], res: dict[str, Any], t_start: float, curves: dict[str, Any]) -> None:
         row["status"] = res.get("status", "crashed: no result")
         row["cached"] = res.get("finished_unix", t_start) < t_start
+        row["started_unix"], row["finished_unix"] = res.get("started_unix"), res.get("finished_unix")
         row["wall_time_s"] = res.get("wall_time_s")
         row["peak_rss_mb"] = res.get("peak_rss_mb")
         row["notes"] = res.get("mesh") or res.get("notes") or ""
@@ -393,7 +395,18 @@ def _reduced_job(table: LadderTable, scene: Scene, scene_table: dict, registry, 
             "scene": sub_scene, "knitframe": __version__, "attempt": 0}
 
 
-def _executor(table: LadderTable, ctx) -> tuple[Any, str]:
+def _executor(table: LadderTable, config, ctx) -> tuple[Any, str]:
+    """The executor of ``[ladder] executor``, or of the config's ``[executor]`` table when it has one."""
+    if "executor" in config:
+        if "executor" in config["ladder"]:
+            raise ConfigError("ladder.executor", "the config has an [executor] table as well: name the executor "
+                              "in one place", source=ctx.source)
+        from knitframe_executors import executor_from_config
+
+        executor, name = executor_from_config(config, ctx)
+        if not table.cache and "cache_dir" in _fields(executor):
+            executor = attrs.evolve(executor, cache_dir=None)
+        return executor, name
     spec = PluginSpec.parse(table.executor, "ladder.executor")
     try:
         impl = ctx.registry["executor"][spec.kind]
