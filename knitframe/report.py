@@ -72,14 +72,7 @@ def plot_responses(
                 ax.plot(strain[order], np.asarray(P)[order], ls, color="k", lw=1.0, alpha=0.8)
     if model is not None:
         ax.plot([], [], "k-", lw=1.0, label="fitted model")
-    ax.set_xlabel("engineering strain in the loaded direction, -")
-    ax.set_ylabel("tension per unit width, N/mm")
-    ax.set_title(title)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="upper left")
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+    _finish_tension_plot(fig, ax, path, title)
 
 
 #: strains at which simulated and measured tensions are compared
@@ -157,6 +150,13 @@ def plot_comparison(path: Path, simulated: Sequence[Response], measured: Sequenc
                          for load, row in ratios.items())
         ax.text(0.98, 0.02, "simulated / measured tension\n" + text, transform=ax.transAxes, ha="right",
                 va="bottom", fontsize=7, bbox={"facecolor": "white", "alpha": 0.85, "lw": 0.5})
+    _finish_tension_plot(fig, ax, path, title)
+
+
+def _finish_tension_plot(fig, ax, path: Path, title: str) -> None:
+    """Axis labels, grid, legend and the file of a tension-against-strain plot."""
+    import matplotlib.pyplot as plt
+
     ax.set_xlabel("engineering strain in the loaded direction, -")
     ax.set_ylabel("tension per unit width, N/mm")
     ax.set_title(title)
