@@ -57,6 +57,22 @@ YARNS = (
         "(the paper's ratio for cotton)",
     ),
     Yarn(
+        name="acrylic",
+        d0=0.95,
+        dk=0.95,
+        E_axial=79.0,
+        E_transverse=0.0079,
+        nu=0.3,
+        bending_stiffness=0.00996,
+        model="transverse_isotropic",
+        source="Acrylic worsted (Knit Picks Brava Worsted, 100 % acrylic), the acrylic of Singal et al. 2024 (Nat Commun "
+        "15:2622, Supplement): E_axial = stretching modulus 79.0 MPa measured (Ding 2023, cited by Singal); "
+        "bending_stiffness = their measured bending modulus 0.249 MPa times pi d^4/64 (the diameter is estimated, so "
+        "EI is derived); d0 = dk = 0.95 mm estimated from the count (label: 100 g per 218 yd, about 502 tex) as a "
+        "round yarn 60 % fibre by volume (Peirce's packing for cotton) of acrylic fibre 1.17 g/cm3; E_transverse = "
+        "1e-4 E_axial (the paper's ratio for cotton and nylon, an estimate); nu assumed",
+    ),
+    Yarn(
         name="pet",
         d0=0.178,
         dk=0.178,
