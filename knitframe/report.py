@@ -10,7 +10,8 @@ import numpy as np
 
 from knitframe.records import Response
 
-__all__ = ["write_responses_csv", "plot_responses", "curve", "compare", "plot_comparison"]
+__all__ = ["write_responses_csv", "plot_responses", "curve", "compare", "plot_comparison", "validate_uniaxial",
+           "plot_validation"]
 
 CSV_COLUMNS = (
     "label", "load", "n_samples", "lambda1", "lambda2", "T1_N_per_mm", "T2_N_per_mm",
@@ -162,6 +163,119 @@ def _finish_tension_plot(fig, ax, path: Path, title: str) -> None:
     ax.set_title(title)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="upper left")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+# ------------------------------------------------------------------------- against measured tests
+#: axial strain at which the lateral strains of a simulated and a measured uniaxial test are compared
+LATERAL_AT = 0.20
+
+
+def lateral(r: Response) -> tuple[np.ndarray, np.ndarray]:
+    """``(axial strain, lateral strain)`` of a uniaxial Response, sorted by axial strain."""
+    d = r.loaded_direction
+    if d is None:
+        raise ValueError(f"not a uniaxial test: {r.load}")
+    axial, side = (r.lambda1, r.lambda2) if d == 0 else (r.lambda2, r.lambda1)
+    return _sorted(axial - 1.0, side - 1.0)
+
+
+def validate_uniaxial(simulated: Response, measured: Response, *, lateral_at: float = LATERAL_AT) -> dict[str, float | None]:
+    """How a simulated uniaxial test (free sides) agrees with the measured one of the same load.
+
+    * ``nrmse``: sqrt(mean (T_sim − T_meas)²) / max T_meas over the measured points inside the
+      simulated strain range, the simulated curve taken from the relaxed cell (zero strain, zero
+      tension) and interpolated linearly at the measured strains (the fits' normalisation);
+    * ``ratio_10``, ``ratio_20``, ``ratio_30``: simulated / measured tension at 10, 20, 30 % strain
+      (:func:`compare`; None where either curve ends earlier);
+    * ``lateral_at``: the axial strain where the lateral strains are compared, ``lateral_at`` or the
+      end of the shorter curve; ``lateral_simulated`` and ``lateral_measured``: the lateral
+      engineering strain there (negative: the side contracts);
+    * ``simulated_to`` and ``measured_to``: the largest axial strain of each curve.
+
+    Raises ValueError when the loads differ or are not uniaxial.
+    """
+    if simulated.load != measured.load or simulated.loaded_direction is None:
+        raise ValueError(f"compare two uniaxial tests of the same load, got {simulated.load} and {measured.load}")
+    (_, es, Ts, _), = curve(simulated)
+    (_, em, Tm, _), = curve(measured)
+    es, Ts = from_origin(*_sorted(es, Ts))
+    em, Tm = _sorted(em, Tm)
+    keep = (em >= 0.0) & (em <= es.max() + 1e-9)
+    nrmse = None
+    if keep.sum() >= 2 and np.abs(Tm[keep]).max() > 0:
+        err = np.interp(em[keep], es, Ts) - Tm[keep]
+        nrmse = float(np.sqrt(np.mean(err**2)) / np.abs(Tm[keep]).max())
+    ratios = compare([simulated], [measured]).get(simulated.load, {})
+    out: dict[str, float | None] = {"simulated_to": float(es.max()), "measured_to": float(em.max()), "nrmse": nrmse}
+    out.update({f"ratio_{100 * e:.0f}": ratios.get(f"{100 * e:.0f} %") for e in COMPARE_AT})
+    ls_e, ls = lateral(simulated)
+    ls_e, ls = from_origin(ls_e, ls)
+    lm_e, lm = lateral(measured)
+    at = min(lateral_at, float(ls_e.max()), float(lm_e.max()))
+    ok = at > 0 and at >= max(float(lm_e.min()), 0.0)
+    out.update({"lateral_at": at if ok else None,
+                "lateral_simulated": float(np.interp(at, ls_e, ls)) if ok else None,
+                "lateral_measured": float(np.interp(at, lm_e, lm)) if ok else None})
+    return out
+
+
+def plot_validation(path: Path, panels: Sequence[dict], *, title: str = "", columns: int = 4) -> None:
+    """A grid of panels, one per measured test: the simulated curve (solid, from the relaxed cell) over
+    the measured one (dashed, ±1 sd band), with the NRMSE, the tension ratios at 10/20/30 % and the
+    lateral strains. A panel is a dict with ``title``, ``measured`` (Response), ``simulated``
+    (Response or None) and ``metrics`` (from :func:`validate_uniaxial`) or ``reason`` (why there is
+    no simulated curve)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = max(len(panels), 1)
+    cols = min(columns, n)
+    rows = -(-n // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 2.9 * rows), dpi=100, squeeze=False)
+    for ax, panel in zip(axes.flat, panels):
+        mea, sim, m = panel["measured"], panel.get("simulated"), panel.get("metrics")
+        for _, e, T, sd in curve(mea):
+            x, y = _sorted(e, T)
+            ax.plot(x, y, "--", color="0.2", lw=1.2, label="measured")
+            if sd is not None:
+                order = np.argsort(e)
+                ax.fill_between(x, (T - sd)[order], (T + sd)[order], color="0.5", alpha=0.2, lw=0)
+        if sim is not None:
+            for _, e, T, _ in curve(sim):
+                x, y = from_origin(*_sorted(e, T))
+                ax.plot(x, y, "-", color="C3", lw=1.5, marker=".", ms=4, label="simulated")
+        if m is not None:
+            lines = ["NRMSE " + (f"{100 * m['nrmse']:.0f} %" if m.get("nrmse") is not None else "–"),
+                     "sim/meas " + "/".join("–" if m.get(f"ratio_{100 * e:.0f}") is None
+                                            else f"{m[f'ratio_{100 * e:.0f}']:.2g}" for e in COMPARE_AT)
+                     + " at " + "/".join(f"{100 * e:.0f}" for e in COMPARE_AT) + " %"]
+            if m.get("lateral_at") is not None:
+                lines.append(f"lateral at {100 * m['lateral_at']:.0f} %: {m['lateral_simulated']:+.3f} sim, "
+                             f"{m['lateral_measured']:+.3f} meas")
+            ax.text(0.03, 0.97, "\n".join(lines), transform=ax.transAxes, ha="left", va="top", fontsize=6.5,
+                    bbox={"facecolor": "white", "alpha": 0.85, "lw": 0.5})
+        else:
+            import textwrap
+
+            reason = textwrap.fill("no simulated curve: " + str(panel.get("reason") or "failed"), 44)
+            ax.text(0.03, 0.97, reason, transform=ax.transAxes, ha="left", va="top", fontsize=6.5, color="C3")
+        ax.set_title(panel["title"], fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.grid(alpha=0.3)
+    for ax in axes.flat[len(panels):]:
+        ax.set_visible(False)
+    for ax in axes[-1]:
+        ax.set_xlabel("strain in the pull, -", fontsize=7)
+    for ax in axes[:, 0]:
+        ax.set_ylabel("tension, N/mm", fontsize=7)
+    if panels:
+        axes.flat[0].legend(fontsize=6.5, loc="center left")
+    fig.suptitle(title, fontsize=9)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)

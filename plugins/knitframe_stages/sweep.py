@@ -56,6 +56,17 @@ Writes
   the simulated load path, not a measured failure (said in ``source``);
 * ``params.png``: the paper's Fig. 4, each fitted parameter against stitch length, lines per
   pattern (colour), markers per yarn.
+
+Against measured tests: a point may carry ``measured = { files = [...], reader = "singal2024",
+max_strain = 0.6 }`` (:class:`MeasuredTable`). The files are read (and checked) with the config;
+each test is simulated as it was made, uniaxial along its direction with the sides free, from the
+relaxed cell to its largest strain (at most ``max_strain``) in the base load's steps, and compared
+with :func:`knitframe.report.validate_uniaxial`. A load or a fit of such a point that fails is
+recorded and the rest of the point is kept. sweep.csv then gains per-curve columns (each
+``_course`` and ``_wale``: the file, status, strain ranges, NRMSE against the measurement, the
+simulated/measured tension at 10/20/30 % and the lateral strains at 20 %), and the run writes
+``validation.csv`` (one row per curve) and ``validation.png`` (the simulated curves over the
+measured ones).
 """
 
 from __future__ import annotations
@@ -78,16 +89,23 @@ import numpy as np
 from knitframe import hookimpl
 from knitframe.cache import JobCache, JobFailure, failure_reason, job_keys
 from knitframe.config import PluginSpec, instantiate
-from knitframe.errors import ConfigError, KnitframeWarning
+from knitframe import validators as v
+from knitframe.errors import ConfigError, DataError, FieldError, KnitframeWarning
 from knitframe.geometry import checked_cell
 from knitframe.progress import ProgressBar
-from knitframe.records import Fabric, Scene
+from knitframe.records import Fabric, Response, Scene
+from knitframe.report import curve, plot_validation, validate_uniaxial
 from knitframe.schema import build, field_names, to_dict
 
 #: [fabric] keys a point may set
 FABRIC_KEYS = tuple(k for k in field_names(Fabric))
 #: [scene] keys a point may set
 SCENE_KEYS = ("load", "effects")
+#: the point key that carries measured tests
+MEASURED_KEY = "measured"
+#: per-curve columns of sweep.csv for points with measured tests, each once per direction (``_course``, ``_wale``)
+VALIDATION_COLUMNS = ("measured", "measured_status", "measured_to", "simulated_to", "nrmse_measured", "ratio_10",
+                      "ratio_20", "ratio_30", "lateral_at", "lateral_simulated", "lateral_measured")
 #: most points one sweep may have
 MAX_POINTS = 100_000
 #: failed points named one per line at the end of a run (the rest are in sweep.csv)
@@ -103,12 +121,25 @@ class SweepFit:
 
 
 @attrs.frozen
+class MeasuredTable:
+    """Schema of a point's ``measured`` table: the tests the point is simulated as and compared with."""
+
+    files: list[str]  #: test files, relative to the config file: uniaxial tests with free sides, at most one per direction
+    reader: str | dict[str, Any] = "auto"  #: reader plugin name, or a table with ``kind`` and options
+    max_strain: float | None = attrs.field(default=None, validator=v.optional(v.in_range(0.0, 5.0, lo_open=True)))  #: simulate at most to this strain; unset: to the end of each test
+
+    def __attrs_post_init__(self) -> None:
+        if not self.files:
+            raise FieldError("files", "must list at least one file")
+
+
+@attrs.frozen
 class SweepTable:
     """Schema of the ``[sweep]`` table."""
 
     name: str = "sweep"  #: the fabric library's name (library.json) and the sweep's label
-    grid: dict[str, list[Any]] = attrs.Factory(dict)  #: lists of values whose product gives the points: [fabric] keys, load, effects, solver (tables of options) or solver options by name
-    points: list[dict[str, Any]] = attrs.Factory(list)  #: the points as tables of the same keys, plus an optional ``name``
+    grid: dict[str, list[Any]] = attrs.Factory(dict)  #: lists of values whose product gives the points: [fabric] keys, load, effects, solver (tables of options), solver options by name, or measured
+    points: list[dict[str, Any]] = attrs.Factory(list)  #: the points as tables of the same keys, plus an optional ``name``; ``measured = { files = [...], reader = "singal2024", max_strain = 0.6 }`` simulates the tests' own loads and compares (docs/sweeps.md)
     solver: dict[str, Any] = attrs.Factory(lambda: {"kind": "rod"})  #: the [solver] table of every point (``kind`` and options)
     fabric: dict[str, Any] = attrs.Factory(dict)  #: [fabric] keys common to every point
     scene: dict[str, Any] = attrs.Factory(dict)  #: the [scene] table of every point
@@ -127,6 +158,8 @@ class Point:
     stage: Any  #: the simulate stage built from the point's tables (validated)
     arc_length: float  #: yarn per stitch of the knitted cell, mm
     cell_pitches: tuple[float, float]  #: the knitted cell's course and wale pitches, mm
+    measured: tuple[Response, ...] = ()  #: the measured tests the point is compared with, one per load
+    measured_files: tuple[str, ...] = ()  #: their files, as the config gives them
 
 
 def _is_table(value: Any) -> bool:
@@ -210,6 +243,11 @@ def run_point(job: dict[str, Any]) -> dict[str, Any]:
     pool or a Dask worker), numpy's floating-point warnings as errors (as on the command line) and
     knitframe's warnings collected into the result. Returns plain data: the fit (as params.json),
     the simulated Responses (as dicts), the timings, the warnings and the host.
+
+    A point compared with measured tests (``job["validation"]``) keeps what it can: a load that
+    fails gives None in ``responses`` and its reason in ``failed_loads``, the fit uses the other
+    curves, and a fit that fails gives ``fit`` None and its reason in ``fit_error``. It raises only
+    when no load finished.
     """
     from threadpoolctl import threadpool_limits
 
@@ -222,17 +260,40 @@ def run_point(job: dict[str, Any]) -> dict[str, Any]:
         warnings.simplefilter("error", RuntimeWarning)
         solver = instantiate(registry, "solver", job["solver"], "solver")
         fabric = Fabric.from_dict(job["fabric"], "fabric")
-        responses = [solver.simulate(fabric, Scene.from_dict(sc, "scene")) for sc in job["scenes"]]
+        keep_going = bool(job.get("validation"))
+        responses: list[Any] = []
+        failed_loads: dict[str, str] = {}
+        for sc in job["scenes"]:
+            scene = Scene.from_dict(sc, "scene")
+            try:
+                responses.append(solver.simulate(fabric, scene))
+            except Exception as e:  # noqa: BLE001 - a validation point records the load's reason and goes on
+                if not keep_going:
+                    raise
+                responses.append(None)
+                failed_loads[scene.load.response_kind] = failure_reason(e)
+        done = [r for r in responses if r is not None]
+        if not done:
+            raise RuntimeError("; ".join(f"{k}: {why}" for k, why in failed_loads.items()))
         t1 = time.perf_counter()
         model = instantiate(registry, "homogenizer", job["fit"]["model"], "fit.model")
         fitter = instantiate(registry, "fitter", job["fit"]["fitter"], "fit.fitter")
-        result = fitter.fit(model, responses)
+        fit, fit_error = None, ""
+        try:
+            fit = fitter.fit(model, done).to_json()
+        except Exception as e:  # noqa: BLE001 - as above: the simulated curves still meet the measured ones
+            if not keep_going:
+                raise
+            fit_error = failure_reason(e)
         t2 = time.perf_counter()
     notes = list(dict.fromkeys(" ".join(str(w.message).split()) for w in seen
                                if issubclass(w.category, KnitframeWarning)))
-    return {"fit": result.to_json(), "responses": [r.to_dict() for r in responses], "simulate_s": t1 - t0,
-            "fit_s": t2 - t1,
-            "wall_time_s": t2 - t0, "warnings": notes, "host": socket.gethostname()}
+    out = {"fit": fit, "responses": [r.to_dict() if r is not None else None for r in responses],
+           "simulate_s": t1 - t0, "fit_s": t2 - t1, "wall_time_s": t2 - t0, "warnings": notes,
+           "host": socket.gethostname()}
+    if keep_going:
+        out.update({"failed_loads": failed_loads, "fit_error": fit_error})
+    return out
 
 
 def _plugin_module(registry: Any, kind: str, name: Any) -> str | None:
@@ -330,6 +391,16 @@ class SweepStage:
         names: dict[str, int] = {}
         fit = {"model": {"kind": model_name, **to_dict(model)}, "fitter": {"kind": fitter_name, **to_dict(fitter)}}
         for i, (over, name, suffix, context) in enumerate(points):
+            measured: tuple[Response, ...] = ()
+            files: tuple[str, ...] = ()
+            if MEASURED_KEY in over:  # the tests' own loads replace the point's load
+                over = dict(over)
+                value, where = over.pop(MEASURED_KEY)
+                if "load" in over:
+                    raise ConfigError(over["load"][1], "a point with measured tests simulates their own loads; remove "
+                                                       "load (or measured)" + context, source=src)
+                measured, files, loads = _measured_tests(value, where, table.scene.get("load"), ctx)
+                over["load"] = (loads, where)
             solver_table, fabric_table, scene_table, origin = _merge(base, over)
             sub = {"solver": solver_table, "fabric": fabric_table, "scene": scene_table}
             if "yarns" in config:
@@ -351,12 +422,12 @@ class SweepStage:
                 name = f"{name}-{i}"
             names[name] = i
             built.append(Point(i, name, label, solver_table, stage, float(cell.arc_length_per_stitch),
-                               (float(cell.course_pitch), float(cell.wale_pitch))))
+                               (float(cell.course_pitch), float(cell.wale_pitch)), measured, files))
             solver = stage.solver
             solver_job = {"kind": stage.solver_name, **(to_dict(solver) if attrs.has(type(solver)) else {})}
             scenes = stage.scenes or (stage.scene,)
             jobs.append({"solver": solver_job, "fabric": fabric.to_dict(), "scenes": [sc.to_dict() for sc in scenes],
-                         "fit": fit})
+                         "fit": fit, **({"validation": True} if measured else {})})
         executor, executor_name = executor_from_config(config, ctx)
         return cls(table, tuple(built), tuple(jobs), model, model_name, fitter_name, executor, executor_name, src)
 
@@ -393,9 +464,14 @@ class SweepStage:
             if bar is not None:
                 bar.close()
         wall = time.perf_counter() - t0
-        rows, entries = [], []
+        rows, entries, panels, curves = [], [], [], []
         for p, res, hit in zip(self.points, results, cached):
             row, entry = self._row(p, res, hit)
+            if self.validating:
+                columns, point_panels, point_curves = self._validate(p, res)
+                row.update(columns)
+                panels += point_panels
+                curves += point_curves
             rows.append(row)
             if entry is not None:
                 entries.append(entry)
@@ -424,6 +500,13 @@ class SweepStage:
             "headline": (f"{len(rows)} fabrics: {done} done, {len(failed)} failed, {n_cached} from the cache; "
                          f"library of {len(entries)} fabrics; {wall:.1f} s on {self.executor_name}"),
         }
+        if self.validating:
+            self._write_csv(ctx.output("validation.csv"), curves)
+            plot_validation(ctx.output("validation.png"), panels,
+                            title=f"sweep {self.settings.name}: simulated ({', '.join(sorted({p.stage.solver_name for p in self.points}))}, "
+                                  "solid) over measured (dashed) tension")
+            ctx.results[self.label]["validation"] = curves
+            ctx.results[self.label]["headline"] += "; " + _validation_headline(curves)
 
     # -------------------------------------------------------------------------------- outputs
     def _title(self) -> str:
@@ -461,25 +544,69 @@ class SweepStage:
             row["reason"] = str(res) if isinstance(res, JobFailure) else f"unexpected result {type(res).__name__}"
             row["cached"] = "no"
             return row, None
-        fit = res["fit"]
+        sims = [r for r in res["responses"] if r is not None]  # a validation point keeps the loads that finished
+        fit = res["fit"] or {}
+        row["reason"] = "; ".join([f"{load} failed: {why}" for load, why in (res.get("failed_loads") or {}).items()]
+                                  + ([f"fit failed: {res['fit_error']}"] if res.get("fit_error") else []))
         row.update({k: fit.get(k) for k in names})
         nrmse = fit.get("nrmse") or {}
         row.update({"nrmse": nrmse.get("overall"), "nrmse_course": nrmse.get("course"),
                     "nrmse_wale": nrmse.get("wale"),
-                    "converged": all(r["provenance"].get("converged", True) for r in res["responses"]),
+                    "converged": all(r["provenance"].get("converged", True) for r in sims),
                     "wall_time_s": round(res["wall_time_s"], 3), "simulate_s": round(res["simulate_s"], 3),
                     "fit_s": round(res["fit_s"], 3), "at_bound": " ".join(fit.get("at_bound") or ()),
                     "warnings": " | ".join(res.get("warnings", ())),
                     "host": res.get("host", "")})
-        cp, wp, pitch_source = self._pitches(p, res)
+        cp, wp, pitch_source = self._pitches(p, sims[0])
         # the limits: the largest course tension and stretch of any simulated curve
-        t_max = max(float(np.max(np.asarray(r["T1"], dtype=np.float64))) for r in res["responses"])
-        l_max = max(float(np.max(np.asarray(r["lambda1"], dtype=np.float64))) for r in res["responses"])
+        t_max = max(float(np.max(np.asarray(r["T1"], dtype=np.float64))) for r in sims)
+        l_max = max(float(np.max(np.asarray(r["lambda1"], dtype=np.float64))) for r in sims)
         row.update({"course_pitch_mm": cp, "wale_pitch_mm": wp, "max_tension_N_per_mm": t_max, "max_stretch": l_max})
-        entry, note = self._entry(p, fit, cp, wp, pitch_source, t_max, l_max)
+        if res["fit"] is None:
+            entry, note = None, f"no fit: {res.get('fit_error', '')}"
+        else:
+            entry, note = self._entry(p, fit, cp, wp, pitch_source, t_max, l_max)
         row["in_library"] = "yes" if entry is not None else "no"
         row["library_note"] = note
         return row, entry
+
+    @property
+    def validating(self) -> bool:
+        """True when some point carries measured tests (sweep.csv then has the per-curve columns)."""
+        return any(p.measured for p in self.points)
+
+    def _validate(self, p: Point, res: Any) -> tuple[dict[str, Any], list[dict[str, Any]], list[dict[str, Any]]]:
+        """The point's per-curve columns of sweep.csv (empty for a point without measured tests), its
+        panels of validation.png and its rows of validation.csv."""
+        columns: dict[str, Any] = {f"{c}_{d}": "" for d in ("course", "wale") for c in VALIDATION_COLUMNS}
+        sims: dict[str, Response] = {}
+        failed_loads: dict[str, str] = {}
+        if isinstance(res, dict):
+            sims = {r["load"]: Response.from_dict(r, "response") for r in res["responses"] if r is not None}
+            failed_loads = res.get("failed_loads") or {}
+        panels, curves = [], []
+        for mea, file in zip(p.measured, p.measured_files):
+            d = "course" if mea.loaded_direction == 0 else "wale"
+            sim = sims.get(mea.load)
+            metrics: dict[str, Any] | None = None
+            reason = ""
+            if sim is not None:
+                metrics = validate_uniaxial(sim, mea)
+            else:
+                reason = failed_loads.get(mea.load) or (str(res) if not isinstance(res, dict) else "not simulated")
+            curve_row = {"index": p.index, "name": p.name, "pattern": p.stage.fabric.pattern,
+                         "yarn": p.stage.fabric.yarn.name, "direction": d, "measured": file,
+                         "measured_status": "done" if metrics is not None else "failed", "reason": reason}
+            for c in VALIDATION_COLUMNS[2:]:  # validate_uniaxial's "nrmse" is the column nrmse_measured
+                curve_row[c] = metrics.get(c.replace("nrmse_measured", "nrmse")) if metrics is not None else None
+            if metrics is None:
+                (_, e, _, _), = curve(mea)
+                curve_row["measured_to"] = float(np.max(e))
+            columns.update({f"{c}_{d}": curve_row[c] for c in VALIDATION_COLUMNS})
+            curves.append(curve_row)
+            panels.append({"title": f"{p.name}: pulled along the {d}", "measured": mea, "simulated": sim,
+                           "metrics": metrics, "reason": reason})
+        return columns, panels, curves
 
     def _param_keys(self):
         from knitframe.fitting import params_to_json
@@ -487,9 +614,9 @@ class SweepStage:
         return params_to_json(self.model.param_names, [0.0] * len(self.model.param_names)).keys()
 
     @staticmethod
-    def _pitches(p: Point, res: dict[str, Any]) -> tuple[float, float, str]:
+    def _pitches(p: Point, response: dict[str, Any]) -> tuple[float, float, str]:
         """Relaxed pitches from the simulated cell's lattice, or the knitted cell's when the solver gives none."""
-        extra = res["responses"][0]["provenance"].get("extra", {})
+        extra = response["provenance"].get("extra", {})
         L1, L2, lam = extra.get("L1_mm"), extra.get("L2_mm"), extra.get("relaxed_stretch")
         if L1 is not None and L2 is not None and lam is not None and all(x is not None for x in lam):
             cp = float(np.linalg.norm(L1)) * float(lam[0]) / 2.0
@@ -547,8 +674,8 @@ def _expand(table: SweepTable, solver_fields: set[str], src: str | None):
     """The grid's or the list's points as ``[(keys, name, suffix, context)]``: each key with the sweep path
     that set it, the point's name if given, a name suffix for grid keys other than the fabric's, and
     a text naming a grid point in error messages."""
-    allowed = set(FABRIC_KEYS) | set(SCENE_KEYS) | {"solver"} | solver_fields
-    shown = ", ".join(list(FABRIC_KEYS) + list(SCENE_KEYS) + ["solver"]) + ", or an option of the solver"
+    allowed = set(FABRIC_KEYS) | set(SCENE_KEYS) | {"solver", MEASURED_KEY} | solver_fields
+    shown = ", ".join(list(FABRIC_KEYS) + list(SCENE_KEYS) + ["solver", MEASURED_KEY]) + ", or an option of the solver"
     if bool(table.grid) == bool(table.points):
         raise ConfigError("sweep", "give the points as a grid (sweep.grid) or as a list (sweep.points), one of them",
                           source=src)
@@ -556,6 +683,8 @@ def _expand(table: SweepTable, solver_fields: set[str], src: str | None):
     def check_value(key: str, value: Any, where: str) -> None:
         if key == "solver" and not _is_table(value):
             raise ConfigError(where, f"expected a table of solver options, got {_short(value)}", source=src)
+        if key == MEASURED_KEY and not _is_table(value):
+            raise ConfigError(where, f"expected a table (files, reader, max_strain), got {_short(value)}", source=src)
         if key == "load" and not (_is_table(value) or (isinstance(value, list) and value
                                                         and all(_is_table(v) for v in value))):
             raise ConfigError(where, f"expected a load table or an array of load tables, got {_short(value)}", source=src)
@@ -601,6 +730,57 @@ def _expand(table: SweepTable, solver_fields: set[str], src: str | None):
             over[key] = (value, where)
         out.append((over, name, "", ""))
     return out
+
+
+def _measured_tests(value: Any, where: str, base_load: Any, ctx: Any) -> tuple[tuple[Response, ...], tuple[str, ...],
+                                                                              list[dict[str, Any]]]:
+    """A point's measured tests: the curves read (one per load), the file of each, and the loads that
+    simulate them: uniaxial along the test's direction with free sides, from the relaxed cell to the
+    test's largest strain (at most ``max_strain``), in the base load's number of steps."""
+    src = ctx.source
+    table = build(MeasuredTable, value, where, source=src)
+    reader = instantiate(ctx.registry, "reader", table.reader, f"{where}.reader", source=src)
+    steps = {"steps": base_load["steps"]} if _is_table(base_load) and "steps" in base_load else {}
+    curves: list[Response] = []
+    files: list[str] = []
+    loads: list[dict[str, Any]] = []
+    for j, name in enumerate(table.files):
+        key = f"{where}.files[{j}]"
+        path = ctx.path(name, key)
+        try:
+            read = reader.reader_for(path).read(path) if hasattr(reader, "reader_for") else reader.read(path)
+        except DataError as e:
+            raise ConfigError(key, str(e), source=src) from None
+        except OSError as e:
+            raise ConfigError(key, f"cannot read {name}: {e.strerror or e}", source=src) from None
+        if not read:
+            raise ConfigError(key, f"{name} holds no curve", source=src)
+        for r in read:
+            if r.loaded_direction is None:
+                raise ConfigError(key, f"a {r.load} test; a point simulates uniaxial tests (one direction pulled, "
+                                       "the sides free) only", source=src)
+            (_, e, _, _), = curve(r)
+            top = float(np.max(e)) if table.max_strain is None else min(float(np.max(e)), table.max_strain)
+            if not top > 0:
+                raise ConfigError(key, f"the test in {name} never stretches (largest strain {float(np.max(e)):g})",
+                                  source=src)
+            curves.append(r)
+            files.append(name)
+            loads.append({"kind": "uniaxial", "direction": "course" if r.loaded_direction == 0 else "wale",
+                          "max_strain": round(top, 4), **steps})
+    return tuple(curves), tuple(files), loads
+
+
+def _validation_headline(curves: list[dict[str, Any]]) -> str:
+    """The measured tests in one line: how many were simulated and the spread of the tension ratios."""
+    done = [c for c in curves if c["measured_status"] == "done"]
+    text = f"{len(done)} of {len(curves)} measured tests simulated"
+    for key in ("ratio_10", "ratio_20", "ratio_30"):
+        values = [c[key] for c in done if c[key] is not None]
+        if values:
+            text += (f"; sim/meas tension at {key[6:]} %: median {float(np.median(values)):.2g} "
+                     f"({min(values):.2g}-{max(values):.2g}, {len(values)} curves)")
+    return text
 
 
 def _loads(p: Point) -> str:
