@@ -122,6 +122,33 @@ def test_two_measured_curves_and_a_failed_point_give_the_columns_and_the_figure(
     assert (out / "validation.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def test_a_failed_load_keeps_the_other_curve_and_is_not_cached(tmp_path, singal_file, monkeypatch):
+    """The wale test fails (the solver raises for it): the course curve is still compared and fitted, the
+    wale curve is recorded as failed with its reason, and the partial result is not kept in the cache."""
+    from knitframe.errors import NumericalError
+    from knitframe_solvers.rod import RodSolver
+
+    real = RodSolver.simulate
+
+    def wale_fails(self, fabric, scene, **kwargs):
+        if scene.load.direction == "wale":
+            raise NumericalError("no convergence (made to fail for this test)")
+        return real(self, fabric, scene, **kwargs)
+
+    monkeypatch.setattr(RodSolver, "simulate", wale_fails)  # the local executor runs in this process
+    files = [singal_file(f) for f in JERSEY]
+    cfg = sweep_config(tmp_path, f'points = [{{ pattern = "jersey", yarn = "pearl-cotton", {measured(files, max_strain=0.12)} }}]')
+    res = knitframe.run(cfg, tmp_path / "out", quiet=True)
+    (row,) = read_rows(tmp_path / "out" / "sweep.csv")
+    assert row["status"] == "done" and row["measured_status_course"] == "done" and float(row["ratio_10_course"]) > 0
+    assert row["measured_status_wale"] == "failed" and row["ratio_10_wale"] == ""
+    assert row["reason"] == "uniaxial-wale failed: NumericalError: no convergence (made to fail for this test)"
+    assert row["load"] == "uniaxial-course+uniaxial-wale" and row["nrmse"] != ""  # fitted to the course curve
+    wale = [c for c in res.results["sweep"]["validation"] if c["direction"] == "wale"]
+    assert wale[0]["reason"] == "NumericalError: no convergence (made to fail for this test)"
+    assert not list((tmp_path / "cache").glob("*.pkl"))  # tried again next run, as a failed point is
+
+
 # ------------------------------------------------------------------------------------ bad input
 @pytest.mark.parametrize("case, field", [
     ("missing", "sweep.points[0].measured.files[1]"),

@@ -449,7 +449,8 @@ class SweepStage:
         jobs = [dict(j) for j in self.jobs]
         cache_dir = getattr(executor, "cache_dir", None)
         cache = JobCache(cache_dir) if cache_dir else None
-        cached = [cache.has(k) for k in job_keys(run_point, jobs)] if cache else [False] * len(jobs)
+        keys = job_keys(run_point, jobs) if cache else []
+        cached = [cache.has(k) for k in keys] if cache else [False] * len(jobs)
         bar = None
         if not ctx.quiet:
             where = self.executor_name
@@ -464,6 +465,11 @@ class SweepStage:
             if bar is not None:
                 bar.close()
         wall = time.perf_counter() - t0
+        for key, res in zip(keys, results):  # a validation point with a failed load or fit is tried again next run
+            if isinstance(res, dict) and (res.get("failed_loads") or res.get("fit_error")):
+                path = cache.path(key) if cache else None
+                if path is not None:
+                    path.unlink(missing_ok=True)
         rows, entries, panels, curves = [], [], [], []
         for p, res, hit in zip(self.points, results, cached):
             row, entry = self._row(p, res, hit)
