@@ -149,6 +149,21 @@ def test_a_failed_load_keeps_the_other_curve_and_is_not_cached(tmp_path, singal_
     assert not list((tmp_path / "cache").glob("*.pkl"))  # tried again next run, as a failed point is
 
 
+def test_params_png_leaves_out_a_done_point_without_a_fit(tmp_path):
+    """A measured-test point whose fit failed is done but has no parameters: params.png draws the others."""
+    from knitframe_stages.sweep import plot_params
+
+    model = knitframe.get_registry()["homogenizer"]["hgo"]()
+    base = {"status": "done", "stitch_length": "", "arc_length_mm": 11.28, "pattern": "jersey", "yarn": "acrylic",
+            "load": "uniaxial-course", "max_strain": "0.3", "steps": "6", "effects": "bending", "solver": "rod",
+            "solver_options": "{}", "at_bound": ""}
+    rows = [{**base, "a": 0.5, "b": 1.0, "theta_deg": 40.0},
+            {**base, "arc_length_mm": 12.0, "a": 0.4, "b": 2.0, "theta_deg": 45.0},
+            {**base, "arc_length_mm": 13.0, "a": "", "b": "", "theta_deg": ""}]
+    plot_params(tmp_path / "params.png", rows, model)
+    assert (tmp_path / "params.png").read_bytes()[:4] == b"\x89PNG"
+
+
 # ------------------------------------------------------------------------------------ bad input
 @pytest.mark.parametrize("case, field", [
     ("missing", "sweep.points[0].measured.files[1]"),
