@@ -34,8 +34,15 @@ not change the converged state. One node is pinned to remove the cell's free tra
 Every converged step (pre-stress, relaxed lattice, load) is checkpointed with what a resumed
 run needs to retrace the same path; the provenance reports the relaxed lattice and its energy.
 
-Stiff yarns in tight cells can be multistable: different pre-stress paths may relax to
-different states (compare ``relaxed_energy_Nmm`` and ``relaxed_stretch``).
+Stiff yarns in tight cells can be multistable: different pre-stress paths relax to different
+states. The solver therefore explores a small documented set of starts (:data:`START_SET`,
+option ``starts``): each is pre-stressed and relaxed, and the load path continues from the one
+of lowest relaxed energy E = Σ (stretching + bending + contact) at zero tension. Every start, its
+energy and whether it converged are in ``provenance.extra['starts']``, the chosen one in
+``provenance.extra['start_chosen']``. Under a uniaxial load a step whose free side jumps
+(:func:`branch_jumps`) is cut back (option ``follow_branch``), so the path follows its branch to
+where it ends, whatever the step count; a jump that survives the smallest increment is a real
+snap and is flagged with the loaded stretch where it happened.
 """
 
 from __future__ import annotations
@@ -69,6 +76,62 @@ __all__ = ["RodSolver", "rod_stiffness", "write_rod_vtu"]
 
 #: decades over which the springs holding the lattice are released in the relaxation
 RELAX_DECADES = 6
+#: a load step's free stretch jumps when it changes by more than JUMP_RATIO × the loaded stretch's change and JUMP_FLOOR
+JUMP_RATIO, JUMP_FLOOR = 3.0, 0.02
+#: with ``follow_branch`` an increment is cut back already when the free change passes CUT_RATIO × the loaded one
+#: (and JUMP_FLOOR): a smooth path passes once the increment is small enough, a snap never does
+CUT_RATIO = 1.0
+
+
+@attrs.frozen
+class Start:
+    """One start of the pre-stress: a rest shape, a number of pre-stress steps and a loop depth.
+
+    ``rest``: ``"option"`` is the rest shape of the ``prestress_start`` option (for ``"auto"``: straight,
+    knitted if that fails); ``"other"`` is the other of straight and knitted. ``steps`` multiplies
+    ``prestress_steps``. ``amplitude`` a scales the out-of-plane loop depth of the knitted
+    centerlines about the cell's mid-plane: z ↦ z̄ + a (z − z̄), with the rest lengths unchanged.
+    """
+
+    name: str
+    rest: Literal["option", "other"] = "option"
+    steps: float = 1.0
+    amplitude: float = 1.0
+
+
+#: The documented starts, in the order they are tried; ``starts = n`` uses the first n. Each
+#: reaches another relaxed state on at least one of jersey, garter, rib and seed SL11 cotton
+#: (docs/notes/2026-11-26-rod-multistart.md).
+START_SET: tuple[Start, ...] = (
+    Start("nominal"),
+    Start("other rest shape", rest="other"),
+    Start("slower pre-stress", steps=1.5),
+    Start("flatter loops", amplitude=0.5),
+    Start("deeper loops", amplitude=1.5),
+)
+#: the number of starts of ``starts = "auto"``: the three that found the lowest state of jersey and rib
+AUTO_STARTS = 3
+#: the starts after the nominal one give up sooner: their smallest pre-stress increment, of a step
+EXTRA_START_MIN_FRACTION = 1.0 / 8
+#: a later start replaces the best so far only if its energy is lower by more than this, relative
+SAME_ENERGY = 1e-4
+
+
+def loop_depth_start(model: RodModel, amplitude: float) -> np.ndarray:
+    """State q whose centerlines have the loop depth scaled by ``amplitude``: u_z = (a − 1)(z − z̄), no macro strain."""
+    q = np.zeros(model.n_dof)
+    z = model.X[:, 2]
+    q[2: 3 * model.n_nodes: 3] = (amplitude - 1.0) * (z - z.mean())
+    return q
+
+
+def start_count(instance, attribute, value) -> None:
+    """``starts`` is "auto" or a whole number of starts from 1 to len(START_SET)."""
+    if value == "auto":
+        return
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 1 <= value <= len(START_SET):
+        raise FieldError(attribute.name, f"must be \"auto\" or a whole number from 1 to {len(START_SET)}, "
+                                         f"got {v.shown(value)}")
 
 
 def rod_stiffness(yarn, registry=None, law=None, line_stiffness: float | None = None) -> dict[str, float]:
@@ -136,6 +199,8 @@ class RodSolver:
     contact_law: str | dict[str, Any] = "rod_penalty"  #: rod contact-law plugin name or table with ``kind``
     prestress_steps: int = attrs.field(default=8, validator=v.in_range(1, 1000))  #: steps growing the contact radius, -
     prestress_start: Literal["auto", "straight", "knitted"] = "auto"  #: yarn rest shape during the pre-stress: straight throughout, or the knitted shape released to straight; "auto" tries straight, then knitted
+    starts: int | Literal["auto"] = attrs.field(default="auto", validator=start_count)  #: pre-stress starts explored, the first n of nominal, other rest shape (straight/knitted), 1.5x the pre-stress steps, loop depth x0.5, x1.5; the load continues from the lowest relaxed energy; "auto": the first 3
+    follow_branch: bool = True  #: under a uniaxial load, cut back a step whose free side jumps so the path follows its branch; a jump left at the smallest increment is flagged with where it happened
     initial_radius: float = attrs.field(default=0.7, validator=v.in_range(0.0, 1.0, lo_open=True))  #: largest start of the pre-stress radius / (dk/2), -
     self_contact_exclusion: float = attrs.field(default=np.pi, validator=v.positive)  #: same-strand pairs closer than this × dk along the yarn are neighbours, -
     tolerance: float = attrs.field(default=1e-9, validator=v.positive)  #: Newton residual tolerance / EA, -
@@ -301,12 +366,13 @@ class RodSolver:
             return x
 
         rows: list[tuple[float, float, float, float]] = []
+        snaps: list[dict[str, list[float]]] = []  # jumps left at the smallest load increment
         q = np.zeros(model.n_dof)
         kappa_knitted = model.curvature(q)
         dk_full = cell.dk
         # what a checkpoint carries besides q and rows, so a resumed run retraces the same path
         state: dict[str, Any] = {"phase": "prestress", "target": -1, "dk": energy.dk, "dk0": None, "lam_ref": None,
-                                 "start": None, "relaxed_energy": None}
+                                 "start": None, "relaxed_energy": None, "starts": [], "start_chosen": None}
         step_counter = [0]
         if ckpt is not None and (saved := ckpt.latest()) is not None:
             index, arrays, meta = saved
@@ -329,15 +395,27 @@ class RodSolver:
             step_counter[0] += 1
             report(done, total, message)
 
-        def run_prestress(start: str, q0: np.ndarray, first: int) -> np.ndarray:
-            """Grow the contact distance dk0 → dk geometrically at F̄ = I, from pre-stress step ``first``."""
+        def initial_distance(q0: np.ndarray) -> float:
+            """Where the pre-stress from state q0 starts: small enough that no two centerlines overlap."""
+            energy.dk = dk_full
+            d_min = float(energy.pairs(q0).distance.min(initial=dk_full))
+            return min(self.initial_radius * dk_full, 0.95 * d_min)
+
+        def run_prestress(start: str, q0: np.ndarray, first: int, dk0: float, n_steps: int,
+                          label: str | None = None, min_fraction: float | None = None) -> np.ndarray:
+            """Grow the contact distance dk0 → dk geometrically at F̄ = I, from pre-stress step ``first`` of ``n_steps``.
+
+            With a ``label`` (a start other than the nominal one) the steps are reported as progress
+            but neither checkpointed nor written: only the chosen start's relaxed state is.
+            """
             free = base_free.copy()
             free[3 * n:] = False
-            t_first = first / self.prestress_steps
-            targets = [k / self.prestress_steps for k in range(first + 1, self.prestress_steps + 1)]
-            dk0 = state["dk0"]
+            t_first = first / n_steps
+            targets = [k / n_steps for k in range(first + 1, n_steps + 1)]
             loose = attrs.evolve(opts, atol=1e3 * opts.atol, max_iter=2 * self.max_iterations)
-            label = "" if self.prestress_start == "straight" else f" ({start} start)"
+            record = label is None
+            if label is None:
+                label = "" if self.prestress_start == "straight" else f" ({start} start)"
 
             def solve_prestress(t: float, x0: np.ndarray):
                 energy.dk = dk0 * (dk_full / dk0) ** t
@@ -348,19 +426,71 @@ class RodSolver:
                 return newton(x0, free, loose if t < 1.0 - 1e-12 else opts)
 
             def on_prestress(i: int, t: float, res) -> None:
-                idx = int(round(t * self.prestress_steps)) - 1
-                after("prestress", idx, res.x, f"pre-stress{label} {idx + 1}/{self.prestress_steps}", idx + 1)
+                idx = int(round(t * n_steps)) - 1
+                message = f"pre-stress{label} {idx + 1}/{n_steps}"
+                if record:
+                    after("prestress", idx, res.x, message, idx + 1)
+                else:
+                    report(self.prestress_steps, total, message)
 
             try:
-                out = continuation(solve_prestress, q0, targets, t0=t_first, min_fraction=self.min_step_fraction,
-                                   on_target=on_prestress)
+                out = continuation(solve_prestress, q0, targets, t0=t_first,
+                                   min_fraction=min_fraction or self.min_step_fraction, on_target=on_prestress)
             except NumericalError as e:
                 raise NumericalError(f"pre-stress{label} (contact distance {energy.dk:.4g} of {dk_full:.4g} mm): {e}"
                                      ) from None
             finally:
                 energy.kappa0 = None
-            energy.dk = dk_full
+                energy.dk = dk_full
             return out[-1].x if out else q0
+
+        relax_free = base_free.copy()
+        relax_free[3 * n:] = ~lat.constraints(None, None)[0]
+
+        def relaxed(qv: np.ndarray) -> np.ndarray:
+            """The state the load path starts from: with ``relax``, the lattice at zero tension."""
+            return relax_lattice(qv, relax_free) if self.relax else qv
+
+        def stretch_of(qv: np.ndarray) -> list[float]:
+            return [1.0 + float(qv[3 * n + macro_index(0, 0)]), 1.0 + float(qv[3 * n + macro_index(1, 1)])]
+
+        def explore_starts(q_nominal: np.ndarray) -> np.ndarray:
+            """Pre-stress and relax the other starts of :data:`START_SET`; the state of lowest energy E.
+
+            Records every start (rest shape, pre-stress steps, loop depth, converged, E, relaxed
+            stretches) in ``state["starts"]`` and the chosen one in ``state["start_chosen"]``. A
+            start replaces the best so far only if its energy is lower by more than
+            :data:`SAME_ENERGY` relative, so one state reached twice keeps the earlier start.
+            """
+            count = AUTO_STARTS if self.starts == "auto" else int(self.starts)
+            chosen, q_best = 0, q_nominal
+            best = float(energy(q_nominal, 0)[0])
+            entries = [{"name": START_SET[0].name, "rest": state["start"], "prestress_steps": self.prestress_steps,
+                        "amplitude": 1.0, "converged": True, "energy_Nmm": best, "relaxed_stretch": stretch_of(q_nominal)}]
+            for k, st in enumerate(START_SET[1:count], start=1):
+                rest = state["start"] if st.rest == "option" else ("knitted" if state["start"] == "straight" else "straight")
+                steps = max(1, int(round(st.steps * self.prestress_steps)))
+                entry = {"name": st.name, "rest": rest, "prestress_steps": steps, "amplitude": st.amplitude}
+                t0 = time.perf_counter()
+                try:
+                    q0 = loop_depth_start(model, st.amplitude)
+                    qk = relaxed(run_prestress(rest, q0, 0, initial_distance(q0), steps,
+                                               label=f" start {k + 1}/{count} ({st.name})",
+                                               min_fraction=max(self.min_step_fraction, EXTRA_START_MIN_FRACTION)))
+                    E = float(energy(qk, 0)[0])
+                    if not np.isfinite(E):
+                        raise NumericalError(f"non-finite energy {E} at the relaxed state")
+                except NumericalError as e:
+                    entry.update(converged=False, energy_Nmm=None, relaxed_stretch=None, error=str(e))
+                else:
+                    entry.update(converged=True, energy_Nmm=E, relaxed_stretch=stretch_of(qk))
+                    if E < best - SAME_ENERGY * abs(best):
+                        chosen, q_best, best = k, qk, E
+                finally:
+                    energy.dk = dk_full
+                entries.append({**entry, "wall_time_s": time.perf_counter() - t0})
+            state.update(starts=entries, start_chosen=entries[chosen]["name"])
+            return q_best
 
         try:
             # ---- pre-stress: grow the contact distance at F̄ = I and constant yarn length
@@ -368,14 +498,12 @@ class RodSolver:
                 if state["start"] is not None:  # resuming
                     starts = [state["start"]]
                 else:
-                    energy.dk = dk_full
-                    d_min = float(energy.pairs(q).distance.min(initial=dk_full))
-                    state["dk0"] = min(self.initial_radius * dk_full, 0.95 * d_min)
+                    state["dk0"] = initial_distance(q)
                     starts = ["straight", "knitted"] if self.prestress_start == "auto" else [self.prestress_start]
                 for k, start in enumerate(starts):
                     state["start"] = start
                     try:
-                        q = run_prestress(start, q, int(state["target"]) + 1)
+                        q = run_prestress(start, q, int(state["target"]) + 1, state["dk0"], self.prestress_steps)
                         break
                     except NumericalError as e:
                         if k + 1 == len(starts):
@@ -395,12 +523,10 @@ class RodSolver:
             # ---- relaxation: the course and wale stretches are free (zero tension), shear stays zero
             offset = total - n_load
             if state["lam_ref"] is None:  # the lattice the stretches are measured from
-                if self.relax:
-                    free = base_free.copy()
-                    pres, _ = lat.constraints(None, None)
-                    free[3 * n:] = ~pres
-                    q = relax_lattice(q, free)
-                state["lam_ref"] = [1.0 + q[3 * n + macro_index(0, 0)], 1.0 + q[3 * n + macro_index(1, 1)]]
+                q = relaxed(q)
+                if prestress:
+                    q = explore_starts(q)
+                state["lam_ref"] = stretch_of(q)
                 state["relaxed_energy"] = float(energy(q, 0)[0])
                 after("load", -1, q, "relaxed lattice" if self.relax else "start of the load path", offset)
             lam_ref = state["lam_ref"]
@@ -414,6 +540,16 @@ class RodSolver:
                 l2 = None if lam2_path is None else float(np.interp(tau, np.arange(n_load + 1), lam2_path))
                 return lat.constraints(None if l1 is None else l1 * lam_ref[0], None if l2 is None else l2 * lam_ref[1])
 
+            # the free side of a uniaxial path is watched for jumps to another branch (follow_branch)
+            watch = self.follow_branch and scene.load.kind == "uniaxial"
+            k_load = 0 if scene.load.direction == "course" else 1
+            loaded_path = lam1_path if k_load == 0 else lam2_path
+            # the smallest increment continuation tries, in loaded stretch
+            smallest = (self.min_step_fraction * float(np.abs(np.diff(loaded_path)).min()) if watch else 0.0)
+            # cut: an increment of this load step was cut back for a jump; last: the last converged (tau, q);
+            # lenient: load steps up to this tau may jump (following their branch failed at its fold)
+            follow: dict[str, Any] = {"cut": False, "last": None, "lenient": -1.0}
+
             def solve_load(tau: float, q0: np.ndarray):
                 pres, vals = prescribed(tau)
                 qs = q0.copy()
@@ -424,7 +560,21 @@ class RodSolver:
                 qs[: 3 * n] = (x[0] + (x - x[0]) @ A.T - model.X).reshape(-1)
                 free = base_free.copy()
                 free[3 * n:] = ~pres
-                return newton(qs, free)
+                res = newton(qs, free)
+                if watch:
+                    a, b = np.divide(stretch_of(q0), lam_ref), np.divide(stretch_of(res.x), lam_ref)
+                    d_load, d_free = abs(b[k_load] - a[k_load]), b[1 - k_load] - a[1 - k_load]
+                    if is_jump(d_load, d_free, CUT_RATIO):
+                        lenient = tau <= follow["lenient"] + 1e-12
+                        if not lenient and d_load > smallest * (1.0 + 1e-6):  # continuation can still halve it
+                            follow["cut"] = True
+                            raise NumericalError(f"the free stretch jumped {a[1 - k_load]:.3f} -> {b[1 - k_load]:.3f} "
+                                                 f"over a loaded increment of {d_load:.3g} (another branch)")
+                        snaps.append({"loaded": [float(a[k_load]), float(b[k_load])],
+                                      "free": [float(a[1 - k_load]), float(b[1 - k_load])],
+                                      "how": "fold not converged" if lenient else "smallest increment"})
+                follow["last"] = (tau, res.x)
+                return res
 
             def on_load(i: int, tau: float, res) -> None:
                 nonlocal q
@@ -435,11 +585,22 @@ class RodSolver:
                 l1, l2 = 1.0 + h[macro_index(0, 0)], 1.0 + h[macro_index(1, 1)]
                 rows.append((l1 / lam_ref[0], l2 / lam_ref[1], T1 / lam_ref[1], T2 / lam_ref[0]))
                 k = int(round(tau))
+                follow["cut"] = False
                 after("load", k - 1, q, f"load step {k}/{n_load}", offset + k)
 
-            first = start_index + 1
-            continuation(solve_load, q, list(np.arange(first + 1, n_load + 1, dtype=float)), t0=float(first),
-                         min_fraction=self.min_step_fraction, on_target=on_load)
+            t_at, q_at = float(start_index + 1), q
+            while True:
+                try:
+                    continuation(solve_load, q_at, list(np.arange(np.floor(t_at) + 1, n_load + 1, dtype=float)),
+                                 t0=t_at, min_fraction=self.min_step_fraction, on_target=on_load)
+                    break
+                except NumericalError:
+                    if not (follow["cut"] and follow["last"] is not None):
+                        raise
+                    # the branch was followed to its fold, where Newton fails: from the last converged
+                    # state this load step may jump (it is flagged with where)
+                    t_at, q_at = follow["last"]
+                    follow.update(cut=False, lenient=float(np.floor(t_at) + 1))
         except NumericalError as e:
             if self.on_failure == "raise" or not rows:
                 raise NumericalError(f"rod solver ({fabric.pattern}, {fabric.yarn.name}): {e}") from None
@@ -447,11 +608,13 @@ class RodSolver:
             notes.append(f"stopped after {len(rows)} of {n_load} load steps: {e}")
         arr = np.array(rows, dtype=np.float64).reshape(-1, 4)
         load = scene.load
-        jumps = branch_jumps(arr, load)
+        jumps = locate_jumps(branch_jumps(arr, load), snaps, arr, load)
         for j in jumps:
+            where = ("" if "at_loaded_stretch" not in j else
+                     " (between loaded stretch {:.4f} and {:.4f}, {})".format(*j["at_loaded_stretch"], j["how"]))
             message = (f"rod solver ({fabric.pattern}, {fabric.yarn.name}): load step {j['step']} jumped to another "
-                       f"equilibrium branch: the free {j['free']} stretch went {j['from']:.3f} -> {j['to']:.3f} while "
-                       f"the loaded stretch changed by {j['loaded_change']:.3f}; the curve after it is another state")
+                       f"equilibrium branch{where}: the free {j['free']} stretch went {j['from']:.3f} -> {j['to']:.3f} "
+                       f"while the loaded stretch changed by {j['loaded_change']:.3f}; the curve after it is another state")
             notes.append(message)
             warnings.warn(message, KnitframeWarning, stacklevel=2)
         key = load.response_kind
@@ -464,13 +627,20 @@ class RodSolver:
                    "dk_mm": cell.dk, "L1_mm": lat.L1.tolist(), "L2_mm": lat.L2.tolist(),
                    "effects": sorted(scene.effects), "options": attrs.asdict(self),
                    "prestress_start": state["start"], "relaxed_stretch": state["lam_ref"], "branch_jumps": jumps,
-                   "relaxed_energy_Nmm": state["relaxed_energy"]},
+                   "relaxed_energy_Nmm": state["relaxed_energy"], "starts": state["starts"],
+                   "start_chosen": state["start_chosen"]},
         )
         return Response(arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3], load=key,
                         label=f"rod {fabric.pattern} {size} {fabric.yarn.name}", provenance=prov)
 
 
-def branch_jumps(rows: np.ndarray, load: Any, *, ratio: float = 3.0, floor: float = 0.02) -> list[dict[str, Any]]:
+def is_jump(d_load: Any, d_free: Any, ratio: float = JUMP_RATIO, floor: float = JUMP_FLOOR) -> Any:
+    r"""Whether a free-stretch change is a jump: :math:`|\Delta\lambda_{free}| > \max(\mathrm{ratio}\,|\Delta\lambda_{load}|, \mathrm{floor})`."""
+    return np.abs(d_free) > np.maximum(ratio * np.abs(d_load), floor)
+
+
+def branch_jumps(rows: np.ndarray, load: Any, *, ratio: float = JUMP_RATIO, floor: float = JUMP_FLOOR
+                 ) -> list[dict[str, Any]]:
     r"""Load steps where the free side's stretch jumps: a snap to another equilibrium branch.
 
     ``rows`` holds (λ1, λ2, T1, T2) per converged load step, from the relaxed lattice (λ = 1).
@@ -488,10 +658,36 @@ def branch_jumps(rows: np.ndarray, load: Any, *, ratio: float = 3.0, floor: floa
     d_load = np.abs(np.diff(lam[:, k_load]))
     d_free = np.diff(lam[:, k_free])
     out = []
-    for k in np.flatnonzero(np.abs(d_free) > np.maximum(ratio * d_load, floor)):
+    for k in np.flatnonzero(is_jump(d_load, d_free, ratio, floor)):
         out.append({"step": int(k) + 1, "free": "wale" if k_free else "course", "from": float(lam[k, k_free]),
                     "to": float(lam[k + 1, k_free]), "loaded_change": float(d_load[k])})
     return out
+
+
+def locate_jumps(jumps: list[dict[str, Any]], snaps: list[dict[str, list[float]]], rows: np.ndarray,
+                 load: Any) -> list[dict[str, Any]]:
+    """The load steps' jumps with where each happened: ``at_loaded_stretch`` [λa, λb] of its snap.
+
+    ``snaps`` are the jumps the load path kept (``follow_branch``), each with its loaded and
+    free stretches before and after and ``how``: at the smallest increment, or after Newton
+    failed at the fold where the followed branch ends. A snap inside load step k (its
+    loaded stretch between those of rows k−1 and k) is attached to that step's jump, or is
+    reported as the step's jump when the whole step's change stays under :func:`branch_jumps`'s
+    threshold.
+    """
+    if not snaps:
+        return jumps
+    k_load = 0 if load.direction == "course" else 1
+    ends = np.concatenate([[1.0], rows[:, k_load]])
+    out = {j["step"]: dict(j) for j in jumps}
+    for snap in snaps:
+        lo, hi = snap["loaded"]
+        step = int(np.clip(np.searchsorted(ends, 0.5 * (lo + hi)), 1, len(rows)))  # loaded stretch rises
+        jump = out.setdefault(step, {"step": step, "free": "wale" if k_load == 0 else "course",
+                                     "from": snap["free"][0], "to": snap["free"][1],
+                                     "loaded_change": float(abs(ends[step] - ends[step - 1]))})
+        jump.update(at_loaded_stretch=[lo, hi], how=snap["how"])
+    return [out[k] for k in sorted(out)]
 
 
 @hookimpl
