@@ -162,7 +162,9 @@ def test_max_time_skips_an_expensive_rung_and_says_so(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("rungs, problem", [
-    ("rod:8,rod:7", "--rungs: unknown rung 'rod:7'; the rungs are reduced, rod:8"),
+    ("rod:8,rod:7x", "--rungs: unknown rung 'rod:7x'; the rungs are reduced, rod:8"),
+    ("rod:8,rod:2", "--rungs: rung 'rod:2': segments per stitch must be 4..256"),
+    ("rod:8,volumetric:p2:r/12", "--rungs: rung 'volumetric:p2:r/12': the mesh divisor X of r/X must be 0.5..8"),
     ("rod:8,rod:8", "--rungs: rung 'rod:8' is named twice"),
     ("reduced", "--rungs: 'reduced' is fitted to the best simulated rung"),
     ("rod:8,,rod:16", "--rungs: expected comma-separated rung names"),
@@ -225,7 +227,22 @@ def test_every_rung_has_solver_options_a_family_and_a_known_solver():
         cls = reg["solver"][rung.solver]
         assert set(rung.options) <= set(attrs.fields_dict(cls)), name
         assert rung.family.split(":")[0] == rung.solver
-    assert [r.rank for r in RUNGS.values()] == list(range(len(RUNGS)))
+    assert sorted(RUNGS, key=lambda n: RUNGS[n].fidelity) == list(RUNGS)  # the table is in order of fidelity
+
+
+def test_any_resolution_can_be_named_and_is_ordered_by_fidelity():
+    """rod:N and volumetric:pK:r/X at any resolution: a mesh-convergence study names three seeds of one order."""
+    from knitframe.ladder import rung
+
+    r = rung("volumetric:p2:r/2.25")
+    assert r.options == {"order": 2, "seed": pytest.approx(1 / 2.25)} and r.family == "volumetric:p2"
+    assert rung("rod:24").options == {"segments_per_stitch": 24} and rung("rod:24").family == "rod"
+    assert rung("volumetric:p1:r/3") is RUNGS["volumetric:p1:r/3"]
+    names = ["volumetric:p2:r/3", "reduced", "volumetric:p1:r/3", "volumetric:p2:r/1.5", "rod:24", "rod:8",
+             "volumetric:p2:r/2.25"]
+    assert sorted(names, key=lambda n: rung(n).fidelity) == [
+        "reduced", "rod:8", "rod:24", "volumetric:p1:r/3", "volumetric:p2:r/1.5", "volumetric:p2:r/2.25",
+        "volumetric:p2:r/3"]
 
 
 @pytest.mark.slow
@@ -242,3 +259,20 @@ def test_rungs_of_a_wave_run_in_parallel_on_dask_and_a_volumetric_rung_is_the_be
     assert vol["dofs"] == 3 * int(vol["notes"].split(" nodes")[0].split()[-1])
     assert vol["peak_rss_mb"] > a["peak_rss_mb"]
     assert a["nrmse_vs_best"] > 0 and result.row("reduced")["nrmse_vs_measured"] > 0
+
+
+@pytest.mark.slow
+def test_three_seeds_of_one_order_give_a_mesh_convergence_table(tmp_path):
+    """Three P1 seeds on a one-step path: convergence.csv and the ladder.md section, with an order or a named behaviour."""
+    config = singal_config(tmp_path)
+    config["scene"]["load"] = {"kind": "uniaxial", "direction": "course", "max_strain": 0.05, "steps": 1}
+    rungs = ["volumetric:p1:r/1", "volumetric:p1:r/1.2", "volumetric:p1:r/1.4"]
+    knitframe.ladder(config, out=tmp_path / "out", rungs=rungs)
+    with open(tmp_path / "out" / "convergence.csv", encoding="utf-8") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 1 and rows[0]["direction"] == "course" and float(rows[0]["strain"]) == pytest.approx(0.05)
+    assert rows[0]["rungs"].split() == rungs[::-1]
+    assert rows[0]["behaviour"] in {"converging", "oscillating", "diverging"}
+    if rows[0]["behaviour"] == "converging":
+        assert float(rows[0]["order"]) > 0 and float(rows[0]["error_finest"]) >= 0
+    assert "### Mesh convergence of volumetric:p1" in (tmp_path / "out" / "ladder.md").read_text()

@@ -23,7 +23,9 @@ def add_parser(sub) -> None:
     p.add_argument("config", help="TOML config with [fabric] and [scene] (and [data] for measured curves)")
     p.add_argument("--out", default=None, help="output folder, new or empty (default: <config name>-ladder)")
     p.add_argument("--rungs", default=None, metavar="NAMES",
-                   help=f"comma-separated rungs of {', '.join(RUNGS)} (default: {','.join(DEFAULT_RUNGS)})")
+                   help=f"comma-separated rungs of {', '.join(RUNGS)}, or rod:N, volumetric:p1:r/X, volumetric:p2:r/X at "
+                        f"any resolution; three seeds of one order add a mesh-convergence table "
+                        f"(default: {','.join(DEFAULT_RUNGS)})")
     p.add_argument("--max-time", type=float, default=None, dest="max_time", metavar="SECONDS",
                    help="skip the rungs whose estimated wall time is over this many seconds")
     add_overwrite_argument(p)

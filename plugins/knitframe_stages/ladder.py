@@ -51,12 +51,13 @@ from knitframe import __version__, hookimpl, validators as v
 from knitframe.config import PluginSpec, instantiate
 from knitframe.errors import ConfigError, KnitframeError, KnitframeWarning, NumericalError
 from knitframe.ladder import (
-    DEFAULT_RUNGS, RUNGS, CostModel, LadderResult, TimingPoint, _response, format_duration, format_memory,
+    DEFAULT_RUNGS, RUNGS, CostModel, rung, LadderResult, TimingPoint, _response, format_duration, format_memory,
     plot_curves, plot_pareto, read_timings, run_rung, shipped_timings_path, tension_errors,
     within_range, write_csv, write_table,
 )
 from knitframe.records import Scene
 from knitframe.report import write_responses_csv
+from knitframe.convergence import convergence_table, mesh_convergence, write_convergence
 from knitframe.schema import build
 
 log = logging.getLogger("knitframe.ladder")
@@ -73,11 +74,11 @@ MAX_ATTEMPTS = 20
 class LadderTable:
     """Schema of the ``[ladder]`` table."""
 
-    rungs: list[str] = attrs.Factory(lambda: list(DEFAULT_RUNGS))  #: rung names (docs/ladder.md); default: reduced, rod:8, rod:16, rod:32, volumetric:p1:coarse, volumetric:p1:r/3, volumetric:p2:r/1.67
+    rungs: list[str] = attrs.Factory(lambda: list(DEFAULT_RUNGS))  #: rung names (docs/ladder.md): those listed there, or rod:N, volumetric:p1:r/X, volumetric:p2:r/X at any resolution; default: reduced, rod:8, rod:16, rod:32, volumetric:p1:coarse, volumetric:p1:r/3, volumetric:p2:r/1.67
     max_time: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: skip the rungs whose estimated wall time is over this, s; unset: run them all
     executor: str | dict[str, Any] = "local"  #: executor plugin name, or a table with ``kind`` and its options; the rungs of a wave go through its ``map``
     cache: bool = True  #: keep finished rungs in the executor's cache and reuse them
-    cache_dir: str | None = None  #: where the finished rungs are kept; unset: knitframe/ladder in the user's cache folder ($XDG_CACHE_HOME or ~/.cache)
+    cache_dir: str | None = None  #: where the finished rungs are kept; unset: the executors' cache, which `knitframe cache clear` empties ($KNITFRAME_CACHE_DIR, else knitframe/jobs in $XDG_CACHE_HOME or ~/.cache)
     timings: list[str] = attrs.Factory(list)  #: measured timings for the cost model: ladder.csv files of earlier ladders, or JSON files like the shipped one
     shipped_timings: bool = True  #: let the cost model use the timings shipped with knitframe
     solver_options: dict[str, Any] = attrs.Factory(dict)  #: solver options for every rung of a solver, by solver name: ``{ volumetric = { contact_modulus = 1.2 } }``
@@ -86,11 +87,11 @@ class LadderTable:
 
 
 def default_cache_dir() -> Path:
-    """``$XDG_CACHE_HOME/knitframe/ladder`` (``~/.cache/knitframe/ladder``)."""
-    import os
+    """The executors' result cache (:func:`knitframe.cache.default_cache_dir`), which ``knitframe cache
+    clear`` empties: a rung's key holds its inputs, the knitframe version and a hash of the code."""
+    from knitframe.cache import default_cache_dir as jobs_cache_dir
 
-    root = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(root) / "knitframe" / "ladder"
+    return jobs_cache_dir()
 
 
 def _fabric_label(fabric: Any) -> str:
@@ -113,11 +114,11 @@ class LadderStage:
     name: ClassVar[str] = "ladder"
     description: ClassVar[str] = "accuracy ladder: one fabric and scene through rungs of fidelity, with time, memory and error"
     order: ClassVar[int] = 40
-    uses: ClassVar[tuple[str, ...]] = ("fabric", "scene", "yarns")
+    uses: ClassVar[tuple[str, ...]] = ("fabric", "scene", "yarns", "executor")
     schema: ClassVar[type] = LadderTable
 
     settings: LadderTable  #: the validated [ladder] table
-    rungs: tuple[str, ...]  #: in the order of RUNGS
+    rungs: tuple[str, ...]  #: in the order of fidelity (Rung.fidelity)
     stages: dict[str, Any]  #: each simulated rung's validated simulate stage (solver, fabric, scene)
     jobs: dict[str, dict[str, Any]]  #: each simulated rung's executor job (plain data)
     reduced: dict[str, Any] | None  #: the reduced rung's job without its reference curve
@@ -138,17 +139,17 @@ class LadderStage:
                               "loads is for the [solver] stage)", source=src)
         scene = build(Scene, scene_table, "scene", source=src)
         simulate = ctx.registry["stage"]["simulate"]
-        used_solvers = {RUNGS[n].solver for n in names if n != "reduced"}
+        used_solvers = {rung(n).solver for n in names if n != "reduced"}
         options = _check_solver_options(table.solver_options, used_solvers, src)
         stages, jobs = {}, {}
         for name in names:
-            rung = RUNGS[name]
-            if rung.solver == "reduced":
+            rg = rung(name)
+            if rg.solver == "reduced":
                 continue
-            solver_cls = ctx.registry["solver"][rung.solver]
+            solver_cls = ctx.registry["solver"][rg.solver]
             effects = sorted(scene.effects & solver_cls.effects)
-            solver_table = {"kind": rung.solver, "on_failure": "truncate", **options.get(rung.solver, {}),
-                            **rung.options}
+            solver_table = {"kind": rg.solver, "on_failure": "truncate", **options.get(rg.solver, {}),
+                            **rg.options}
             sub = {"solver": solver_table, "scene": {**scene_table, "effects": effects, "outputs": ["response"]}}
             sub.update({k: config[k] for k in ("fabric", "yarns") if k in config})
             try:
@@ -156,7 +157,7 @@ class LadderStage:
             except ConfigError as e:
                 path = e.path
                 if path.startswith("solver."):
-                    path = f"ladder.solver_options.{rung.solver}.{path[len('solver.'):]}"
+                    path = f"ladder.solver_options.{rg.solver}.{path[len('solver.'):]}"
                 raise ConfigError(path, e.problem, source=src) from None
             jobs[name] = {"rung": name, "solver": solver_table, "config": sub, "knitframe": __version__,
                           "attempt": 0}
@@ -187,9 +188,9 @@ class LadderStage:
         rows: dict[str, dict[str, Any]] = {}
         curves: dict[str, Any] = {}
         for name, st in self.stages.items():
-            rung = RUNGS[name]
+            rg = rung(name)
             dofs, increments = _size(st, ctx.registry)
-            rows[name] = {"rung": name, "family": rung.family, "solver": rung.solver,
+            rows[name] = {"rung": name, "family": rg.family, "solver": rg.solver,
                           "options": dict(self.jobs[name]["solver"]), "effects": " ".join(sorted(st.scene.effects)),
                           "dofs": dofs, "increments": increments, "fabric": _fabric_label(fabric),
                           "load": self.scene.load.response_kind, "cached": False, "reference": False}
@@ -240,7 +241,8 @@ class LadderStage:
         measured = self._measured(ctx)
         self._compare(rows, curves, reference, measured)
         ordered = [rows[n] for n in self.rungs if n in rows]
-        self._write(ctx, ordered, curves, measured, fabric, reference)
+        convergence = self._convergence(curves)
+        self._write(ctx, ordered, curves, measured, fabric, reference, convergence)
 
     def _parallel(self) -> bool:
         """Whether the executor runs a wave's jobs side by side (the local one with one worker does not)."""
@@ -327,11 +329,34 @@ class LadderStage:
                     vals = [e[key] for e in errs if e[key] is not None]
                     row[col] = float(np.mean(vals)) if vals else None
 
-    def _write(self, ctx, rows, curves, measured, fabric, reference) -> None:
+    def _convergence(self, curves) -> list[dict[str, Any]]:
+        """Richardson rows of every volumetric order with three or more finished seeds (knitframe.convergence)."""
+        rows: list[dict[str, Any]] = []
+        for family in sorted({rung(n).family for n in curves if rung(n).solver == "volumetric"}):
+            sizes = {n: float(rung(n).options["seed"]) for n in curves if rung(n).family == family}
+            found = mesh_convergence(sizes, curves, self.scene.load.response_kind, family)
+            rows += found
+            if found:
+                last = [r for r in found if r["strain"] == max(x["strain"] for x in found)]
+                text = "; ".join(
+                    f"{r['direction']} T {r['T_finest']:.4g} N/mm, "
+                    + (f"order {r['order']:.2f}, extrapolated {r['T_extrapolated']:.4g}, error of the finest "
+                       f"{100 * r['error_finest']:.3g} %" if r["order"] is not None else r["behaviour"])
+                    for r in last)
+                log.info(f"ladder: mesh convergence of {family} ({found[0]['rungs']}) at "
+                         f"{100 * last[0]['strain']:g} %: {text}")
+        return rows
+
+    def _write(self, ctx, rows, curves, measured, fabric, reference, convergence=()) -> None:
         title = f"{_fabric_label(fabric)}, {_scene_label(self.scene)}"
         labels = [m.label for m in measured]
         write_csv(ctx.output("ladder.csv"), rows)
-        table = write_table(ctx.output("ladder.md"), rows, title=title, measured=labels)
+        md = ctx.output("ladder.md")
+        table = write_table(md, rows, title=title, measured=labels)
+        if convergence:
+            write_convergence(ctx.output("convergence.csv"), convergence)
+            table += convergence_table(convergence)
+            md.write_text(table, encoding="utf-8")
         plot_pareto(ctx.output("ladder.png"), rows, title=title)
         ordered = {n: curves[n] for n in self.rungs if n in curves}
         plot_curves(ctx.output("curves.png"), ordered, measured, title=title, load=self.scene.load.response_kind,
@@ -348,21 +373,22 @@ class LadderStage:
 
 # ------------------------------------------------------------------------------------ helpers
 def _check_rungs(names: list[str], source: str | None) -> tuple[str, ...]:
-    """The rung names, checked and put in the order of RUNGS; one ConfigError naming a bad one."""
+    """The rung names, checked and put in the order of fidelity; one ConfigError naming a bad one."""
     if not names:
         raise ConfigError("ladder.rungs", "name at least one rung", source=source)
     seen: set[str] = set()
     for i, name in enumerate(names):
-        if name not in RUNGS:
-            raise ConfigError(f"ladder.rungs[{i}]", f"unknown rung {name!r}; the rungs are {', '.join(RUNGS)}",
-                              source=source)
+        try:
+            rung(name)
+        except ValueError as e:
+            raise ConfigError(f"ladder.rungs[{i}]", str(e), source=source) from None
         if name in seen:
             raise ConfigError(f"ladder.rungs[{i}]", f"rung {name!r} is named twice", source=source)
         seen.add(name)
     if seen == {"reduced"}:
         raise ConfigError("ladder.rungs", "'reduced' is fitted to the best simulated rung: name at least one "
                           "rod or volumetric rung as well", source=source)
-    return tuple(n for n in RUNGS if n in seen)
+    return tuple(sorted(seen, key=lambda n: rung(n).fidelity))
 
 
 def _check_solver_options(table: dict[str, Any], solvers: set[str], source: str | None) -> dict[str, dict]:
