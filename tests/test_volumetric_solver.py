@@ -390,3 +390,33 @@ def test_pull_back_of_the_tangent_is_the_triple_product(order):
     K2 = K2 + sp.csr_matrix(([1.0], ([0], [K.shape[0] - 1])), shape=K.shape)
     ref2 = (model.T.T @ (K2 + c * sp.identity(K.shape[0])) @ model.T).tocsr()
     assert abs(model.pull_back(K2) - ref2).max() <= 1e-13 * abs(ref2).max()
+
+
+def test_p1_with_bending_warns_that_linear_tetrahedra_lock():
+    """order = 1 with the bending effect: one KnitframeWarning and a provenance note; P2 has neither."""
+    from knitframe.errors import KnitframeWarning
+
+    scene = attrs.evolve(STRETCH, effects={"large_deformation", "anisotropy", "bending"})
+    with pytest.warns(KnitframeWarning, match="linear tetrahedra lock in bending"):
+        r = VolumetricSolver(order=1, seed=0.75).simulate(FABRIC, scene)
+    assert "lock in bending" in r.provenance.notes
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", KnitframeWarning)
+        VolumetricSolver(order=1, seed=0.75).simulate(FABRIC, STRETCH)  # no bending asked for: no warning
+
+
+@pytest.mark.parametrize("law", ["penalty", "mortar"])
+def test_signed_gap_laws_are_refused_past_the_strain_they_finish_before_any_work(law):
+    """penalty and mortar past 10 % strain on a contact scene: a ConfigError naming solver.contact_law at validation."""
+    from knitframe.errors import ConfigError
+
+    solver = VolumetricSolver(order=1, seed=0.75, contact_law=law)
+    far = Scene(load=LoadPath(kind="equibiaxial", max_strain=0.3, steps=6), effects={"large_deformation", "contact"})
+    with pytest.raises(ConfigError, match=rf"solver\.contact_law: '{law}' does not finish knitted cells past 10 % "
+                                          r"strain \(the load reaches 30 %\)"):
+        solver.validate(FABRIC, far)
+    solver.validate(FABRIC, attrs.evolve(far, load=LoadPath(kind="equibiaxial", max_strain=0.1, steps=2)))
+    solver.validate(FABRIC, attrs.evolve(far, effects={"large_deformation"}))  # no contact asked for
+    VolumetricSolver(order=1, seed=0.75, contact_law="ipc").validate(FABRIC, far)

@@ -46,7 +46,7 @@ def test_resolve_yarn_from_name_table_and_like():
 @pytest.mark.parametrize(
     "value, message",
     [
-        ("wool", "yarns.x: unknown yarn 'wool'; available: cotton, nylon, pearl-cotton, pet"),
+        ("wool", "yarns.x: unknown yarn 'wool'; available: acrylic, cotton, nylon, pearl-cotton, pet"),
         ({"like": "cotton", "dk": -1}, "yarns.x.dk: must be > 0"),
         ({"like": "cotton", "colour": "red"}, "yarns.x.colour: unknown key"),
         ({"d0": 0.5}, "yarns.x.dk: required key is missing"),

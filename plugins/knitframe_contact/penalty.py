@@ -52,6 +52,10 @@ class SolidContactLaw:
     """Fields and penalty stiffness shared by the solid contact laws (``penalty``, ``mortar``)."""
 
     discretisation: ClassVar[str] = "solid"
+    #: the largest load strain these laws have finished on a knitted cell: past it the signed gap's
+    #: pairing switches where yarns slide and the path stalls (13-23 %, docs/validation.md); a config
+    #: asking for more is refused before any work (VolumetricSolver.check_law_reach)
+    finishes_strain: ClassVar[float | None] = 0.10
 
     stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: ε, N/mm³; default factor·E/h
     factor: float = attrs.field(default=10.0, validator=v.positive)  #: ε = factor · E / h when stiffness is not given, -

@@ -43,6 +43,7 @@ import hashlib
 import inspect
 import json
 import time
+import warnings
 from pathlib import Path
 from typing import Any, ClassVar, Literal
 
@@ -55,7 +56,7 @@ from knitframe.geometry import unit_cell
 from knitframe import hookimpl, validators as v
 from knitframe.config import instantiate
 from knitframe.contact_search import SegmentTopology
-from knitframe.errors import ConfigError, FieldError, NumericalError
+from knitframe.errors import ConfigError, FieldError, KnitframeWarning, NumericalError
 from knitframe.memory import retain_freed_memory
 from knitframe.newton import NewtonOptions, StepCheckpoints, continuation, minimise
 from knitframe.periodic import N_MACRO, Lattice, macro_index, periodic_transform
@@ -72,6 +73,9 @@ __all__ = ["VolumetricSolver", "contact_surface", "write_solid_vtu"]
 #: provenance (the step test passed with large forces left: seen on the jammed SL10 cell, 29-800 × the flux;
 #: the SL11 P2 r/3 runs end their steps at 0.7-6.6 ×, the coarse P1 run under 0.05 ×)
 IMBALANCE_NOTE = 10.0
+#: the warning of every P1 run that bends yarns (measured in docs/validation.md, "Is the reference converged?")
+P1_LOCKING = ("volumetric order 1: linear tetrahedra lock in bending, so a knitted cell's P1 tensions are several "
+              "times too high even at seed r/3; use order = 2 for numbers and P1 only for a quick look")
 
 
 def contact_surface(cm: Any, lattice: Lattice | None, exclusion: float | None = None) -> SolidSurface:
@@ -255,6 +259,7 @@ class VolumetricSolver:
                            type(law)().penalty(fabric.yarn.E_transverse, h), "N/mm³ penalty")
         except FieldError as e:
             raise ConfigError(f"solver.{e.field}", e.problem) from None
+        self.check_law_reach(law, scene)
         self.check_clearance(unit_cell(fabric, registry), scene)
 
     def check_clearance(self, cell: Any, scene: Scene) -> None:
@@ -281,6 +286,23 @@ class VolumetricSolver:
         elif clear < r:
             raise ConfigError("scene.effects", f"the knitted centerlines come {clear:.4g} mm close, under the yarn "
                               f"radius {r:.4g} mm: the tubes cross; add 'contact' and 'prestress' to scene.effects")
+
+    def check_law_reach(self, law: Any, scene: Scene) -> None:
+        """Refuse, before any work, a load path past what a signed-gap law has been seen to finish.
+
+        ``penalty`` and ``mortar`` measure a signed gap to a smoothed master surface; on knitted
+        cells its pairing switches where yarns slide, and no run has finished past 10 % strain
+        (the paths stall between 13 and 23 %; docs/validation.md). ``ipc`` has no such limit.
+        """
+        limit = getattr(law, "finishes_strain", None)
+        if limit is None or "contact" not in scene.effects:
+            return
+        _, lam1, lam2 = scene.load.stretches()
+        top = max(float(np.max(np.abs(np.asarray(x) - 1.0))) for x in (lam1, lam2) if x is not None)
+        if top > limit + 1e-12:
+            raise ConfigError("solver.contact_law",
+                              f"'{law.name}' does not finish knitted cells past {100 * limit:g} % strain (the load "
+                              f"reaches {100 * top:.3g} %): use contact_law = 'ipc' (the default), or a shorter load path")
 
     def make_contact_law(self, registry=None) -> Any:
         """The solid contact law named by ``contact_law``; ConfigError if it is unknown or not for solids."""
@@ -477,6 +499,10 @@ class VolumetricSolver:
             ckpt.announce(last, total)
         series = StepSeries(output_dir, "solid", next_checkpoint) if vtu else None
         notes: list[str] = []
+        if self.order == 1 and "bending" in scene.effects:
+            message = P1_LOCKING
+            notes.append(message)
+            warnings.warn(message, KnitframeWarning, stacklevel=2)
         converged = True
         step_counter = [next_checkpoint]
 

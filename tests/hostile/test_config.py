@@ -150,6 +150,8 @@ CASES: list[tuple[str, Any, str, dict[str, str]]] = [
     # ---- [solver] volumetric
     ("volumetric-contact-law-for-rods", edit(VOLUMETRIC, {"solver.contact_law": "rod_penalty"}), "solver.contact_law", {}),
     ("volumetric-linear-solver-unknown", edit(VOLUMETRIC, {"solver.linear_solver": "nope"}), "solver.linear_solver", {}),
+    ("volumetric-mortar-past-the-strain-it-finishes", edit(VOLUMETRIC, {"solver.contact_law": "mortar"}),
+     "solver.contact_law", {}),
     ("volumetric-order-3", edit(VOLUMETRIC, {"solver.order": 3}), "solver.order", {}),
     ("volumetric-seed-tiny", edit(VOLUMETRIC, {"solver.seed": 1e-3}), "solver.seed", {}),
     ("volumetric-max-step-past-reach", edit(VOLUMETRIC, {"solver.max_step": 0.4, "solver.contact_law": "penalty"}),
