@@ -56,6 +56,9 @@ Writes
   the simulated load path, not a measured failure (said in ``source``);
 * ``params.png``: the paper's Fig. 4, each fitted parameter against stitch length, lines per
   pattern (colour), markers per yarn.
+* ``trends.md``: when the model has a, b and θ (hgo) and the points span 2 or more stitch lengths,
+  patterns and yarns (one fit each), the paper's four trends judged on the fits, with the numbers
+  (:func:`knitframe.trends.trends`).
 
 Against measured tests: a point may carry ``measured = { files = [...], reader = "singal2024",
 max_strain = 0.6 }`` (:class:`MeasuredTable`). The files are read (and checked) with the config;
@@ -488,6 +491,7 @@ class SweepStage:
             warnings.warn(f"{len(failed) - SHOWN_FAILURES} more sweep points failed; see sweep.csv", KnitframeWarning,
                           stacklevel=2)
         self._write_csv(ctx.output("sweep.csv"), rows)
+        verdicts = self._write_trends(ctx, rows)
         if entries:
             from knitframe.garment.library import FabricLibrary
 
@@ -506,6 +510,8 @@ class SweepStage:
             "headline": (f"{len(rows)} fabrics: {done} done, {len(failed)} failed, {n_cached} from the cache; "
                          f"library of {len(entries)} fabrics; {wall:.1f} s on {self.executor_name}"),
         }
+        if verdicts:
+            ctx.results[self.label]["trends"] = verdicts
         if self.validating:
             self._write_csv(ctx.output("validation.csv"), curves)
             plot_validation(ctx.output("validation.png"), panels,
@@ -515,6 +521,18 @@ class SweepStage:
             ctx.results[self.label]["headline"] += "; " + _validation_headline(curves)
 
     # -------------------------------------------------------------------------------- outputs
+    def _write_trends(self, ctx, rows: list[dict[str, Any]]) -> dict[str, str]:
+        """trends.md: the paper's four trends judged on the fits (:mod:`knitframe.trends`), when the model
+        has a, b and θ and the points span stitch lengths, patterns and yarns, one fit each."""
+        from knitframe.trends import spans_trends, trends, trends_markdown
+
+        if not {"a", "b", "theta_deg"} <= set(self._param_keys()) or not spans_trends(rows):
+            return {}
+        found = trends(rows)
+        ctx.output("trends.md").write_text(trends_markdown(found, title=f"The paper's trends: {self._title()}"),
+                                           encoding="utf-8")
+        return {t.key: t.verdict for t in found}
+
     def _title(self) -> str:
         p = self.points[0]
         return (f"{self.model_name} fitted by {self.fitter_name} to {p.stage.solver_name} simulations "
