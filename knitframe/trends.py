@@ -21,18 +21,21 @@ Markdown report (the sweep stage's ``trends.md``)::
     for t in trends(rows):
         print(t.key, t.verdict, t.summary)
 
-The rules (every threshold is a keyword argument):
+The rules (every threshold is a keyword argument). A trend is undetermined when fewer than
+``min_cases`` (2) of its comparisons, or fewer than ``min_determined`` (half) of them, have their
+parameters determined; otherwise it is reproduced when at least ``share`` (3/4) of the determined
+comparisons show it, and not reproduced when fewer do.
 
 * ``stitch_b``: for each pattern and yarn, b at the shortest against b at the longest stitch
-  length. Reproduced when b is larger at the shorter stitch in at least ``share`` (3/4) of the
-  pairs where neither b is at a bound; undetermined when fewer than ``min_cases`` (2) such pairs.
+  length, where neither b is at a bound. A b at a bound still gives a side (at the lower bound the
+  curve wants b no larger), and the summary counts the pairs where the bounds alone say smaller or
+  larger; they do not enter the verdict.
 * ``pattern_theta``: for each yarn and stitch length, the spread (max − min) of θ across the
-  patterns. Reproduced when it is at least ``theta_spread_deg`` (5°) in ``share`` of the groups.
+  patterns; shown when at least ``theta_spread_deg`` (5°).
 * ``yarn_ab``: for each pattern and stitch length, the largest over the smallest a (and b) across
-  the yarns. Reproduced when both exceed ``yarn_factor`` (10) in ``share`` of the groups (b only
-  where no yarn's b is at a bound); not reproduced if either falls short.
-* ``jersey_theta``: reproduced when |θ − 45°| ≤ ``jersey_tol_deg`` (5°) for ``share`` of the
-  jersey fits.
+  the yarns, above ``yarn_factor`` (10); reproduced when both a and b are, not reproduced if
+  either is not. Groups with a bound are counted apart, as for ``stitch_b``.
+* ``jersey_theta``: |θ − 45°| ≤ ``jersey_tol_deg`` (5°) for the jersey fits.
 """
 
 from __future__ import annotations
@@ -92,7 +95,8 @@ def _fits(rows: Iterable[Mapping[str, Any]]) -> tuple[list[_Fit], list[str]]:
     for r in rows:
         name = str(r.get("name") or r.get("index") or "?")
         if r.get("status", "done") != "done":
-            left.append(f"{name}: {r.get('status')} ({r.get('reason') or 'no reason'}), not used")
+            reason = str(r.get("reason") or "no reason").split("; ")[0]
+            left.append(f"{name}: {r.get('status')} ({reason if len(reason) <= 160 else reason[:157] + '...'}), not used")
             continue
         sl = _num(r.get("stitch_length"))
         a, b, th = _num(r.get("a")), _num(r.get("b")), _num(r.get("theta_deg"))
@@ -121,8 +125,10 @@ def _g(x: float | None) -> str:
     return "" if x is None else f"{x:.3g}"
 
 
-def _verdict(hits: int, cases: int, share: float, min_cases: int) -> str:
-    if cases < min_cases:
+def _verdict(hits: int, cases: int, share: float, min_cases: int, total: int = 0, min_determined: float = 0.0) -> str:
+    """Reproduced when ``hits`` reach ``share`` of the determined ``cases``; undetermined when fewer than
+    ``min_cases`` cases, or fewer than ``min_determined`` of all ``total`` comparisons, are determined."""
+    if cases < max(min_cases, min_determined * total):
         return UNDETERMINED
     return REPRODUCED if hits >= share * cases else NOT_REPRODUCED
 
@@ -131,37 +137,62 @@ def _order(values: Iterable[Any]) -> list[Any]:
     return list(dict.fromkeys(values))
 
 
+def _interval(f: _Fit, name: str) -> tuple[float, float] | None:
+    """What a fit says of a positive parameter: ``(v, v)`` when determined; at a bound, only a side: at the
+    lower bound the data want it no larger, ``(0, v)``, at the upper no smaller, ``(v, inf)`` (which bound:
+    the nearer on a log scale, the box being [1e-4, 1e3] for hgo's b)."""
+    v = getattr(f, name)
+    if v is None or v <= 0:
+        return None
+    if name not in f.bound:
+        return v, v
+    return (0.0, v) if v < 1.0 else (v, math.inf)
+
+
+def _cell(f: _Fit | None, name: str) -> str:
+    if f is None:
+        return ""
+    return _g(getattr(f, name)) + (" (at bound)" if name in f.bound else "")
+
+
 # ------------------------------------------------------------------------------------------ the trends
-def _stitch_b(fits: list[_Fit], share: float, min_cases: int) -> Trend:
+def _stitch_b(fits: list[_Fit], share: float, min_cases: int, min_determined: float) -> Trend:
     sls = sorted({f.sl for f in fits})
     short, long_ = sls[0], sls[-1]
     by = {(f.pattern, f.yarn, f.sl): f for f in fits}
     rows, notes = [], []
     hits = cases = 0
+    one_sided = {"larger": 0, "smaller": 0, "unknown": 0}
     for pattern in _order(f.pattern for f in fits):
         for yarn in _order(f.yarn for f in fits):
             s, lo = by.get((pattern, yarn, short)), by.get((pattern, yarn, long_))
-            if s is None or lo is None:
+            if s is None or lo is None or s.b is None or lo.b is None:
                 continue
-            mid = [by.get((pattern, yarn, x)) for x in sls[1:-1]]
-            free = [f for f in (s, lo) if "b" in f.bound or f.b is None]
-            if free:
-                verdict = "left out"
-                notes.append(f"{pattern} {yarn}: b at a bound in " + ", ".join(f.label for f in free))
+            ratio = ""
+            if "b" in s.bound or "b" in lo.bound:
+                notes.append(f"{pattern} {yarn}: b at a bound in "
+                             + ", ".join(f.label for f in (s, lo) if "b" in f.bound))
+                (s_lo, s_hi), (l_lo, l_hi) = _interval(s, "b"), _interval(lo, "b")
+                side = "larger" if s_lo > l_hi else "smaller" if s_hi < l_lo else "unknown"
+                one_sided[side] += 1
+                verdict = {"larger": "left out (the bounds say: larger)", "smaller": "left out (the bounds say: smaller)",
+                           "unknown": "left out"}[side]
             else:
                 cases += 1
                 up = s.b > lo.b
                 hits += up
+                ratio = _g(s.b / lo.b)
                 verdict = "larger at the shorter stitch" if up else "not larger"
-            cells = [_g(s.b) + (" (at bound)" if "b" in s.bound else "")]
-            cells += [(_g(m.b) + (" (at bound)" if "b" in m.bound else "")) if m else "" for m in mid]
-            cells += [_g(lo.b) + (" (at bound)" if "b" in lo.bound else "")]
-            ratio = _g(s.b / lo.b) if s.b and lo.b else ""
-            rows.append((pattern, yarn, *cells, ratio, verdict))
+            mid = [by.get((pattern, yarn, x)) for x in sls[1:-1]]
+            rows.append((pattern, yarn, _cell(s, "b"), *[_cell(m, "b") for m in mid], _cell(lo, "b"), ratio, verdict))
     columns = ("pattern", "yarn", *[f"b SL{x:g}" for x in sls], f"b SL{short:g} / SL{long_:g}", "")
-    verdict = _verdict(hits, cases, share, min_cases)
+    verdict = _verdict(hits, cases, share, min_cases, len(rows), min_determined)
+    left = len(rows) - cases
     summary = (f"b larger at SL{short:g} than at SL{long_:g} in {hits} of {cases} pattern-yarn pairs with b "
-               f"determined at both; {len(rows) - cases} pair(s) left out with b at a bound")
+               f"determined at both; {left} of {len(rows)} pair(s) left out with b at a bound")
+    if left:
+        summary += (f" (where a bound gives a side: b smaller at SL{short:g} in {one_sided['smaller']}, larger in "
+                    f"{one_sided['larger']}; {one_sided['unknown']} at the same bound at both)")
     return Trend("stitch_b", "a shorter stitch gives a larger b", verdict, summary, columns, tuple(rows), tuple(notes))
 
 
@@ -188,11 +219,13 @@ def _pattern_theta(fits: list[_Fit], share: float, min_cases: int, spread_deg: f
                  ("yarn", "SL", "θ by pattern, °", "spread, °", "lowest → highest"), tuple(rows), tuple(notes))
 
 
-def _yarn_ab(fits: list[_Fit], share: float, min_cases: int, factor: float) -> Trend:
+def _yarn_ab(fits: list[_Fit], share: float, min_cases: int, min_determined: float, factor: float) -> Trend:
     yarns = _order(f.yarn for f in fits)
     rows, notes = [], []
     hits = {"a": 0, "b": 0}
     cases = {"a": 0, "b": 0}
+    total = {"a": 0, "b": 0}
+    beyond = {"a": 0, "b": 0}  # left out, but the bounds alone put the spread above the factor
     for pattern in _order(f.pattern for f in fits):
         for sl in sorted({f.sl for f in fits}):
             group = {f.yarn: f for f in fits if f.pattern == pattern and f.sl == sl}
@@ -200,30 +233,42 @@ def _yarn_ab(fits: list[_Fit], share: float, min_cases: int, factor: float) -> T
                 continue
             cells = []
             for p in ("a", "b"):
-                vals = {y: getattr(f, p) for y, f in group.items() if getattr(f, p) and p not in f.bound}
-                bound = [f.label for f in group.values() if p in f.bound]
-                if bound:
-                    notes.append(f"{pattern} SL{sl:g}: {p} at a bound in " + ", ".join(bound))
-                if len(vals) < len(group):  # a yarn's value undetermined: the spread across yarns is not known
-                    cells += ["", "left out"]
+                spans = {y: _interval(f, p) for y, f in group.items()}
+                if any(v is None for v in spans.values()):
+                    cells += ["", ""]
                     continue
-                spread = max(vals.values()) / min(vals.values())
+                total[p] += 1
+                values = " / ".join(_cell(group[y], p) for y in yarns if y in group)
+                bound = [f.label for f in group.values() if p in f.bound]
+                if bound:  # a yarn's value is only a side: the spread across yarns is not known
+                    notes.append(f"{pattern} SL{sl:g}: {p} at a bound in " + ", ".join(bound))
+                    least = max(lo / hi for y1, (lo, _) in spans.items() for y2, (_, hi) in spans.items() if y1 != y2)
+                    beyond[p] += least > factor
+                    cells += [values, f"left out (bounds: > {least:.3g})" if least > 1.0 else "left out"]
+                    continue
+                vals = [lo for lo, _ in spans.values()]
+                spread = max(vals) / min(vals)
                 cases[p] += 1
                 hits[p] += spread > factor
-                cells += [" / ".join(_g(vals[y]) for y in yarns if y in vals), f"{spread:.3g}"]
+                cells += [values, f"{spread:.3g}"]
             rows.append((pattern, f"{sl:g}", *cells))
-    verdicts = {p: _verdict(hits[p], cases[p], share, min_cases) for p in ("a", "b")}
+    verdicts = {p: _verdict(hits[p], cases[p], share, min_cases, total[p], min_determined) for p in ("a", "b")}
     if NOT_REPRODUCED in verdicts.values():
         verdict = NOT_REPRODUCED
     elif UNDETERMINED in verdicts.values():
         verdict = UNDETERMINED
     else:
         verdict = REPRODUCED
-    summary = "; ".join(f"{p} moves more than {factor:g}× across the yarns in {hits[p]} of {cases[p]} "
-                        f"pattern-stitch-length groups ({verdicts[p]})" for p in ("a", "b"))
+    parts = []
+    for p in ("a", "b"):
+        text = (f"{p} moves more than {factor:g}× across the yarns in {hits[p]} of {cases[p]} pattern-stitch-length "
+                f"groups with {p} determined for every yarn, of {total[p]}")
+        if total[p] > cases[p]:
+            text += f" (the bounds alone put it above {factor:g}× in {beyond[p]} of the {total[p] - cases[p]} others)"
+        parts.append(text + f": {verdicts[p]}")
     names = " / ".join(yarns)
     columns = ("pattern", "SL", f"a ({names}), N/mm", "a max/min", f"b ({names})", "b max/min")
-    return Trend("yarn_ab", f"the yarn moves a and b by more than {factor:g}×", verdict, summary, columns,
+    return Trend("yarn_ab", f"the yarn moves a and b by more than {factor:g}×", verdict, "; ".join(parts), columns,
                  tuple(rows), tuple(notes))
 
 
@@ -243,7 +288,7 @@ def _jersey_theta(fits: list[_Fit], share: float, min_cases: int, tol_deg: float
                  ("yarn", "SL", "θ, °", "θ − 45°", f"within {tol_deg:g}°"), rows, notes)
 
 
-def trends(rows: Iterable[Mapping[str, Any]], *, share: float = 0.75, min_cases: int = 2,
+def trends(rows: Iterable[Mapping[str, Any]], *, share: float = 0.75, min_cases: int = 2, min_determined: float = 0.5,
            theta_spread_deg: float = 5.0, yarn_factor: float = 10.0, jersey_tol_deg: float = 5.0) -> list[Trend]:
     """The paper's four trends judged on a sweep's rows (see the module's text for the rules).
 
@@ -258,8 +303,9 @@ def trends(rows: Iterable[Mapping[str, Any]], *, share: float = 0.75, min_cases:
                if len({getattr(f, k) for f in fits}) < 2]
     if missing:
         raise ValueError("the trends need fitted fabrics at 2 or more " + ", ".join(missing))
-    out = [_stitch_b(fits, share, min_cases), _pattern_theta(fits, share, min_cases, theta_spread_deg),
-           _yarn_ab(fits, share, min_cases, yarn_factor), _jersey_theta(fits, share, min_cases, jersey_tol_deg)]
+    out = [_stitch_b(fits, share, min_cases, min_determined), _pattern_theta(fits, share, min_cases, theta_spread_deg),
+           _yarn_ab(fits, share, min_cases, min_determined, yarn_factor),
+           _jersey_theta(fits, share, min_cases, jersey_tol_deg)]
     return [attrs.evolve(t, notes=t.notes + tuple(left)) for t in out]
 
 
@@ -267,11 +313,15 @@ def trends_markdown(found: Sequence[Trend], *, title: str = "The paper's trends"
     """The trends as Markdown: a verdict line per trend, then each trend's table and notes."""
     lines = [f"# {title}", "", "| trend | verdict | on what |", "|---|---|---|"]
     lines += [f"| {t.claim} | **{t.verdict}** | {t.summary} |" for t in found]
+    common = [n for n in (found[0].notes if found else ()) if all(n in t.notes for t in found)]
+    if common:
+        lines += ["", "Left out of every trend:", ""] + [f"- {n}" for n in common]
     for t in found:
         lines += ["", f"## {t.claim}: {t.verdict}", "", t.summary + ".", ""]
         if t.table:
             lines += ["| " + " | ".join(t.columns) + " |", "|" + "---|" * len(t.columns)]
             lines += ["| " + " | ".join(row) + " |" for row in t.table]
-        if t.notes:
-            lines += ["", "Left out:", ""] + [f"- {n}" for n in t.notes]
+        own = [n for n in t.notes if n not in common]
+        if own:
+            lines += ["", "Left out:", ""] + [f"- {n}" for n in own]
     return "\n".join(lines) + "\n"

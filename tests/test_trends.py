@@ -72,7 +72,11 @@ def test_b_at_a_bound_is_left_out_and_said_so():
     rows = rows_where(at_bound=bound, b=lambda p, sl, y: 1e-4 if bound(p, sl, y) else 2.0 * (13 - sl))
     found = {t.key: t for t in trends(rows)}
     assert found["stitch_b"].verdict == "undetermined"
-    assert "in 1 of 1" in found["stitch_b"].summary and "7 pair(s) left out" in found["stitch_b"].summary
+    assert "in 1 of 1" in found["stitch_b"].summary and "7 of 8 pair(s) left out" in found["stitch_b"].summary
+    # at the lower bound at SL12, b there is at most the bound: the bounds alone say larger at SL10
+    assert "b smaller at SL10 in 0, larger in 7; 0 at the same bound" in found["stitch_b"].summary
+    jersey_cotton = found["stitch_b"].table[0]
+    assert jersey_cotton[5:] == ("", "left out (the bounds say: larger)")  # no ratio of a bound
     assert any("jersey cotton: b at a bound in jersey SL12 cotton" == n for n in found["stitch_b"].notes)
     assert "(at bound)" in found["stitch_b"].table[0][4]
     # the bound values would otherwise have "reproduced" the trend: they must not count
@@ -81,7 +85,34 @@ def test_b_at_a_bound_is_left_out_and_said_so():
     # b across the yarns cannot be judged where a yarn's b is at a bound; a still can
     assert "b at a bound" in " ".join(found["yarn_ab"].notes)
     sl12 = [r for r in found["yarn_ab"].table if r[1] == "12" and r[0] != "rib"]
-    assert all(r[5] == "left out" for r in sl12) and all(r[3] == "20" for r in sl12)
+    assert all(r[5].startswith("left out") for r in sl12) and all(r[3] == "20" for r in sl12)
+
+
+def test_b_at_the_lower_bound_at_the_short_stitch_says_smaller_but_does_not_decide():
+    """As in the rod sweep: b at its lower bound at SL10 for every fabric, determined at SL11 and SL12."""
+    rows = rows_where(at_bound=lambda p, sl, y: "b" if sl == 10 else "",
+                      b=lambda p, sl, y: 1e-4 if sl == 10 else (0.05 if y == "cotton" else 0.8) * (sl - 10))
+    found = {t.key: t for t in trends(rows)}
+    assert found["stitch_b"].verdict == "undetermined"
+    assert "in 0 of 0" in found["stitch_b"].summary
+    assert "b smaller at SL10 in 8, larger in 0" in found["stitch_b"].summary
+    assert found["stitch_b"].table[0][-1] == "left out (the bounds say: smaller)"
+    # across the yarns, b is determined at SL11 and SL12 only (8 of 12 groups): judged there
+    assert "b moves more than 10× across the yarns in 8 of 8" in found["yarn_ab"].summary
+    assert "in 0 of the 4 others" in found["yarn_ab"].summary  # both yarns at the same bound: no side
+    assert found["yarn_ab"].verdict == "reproduced"
+
+
+def test_a_trend_judged_on_too_few_determined_comparisons_is_undetermined():
+    # b determined for both yarns only at SL12 of jersey and garter: 2 of 12 groups
+    free = lambda p, sl, y: sl == 12 and p in ("jersey", "garter")  # noqa: E731
+    rows = rows_where(at_bound=lambda p, sl, y: "" if free(p, sl, y) else "b",
+                      b=lambda p, sl, y: (0.5 if y == "cotton" else 7.5) if free(p, sl, y) else 1e-4)
+    found = {t.key: t for t in trends(rows)}
+    assert "b moves more than 10× across the yarns in 2 of 2 pattern-stitch-length groups with b determined for " \
+           "every yarn, of 12" in found["yarn_ab"].summary
+    assert found["yarn_ab"].verdict == "undetermined"
+    assert verdicts(rows, min_determined=0.1)["yarn_ab"] == "reproduced"
 
 
 def test_the_same_theta_for_every_pattern_is_not_reproduced():
@@ -137,6 +168,12 @@ def test_markdown_has_a_line_and_a_table_per_trend():
     assert "| a shorter stitch gives a larger b | **not reproduced** |" in text
     assert text.count("\n## ") == 4
     assert "| pattern | yarn | b SL10 | b SL11 | b SL12 | b SL10 / SL12 |  |" in text
+    # a failed point is named once, above the trends, with the first clause of its reason
+    rows = rows_where(status=lambda p, sl, y: "failed" if (p, sl, y) == ("seed", 10, "cotton") else "done")
+    rows[18]["reason"] = "NumericalError: no convergence in 400 iterations; it 395: E=15.9; it 396: E=15.9"
+    text = trends_markdown(trends(rows))
+    assert text.count("seed-sl10-cotton: failed") == 1
+    assert "- seed-sl10-cotton: failed (NumericalError: no convergence in 400 iterations), not used" in text
 
 
 # --------------------------------------------------------------------------- the sweep stage's trends.md
