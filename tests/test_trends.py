@@ -235,3 +235,37 @@ def test_the_shipped_trends_config_is_the_24_fabric_rod_sweep_with_nothing_per_f
     load = stage.jobs[0]["scenes"][0]["load"]
     assert (load["kind"], load["max_strain"], load["steps"]) == ("equibiaxial", 0.5, 10)
     assert stage.model_name == "hgo" and stage.fitter_name == "lbfgs"
+
+
+def test_a_sweep_run_writes_trends_md_and_its_verdicts(tmp_path, monkeypatch):
+    """The whole stage (run, outputs, results) with the point function replaced by fits whose trends are known."""
+    import numpy as np
+
+    import knitframe_stages.sweep as sweep
+    from knitframe.pipeline import run
+    from knitframe.records import Provenance, Response
+
+    def fake_point(job):
+        f = job["fabric"]
+        sl, yarn = f["stitch_length"], f["yarn"]["name"]
+        lam = np.linspace(1.05, 1.5, 10)
+        r = Response(lambda1=lam, lambda2=lam, T1=lam - 1.0, T2=lam - 1.0, provenance=Provenance(kind="simulation"))
+        # b larger at the shorter stitch, nylon's a 20x and b 15x cotton's, θ by pattern: every trend shown
+        fit = {"model": "hgo", "a": (0.02 if yarn == "cotton" else 0.4) * (13 - sl),
+               "b": (0.5 if yarn == "cotton" else 7.5) * (13 - sl), "theta_deg": THETA[f["pattern"]],
+               "nrmse": {"overall": 0.01}, "fitter": "lbfgs", "converged": True, "at_bound": [], "warnings": []}
+        return {"fit": fit, "responses": [r.to_dict()], "simulate_s": 0.0, "fit_s": 0.0, "wall_time_s": 0.0,
+                "warnings": [], "host": "test"}
+
+    monkeypatch.setattr(sweep, "run_point", fake_point)
+    cfg = tmp_path / "sweep.toml"
+    cfg.write_text('[sweep]\nname = "t"\ngrid = { pattern = ["jersey", "garter", "rib", "seed"], '
+                   'stitch_length = [10, 11, 12], yarn = ["cotton", "nylon"] }\n\n[sweep.solver]\nkind = "rod"\n\n'
+                   '[sweep.scene]\neffects = ["large_deformation", "bending", "contact", "prestress"]\n'
+                   'load = { kind = "equibiaxial", max_strain = 0.5, steps = 10 }\n\n[executor]\nkind = "local"\n')
+    res = run(cfg, tmp_path / "out", no_cache=True, quiet=True)
+    assert res.results["sweep"]["trends"] == {"stitch_b": "reproduced", "pattern_theta": "reproduced",
+                                              "yarn_ab": "reproduced", "jersey_theta": "reproduced"}
+    text = (tmp_path / "out" / "trends.md").read_text(encoding="utf-8")
+    assert "b larger at SL10 than at SL12 in 8 of 8" in text
+    assert "trends.md" in res.summary["outputs"]
