@@ -1,5 +1,6 @@
-"""The rod solver's multistability rule: the lowest-energy start is returned and recorded; two step
-counts end on one branch or say where they switched.
+"""The rod solver's multistability rule: the lowest-energy start is returned and recorded; a start
+whose load path fails gives way to the next by energy (recorded, warned, with its step files and
+checkpoints); two step counts end on one branch or say where they switched.
 
 The relaxed energy compared between starts is the cell's total elastic energy at zero tension,
 E = E_stretch + E_bend + E_contact (N·mm per cell). A load step k is a branch jump when the free
@@ -8,16 +9,19 @@ stretch changes by :math:`|\\Delta\\lambda_{free}| > \\max(3\\,|\\Delta\\lambda_
 
 from __future__ import annotations
 
+import json
+import re
 import warnings
 
+import meshio
 import numpy as np
 import pytest
 
 from knitframe import get_registry
-from knitframe.errors import ConfigError
+from knitframe.errors import ConfigError, KnitframeWarning, NumericalError
 from knitframe.records import Fabric, LoadPath, Scene
 from knitframe.schema import build
-from knitframe_solvers.rod import START_SET, RodSolver, is_jump, locate_jumps
+from knitframe_solvers.rod import START_SET, RodSolver, fallback_order, is_jump, locate_jumps, next_start
 
 EFFECTS = ("large_deformation", "bending", "contact", "prestress")
 
@@ -125,3 +129,215 @@ def test_following_the_branch_gives_one_path_and_one_snap_for_two_step_counts():
     assert len(ja) == len(jb) >= 1
     for x, y in zip(ja, jb):
         assert abs(x["at_loaded_stretch"][0] - y["at_loaded_stretch"][0]) <= 0.03 / 64
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Fallback: a start whose load path fails gives way to the next converged start in order of relaxed energy.
+
+def test_the_fallback_order_begins_with_the_chosen_start_and_skips_a_failed_state():
+    """The chosen start comes first (a lower energy by 1e-4 relative or less does not displace an earlier start), the
+    rest follow by energy; a start within 1e-4 of a failed one is the same state and is passed over, and says so."""
+    starts = [{"name": "a", "converged": True, "energy_Nmm": 1.0},
+              {"name": "b", "converged": True, "energy_Nmm": 1.0 - 1e-6},
+              {"name": "c", "converged": False, "energy_Nmm": None},
+              {"name": "d", "converged": True, "energy_Nmm": 0.5},
+              {"name": "e", "converged": True, "energy_Nmm": 2.0}]
+    assert fallback_order(starts[:2]) == [0, 1]
+    order = fallback_order(starts)
+    assert order == [3, 1, 0, 4]
+    starts[3]["load_error"] = "after 0 of 1 load steps: forced"
+    assert next_start(starts, order) == 1
+    starts[1]["load_error"] = "after 0 of 1 load steps: forced"
+    assert next_start(starts, order) == 4 and starts[0]["load_error"] == "not tried: the same relaxed state as 'b'"
+    starts[4]["load_error"] = "after 0 of 1 load steps: forced"
+    assert next_start(starts, order) is None
+
+
+JERSEY = dict(pattern="jersey", stitch_length=11)
+TWO_STEPS = LoadPath(kind="equibiaxial", max_strain=0.03, steps=2)
+
+
+def jersey_cotton() -> Fabric:
+    return Fabric(yarn=get_registry()["yarn"]["cotton"], **JERSEY)
+
+
+def failing_load_path(monkeypatch, fails):
+    """Make the load path fail where ``fails(path_number, tau)`` says (path_number counts load paths from 0).
+
+    Only the load path's solves are touched (``continuation`` of ``solve_load``), so the
+    pre-stress and the relaxed states of the starts are the real ones.
+    """
+    import knitframe_solvers.rod as rod
+
+    real = rod.continuation
+    paths = []
+
+    def continuation(solve_at, x0, targets, **kwargs):
+        if solve_at.__name__ != "solve_load":
+            return real(solve_at, x0, targets, **kwargs)
+        if kwargs.get("t0", 0.0) == 0.0:  # a load path begins (a fold retry continues from t0 > 0)
+            paths.append(1)
+        number = len(paths) - 1
+
+        def solve(tau, q0):
+            if fails(number, tau):
+                raise NumericalError(f"forced failure of load path {number} at t = {tau:g}")
+            return solve_at(tau, q0)
+
+        solve.__name__ = "solve_load"
+        return real(solve, x0, targets, **kwargs)
+
+    monkeypatch.setattr(rod, "continuation", continuation)
+    return paths
+
+
+def run_recording_warnings(fabric, load, outputs=(), **kwargs):
+    options = {k: kwargs.pop(k) for k in list(kwargs) if k not in ("output_dir", "checkpoint_dir")}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        r = RodSolver(**options).simulate(fabric, Scene(load=load, effects=EFFECTS, outputs=tuple(outputs)), **kwargs)
+    return r, [str(w.message) for w in caught if issubclass(w.category, KnitframeWarning)]
+
+
+@pytest.fixture(scope="module")
+def nominal_alone(tmp_path_factory):
+    """Jersey SL11 cotton from the nominal start alone, two equibiaxial steps to 3 %, with its VTU files."""
+    out = tmp_path_factory.mktemp("nominal")
+    r, _ = run_recording_warnings(jersey_cotton(), TWO_STEPS, outputs=("vtu",), starts=1, output_dir=out)
+    return r, out
+
+
+def pvd_names(folder):
+    return re.findall(r'file="([^"]+)"', (folder / "rod.pvd").read_text())
+
+
+def test_a_failed_load_path_falls_back_to_the_next_start(monkeypatch, tmp_path, nominal_alone):
+    """The lowest start's load path fails: the run continues from the next start, says so and records why.
+
+    Jersey SL11 cotton has two starts of different energy (other rest shape 61, nominal 90 N·mm).
+    With the lowest one's load path made to fail, the answer must be the nominal start's own path
+    (the same curve as ``starts = 1``), its VTU files those of the nominal path from the relaxed
+    lattice on, and the checkpoint the nominal start's.
+    """
+    single, single_out = nominal_alone
+    failing_load_path(monkeypatch, lambda path, tau: path == 0)
+    r, warned = run_recording_warnings(jersey_cotton(), TWO_STEPS, outputs=("vtu",), starts=2,
+                                       output_dir=tmp_path / "vtu", checkpoint_dir=tmp_path / "ckpt")
+    extra = r.provenance.extra
+    starts = extra["starts"]
+    lowest = min(range(2), key=lambda k: starts[k]["energy_Nmm"])
+    other = 1 - lowest
+    assert starts[lowest]["name"] == "other rest shape" and starts[other]["name"] == "nominal"
+    assert extra["start_chosen"] == "nominal" and r.provenance.converged and len(r) == 2
+    assert "forced failure of load path 0" in starts[lowest]["load_error"] and starts[lowest]["load_steps"] == 0
+    assert "\n" not in starts[lowest]["load_error"] and "load_error" not in starts[other]
+    assert extra["relaxed_energy_Nmm"] == pytest.approx(starts[other]["energy_Nmm"], rel=1e-12)
+    assert extra["relaxed_stretch"] == pytest.approx(starts[other]["relaxed_stretch"], rel=1e-12)
+    # the curve is the nominal start's own
+    for got, want in ((r.lambda1, single.lambda1), (r.lambda2, single.lambda2), (r.T1, single.T1), (r.T2, single.T2)):
+        assert np.allclose(got, want, rtol=1e-8, atol=1e-12)
+    # one warning line naming both starts and the energy difference, also in the notes
+    fallback = [w for w in warned if "could not follow the load path" in w]
+    assert len(fallback) == 1 and "\n" not in fallback[0]
+    dE = starts[other]["energy_Nmm"] - starts[lowest]["energy_Nmm"]
+    assert fallback[0].startswith("rod solver (jersey, cotton): the lowest-energy start 'other rest shape' could not "
+                                  "follow the load path (after 0 of 2 load steps: load step cut back")
+    assert "forced failure of load path 0" in fallback[0]
+    assert fallback[0].endswith(f"continued from 'nominal' (energy {dE:.4g} N·mm higher)")
+    assert fallback[0] in r.provenance.notes
+    # step files: those of the nominal path (pre-stress, relaxed lattice, 2 load steps), none of the failed one
+    names = sorted(p.name for p in (tmp_path / "vtu").glob("*.vtu"))
+    assert names == sorted(p.name for p in single_out.glob("*.vtu")) == pvd_names(tmp_path / "vtu")
+    for name in names[-3:]:
+        assert np.allclose(meshio.read(tmp_path / "vtu" / name).points, meshio.read(single_out / name).points,
+                           rtol=1e-9, atol=1e-9)
+    # the last checkpoint is the nominal path's last step and records the failed start
+    saved = sorted((tmp_path / "ckpt").glob("step-*.npz"))
+    assert [p.stem for p in saved] == [f"step-{k:04d}" for k in range(len(names))]
+    with np.load(saved[-1]) as data:
+        meta = json.loads(str(data["__meta__"]))
+        assert meta["start_chosen"] == "nominal" and "load_error" in meta["starts"][lowest]
+        assert data["starts_q"].shape[0] == 2 and np.allclose(data["rows"], np.column_stack(
+            [single.lambda1, single.lambda2, single.T1, single.T2]), rtol=1e-8, atol=1e-12)
+
+
+class Killed(BaseException):
+    """Stands for the process dying."""
+
+
+def test_a_run_killed_after_the_fallback_resumes_from_the_start_it_fell_back_to(monkeypatch, tmp_path, nominal_alone):
+    """Killed after the first load step of the fallback path, the resumed run (nothing forced any more) continues
+    from the start in the checkpoint, not from the lowest one, and ends as the uninterrupted fallback would."""
+    import knitframe_solvers.rod as rod
+
+    single, _ = nominal_alone
+    failing_load_path(monkeypatch, lambda path, tau: path == 0)
+    real_save = rod.StepCheckpoints.save
+
+    def save(self, index, arrays, meta):
+        out = real_save(self, index, arrays, meta)
+        if meta["start_chosen"] == "nominal" and meta["phase"] == "load" and meta["target"] == 0:
+            raise Killed
+        return out
+
+    monkeypatch.setattr(rod.StepCheckpoints, "save", save)
+    with pytest.raises(Killed):
+        run_recording_warnings(jersey_cotton(), TWO_STEPS, outputs=("vtu",), starts=2, output_dir=tmp_path / "vtu",
+                               checkpoint_dir=tmp_path / "ckpt")
+    monkeypatch.undo()
+    r, warned = run_recording_warnings(jersey_cotton(), TWO_STEPS, outputs=("vtu",), starts=2,
+                                       output_dir=tmp_path / "vtu", checkpoint_dir=tmp_path / "ckpt")
+    extra = r.provenance.extra
+    assert extra["start_chosen"] == "nominal" and len(r) == 2
+    assert any("forced failure" in s.get("load_error", "") for s in extra["starts"])
+    assert np.allclose(r.T1, single.T1, rtol=1e-8) and np.allclose(r.lambda2, single.lambda2, rtol=1e-8)
+    assert sum("could not follow the load path" in w for w in warned) == 1
+    names = sorted(p.name for p in (tmp_path / "vtu").glob("*.vtu"))
+    assert names == pvd_names(tmp_path / "vtu") and len(names) == len(list((tmp_path / "ckpt").glob("step-*.npz")))
+
+
+def test_when_every_start_fails_the_run_fails_or_keeps_the_furthest(monkeypatch):
+    """Every load path fails: "raise" names each start's failure in one line; "truncate" keeps the rows of the start
+    that got furthest (here both stop after step 1, so the lower-energy one, replayed without a new solve)."""
+    failing_load_path(monkeypatch, lambda path, tau: path == 0 or tau > 1.0 + 1e-9)
+    with pytest.raises(NumericalError) as err:
+        run_recording_warnings(jersey_cotton(), TWO_STEPS, starts=2)
+    text = str(err.value)
+    assert "\n" not in text and text.startswith("rod solver (jersey, cotton): no start could follow the load path: "
+                                                "'other rest shape' after 0 of 2 load steps: load step cut back")
+    assert "forced failure of load path 0" in text
+    assert "'nominal' after 1 of 2 load steps: load step cut back" in text
+
+    paths = failing_load_path(monkeypatch, lambda path, tau: tau > 1.0 + 1e-9)
+    r, warned = run_recording_warnings(jersey_cotton(), TWO_STEPS, starts=2, on_failure="truncate")
+    extra = r.provenance.extra
+    assert len(paths) == 2  # each start's path once; the kept one is replayed, not solved again
+    assert not r.provenance.converged and len(r) == 1 and extra["start_chosen"] == "other rest shape"
+    assert all(s["load_steps"] == 1 for s in extra["starts"])
+    assert "kept the rows of 'other rest shape', which got furthest" in r.provenance.notes
+    assert not any("could not follow the load path" in w for w in warned)
+    assert extra["relaxed_stretch"] == pytest.approx(extra["starts"][1]["relaxed_stretch"], rel=1e-12)
+    # the kept row is the lowest start's own first step
+    monkeypatch.undo()
+    lowest, _ = run_recording_warnings(jersey_cotton(), TWO_STEPS, starts=2)
+    assert r.T1[0] == pytest.approx(lowest.T1[0], rel=1e-8) and r.lambda2[0] == pytest.approx(lowest.lambda2[0], rel=1e-8)
+
+
+@pytest.mark.slow
+def test_garter_pearl_cotton_finishes_from_the_next_start():
+    """The case that failed from the lowest start: garter pearl cotton, free sides, course to 0.58317 in 12 steps.
+
+    The lowest-energy relaxed state cannot be pulled past about 12 % strain; the run continues
+    from the next start, finishes, and says which start failed and why.
+    """
+    fab = Fabric(yarn=get_registry()["yarn"]["pearl-cotton"], **GARTER)
+    r, warned = run_recording_warnings(fab, LoadPath(kind="uniaxial", direction="course", max_strain=0.58317,
+                                                     steps=12))
+    extra = r.provenance.extra
+    starts = extra["starts"]
+    lowest = min((k for k, s in enumerate(starts) if s["converged"]), key=lambda k: starts[k]["energy_Nmm"])
+    assert r.provenance.converged and len(r) == 12 and r.lambda1[-1] == pytest.approx(1.58317, rel=1e-9)
+    assert extra["start_chosen"] != starts[lowest]["name"]
+    assert "load_error" in starts[lowest] and "Newton" in starts[lowest]["load_error"]
+    assert sum("could not follow the load path" in w for w in warned) == 1
+    assert np.all(np.isfinite(r.T1)) and r.T1[-1] > 0

@@ -37,12 +37,23 @@ run needs to retrace the same path; the provenance reports the relaxed lattice a
 Stiff yarns in tight cells can be multistable: different pre-stress paths relax to different
 states. The solver therefore explores a small documented set of starts (:data:`START_SET`,
 option ``starts``): each is pre-stressed and relaxed, and the load path continues from the one
-of lowest relaxed energy E = Σ (stretching + bending + contact) at zero tension. Every start, its
-energy and whether it converged are in ``provenance.extra['starts']``, the chosen one in
-``provenance.extra['start_chosen']``. Under a uniaxial load a step whose free side jumps
-(:func:`branch_jumps`) is cut back (option ``follow_branch``), so the path follows its branch to
-where it ends, whatever the step count; a jump that survives the smallest increment is a real
-snap and is flagged with the loaded stretch where it happened.
+of lowest relaxed energy E = Σ (stretching + bending + contact) at zero tension. If that start's
+load path fails (a NumericalError that would end or truncate the run), the path is followed again
+from the next converged start in order of E (:func:`fallback_order`; a start within
+:data:`SAME_ENERGY` of a failed one is the same state and is passed over, :func:`next_start`),
+and so on: the first start whose path finishes is the answer, with one warning naming the start
+that failed, why, and how much higher the used start's E is. Only when every start fails does the
+run fail, or, with ``on_failure = "truncate"``, keep the rows of the start that got furthest (the
+lower E of a tie). On a fallback the steps from the relaxed lattice on are rewritten for the new
+start (checkpoints and VTU files alike), and every checkpoint carries all starts' relaxed states,
+so a resumed run continues from the start recorded in it and can still fall back. Every start, its
+energy, whether it converged and, if its load path failed, ``load_error`` (one line) and
+``load_steps`` (the load steps it reached) are in ``provenance.extra['starts']``, the start the
+rows come from in ``provenance.extra['start_chosen']``. Under a uniaxial load a step whose free
+side jumps (:func:`branch_jumps`) is cut back (option ``follow_branch``), so the path follows its
+branch to where it ends, whatever the step count; a jump that survives the smallest increment is
+a real snap, and where Newton fails at the fold ending the followed branch the step may jump once
+from its last converged state; either is flagged with the loaded stretch where it happened.
 """
 
 from __future__ import annotations
@@ -199,7 +210,7 @@ class RodSolver:
     contact_law: str | dict[str, Any] = "rod_penalty"  #: rod contact-law plugin name or table with ``kind``
     prestress_steps: int = attrs.field(default=8, validator=v.in_range(1, 1000))  #: steps growing the contact radius, -
     prestress_start: Literal["auto", "straight", "knitted"] = "auto"  #: yarn rest shape during the pre-stress: straight throughout, or the knitted shape released to straight; "auto" tries straight, then knitted
-    starts: int | Literal["auto"] = attrs.field(default="auto", validator=start_count)  #: pre-stress starts explored, the first n of nominal, other rest shape (straight/knitted), 1.5x the pre-stress steps, loop depth x0.5, x1.5; the load continues from the lowest relaxed energy; "auto": the first 3
+    starts: int | Literal["auto"] = attrs.field(default="auto", validator=start_count)  #: pre-stress starts explored, the first n of nominal, other rest shape (straight/knitted), 1.5x the pre-stress steps, loop depth x0.5, x1.5; the load continues from the lowest relaxed energy, or from the next if that load path fails; "auto": the first 3
     follow_branch: bool = True  #: under a uniaxial load, cut back a step whose free side jumps so the path follows its branch; a jump left at the smallest increment is flagged with where it happened
     initial_radius: float = attrs.field(default=0.7, validator=v.in_range(0.0, 1.0, lo_open=True))  #: largest start of the pre-stress radius / (dk/2), -
     self_contact_exclusion: float = attrs.field(default=np.pi, validator=v.positive)  #: same-strand pairs closer than this × dk along the yarn are neighbours, -
@@ -366,22 +377,29 @@ class RodSolver:
             return x
 
         rows: list[tuple[float, float, float, float]] = []
-        snaps: list[dict[str, list[float]]] = []  # jumps left at the smallest load increment
         q = np.zeros(model.n_dof)
         kappa_knitted = model.curvature(q)
         dk_full = cell.dk
-        # what a checkpoint carries besides q and rows, so a resumed run retraces the same path
+        # what a checkpoint carries besides q, rows and the starts' relaxed states, so a resumed run
+        # retraces the same path: relaxed_step is the step index of the relaxed lattice (a fallback to
+        # another start rewrites the steps from there); snaps are the jumps the load path kept
         state: dict[str, Any] = {"phase": "prestress", "target": -1, "dk": energy.dk, "dk0": None, "lam_ref": None,
-                                 "start": None, "relaxed_energy": None, "starts": [], "start_chosen": None}
+                                 "start": None, "relaxed_energy": None, "starts": [], "start_chosen": None,
+                                 "relaxed_step": None, "snaps": []}
+        # the relaxed state of every start (row i: state["starts"][i]; NaN where it did not converge)
+        start_states = np.zeros((0, model.n_dof))
         step_counter = [0]
         if ckpt is not None and (saved := ckpt.latest()) is not None:
             index, arrays, meta = saved
             q = arrays["q"]
             rows = [tuple(r) for r in arrays["rows"].tolist()]
+            start_states = arrays.get("starts_q", start_states)
             state.update({k: meta.get(k) for k in state})
+            state["snaps"] = state["snaps"] or []
             energy.dk = float(meta["dk"])
             step_counter[0] = index + 1
             ckpt.announce(index, total)
+        snaps: list[dict[str, Any]] = state["snaps"]  # jumps left at the smallest load increment
         series = StepSeries(output_dir, "rod", step_counter[0]) if vtu else None
         notes: list[str] = []
         converged = True
@@ -391,9 +409,25 @@ class RodSolver:
             if series is not None:  # before the checkpoint: every checkpointed step has its file
                 series.write(step_counter[0], lambda path: write_rod_vtu(path, model, qv, 0.5 * energy.dk))
             if ckpt is not None:
-                ckpt.save(step_counter[0], {"q": qv, "rows": np.array(rows, dtype=np.float64).reshape(-1, 4)}, state)
+                ckpt.save(step_counter[0], {"q": qv, "rows": np.array(rows, dtype=np.float64).reshape(-1, 4),
+                                            "starts_q": start_states}, state)
             step_counter[0] += 1
             report(done, total, message)
+
+        def rewind(step: int) -> None:
+            """Drop the checkpoints and VTU files after step ``step``; the next step written is ``step``.
+
+            Checkpoints go first, the latest first, so a run killed on the way resumes from a
+            checkpoint whose files are all there; the file of ``step`` itself is rewritten next.
+            """
+            nonlocal series
+            if ckpt is not None:
+                for path in sorted(ckpt.directory.glob("step-*.npz"), reverse=True):
+                    if path.stem[5:].isdigit() and int(path.stem[5:]) > step and checkpoint_key(path) == ckpt.key:
+                        path.unlink(missing_ok=True)
+            if series is not None:
+                series = StepSeries(output_dir, "rod", step + 1)
+            step_counter[0] = step
 
         def initial_distance(q0: np.ndarray) -> float:
             """Where the pre-stress from state q0 starts: small enough that no two centerlines overlap."""
@@ -460,11 +494,16 @@ class RodSolver:
             Records every start (rest shape, pre-stress steps, loop depth, converged, E, relaxed
             stretches) in ``state["starts"]`` and the chosen one in ``state["start_chosen"]``. A
             start replaces the best so far only if its energy is lower by more than
-            :data:`SAME_ENERGY` relative, so one state reached twice keeps the earlier start.
+            :data:`SAME_ENERGY` relative, so one state reached twice keeps the earlier start. The
+            relaxed states go to ``start_states`` (checkpointed with every later step), from which
+            a failed load path falls back to the next start (:func:`fallback_order`).
             """
+            nonlocal start_states
             count = AUTO_STARTS if self.starts == "auto" else int(self.starts)
             chosen, q_best = 0, q_nominal
             best = float(energy(q_nominal, 0)[0])
+            start_states = np.full((count, model.n_dof), np.nan)
+            start_states[0] = q_nominal
             entries = [{"name": START_SET[0].name, "rest": state["start"], "prestress_steps": self.prestress_steps,
                         "amplitude": 1.0, "converged": True, "energy_Nmm": best, "relaxed_stretch": stretch_of(q_nominal)}]
             for k, st in enumerate(START_SET[1:count], start=1):
@@ -484,6 +523,7 @@ class RodSolver:
                     entry.update(converged=False, energy_Nmm=None, relaxed_stretch=None, error=str(e))
                 else:
                     entry.update(converged=True, energy_Nmm=E, relaxed_stretch=stretch_of(qk))
+                    start_states[k] = qk
                     if E < best - SAME_ENERGY * abs(best):
                         chosen, q_best, best = k, qk, E
                 finally:
@@ -526,8 +566,7 @@ class RodSolver:
                 q = relaxed(q)
                 if prestress:
                     q = explore_starts(q)
-                state["lam_ref"] = stretch_of(q)
-                state["relaxed_energy"] = float(energy(q, 0)[0])
+                state.update(lam_ref=stretch_of(q), relaxed_energy=float(energy(q, 0)[0]), relaxed_step=step_counter[0])
                 after("load", -1, q, "relaxed lattice" if self.relax else "start of the load path", offset)
             lam_ref = state["lam_ref"]
 
@@ -586,21 +625,101 @@ class RodSolver:
                 rows.append((l1 / lam_ref[0], l2 / lam_ref[1], T1 / lam_ref[1], T2 / lam_ref[0]))
                 k = int(round(tau))
                 follow["cut"] = False
+                path_states.append(q)
                 after("load", k - 1, q, f"load step {k}/{n_load}", offset + k)
 
-            t_at, q_at = float(start_index + 1), q
+            def follow_load(t_at: float, q_at: np.ndarray) -> None:
+                """The load path from load time ``t_at`` and state ``q_at`` to its end; NumericalError if it fails."""
+                while True:
+                    try:
+                        continuation(solve_load, q_at, list(np.arange(np.floor(t_at) + 1, n_load + 1, dtype=float)),
+                                     t0=t_at, min_fraction=self.min_step_fraction, on_target=on_load)
+                        return
+                    except NumericalError:
+                        last = follow["last"]
+                        # the branch was followed to its fold, where Newton fails (after a cut-back for a jump,
+                        # or with no jump seen, the followed branch ending inside the step): from the last
+                        # converged state this load step may jump (it is flagged with where); once per step
+                        if not (watch and last is not None and follow["lenient"] < np.floor(last[0]) + 1):
+                            raise
+                        t_at, q_at = last
+                        follow.update(cut=False, lenient=float(np.floor(t_at) + 1))
+
+            def switch_to(k: int) -> np.ndarray:
+                """Start k's relaxed state begins the load path: the steps from the relaxed lattice on are rewritten."""
+                nonlocal lam_ref
+                entry = state["starts"][k]
+                qk = start_states[k].copy()
+                rewind(state["relaxed_step"])
+                rows.clear()
+                snaps.clear()
+                path_states.clear()
+                follow.update(cut=False, last=None, lenient=-1.0)
+                state.update(lam_ref=stretch_of(qk), relaxed_energy=float(entry["energy_Nmm"]),
+                             start_chosen=entry["name"])
+                lam_ref = state["lam_ref"]
+                after("load", -1, qk, f"relaxed lattice (start '{entry['name']}')", offset)
+                return qk
+
+            # ---- fallback: a start whose load path fails gives way to the next in order of relaxed energy
+            entries = state["starts"]
+            names = [e["name"] for e in entries]
+            order = fallback_order(entries)
+            # a fallback needs the starts' relaxed states (a checkpoint of an older version has none)
+            can_fall_back = (len(order) > 1 and state["relaxed_step"] is not None
+                             and len(start_states) == len(entries) and state["start_chosen"] in names)
+            path_states: list[np.ndarray] = []  # q of each converged load step of this path since this run began
+            tried: dict[int, tuple[list, list, list]] = {}  # start -> its failed path (rows, states, snaps)
+            all_failed = False
+            t_at = float(start_index + 1)
             while True:
                 try:
-                    continuation(solve_load, q_at, list(np.arange(np.floor(t_at) + 1, n_load + 1, dtype=float)),
-                                 t0=t_at, min_fraction=self.min_step_fraction, on_target=on_load)
+                    follow_load(t_at, q)
                     break
-                except NumericalError:
-                    if not (follow["cut"] and follow["last"] is not None):
+                except NumericalError as e:
+                    if not can_fall_back:
                         raise
-                    # the branch was followed to its fold, where Newton fails: from the last converged
-                    # state this load step may jump (it is flagged with where)
-                    t_at, q_at = follow["last"]
-                    follow.update(cut=False, lenient=float(np.floor(t_at) + 1))
+                    error = e
+                current = names.index(state["start_chosen"])
+                entries[current].update(load_error=f"after {len(rows)} of {n_load} load steps: {first_clause(str(error))}",
+                                        load_steps=len(rows))
+                if len(path_states) == len(rows):  # the whole path is in memory (not resumed midway)
+                    tried[current] = (list(rows), list(path_states), [dict(sn) for sn in snaps])
+                nxt = next_start(entries, order)
+                if nxt is None:
+                    all_failed = True
+                    break
+                q, t_at = switch_to(nxt), 0.0
+            if all_failed:
+                summary = "; ".join(f"'{entries[k]['name']}' {entries[k]['load_error']}" for k in order)
+                furthest = max(order, key=lambda k: (entries[k].get("load_steps", 0), -order.index(k)))
+                if self.on_failure == "truncate" and entries[furthest].get("load_steps", 0) > 0:
+                    # keep the rows of the start that got furthest (the lower energy of a tie)
+                    if names[furthest] != state["start_chosen"]:
+                        q = switch_to(furthest)
+                        if furthest in tried:  # replayed from memory: no solve
+                            kept_rows, kept_states, kept_snaps = tried[furthest]
+                            snaps.extend(kept_snaps)
+                            for k, (row, qv) in enumerate(zip(kept_rows, kept_states), start=1):
+                                rows.append(row)
+                                q = qv
+                                after("load", k - 1, qv, f"load step {k}/{n_load}", offset + k)
+                        else:  # tried before a resume: its path is followed again to where it fails
+                            try:
+                                follow_load(0.0, q)
+                            except NumericalError:
+                                pass
+                    summary += f"; kept the rows of '{names[furthest]}', which got furthest"
+                raise NumericalError(f"no start could follow the load path: {summary}")
+            if can_fall_back and state["start_chosen"] != names[order[0]]:  # fell back
+                first, used = entries[order[0]], entries[names.index(state["start_chosen"])]
+                others = "".join(f"; nor could '{entries[k]['name']}' ({entries[k]['load_error']})" for k in order[1:]
+                                 if "load_steps" in entries[k])
+                message = (f"rod solver ({fabric.pattern}, {fabric.yarn.name}): the lowest-energy start '{first['name']}' "
+                           f"could not follow the load path ({first['load_error']}){others}; continued from "
+                           f"'{used['name']}' (energy {used['energy_Nmm'] - first['energy_Nmm']:.4g} N·mm higher)")
+                notes.append(message)
+                warnings.warn(message, KnitframeWarning, stacklevel=2)
         except NumericalError as e:
             if self.on_failure == "raise" or not rows:
                 raise NumericalError(f"rod solver ({fabric.pattern}, {fabric.yarn.name}): {e}") from None
@@ -632,6 +751,57 @@ class RodSolver:
         )
         return Response(arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3], load=key,
                         label=f"rod {fabric.pattern} {size} {fabric.yarn.name}", provenance=prov)
+
+
+def fallback_order(starts: list[dict[str, Any]]) -> list[int]:
+    """The converged starts in the order a failed load path falls back in: the chosen one, then the rest by relaxed energy.
+
+    The chosen start is the one :func:`RodSolver.simulate` loads first: a start replaces the best
+    so far only if its energy E is lower by more than :data:`SAME_ENERGY` relative. The others
+    follow by E (the earlier start of a tie).
+    """
+    ok = [k for k, s in enumerate(starts) if s.get("converged") and s.get("energy_Nmm") is not None]
+    if not ok:
+        return []
+    first = ok[0]
+    for k in ok[1:]:
+        if starts[k]["energy_Nmm"] < starts[first]["energy_Nmm"] - SAME_ENERGY * abs(starts[first]["energy_Nmm"]):
+            first = k
+    return [first] + sorted((k for k in ok if k != first), key=lambda k: (starts[k]["energy_Nmm"], k))
+
+
+def next_start(starts: list[dict[str, Any]], order: list[int]) -> int | None:
+    """The next start to follow the load path from after a failure, or None when none is left.
+
+    Starts whose path failed carry ``load_error``. A start whose relaxed energy is within
+    :data:`SAME_ENERGY` (relative) of a failed one is the same state and would fail the same
+    way: it is marked as not tried, with the failed start's name, and passed over.
+    """
+    failed = [k for k in order if "load_error" in starts[k]]
+    for k in order:
+        if "load_error" in starts[k]:
+            continue
+        E = starts[k]["energy_Nmm"]
+        same = [j for j in failed if abs(E - starts[j]["energy_Nmm"]) <= SAME_ENERGY * abs(starts[j]["energy_Nmm"])]
+        if same:
+            starts[k]["load_error"] = f"not tried: the same relaxed state as '{starts[same[0]]['name']}'"
+            continue
+        return k
+    return None
+
+
+def first_clause(message: str) -> str:
+    """A NumericalError's message up to its first "; " (the Newton trace after it is left out)."""
+    return message.split("; ", 1)[0]
+
+
+def checkpoint_key(path: Path) -> str | None:
+    """The run key a :class:`~knitframe.newton.StepCheckpoints` file was saved under, or None if unreadable."""
+    try:
+        with np.load(path) as data:
+            return json.loads(str(data["__meta__"])).get("key")
+    except (OSError, ValueError, KeyError):
+        return None
 
 
 def is_jump(d_load: Any, d_free: Any, ratio: float = JUMP_RATIO, floor: float = JUMP_FLOOR) -> Any:
