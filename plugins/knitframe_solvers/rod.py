@@ -89,6 +89,9 @@ __all__ = ["RodSolver", "rod_stiffness", "write_rod_vtu"]
 RELAX_DECADES = 6
 #: a load step's free stretch jumps when it changes by more than JUMP_RATIO × the loaded stretch's change and JUMP_FLOOR
 JUMP_RATIO, JUMP_FLOOR = 3.0, 0.02
+#: with no free side, a step whose stretch grows while its tension falls by more than this fraction of
+#: the tension before it, and by more than DROP_FLOOR × the path's largest |tension|, is a snap
+DROP_FRACTION, DROP_FLOOR = 0.10, 0.01
 #: with ``follow_branch`` an increment is cut back already when the free change passes CUT_RATIO × the loaded one
 #: (and JUMP_FLOOR): a smooth path passes once the increment is small enough, a snap never does
 CUT_RATIO = 1.0
@@ -728,7 +731,15 @@ class RodSolver:
         arr = np.array(rows, dtype=np.float64).reshape(-1, 4)
         load = scene.load
         jumps = locate_jumps(branch_jumps(arr, load), snaps, arr, load)
-        for j in jumps:
+        drops = tension_drops(arr, load)
+        for j in drops:
+            message = (f"rod solver ({fabric.pattern}, {fabric.yarn.name}): load step {j['step']} snapped to another "
+                       f"equilibrium state: the {j['direction']} tension fell {j['from']:.4g} -> {j['to']:.4g} N/mm "
+                       f"while its stretch grew; the curve after it is another state")
+            notes.append(message)
+            warnings.warn(message, KnitframeWarning, stacklevel=2)
+        jumps = sorted(jumps + drops, key=lambda j: j["step"])
+        for j in (j for j in jumps if "free" in j):
             where = ("" if "at_loaded_stretch" not in j else
                      " (between loaded stretch {:.4f} and {:.4f}, {})".format(*j["at_loaded_stretch"], j["how"]))
             message = (f"rod solver ({fabric.pattern}, {fabric.yarn.name}): load step {j['step']} jumped to another "
@@ -832,6 +843,33 @@ def branch_jumps(rows: np.ndarray, load: Any, *, ratio: float = JUMP_RATIO, floo
         out.append({"step": int(k) + 1, "free": "wale" if k_free else "course", "from": float(lam[k, k_free]),
                     "to": float(lam[k + 1, k_free]), "loaded_change": float(d_load[k])})
     return out
+
+
+def tension_drops(rows: np.ndarray, load: Any, *, fraction: float = DROP_FRACTION,
+                  floor: float = DROP_FLOOR) -> list[dict[str, Any]]:
+    r"""Load steps of a path with no free side (equibiaxial, general) where a tension falls.
+
+    ``rows`` holds (λ1, λ2, T1, T2) per converged load step. Along a direction d whose stretch
+    grows in step k (Δλ_d > 0), the step is a snap to another equilibrium state when its tension
+    falls by more than ``fraction`` of the tension before it and by more than ``floor`` times
+    the path's largest |T|:
+    :math:`T_d^{k-1} - T_d^{k} > \max(\mathrm{fraction}\,|T_d^{k-1}|, \mathrm{floor}\,\max|T|)`.
+    A cell that stays on one branch stiffens or softens smoothly under a growing stretch; its
+    tension does not fall. Uniaxial paths are checked by :func:`branch_jumps` instead.
+    """
+    if getattr(load, "kind", None) == "uniaxial" or len(rows) == 0:
+        return []
+    lam = np.vstack([[1.0, 1.0], rows[:, :2]])
+    T = np.vstack([[0.0, 0.0], rows[:, 2:4]])
+    scale = floor * float(np.max(np.abs(T)))
+    out = []
+    for d, name in ((0, "course"), (1, "wale")):
+        grows = np.diff(lam[:, d]) > 0
+        fall = T[:-1, d] - T[1:, d]
+        for k in np.flatnonzero(grows & (fall > np.maximum(fraction * np.abs(T[:-1, d]), scale))):
+            out.append({"step": int(k) + 1, "direction": name, "from": float(T[k, d]), "to": float(T[k + 1, d]),
+                        "kind": "tension drop"})
+    return sorted(out, key=lambda j: (j["step"], j["direction"]))
 
 
 def locate_jumps(jumps: list[dict[str, Any]], snaps: list[dict[str, list[float]]], rows: np.ndarray,
