@@ -63,6 +63,15 @@ def installed_plugin():
     _pip("uninstall", "-y", DIST)
 
 
+@pytest.fixture(scope="session")
+def example_run(tmp_path_factory):
+    """The built-in example run once through the Python API for the session: (PipelineResult, output folder)."""
+    import knitframe
+
+    out = tmp_path_factory.mktemp("example") / "ex"
+    return knitframe.run(knitframe.example_config(), out), out
+
+
 @pytest.fixture
 def singal_file():
     """Path of a real Singal et al. 2024 test file: the tests' copy, else the package's example copy."""

@@ -130,7 +130,7 @@ def test_periodic_derivatives_in_the_macro_dofs():
     assert np.allclose(H[:, n:] @ dh, (Ep[1] - Em[1]) / (2 * eps), atol=1e-6 * np.abs(H).max())
 
 
-@pytest.mark.parametrize("ccd", ["additive", "tight-inclusion"])
+@pytest.mark.parametrize("ccd", ["additive", pytest.param("tight-inclusion", marks=pytest.mark.slow)])
 def test_step_limit_stops_a_step_before_the_surfaces_cross(ccd):
     """CCD: a step that would push a block through its image is cut to a crossing-free fraction."""
     law = SolidIPC(dhat=0.1, ccd=ccd)

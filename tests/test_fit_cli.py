@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from knitframe import example_config, run
+from knitframe import run
 
 
 def test_fit_cli_writes_params_and_plot(cli, tmp_path, singal_file):
@@ -58,10 +58,10 @@ def test_fit_cli_unknown_model(cli, tmp_path, singal_file):
     assert r.returncode == 2 and "available: hgo, hgo2m" in r.stderr
 
 
-def test_example_pipeline_ends_with_a_fit(tmp_path):
+def test_example_pipeline_ends_with_a_fit(example_run):
     """The built-in example imports the cotton jersey tests and ends with a fitted model and its plot."""
-    res = run(example_config(), tmp_path / "ex")
-    assert (tmp_path / "ex" / "params.json").exists() and (tmp_path / "ex" / "fit.png").exists()
+    res, out = example_run
+    assert (out / "params.json").exists() and (out / "fit.png").exists()
     assert len(res.models) == 1 and res.results["fit"]["nrmse"]["overall"] < 0.05
     assert res.summary["plugins"]["homogenizer:hgo"]["package"] == "knitframe"
 

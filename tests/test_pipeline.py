@@ -14,10 +14,9 @@ from knitframe.errors import ConfigError
 from knitframe.pipeline import Pipeline
 
 
-def test_example_imports_real_data_and_writes_csv_plot_summary(tmp_path):
+def test_example_imports_real_data_and_writes_csv_plot_summary(example_run):
     """The built-in example reads the Singal files as Responses and writes CSV, PNG and summary.json."""
-    out = tmp_path / "ex"
-    res = knitframe.run(knitframe.example_config(), out)
+    res, out = example_run
     loads = sorted(r.load for r in res.responses if r.provenance.kind == "experiment")
     assert loads == ["uniaxial-course", "uniaxial-wale"]
     course = next(r for r in res.responses if r.load == "uniaxial-course")
