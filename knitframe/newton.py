@@ -688,16 +688,31 @@ class StepCheckpoints:
         logging.getLogger("knitframe").info("resuming from step %d of %d (checkpoint %s)", index + 1, total,
                                             self.directory / f"step-{index:04d}.npz")
 
-    def latest(self) -> tuple[int, dict[str, np.ndarray], dict[str, Any]] | None:
-        """The highest saved step of this run's key, or None."""
+    def _mine(self):
+        """(index, path, meta) of this run's readable checkpoints, the latest first."""
         for path in sorted(self.directory.glob("step-*.npz"), reverse=True):
             try:
                 with np.load(path) as data:
                     meta = json.loads(str(data["__meta__"]))
-                    if meta.get("key") != self.key:
-                        continue
+            except (OSError, ValueError, KeyError):
+                continue
+            if meta.get("key") == self.key:
+                yield int(meta["index"]), path, meta
+
+    def latest(self) -> tuple[int, dict[str, np.ndarray], dict[str, Any]] | None:
+        """The highest saved step of this run's key, or None."""
+        for index, path, meta in self._mine():
+            try:
+                with np.load(path) as data:
                     arrays = {k: data[k] for k in data.files if k != "__meta__"}
             except (OSError, ValueError, KeyError):
                 continue
-            return int(meta["index"]), arrays, meta
+            return index, arrays, meta
         return None
+
+    def discard_after(self, index: int) -> None:
+        """Delete this run's checkpoints of steps after ``index``, the latest first (a run killed on the
+        way resumes from a checkpoint whose earlier steps are all there); other runs' files are kept."""
+        for i, path, _ in list(self._mine()):
+            if i > index:
+                path.unlink(missing_ok=True)

@@ -712,3 +712,16 @@ def test_chord_full_steps_go_on_within_twice_the_step_test_under_linear_converge
     after_near = [b.get("chord", False) for a, b in zip(res.history[:-1], res.history[1:])
                   if not a.get("chord") and a.get("alpha") == 1.0 and 1e-3 < a.get("step", 0.0) <= 2e-3]
     assert any(after_near)
+
+
+def test_checkpoints_after_a_step_are_discarded_for_this_run_only(tmp_path):
+    """discard_after(i) removes this run's steps after i; another run's file in the folder stays."""
+    mine, other = StepCheckpoints(tmp_path, "a"), StepCheckpoints(tmp_path, "b")
+    for i in range(4):
+        mine.save(i, {"q": np.full(2, float(i))}, {})
+    other.save(5, {"q": np.zeros(2)}, {})
+    mine.discard_after(1)
+    assert sorted(p.name for p in tmp_path.glob("step-*.npz")) == ["step-0000.npz", "step-0001.npz", "step-0005.npz"]
+    index, arrays, _ = mine.latest()
+    assert index == 1 and arrays["q"][0] == 1.0
+    assert other.latest()[0] == 5

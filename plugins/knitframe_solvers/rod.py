@@ -425,9 +425,7 @@ class RodSolver:
             """
             nonlocal series
             if ckpt is not None:
-                for path in sorted(ckpt.directory.glob("step-*.npz"), reverse=True):
-                    if path.stem[5:].isdigit() and int(path.stem[5:]) > step and checkpoint_key(path) == ckpt.key:
-                        path.unlink(missing_ok=True)
+                ckpt.discard_after(step)
             if series is not None:
                 series = StepSeries(output_dir, "rod", step + 1)
             step_counter[0] = step
@@ -804,15 +802,6 @@ def next_start(starts: list[dict[str, Any]], order: list[int]) -> int | None:
 def first_clause(message: str) -> str:
     """A NumericalError's message up to its first "; " (the Newton trace after it is left out)."""
     return message.split("; ", 1)[0]
-
-
-def checkpoint_key(path: Path) -> str | None:
-    """The run key a :class:`~knitframe.newton.StepCheckpoints` file was saved under, or None if unreadable."""
-    try:
-        with np.load(path) as data:
-            return json.loads(str(data["__meta__"])).get("key")
-    except (OSError, ValueError, KeyError):
-        return None
 
 
 def is_jump(d_load: Any, d_free: Any, ratio: float = JUMP_RATIO, floor: float = JUMP_FLOOR) -> Any:
