@@ -42,8 +42,13 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("runs", nargs="+", help="JSON files written by bench_volumetric.py run --save")
     ap.add_argument("--segments", type=int, default=16, help="rod segments per stitch")
-    ap.add_argument("--rod-bending", type=float, nargs="*", default=[],
-                    help="also run the rod with these bending stiffnesses EI, N·mm² (default: the yarn's own)")
+    ap.add_argument(
+        "--rod-bending",
+        type=float,
+        nargs="*",
+        default=[],
+        help="also run the rod with these bending stiffnesses EI, N·mm² (default: the yarn's own)",
+    )
     ap.add_argument("--json", help="also write the rows here")
     args = ap.parse_args(argv)
     reg = knitframe.get_registry()
@@ -56,43 +61,68 @@ def main(argv=None) -> None:
         scene = Scene.from_dict(data["scene"], "scene")
         vol = Response.from_dict(data["response"], "response")
         dropped = sorted(scene.effects - rod.effects)
-        rod_scene = Scene.from_dict({**scene.to_dict(), "effects": sorted(scene.effects & rod.effects)}, "scene")
+        rod_scene = Scene.from_dict(
+            {**scene.to_dict(), "effects": sorted(scene.effects & rod.effects)}, "scene"
+        )
         fv = fitted(reg, vol)
         for EI in [None, *args.rod_bending]:
-            rod_fabric = fabric if EI is None else attrs.evolve(fabric, yarn=attrs.evolve(fabric.yarn, bending_stiffness=EI))
+            rod_fabric = (
+                fabric
+                if EI is None
+                else attrs.evolve(fabric, yarn=attrs.evolve(fabric.yarn, bending_stiffness=EI))
+            )
             t0 = time.perf_counter()
             rr = rod.simulate(rod_fabric, rod_scene)
             t_rod = time.perf_counter() - t0
             fr = fitted(reg, rr)
             rows.append(row(vol, rr, t_rod, fv, fr, dropped, EI))
-    print("| run | rod EI, N·mm² | mesh | volumetric s | rod s | last stretch | T1, T2 vol (N/mm) | T1, T2 rod (N/mm) | "
-          "NRMSE rod vs vol | a, b, θ vol (fit NRMSE) | a, b, θ rod (fit NRMSE) |")
+    print(
+        "| run | rod EI, N·mm² | mesh | volumetric s | rod s | last stretch | T1, T2 vol (N/mm) | T1, T2 rod (N/mm) | "
+        "NRMSE rod vs vol | a, b, θ vol (fit NRMSE) | a, b, θ rod (fit NRMSE) |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         fv, fr = r["fit_vol"], r["fit_rod"]
         ei = "yarn's own" if r["rod_EI"] is None else f"{r['rod_EI']:g}"
-        print(f"| {r['run']}{'' if r['converged'] else ' (stopped early)'} | {ei} | {r['mesh']} | {r['volumetric_s']} | "
-              f"{r['rod_s']} | {r['max_stretch']:.3f} | {r['T1_end_vol']:.4g}, {r['T2_end_vol']:.4g} | "
-              f"{r['T1_rod_at_same']:.4g}, {r['T2_rod_at_same']:.4g} | {r['nrmse_rod_vs_vol']:.1%} | "
-              f"{fv['a']:.4g}, {fv['b']:.4g}, {fv['theta_deg']:.1f}° ({fv['nrmse']:.1%}) | "
-              f"{fr['a']:.4g}, {fr['b']:.4g}, {fr['theta_deg']:.1f}° ({fr['nrmse']:.1%}) |")
+        print(
+            f"| {r['run']}{'' if r['converged'] else ' (stopped early)'} | {ei} | {r['mesh']} | {r['volumetric_s']} | "
+            f"{r['rod_s']} | {r['max_stretch']:.3f} | {r['T1_end_vol']:.4g}, {r['T2_end_vol']:.4g} | "
+            f"{r['T1_rod_at_same']:.4g}, {r['T2_rod_at_same']:.4g} | {r['nrmse_rod_vs_vol']:.1%} | "
+            f"{fv['a']:.4g}, {fv['b']:.4g}, {fv['theta_deg']:.1f}° ({fv['nrmse']:.1%}) | "
+            f"{fr['a']:.4g}, {fr['b']:.4g}, {fr['theta_deg']:.1f}° ({fr['nrmse']:.1%}) |"
+        )
         if r["rod_without"]:
-            print(f"  (rod run without {', '.join(r['rod_without'])}: not modelled by the rod solver)", file=sys.stderr)
+            print(
+                f"  (rod run without {', '.join(r['rod_without'])}: not modelled by the rod solver)",
+                file=sys.stderr,
+            )
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(rows, fh, indent=1)
 
 
-def row(vol: Response, rr: Response, t_rod: float, fv: dict, fr: dict, dropped: list, EI: float | None) -> dict:
+def row(
+    vol: Response, rr: Response, t_rod: float, fv: dict, fr: dict, dropped: list, EI: float | None
+) -> dict:
     """One comparison: the volumetric curve against a rod curve."""
     return {
-        "run": vol.label, "rod_EI": EI, "mesh": vol.provenance.mesh, "volumetric_s": round(vol.provenance.wall_time, 1),
-        "rod_s": round(t_rod, 1), "converged": vol.provenance.converged, "max_stretch": float(vol.lambda1.max()),
-        "T1_end_vol": float(vol.T1[-1]), "T2_end_vol": float(vol.T2[-1]),
+        "run": vol.label,
+        "rod_EI": EI,
+        "mesh": vol.provenance.mesh,
+        "volumetric_s": round(vol.provenance.wall_time, 1),
+        "rod_s": round(t_rod, 1),
+        "converged": vol.provenance.converged,
+        "max_stretch": float(vol.lambda1.max()),
+        "T1_end_vol": float(vol.T1[-1]),
+        "T2_end_vol": float(vol.T2[-1]),
         "T1_rod_at_same": float(np.interp(vol.lambda1[-1], rr.lambda1, rr.T1)),
         "T2_rod_at_same": float(np.interp(vol.lambda2[-1], rr.lambda2, rr.T2)),
-        "nrmse_rod_vs_vol": nrmse_between(vol, rr), "fit_vol": fv, "fit_rod": fr, "rod_without": dropped,
+        "nrmse_rod_vs_vol": nrmse_between(vol, rr),
+        "fit_vol": fv,
+        "fit_rod": fr,
+        "rod_without": dropped,
     }
+
 
 if __name__ == "__main__":
     main()

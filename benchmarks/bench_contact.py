@@ -34,12 +34,13 @@ import numpy as np
 
 def setup(order: int, seed: float, shrink: float):
     """(fabric, cell mesh, contact surface, x, stiffness, reach) of the jersey cell."""
+    from knitframe_solvers.volumetric import contact_surface
+
     from knitframe.geometry import unit_cell
     from knitframe.mesh import cell_mesh
     from knitframe.periodic import Lattice
     from knitframe.plugins import get_registry
     from knitframe.records import Fabric
-    from knitframe_solvers.volumetric import contact_surface
 
     fabric = Fabric(pattern="jersey", yarn=get_registry()["yarn"]["cotton"], stitch_length=11)
     cell = unit_cell(fabric)
@@ -52,11 +53,13 @@ def setup(order: int, seed: float, shrink: float):
 
 def material_time(fabric, cm, u: np.ndarray, repeat: int) -> float:
     """Best time of the yarn solids' energy, residual and tangent (order 2), s."""
-    from knitframe.plugins import get_registry
     from knitframe_solvers.volumetric_material import SolidForms, YarnLaw
 
-    forms = SolidForms(cm.mesh, YarnLaw.from_yarn(fabric.yarn, get_registry()), cm.node_tangent,
-                       node_offset=cm.node_offset)
+    from knitframe.plugins import get_registry
+
+    forms = SolidForms(
+        cm.mesh, YarnLaw.from_yarn(fabric.yarn, get_registry()), cm.node_tangent, node_offset=cm.node_offset
+    )
     best = np.inf
     for _ in range(repeat):
         t0 = time.perf_counter()
@@ -111,8 +114,11 @@ def main(argv=None) -> None:
     p.add_argument("--shrink", type=float, default=0.9)
     p.add_argument("--repeat", type=int, default=2)
     p.add_argument("--material", action="store_true", help="time the material assembly too")
-    p.add_argument("--friction", action="store_true",
-                   help="also time friction_state at x and an order-2 evaluation with friction at x + noise (0.003 mm)")
+    p.add_argument(
+        "--friction",
+        action="store_true",
+        help="also time friction_state at x and an order-2 evaluation with friction at x + noise (0.003 mm)",
+    )
     p.add_argument("--save")
     p.add_argument("--compare")
     p.add_argument("--profile", help="law-Pk-order, e.g. mortar-P2-2")
@@ -163,7 +169,10 @@ def main(argv=None) -> None:
                 if ref is not None and key in ref["results"]:
                     E0, G0, H0 = ref["results"][key]
                     diffs = [rel(E, E0), rel(G, G0), rel(H, H0)]
-                print(f"| {key} | {surf.n_nodes} | {info['active']} | {best:.2f} | {' | '.join(diffs)} |", flush=True)
+                print(
+                    f"| {key} | {surf.n_nodes} | {info['active']} | {best:.2f} | {' | '.join(diffs)} |",
+                    flush=True,
+                )
             if args.friction:
                 t0 = time.perf_counter()
                 state = law.friction_state(surf, x, h, stiffness=stiffness, reach=reach)
@@ -171,13 +180,22 @@ def main(argv=None) -> None:
                 t1 = time.perf_counter()
                 law.evaluate(surf, xn, h, 2, stiffness=stiffness, reach=reach)
                 t2 = time.perf_counter()
-                E, G, H, info = law.evaluate(surf, xn, h, 2, stiffness=stiffness, reach=reach, friction_state=state)
+                E, G, H, info = law.evaluate(
+                    surf, xn, h, 2, stiffness=stiffness, reach=reach, friction_state=state
+                )
                 t3 = time.perf_counter()
-                print(f"| {name}-P{mo} friction_state | {surf.n_nodes} | {len(state)} | {t1 - t0:.2f} | | | |")
-                print(f"| {name}-P{mo}-2 at x + noise, no friction | {surf.n_nodes} | {info['active']} | "
-                      f"{t2 - t1:.2f} | | | |")
-                print(f"| {name}-P{mo}-2 at x + noise, friction ({info['slipping']} of {len(state)} slipping) | "
-                      f"{surf.n_nodes} | {info['active']} | {t3 - t2:.2f} | | | |", flush=True)
+                print(
+                    f"| {name}-P{mo} friction_state | {surf.n_nodes} | {len(state)} | {t1 - t0:.2f} | | | |"
+                )
+                print(
+                    f"| {name}-P{mo}-2 at x + noise, no friction | {surf.n_nodes} | {info['active']} | "
+                    f"{t2 - t1:.2f} | | | |"
+                )
+                print(
+                    f"| {name}-P{mo}-2 at x + noise, friction ({info['slipping']} of {len(state)} slipping) | "
+                    f"{surf.n_nodes} | {info['active']} | {t3 - t2:.2f} | | | |",
+                    flush=True,
+                )
     if args.save:
         with open(args.save, "wb") as fh:
             pickle.dump(saved, fh)

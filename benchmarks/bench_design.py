@@ -55,8 +55,13 @@ def big_library(copies: int = 3):
 
     lib = builtin_library()
     scales = np.linspace(0.9, 1.1, copies)
-    entries = [attrs.evolve(e, name=f"{e.name}@{s:.2f}", course_pitch=e.course_pitch * s, wale_pitch=e.wale_pitch * s)
-               for e in lib.entries for s in scales]
+    entries = [
+        attrs.evolve(
+            e, name=f"{e.name}@{s:.2f}", course_pitch=e.course_pitch * s, wale_pitch=e.wale_pitch * s
+        )
+        for e in lib.entries
+        for s in scales
+    ]
     return FabricLibrary("bench-24", tuple(entries), source="built-in fabrics at three pitches")
 
 
@@ -88,10 +93,16 @@ def main() -> int:
         (tmp / "out").mkdir()
         write_design(d, tmp / "out")
         t3 = time.perf_counter()
-    rows += [("read and slice the scan", t1 - t0), ("design (needles searched)", t2 - t1),
-             ("write the outputs", t3 - t2), ("**scan to finished design**", t3 - t0)]
-    print(f"\nScan of {n} triangles, {limb.n_stations} stations x {limb.n_around} around, "
-          f"{d.tube.needles} needles, {len(d.regions())} regions\n")
+    rows += [
+        ("read and slice the scan", t1 - t0),
+        ("design (needles searched)", t2 - t1),
+        ("write the outputs", t3 - t2),
+        ("**scan to finished design**", t3 - t0),
+    ]
+    print(
+        f"\nScan of {n} triangles, {limb.n_stations} stations x {limb.n_around} around, "
+        f"{d.tube.needles} needles, {len(d.regions())} regions\n"
+    )
     print("| step | time (s) |\n|---|---|")
     for name, t in rows:
         print(f"| {name} | {t:.3f} |")
@@ -99,11 +110,14 @@ def main() -> int:
     lib = big_library()
     arm = example_arm(n_stations=201, n_around=64)
     geo = element_geometry(arm)
-    lam1, lam2, T1, T2, courses, feasible = core._fabric_fields(lib, Tube("knitting", needles=60), geo,
-                                                                float(arm.circumference[0]), None)
+    lam1, lam2, T1, T2, courses, feasible = core._fabric_fields(
+        lib, Tube("knitting", needles=60), geo, float(arm.circumference[0]), None
+    )
     timings = []
-    for name, obj in (("pressure_profile (target)", profile),
-                      ("stress_variance (level searched)", reg["design_objective"]["stress_variance"]())):
+    for name, obj in (
+        ("pressure_profile (target)", profile),
+        ("stress_variance (level searched)", reg["design_objective"]["stress_variance"]()),
+    ):
         V = core._evaluate(obj, T1, geo, "equivalent")
         t0 = time.perf_counter()
         sol = core._solve_bands(obj, V, feasible, geo, courses, 10.0, None)
@@ -112,8 +126,10 @@ def main() -> int:
     t0 = time.perf_counter()
     solve_bands_dp(cost, np.full((200, 24), 3.0), 20.0)
     timings.append(("random costs, one DP solve", time.perf_counter() - t0, None))
-    print(f"\nOptimiser alone: {geo.shape[0]} rows x {geo.shape[1]} columns x {len(lib.entries)} fabrics "
-          "(element fields precomputed)\n")
+    print(
+        f"\nOptimiser alone: {geo.shape[0]} rows x {geo.shape[1]} columns x {len(lib.entries)} fabrics "
+        "(element fields precomputed)\n"
+    )
     print("| objective | time (s) | fabrics used |\n|---|---|---|")
     for name, t, k in timings:
         print(f"| {name} | {t:.3f} | {'' if k is None else k} |")

@@ -50,8 +50,18 @@ def bench_fits(repeats: int) -> list[tuple]:
                 res = reg["fitter"][fitter]().fit(reg["homogenizer"][model](), data)
                 times.append(time.perf_counter() - t0)
             tra = res.nrmse_transverse.get("overall")
-            rows.append((model, fitter, sum(len(r) for r in data), min(times), float(np.median(times)), res.n_evals,
-                         res.nrmse["overall"], tra))
+            rows.append(
+                (
+                    model,
+                    fitter,
+                    sum(len(r) for r in data),
+                    min(times),
+                    float(np.median(times)),
+                    res.n_evals,
+                    res.nrmse["overall"],
+                    tra,
+                )
+            )
     return rows
 
 
@@ -80,7 +90,9 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3)
     args = ap.parse_args()
     print("fit: 2 directions x 3 samples x 100 points (cotton jersey, Singal et al. 2024)")
-    print("| model | fitter | points | best, s | median, s | evaluations | NRMSE tension | NRMSE transverse |")
+    print(
+        "| model | fitter | points | best, s | median, s | evaluations | NRMSE tension | NRMSE transverse |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     for m, f, n, best, med, ev, e, t in bench_fits(args.repeats):
         tr = "-" if t is None else f"{100 * t:.1f} %"

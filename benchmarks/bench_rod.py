@@ -47,7 +47,11 @@ def run(fab: Fabric, load: LoadPath, checkpoint_dir=None, **options):
 
 
 #: pre-stress paths tried for every case of the sweep (the cells of stiff cotton are multistable)
-PATHS = [{"prestress_start": start, "prestress_steps": steps} for start in ("straight", "knitted") for steps in (8, 12)]
+PATHS = [
+    {"prestress_start": start, "prestress_steps": steps}
+    for start in ("straight", "knitted")
+    for steps in (8, 12)
+]
 
 
 def branches(fab: Fabric, load: LoadPath) -> tuple[list, int]:
@@ -67,10 +71,12 @@ def branches(fab: Fabric, load: LoadPath) -> tuple[list, int]:
         if r.provenance.converged:
             runs.append(r)
     runs.sort(key=lambda r: r.provenance.extra["relaxed_energy_Nmm"])
+
     def same(a, b) -> bool:  # one branch: relaxed lattices within 2 % and energies within 1 %
         ea, eb = a.provenance.extra, b.provenance.extra
-        return (np.abs(np.subtract(ea["relaxed_stretch"], eb["relaxed_stretch"])).max() < 0.02
-                and abs(ea["relaxed_energy_Nmm"] - eb["relaxed_energy_Nmm"]) < 0.01 * abs(eb["relaxed_energy_Nmm"]))
+        return np.abs(np.subtract(ea["relaxed_stretch"], eb["relaxed_stretch"])).max() < 0.02 and abs(
+            ea["relaxed_energy_Nmm"] - eb["relaxed_energy_Nmm"]
+        ) < 0.01 * abs(eb["relaxed_energy_Nmm"])
 
     distinct = []
     for r in runs:
@@ -94,16 +100,31 @@ def bench(repeats: int, cli: bool) -> None:
         t0 = time.perf_counter()
         r = run(fabric("jersey", "cotton", 11), EQUIBIAXIAL)
         dt = time.perf_counter() - t0
-        print(f"| jersey SL11 cotton, pre-stress + equibiaxial 0→30 % (Python API) | {k + 1} | {dt:.2f} | {len(r)} | "
-              f"{r.T1[-1]:.4g} | {r.T2[-1]:.4g} | {r.provenance.converged} |")
+        print(
+            f"| jersey SL11 cotton, pre-stress + equibiaxial 0→30 % (Python API) | {k + 1} | {dt:.2f} | {len(r)} | "
+            f"{r.T1[-1]:.4g} | {r.T2[-1]:.4g} | {r.provenance.converged} |"
+        )
     if cli:
         with tempfile.TemporaryDirectory() as tmp:
             t0 = time.perf_counter()
-            subprocess.run([sys.executable, "-m", "knitframe", "run", str(ROOT / "docs/examples/rod-jersey.toml"),
-                            "--out", str(Path(tmp) / "out"), "--quiet"], check=True)
+            subprocess.run(
+                [
+                    sys.executable,
+                    "-m",
+                    "knitframe",
+                    "run",
+                    str(ROOT / "docs/examples/rod-jersey.toml"),
+                    "--out",
+                    str(Path(tmp) / "out"),
+                    "--quiet",
+                ],
+                check=True,
+            )
             dt = time.perf_counter() - t0
-        print(f"| `knitframe run docs/examples/rod-jersey.toml` (+ VTU of every step, hgo fit, new process) | 1 | "
-              f"{dt:.2f} | 10 | | | |")
+        print(
+            f"| `knitframe run docs/examples/rod-jersey.toml` (+ VTU of every step, hgo fit, new process) | 1 | "
+            f"{dt:.2f} | 10 | | | |"
+        )
 
 
 # ------------------------------------------------------------------------------------------ science
@@ -142,7 +163,7 @@ def energy_split(fab: Fabric, load: LoadPath, **options) -> list[dict[str, float
     model, energy, _ = solver.setup(fab, scene, reg)
     out = []
     for q in states:
-        x, h = model.positions(q), q[3 * model.n_nodes:]
+        x, h = model.positions(q), q[3 * model.n_nodes :]
         sm, bm = energy._stretch_map, energy._bend_map
         p = sm.points(x, h)
         strain = np.linalg.norm(p[:, 1] - p[:, 0], axis=1) / model.l0 - 1.0
@@ -152,13 +173,17 @@ def energy_split(fab: Fabric, load: LoadPath, **options) -> list[dict[str, float
         args = (pm.points(x, h), energy._lengths(pr.i, pr.j), energy.law, energy.dk)
         total = quadrature_contact(*args, k, kc, energy.rule(), 0)[0].sum()
         penalty = quadrature_contact(*args, k, 0.0, energy.rule(), 0)[0].sum()
-        out.append({
-            "stretch": float(stretch(p, model.l0, energy.EA, 0)[0].sum()),
-            "bend": float(bend(bm.points(x, h), model.lbar, energy.EI, 0)[0].sum()),
-            "penalty": float(penalty), "core": float(total - penalty),
-            "strain": float(strain.mean()), "d_min": float(pr.distance.min() / energy.dk),
-            "core_pairs": int(np.count_nonzero(pr.distance < 0.5 * (1 + energy.law.core) * energy.dk)),
-        })
+        out.append(
+            {
+                "stretch": float(stretch(p, model.l0, energy.EA, 0)[0].sum()),
+                "bend": float(bend(bm.points(x, h), model.lbar, energy.EI, 0)[0].sum()),
+                "penalty": float(penalty),
+                "core": float(total - penalty),
+                "strain": float(strain.mean()),
+                "d_min": float(pr.distance.min() / energy.dk),
+                "core_pairs": int(np.count_nonzero(pr.distance < 0.5 * (1 + energy.law.core) * energy.dk)),
+            }
+        )
     return out
 
 
@@ -172,46 +197,60 @@ def singal(directory: Path | None, pattern: str, direction: str):
     if not path.exists():
         return None
     r = Singal2024Reader().read(path)[0]
-    axial, lateral, T = (r.lambda1, r.lambda2, r.T1) if direction == "course" else (r.lambda2, r.lambda1, r.T2)
+    axial, lateral, T = (
+        (r.lambda1, r.lambda2, r.T1) if direction == "course" else (r.lambda2, r.lambda1, r.T2)
+    )
     return axial - 1.0, T, lateral
 
 
 def science(singal_dir: Path | None) -> None:
     print("### Jersey, cotton, equibiaxial 0→30 %: stitch length\n")
-    print("| SL | relaxed state (energy, λ1, λ2) | T1 at 10/20/30 %, N/mm | T2 at 10/20/30 %, N/mm | hgo a, N/mm | "
-          "hgo b | hgo θ, deg | NRMSE |")
+    print(
+        "| SL | relaxed state (energy, λ1, λ2) | T1 at 10/20/30 %, N/mm | T2 at 10/20/30 %, N/mm | hgo a, N/mm | "
+        "hgo b | hgo θ, deg | NRMSE |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     for sl in (10, 11, 12):
         found, paths = branches(fabric("jersey", "cotton", sl), EQUIBIAXIAL)
         for r in found:
             p, res = fit_hgo([r])
             pick = [i for i in (2, 5, 9) if i < len(r)]
-            print(f"| {sl} | {branch_label(r, found[0])} | {fmt(r.T1[pick])} | {fmt(r.T2[pick])} | {p['a']:.4g} | "
-                  f"{p['b']:.3g} | {np.degrees(p['theta']):.1f} | {res.nrmse['overall']:.3f} |")
+            print(
+                f"| {sl} | {branch_label(r, found[0])} | {fmt(r.T1[pick])} | {fmt(r.T2[pick])} | {p['a']:.4g} | "
+                f"{p['b']:.3g} | {np.degrees(p['theta']):.1f} | {res.nrmse['overall']:.3f} |"
+            )
         print(f"|  | ({paths} of {len(PATHS)} pre-stress paths converged) | | | | | | |")
 
     print("\n### Patterns at SL11, cotton, equibiaxial 0→30 %\n")
-    print("| pattern | relaxed state (energy, λ1, λ2) | T1 / T2 at 30 %, N/mm | T1/T2 | hgo θ, deg | hgo a, N/mm | "
-          "hgo b | NRMSE |")
+    print(
+        "| pattern | relaxed state (energy, λ1, λ2) | T1 / T2 at 30 %, N/mm | T1/T2 | hgo θ, deg | hgo a, N/mm | "
+        "hgo b | NRMSE |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     for pat in PATTERNS:
         found, paths = branches(fabric(pat, "cotton", 11), EQUIBIAXIAL)
         for r in found:
             p, res = fit_hgo([r])
-            print(f"| {pat} | {branch_label(r, found[0])} | {r.T1[-1]:.3g} / {r.T2[-1]:.3g} | {r.T1[-1] / r.T2[-1]:.3g} | "
-                  f"{np.degrees(p['theta']):.1f} | {p['a']:.4g} | {p['b']:.3g} | {res.nrmse['overall']:.3f} |")
+            print(
+                f"| {pat} | {branch_label(r, found[0])} | {r.T1[-1]:.3g} / {r.T2[-1]:.3g} | {r.T1[-1] / r.T2[-1]:.3g} | "
+                f"{np.degrees(p['theta']):.1f} | {p['a']:.4g} | {p['b']:.3g} | {res.nrmse['overall']:.3f} |"
+            )
 
     cases = [("cotton", {"sl": 11}, "cotton SL11 (paper's yarn)")]
     cases += [("pearl-cotton", {"arc": arc}, f"pearl cotton, {arc:g} mm/stitch") for arc in PEARL_ARC]
     for yarn, size, title in cases:
         print(f"\n### Free-sides uniaxial 0→30 %, {title}, against Singal et al. 2024 (pearl cotton)\n")
-        print("| pattern | pull | relaxed state (energy, λ1, λ2) | simulated T at 10/20/30 %, N/mm | measured | "
-              "simulated lateral stretch at 30 % | measured |")
+        print(
+            "| pattern | pull | relaxed state (energy, λ1, λ2) | simulated T at 10/20/30 %, N/mm | measured | "
+            "simulated lateral stretch at 30 % | measured |"
+        )
         print("|---|---|---|---|---|---|---|")
         for pat in PATTERNS:
             for d in ("course", "wale"):
-                found, paths = branches(fabric(pat, yarn, **size),
-                                        LoadPath(kind="uniaxial", direction=d, max_strain=0.3, steps=10))
+                found, paths = branches(
+                    fabric(pat, yarn, **size),
+                    LoadPath(kind="uniaxial", direction=d, max_strain=0.3, steps=10),
+                )
                 meas = singal(singal_dir, pat, d)
                 m_T = [at(meas[0], meas[1], x) for x in (0.1, 0.2, 0.3)] if meas else [float("nan")] * 3
                 m_lat = at(meas[0], meas[2], 0.3) if meas else float("nan")
@@ -219,12 +258,16 @@ def science(singal_dir: Path | None) -> None:
                     T, lat = (r.T1, r.lambda2) if d == "course" else (r.T2, r.lambda1)
                     strain = (r.lambda1 if d == "course" else r.lambda2) - 1.0
                     sim = [at(strain, T, x) for x in (0.1, 0.2, 0.3)]
-                    print(f"| {pat} | {d} | {branch_label(r, found[0])} | {fmt(sim)} | {fmt(m_T)} | "
-                          f"{fmt([at(strain, lat, 0.3)])} | {fmt([m_lat])} |")
+                    print(
+                        f"| {pat} | {d} | {branch_label(r, found[0])} | {fmt(sim)} | {fmt(m_T)} | "
+                        f"{fmt([at(strain, lat, 0.3)])} | {fmt([m_lat])} |"
+                    )
 
     print("\n### Where the energy goes: jersey, free-sides uniaxial along the course\n")
-    print("| yarn | state | stretching, N·mm | bending | contact penalty | contact core | mean yarn strain | "
-          "closest d/dk | pairs in the core band |")
+    print(
+        "| yarn | state | stretching, N·mm | bending | contact penalty | contact core | mean yarn strain | "
+        "closest d/dk | pairs in the core band |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     course = LoadPath(kind="uniaxial", direction="course", max_strain=0.3, steps=10)
     energy_table(cases, course)
@@ -235,9 +278,13 @@ def energy_table(cases, load: LoadPath) -> None:
         found, _ = branches(fabric("jersey", yarn, **size), load)
         for r in found:
             path = {k: r.provenance.extra["options"][k] for k in ("prestress_start", "prestress_steps")}
-            for label, e in zip(("relaxed", "30 %"), energy_split(fabric("jersey", yarn, **size), load, **path)):
-                print(f"| {title}, {branch_label(r, found[0])} | {label} | {e['stretch']:.4g} | {e['bend']:.4g} | "
-                      f"{e['penalty']:.3g} | {e['core']:.3g} | {e['strain']:.4f} | {e['d_min']:.3f} | {e['core_pairs']} |")
+            for label, e in zip(
+                ("relaxed", "30 %"), energy_split(fabric("jersey", yarn, **size), load, **path)
+            ):
+                print(
+                    f"| {title}, {branch_label(r, found[0])} | {label} | {e['stretch']:.4g} | {e['bend']:.4g} | "
+                    f"{e['penalty']:.3g} | {e['core']:.3g} | {e['strain']:.4f} | {e['d_min']:.3f} | {e['core_pairs']} |"
+                )
 
 
 def main() -> None:
@@ -246,8 +293,12 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--cli", action="store_true", help="also time the example config through `knitframe run`")
     default = ROOT.parent / "shared" / "data" / "knit-uniaxial-singal2024"
-    ap.add_argument("--singal", type=Path, default=default if default.exists() else None,
-                    help="directory of the Singal et al. 2024 CSV files")
+    ap.add_argument(
+        "--singal",
+        type=Path,
+        default=default if default.exists() else None,
+        help="directory of the Singal et al. 2024 CSV files",
+    )
     args = ap.parse_args()
     print(f"cores: {os.cpu_count()}, load average: {os.getloadavg()[0]:.2f}\n")
     science(args.singal) if args.science else bench(args.repeats, args.cli)

@@ -62,8 +62,22 @@ def run_sweep(out: Path, name: str, executor: str) -> dict:
     cfg.write_text(CONFIG.format(executor=executor))
     load0 = os.getloadavg()
     t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "knitframe", "run", str(cfg), "--out", str(out / name), "--no-cache",
-                           "--overwrite", "--quiet"], capture_output=True, text=True)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "knitframe",
+            "run",
+            str(cfg),
+            "--out",
+            str(out / name),
+            "--no-cache",
+            "--overwrite",
+            "--quiet",
+        ],
+        capture_output=True,
+        text=True,
+    )
     wall = time.perf_counter() - t0
     if proc.returncode != 0:
         raise SystemExit(f"{name}: knitframe run failed: {proc.stderr.strip()}")
@@ -72,9 +86,16 @@ def run_sweep(out: Path, name: str, executor: str) -> dict:
     with open(out / name / "sweep.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
     work = sum(float(r["wall_time_s"]) for r in rows if r["wall_time_s"])
-    return {"name": name, "wall": wall, "stage": stage, "work": work, "done": sum(r["status"] == "done" for r in rows),
-            "failed": sum(r["status"] == "failed" for r in rows), "load": (load0, os.getloadavg()),
-            "params": [(r["name"], r["a"], r["b"], r["theta_deg"]) for r in rows]}
+    return {
+        "name": name,
+        "wall": wall,
+        "stage": stage,
+        "work": work,
+        "done": sum(r["status"] == "done" for r in rows),
+        "failed": sum(r["status"] == "failed" for r in rows),
+        "load": (load0, os.getloadavg()),
+        "params": [(r["name"], r["a"], r["b"], r["theta_deg"]) for r in rows],
+    }
 
 
 def sweep(args) -> None:
@@ -86,13 +107,17 @@ def sweep(args) -> None:
     for n in args.workers:
         runs.append(run_sweep(out, f"dask-{n}", f'kind = "dask"\nworkers = {n}\ndashboard_address = ":0"'))
     base = next(r for r in runs if r["name"].startswith("dask"))
-    print(f"| run | fabrics done / failed | `knitframe run` wall, s | sweep stage, s | sum of point times, s | "
-          f"speed-up over {base['name']} | load average before → after |")
+    print(
+        f"| run | fabrics done / failed | `knitframe run` wall, s | sweep stage, s | sum of point times, s | "
+        f"speed-up over {base['name']} | load average before → after |"
+    )
     print("|---|---|---|---|---|---|---|")
     for r in runs:
         (b1, b5, _), (a1, a5, _) = r["load"]
-        print(f"| {r['name']} | {r['done']} / {r['failed']} | {r['wall']:.1f} | {r['stage']:.1f} | {r['work']:.1f} | "
-              f"{base['stage'] / r['stage']:.2f} | {b1:.2f} → {a1:.2f} |")
+        print(
+            f"| {r['name']} | {r['done']} / {r['failed']} | {r['wall']:.1f} | {r['stage']:.1f} | {r['work']:.1f} | "
+            f"{base['stage'] / r['stage']:.2f} | {b1:.2f} → {a1:.2f} |"
+        )
     same = all(r["params"] == runs[0]["params"] for r in runs)
     print(f"fitted parameters identical in every run: {same}")
 
@@ -100,7 +125,6 @@ def sweep(args) -> None:
 def overhead(args) -> None:
     import dask
     from distributed import Client, LocalCluster
-
     from knitframe_executors.dask import TRIM_KEY, DaskExecutor
 
     n = args.tasks
@@ -109,7 +133,9 @@ def overhead(args) -> None:
         cluster = LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=":0")
         client = Client(cluster)
         start = time.perf_counter() - t0
-    client.gather(client.map(noop, [{"i": -1 - k} for k in range(20)]))  # warm up: the function reaches the workers
+    client.gather(
+        client.map(noop, [{"i": -1 - k} for k in range(20)])
+    )  # warm up: the function reaches the workers
     t0 = time.perf_counter()
     futures = client.map(noop, [{"i": i} for i in range(n)], pure=False)
     client.gather(futures)
@@ -124,10 +150,14 @@ def overhead(args) -> None:
     ex.map(noop, [{"i": i} for i in range(n)])
     many = time.perf_counter() - t0
     print(f"LocalCluster(2 workers) start: {start:.2f} s")
-    print(f"client.map of {n} trivial tasks on a running cluster: {raw:.2f} s = {1e3 * raw / n:.2f} ms per task")
+    print(
+        f"client.map of {n} trivial tasks on a running cluster: {raw:.2f} s = {1e3 * raw / n:.2f} ms per task"
+    )
     print(f"dask executor map of 1 trivial job (cluster start and close included): {one:.2f} s")
-    print(f"dask executor map of {n} trivial jobs: {many:.2f} s = {1e3 * (many - one) / (n - 1):.2f} ms per task "
-          "beyond the first")
+    print(
+        f"dask executor map of {n} trivial jobs: {many:.2f} s = {1e3 * (many - one) / (n - 1):.2f} ms per task "
+        "beyond the first"
+    )
     print(f"load average: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
 
 

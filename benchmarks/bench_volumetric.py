@@ -42,7 +42,9 @@ def fabric():
 def scene(steps: int, friction: bool = False):
     from knitframe.records import LoadPath, Scene
 
-    effects = {"large_deformation", "bending", "contact", "self_contact", "prestress", "anisotropy"} | ({"friction"} if friction else set())
+    effects = {"large_deformation", "bending", "contact", "self_contact", "prestress", "anisotropy"} | (
+        {"friction"} if friction else set()
+    )
     return Scene(load=LoadPath(kind="equibiaxial", max_strain=0.3, steps=steps), effects=effects)
 
 
@@ -58,18 +60,28 @@ def bench_mesh(args) -> list[dict]:
             cm = cell_mesh(cell, seed=seed, order=order)
             t = time.perf_counter() - t0
             q = mesh_quality(cm)
-            rows.append({"order": order, "seed_r": round(1 / seed, 2), "elements": cm.n_elements, "dofs": 3 * cm.n_nodes,
-                         "mesh_s": round(t, 2), "min_dihedral": round(q["min_dihedral_deg"], 1),
-                         "max_aspect": round(q["max_aspect_ratio"], 2), "min_jac": round(q["min_jacobian_ratio"], 3),
-                         "volume_err": f"{q['volume_error']:.2e}"})
+            rows.append(
+                {
+                    "order": order,
+                    "seed_r": round(1 / seed, 2),
+                    "elements": cm.n_elements,
+                    "dofs": 3 * cm.n_nodes,
+                    "mesh_s": round(t, 2),
+                    "min_dihedral": round(q["min_dihedral_deg"], 1),
+                    "max_aspect": round(q["max_aspect_ratio"], 2),
+                    "min_jac": round(q["min_jacobian_ratio"], 3),
+                    "volume_err": f"{q['volume_error']:.2e}",
+                }
+            )
     return rows
 
 
 def bench_iteration(args) -> list[dict]:
     """One Newton iteration at the first pre-stress increment: assembly, contact, transforms, solves."""
-    from knitframe.plugins import get_registry
     from knitframe_linsolvers.amg import amg, rigid_body_modes
     from knitframe_linsolvers.direct import UNSYMMETRIC, _pardiso_solver, _refined, direct
+
+    from knitframe.plugins import get_registry
 
     def pardiso_lu(A, b):  # what a symmetric matrix cost before it got the LDLᵀ
         A = sp.csr_matrix(A)
@@ -101,13 +113,22 @@ def bench_iteration(args) -> list[dict]:
     free[n_ind:] = False
     A = H[free][:, free].tocsc()
     b = -g[free]
-    rows = [{"what": "setup (mesh, forms, periodic map)", "s": round(t_setup, 2)},
-            {"what": "material energy+residual+tangent", "s": round(model.timings["material"], 2)},
-            {"what": f"contact ({args.contact}, {info['active']} active)", "s": round(model.timings["contact"], 2)},
-            {"what": "periodic transforms", "s": round(model.timings["transform"], 2)},
-            {"what": "whole evaluation (order 2)", "s": round(t_eval, 2)}]
+    rows = [
+        {"what": "setup (mesh, forms, periodic map)", "s": round(t_setup, 2)},
+        {"what": "material energy+residual+tangent", "s": round(model.timings["material"], 2)},
+        {
+            "what": f"contact ({args.contact}, {info['active']} active)",
+            "s": round(model.timings["contact"], 2),
+        },
+        {"what": "periodic transforms", "s": round(model.timings["transform"], 2)},
+        {"what": "whole evaluation (order 2)", "s": round(t_eval, 2)},
+    ]
     # a line-search trial (energy only): on the candidates the iterate's search found, and searched afresh
-    holds = (("held candidates", True), ("fresh contact search", False)) if model.hold_candidates else (("", False),)
+    holds = (
+        (("held candidates", True), ("fresh contact search", False))
+        if model.hold_candidates
+        else (("", False),)
+    )
     for label, hold in holds:
         model.hold_candidates = hold
         model(q, 2)
@@ -116,10 +137,12 @@ def bench_iteration(args) -> list[dict]:
             model(q, 0)
         what = "line-search energy (order 0)" + (f", {label}" if label else "")
         rows.append({"what": what, "s": round((time.perf_counter() - t0) / 3, 2)})
-    chosen = {"direct": ("direct (SuperLU)", lambda: direct("superlu")),
-              "pardiso": ("direct (PARDISO; LDLᵀ for a symmetric matrix)", lambda: direct("pardiso")),
-              "pardiso-lu": ("PARDISO LU (the unsymmetric path)", lambda: pardiso_lu),
-              "amg": ("amg (SA + rigid modes)", lambda: amg())}
+    chosen = {
+        "direct": ("direct (SuperLU)", lambda: direct("superlu")),
+        "pardiso": ("direct (PARDISO; LDLᵀ for a symmetric matrix)", lambda: direct("pardiso")),
+        "pardiso-lu": ("PARDISO LU (the unsymmetric path)", lambda: pardiso_lu),
+        "amg": ("amg (SA + rigid modes)", lambda: amg()),
+    }
     for name, factory in (chosen[k] for k in args.solvers.split(",")):
         if name.startswith("amg"):
             B = rigid_body_modes(model.X_ind)
@@ -134,6 +157,7 @@ def bench_iteration(args) -> list[dict]:
 
             def run(A=A, b=b):
                 return solve_fn(A, b)
+
         t0 = time.perf_counter()
         try:
             x = run()
@@ -144,21 +168,40 @@ def bench_iteration(args) -> list[dict]:
             run(A=(A + 1e-12 * sp.identity(A.shape[0], format=A.format)).asformat(A.format))
             again = time.perf_counter() - t0
             res = float(np.linalg.norm(A @ x - b) / np.linalg.norm(b))
-            rows.append({"what": f"linear solve {name} (first call / a new matrix)",
-                         "s": f"{first:.2f} / {again:.2f}", "residual": f"{res:.1e}"})
+            rows.append(
+                {
+                    "what": f"linear solve {name} (first call / a new matrix)",
+                    "s": f"{first:.2f} / {again:.2f}",
+                    "residual": f"{res:.1e}",
+                }
+            )
         except Exception as e:  # report, do not hide, a failing solver
-            rows.append({"what": f"linear solve {name}", "s": round(time.perf_counter() - t0, 2),
-                         "residual": f"failed: {type(e).__name__}: {str(e)[:80]}"})
+            rows.append(
+                {
+                    "what": f"linear solve {name}",
+                    "s": round(time.perf_counter() - t0, 2),
+                    "residual": f"failed: {type(e).__name__}: {str(e)[:80]}",
+                }
+            )
     rows.append({"what": f"DOFs {A.shape[0]}, nnz {A.nnz}, peak RSS MB", "s": round(peak_mb())})
     return rows
 
 
 #: 'run' flags forwarded when given (flag → option of the contact law, or of VolumetricSolver); "on"/"off" become booleans
 LAW_FLAGS = {"smoothing": "smoothing", "mu": "friction", "dhat": "dhat", "ccd": "ccd", "reuse": "reuse"}
-SOLVER_FLAGS = {"stabilisation": "stabilisation", "max_step": "max_step", "cap_shift": "cap_shift", "tangent": "tangent",
-                "step_tol": "step_tolerance", "predictor": "predictor", "chord": "chord", "eigen": "eigenvalue_filter",
-                "extrapolate": "extrapolation", "halve_reversals": "halve_reversals",
-                "chord_full": "chord_after_full_steps"}
+SOLVER_FLAGS = {
+    "stabilisation": "stabilisation",
+    "max_step": "max_step",
+    "cap_shift": "cap_shift",
+    "tangent": "tangent",
+    "step_tol": "step_tolerance",
+    "predictor": "predictor",
+    "chord": "chord",
+    "eigen": "eigenvalue_filter",
+    "extrapolate": "extrapolation",
+    "halve_reversals": "halve_reversals",
+    "chord_full": "chord_after_full_steps",
+}
 
 
 def _given(args, flags: dict[str, str]) -> dict:
@@ -171,17 +214,28 @@ def bench_run(args) -> list[dict]:
     from knitframe_solvers.volumetric import VolumetricSolver
 
     law = {"kind": args.contact, **_given(args, LAW_FLAGS)}
-    solver = VolumetricSolver(order=args.order, seed=args.seed, contact_law=law,
-                              prestress_steps=args.prestress,
-                              linear_solver=args.linear_solver, contact_modulus=args.contact_modulus,
-                              on_failure="truncate" if args.truncate else "raise",
-                              **({"start_projected": True} if args.start_projected else {}),
-                              **_given(args, SOLVER_FLAGS))
+    solver = VolumetricSolver(
+        order=args.order,
+        seed=args.seed,
+        contact_law=law,
+        prestress_steps=args.prestress,
+        linear_solver=args.linear_solver,
+        contact_modulus=args.contact_modulus,
+        on_failure="truncate" if args.truncate else "raise",
+        **({"start_projected": True} if args.start_projected else {}),
+        **_given(args, SOLVER_FLAGS),
+    )
     fab = attrs.evolve(fabric(), stitch_length=args.stitch_length)
     if args.transverse_ratio is not None:  # a diagnostic: the same yarn with a milder anisotropy
         y = fab.yarn
-        fab = attrs.evolve(fab, yarn=attrs.evolve(y, name=f"{y.name}-ET{args.transverse_ratio:g}",
-                                                  E_transverse=args.transverse_ratio * y.E_axial))
+        fab = attrs.evolve(
+            fab,
+            yarn=attrs.evolve(
+                y,
+                name=f"{y.name}-ET{args.transverse_ratio:g}",
+                E_transverse=args.transverse_ratio * y.E_axial,
+            ),
+        )
     t0 = time.perf_counter()
 
     def progress(done, total, message):
@@ -193,26 +247,51 @@ def bench_run(args) -> list[dict]:
     def write_trace(record):
         trace_file.write(json.dumps(record, default=float) + "\n")
         trace_file.flush()
-    resp = solver.simulate(fab, sc, progress=progress, checkpoint_dir=args.checkpoint,
-                           trace=write_trace if trace_file is not None else None)
+
+    resp = solver.simulate(
+        fab,
+        sc,
+        progress=progress,
+        checkpoint_dir=args.checkpoint,
+        trace=write_trace if trace_file is not None else None,
+    )
     if trace_file is not None:
         trace_file.close()
     wall = time.perf_counter() - t0
     if args.save:
         with open(args.save, "w") as fh:
-            json.dump({"fabric": fab.to_dict(), "scene": sc.to_dict(), "response": resp.to_dict()},
-                      fh, indent=1, default=str)
+            json.dump(
+                {"fabric": fab.to_dict(), "scene": sc.to_dict(), "response": resp.to_dict()},
+                fh,
+                indent=1,
+                default=str,
+            )
     prov = resp.provenance
-    rows = [{"lambda": round(float(l1), 3), "T1_N_per_mm": round(float(t1), 5), "T2_N_per_mm": round(float(t2), 5)}
-            for l1, t1, t2 in zip(resp.lambda1, resp.T1, resp.T2)]
+    rows = [
+        {
+            "lambda": round(float(l1), 3),
+            "T1_N_per_mm": round(float(t1), 5),
+            "T2_N_per_mm": round(float(t2), 5),
+        }
+        for l1, t1, t2 in zip(resp.lambda1, resp.T1, resp.T2)
+    ]
     rows.append({"lambda": "wall s", "T1_N_per_mm": round(wall, 1), "T2_N_per_mm": prov.mesh})
-    rows.append({"lambda": "split s", "T1_N_per_mm": json.dumps(prov.extra["timings_s"]),
-                 "T2_N_per_mm": json.dumps(prov.extra["newton_evaluations"])})
+    rows.append(
+        {
+            "lambda": "split s",
+            "T1_N_per_mm": json.dumps(prov.extra["timings_s"]),
+            "T2_N_per_mm": json.dumps(prov.extra["newton_evaluations"]),
+        }
+    )
     tm, ev = prov.extra["timings_s"], prov.extra["newton_evaluations"]
     n_it = max(ev["linear_solves"], 1)
-    rows.append({"lambda": "per Newton iteration s",
-                 "T1_N_per_mm": f"assembly+contact {(tm['material'] + tm['contact'] + tm['transform']) / n_it:.2f}",
-                 "T2_N_per_mm": f"linear solve {tm['linear_solve'] / n_it:.2f} ({n_it} solves)"})
+    rows.append(
+        {
+            "lambda": "per Newton iteration s",
+            "T1_N_per_mm": f"assembly+contact {(tm['material'] + tm['contact'] + tm['transform']) / n_it:.2f}",
+            "T2_N_per_mm": f"linear solve {tm['linear_solve'] / n_it:.2f} ({n_it} solves)",
+        }
+    )
     rows.append({"lambda": "peak RSS MB", "T1_N_per_mm": round(peak_mb()), "T2_N_per_mm": ""})
     return rows
 
@@ -231,18 +310,29 @@ def bench_trace(args) -> list[dict]:
             rec = json.loads(line)
             if getattr(args, "iterations", False):
                 if rec.get("record") == "iteration":
-                    rows.append({"phase": rec["phase"], "t": round(rec["t"], 5), "it": rec["it"],
-                                 "residual N": f"{rec['residual']:.3g}", "energy N·mm": f"{rec['energy']:.7g}",
-                                 "step/cap": f"{rec['step']:.3g}" if "step" in rec else "",
-                                 "alpha": f"{rec['alpha']:.3g}" if "alpha" in rec else "",
-                                 "extrapolated": "yes" if "extrapolated" in rec else "",
-                                 "kind": "chord" if rec.get("chord") else "Newton",
-                                 "shift": f"{rec.get('shift', 0.0):.2g}", "projected": bool(rec.get("projected")),
-                                 "active": int(rec.get("active", 0)), "wall s": round(rec.get("wall_s", 0.0), 1),
-                                 "material+contact s": round(rec.get("material_s", 0.0) + rec.get("contact_s", 0.0), 1),
-                                 "linear solves": f"{rec.get('n_linear_solves', '')} ({rec.get('linear_solve_s', 0.0):.1f} s)",
-                                 "evaluations (E, g, H)": f"{rec.get('n_energy', '')}, {rec.get('n_gradient', '')}, "
-                                                          f"{rec.get('n_hessian', '')}"})
+                    rows.append(
+                        {
+                            "phase": rec["phase"],
+                            "t": round(rec["t"], 5),
+                            "it": rec["it"],
+                            "residual N": f"{rec['residual']:.3g}",
+                            "energy N·mm": f"{rec['energy']:.7g}",
+                            "step/cap": f"{rec['step']:.3g}" if "step" in rec else "",
+                            "alpha": f"{rec['alpha']:.3g}" if "alpha" in rec else "",
+                            "extrapolated": "yes" if "extrapolated" in rec else "",
+                            "kind": "chord" if rec.get("chord") else "Newton",
+                            "shift": f"{rec.get('shift', 0.0):.2g}",
+                            "projected": bool(rec.get("projected")),
+                            "active": int(rec.get("active", 0)),
+                            "wall s": round(rec.get("wall_s", 0.0), 1),
+                            "material+contact s": round(
+                                rec.get("material_s", 0.0) + rec.get("contact_s", 0.0), 1
+                            ),
+                            "linear solves": f"{rec.get('n_linear_solves', '')} ({rec.get('linear_solve_s', 0.0):.1f} s)",
+                            "evaluations (E, g, H)": f"{rec.get('n_energy', '')}, {rec.get('n_gradient', '')}, "
+                            f"{rec.get('n_hessian', '')}",
+                        }
+                    )
                 continue
             if rec.get("record") == "iteration":  # the per-iteration records: the solve record repeats them
                 continue
@@ -251,21 +341,31 @@ def bench_trace(args) -> list[dict]:
             jumps = [b["energy"] - a["step_energy"] for a, b in zip(h[:-1], h[1:]) if "step_energy" in a]
             jump = max(jumps, key=abs, default=0.0)
             res, flux = last.get("residual", float("nan")), last.get("flux", 0.0)
-            rows.append({"phase": rec["phase"], "t": round(rec["t"], 5), "converged": rec["converged"],
-                         "iterations": max(len(h) - 1, 0), "chord steps": sum(1 for e in h if e.get("chord")),
-                         "extrapolated": sum(1 for e in h if "extrapolated" in e),
-                         "wall s": round(rec["wall_s"], 1),
-                         "residual N": f"{res:.3g}", "residual/flux": f"{res / flux:.3g}" if flux else "",
-                         "active": int(last.get("active", 0)), "largest pairing jump N·mm": f"{jump:.3g}",
-                         "relative jump": f"{abs(jump) / abs(last['energy']):.2g}" if last.get("energy") else ""})
+            rows.append(
+                {
+                    "phase": rec["phase"],
+                    "t": round(rec["t"], 5),
+                    "converged": rec["converged"],
+                    "iterations": max(len(h) - 1, 0),
+                    "chord steps": sum(1 for e in h if e.get("chord")),
+                    "extrapolated": sum(1 for e in h if "extrapolated" in e),
+                    "wall s": round(rec["wall_s"], 1),
+                    "residual N": f"{res:.3g}",
+                    "residual/flux": f"{res / flux:.3g}" if flux else "",
+                    "active": int(last.get("active", 0)),
+                    "largest pairing jump N·mm": f"{jump:.3g}",
+                    "relative jump": f"{abs(jump) / abs(last['energy']):.2g}" if last.get("energy") else "",
+                }
+            )
     return rows
 
 
 def bench_forms(args) -> list[dict]:
     """The solid's evaluations on the cell at the start of the pre-stress, per order and thread count, and the
     pull-back of its tangent to the periodic unknowns (fixed-pattern map against two sparse products)."""
-    from knitframe.plugins import get_registry
     from knitframe_solvers.volumetric import VolumetricSolver
+
+    from knitframe.plugins import get_registry
 
     solver = VolumetricSolver(order=args.order, seed=args.seed)
     model = solver.setup(fabric(), scene(6), get_registry())
@@ -281,14 +381,30 @@ def bench_forms(args) -> list[dict]:
             t0 = time.perf_counter()
             for _ in range(3):
                 forms.evaluate(u, s0, order, project=True)
-            rows.append({"what": f"solid, order {order} ({forms.edofs.shape[1]} elements, {len(forms._chunks())} chunks)",
-                         "threads": threads, "s": round((time.perf_counter() - t0) / 3, 4)})
+            rows.append(
+                {
+                    "what": f"solid, order {order} ({forms.edofs.shape[1]} elements, {len(forms._chunks())} chunks)",
+                    "threads": threads,
+                    "s": round((time.perf_counter() - t0) / 3, 4),
+                }
+            )
     K = model.forms.evaluate(u, s0, 2, project=True)[2]
     t0 = time.perf_counter()
     model.pull_back(K)
-    rows.append({"what": "pull-back Tᵀ(K + cI)T: building its map (once)", "threads": "", "s": round(time.perf_counter() - t0, 3)})
-    for label, fn in (("pull-back Tᵀ(K + cI)T: fixed-pattern map", lambda: model.pull_back(K)),
-                      ("pull-back Tᵀ(K + cI)T: sparse products", lambda: (model.TT @ K @ model.T + model.damping * (model.TT @ model.T)).tocsr())):
+    rows.append(
+        {
+            "what": "pull-back Tᵀ(K + cI)T: building its map (once)",
+            "threads": "",
+            "s": round(time.perf_counter() - t0, 3),
+        }
+    )
+    for label, fn in (
+        ("pull-back Tᵀ(K + cI)T: fixed-pattern map", lambda: model.pull_back(K)),
+        (
+            "pull-back Tᵀ(K + cI)T: sparse products",
+            lambda: (model.TT @ K @ model.T + model.damping * (model.TT @ model.T)).tocsr(),
+        ),
+    ):
         fn()
         t0 = time.perf_counter()
         for _ in range(3):
@@ -297,14 +413,18 @@ def bench_forms(args) -> list[dict]:
     from knitframe_linsolvers.direct import upper
 
     H = model.pull_back(K)
-    for label, fn in (("upper triangle of the Hessian (PARDISO's LDLᵀ input): mask", lambda: upper(H)),
-                      ("upper triangle of the Hessian: scipy triu", lambda: sp.triu(H, format="csr"))):
+    for label, fn in (
+        ("upper triangle of the Hessian (PARDISO's LDLᵀ input): mask", lambda: upper(H)),
+        ("upper triangle of the Hessian: scipy triu", lambda: sp.triu(H, format="csr")),
+    ):
         fn()
         t0 = time.perf_counter()
         for _ in range(3):
             fn()
         rows.append({"what": label, "threads": "", "s": round((time.perf_counter() - t0) / 3, 4)})
-    rows.append({"what": f"DOFs {K.shape[0]}, tangent nnz {K.nnz}, peak RSS MB", "threads": "", "s": round(peak_mb())})
+    rows.append(
+        {"what": f"DOFs {K.shape[0]}, tangent nnz {K.nnz}, peak RSS MB", "threads": "", "s": round(peak_mb())}
+    )
     return rows
 
 
@@ -341,45 +461,131 @@ def main(argv=None) -> None:
     p.add_argument("--seed", type=float, default=1 / 3)
     p.add_argument("--contact", default="ipc", help="solid contact law: ipc (default), mortar or penalty")
     p.add_argument("--steps", type=int, default=6)
-    p.add_argument("--stitch-length", type=float, default=11.0, help="jersey stitch length of 'run' (10, 11, 12)")
+    p.add_argument(
+        "--stitch-length", type=float, default=11.0, help="jersey stitch length of 'run' (10, 11, 12)"
+    )
     p.add_argument("--prestress", type=int, default=4)
-    p.add_argument("--solvers", default="direct,amg", help="linear solvers to time in 'iteration': direct,pardiso,pardiso-lu,amg")
-    p.add_argument("--contact-modulus", type=float, help="'run': modulus of the contact penalty, MPa (default E_transverse)")
-    p.add_argument("--truncate", action="store_true", help="'run': keep the converged steps when a later one fails")
+    p.add_argument(
+        "--solvers",
+        default="direct,amg",
+        help="linear solvers to time in 'iteration': direct,pardiso,pardiso-lu,amg",
+    )
+    p.add_argument(
+        "--contact-modulus",
+        type=float,
+        help="'run': modulus of the contact penalty, MPa (default E_transverse)",
+    )
+    p.add_argument(
+        "--truncate", action="store_true", help="'run': keep the converged steps when a later one fails"
+    )
     p.add_argument("--linear-solver", default="direct", help="linear-solver plugin of 'run'")
     p.add_argument("--checkpoint", help="'run': checkpoint directory; a killed run resumes from it")
     p.add_argument("--save", help="'run': write the Response as JSON here (input of benchmarks/agreement.py)")
-    p.add_argument("--trace", help="'run': append every Newton solve (history, diagnostic) to this JSON-lines file; "
-                                   "'trace': the file to summarise")
-    p.add_argument("--friction", action="store_true", help="'run': the scene asks for yarn-yarn friction (lagged Coulomb)")
-    p.add_argument("--dhat", type=float, help="'run': barrier activation distance of the ipc law / mean surface edge length (default the law's, 0.1)")
-    p.add_argument("--ccd", choices=["additive", "tight-inclusion"],
-                   help="'run': narrow-phase CCD of the ipc law (default the law's, additive)")
-    p.add_argument("--reuse", type=float, help="'run': the ipc law keeps a broad-phase search while no vertex has moved over this × d̂ (default the law's, 0.5; 0 searches at every evaluation)")
-    p.add_argument("--mu", type=float, help="'run': Coulomb friction coefficient of the contact law (default the law's, 0.3)")
-    p.add_argument("--smoothing", help="'run': master surface of P1 contact of penalty and mortar, nagata (their default) or none")
-    p.add_argument("--transverse-ratio", type=float,
-                   help="'run': set the yarn's E_transverse to this × E_axial (a diagnostic of the anisotropy)")
-    p.add_argument("--step-tol", type=float, help="'run': also converged when the Newton step (exact, or projected) is ≤ this × r")
-    p.add_argument("--tangent", choices=("adaptive", "exact", "projected"),
-                   help="'run': Newton's Hessian (default the solver's, projected)")
-    p.add_argument("--predictor", choices=("affine", "secant"), help="'run': the load increments' predictor (default the solver's)")
-    p.add_argument("--eigen", choices=("clamp", "abs", "element"), help="'run': eigenvalue filter of the projected tangent (default the solver's, clamp)")
-    p.add_argument("--halve-reversals", choices=("on", "off"), help="'run': halve full Newton steps that reverse the last move (default the solver's)")
-    p.add_argument("--extrapolate", type=float, help="'run': longest extrapolated step / full step (default the solver's, 1: off; 8 on P1 cells)")
-    p.add_argument("--chord", choices=("on", "off"), help="'run': chord steps on a kept factorisation (default the solver's, on)")
-    p.add_argument("--chord-full", choices=("on", "off"), help="'run': chord steps also after full Newton steps (default the solver's, on)")
+    p.add_argument(
+        "--trace",
+        help="'run': append every Newton solve (history, diagnostic) to this JSON-lines file; "
+        "'trace': the file to summarise",
+    )
+    p.add_argument(
+        "--friction",
+        action="store_true",
+        help="'run': the scene asks for yarn-yarn friction (lagged Coulomb)",
+    )
+    p.add_argument(
+        "--dhat",
+        type=float,
+        help="'run': barrier activation distance of the ipc law / mean surface edge length (default the law's, 0.1)",
+    )
+    p.add_argument(
+        "--ccd",
+        choices=["additive", "tight-inclusion"],
+        help="'run': narrow-phase CCD of the ipc law (default the law's, additive)",
+    )
+    p.add_argument(
+        "--reuse",
+        type=float,
+        help="'run': the ipc law keeps a broad-phase search while no vertex has moved over this × d̂ (default the law's, 0.5; 0 searches at every evaluation)",
+    )
+    p.add_argument(
+        "--mu",
+        type=float,
+        help="'run': Coulomb friction coefficient of the contact law (default the law's, 0.3)",
+    )
+    p.add_argument(
+        "--smoothing",
+        help="'run': master surface of P1 contact of penalty and mortar, nagata (their default) or none",
+    )
+    p.add_argument(
+        "--transverse-ratio",
+        type=float,
+        help="'run': set the yarn's E_transverse to this × E_axial (a diagnostic of the anisotropy)",
+    )
+    p.add_argument(
+        "--step-tol",
+        type=float,
+        help="'run': also converged when the Newton step (exact, or projected) is ≤ this × r",
+    )
+    p.add_argument(
+        "--tangent",
+        choices=("adaptive", "exact", "projected"),
+        help="'run': Newton's Hessian (default the solver's, projected)",
+    )
+    p.add_argument(
+        "--predictor",
+        choices=("affine", "secant"),
+        help="'run': the load increments' predictor (default the solver's)",
+    )
+    p.add_argument(
+        "--eigen",
+        choices=("clamp", "abs", "element"),
+        help="'run': eigenvalue filter of the projected tangent (default the solver's, clamp)",
+    )
+    p.add_argument(
+        "--halve-reversals",
+        choices=("on", "off"),
+        help="'run': halve full Newton steps that reverse the last move (default the solver's)",
+    )
+    p.add_argument(
+        "--extrapolate",
+        type=float,
+        help="'run': longest extrapolated step / full step (default the solver's, 1: off; 8 on P1 cells)",
+    )
+    p.add_argument(
+        "--chord",
+        choices=("on", "off"),
+        help="'run': chord steps on a kept factorisation (default the solver's, on)",
+    )
+    p.add_argument(
+        "--chord-full",
+        choices=("on", "off"),
+        help="'run': chord steps also after full Newton steps (default the solver's, on)",
+    )
     p.add_argument("--iterations", action="store_true", help="'trace': one row per Newton iteration")
-    p.add_argument("--start-projected", action="store_true",
-                   help="'run': with the adaptive tangent, start every increment on the projected one")
-    p.add_argument("--cap-shift", type=float, help="'run': raise the Levenberg shift while a Newton step exceeds this × the cap")
+    p.add_argument(
+        "--start-projected",
+        action="store_true",
+        help="'run': with the adaptive tangent, start every increment on the projected one",
+    )
+    p.add_argument(
+        "--cap-shift",
+        type=float,
+        help="'run': raise the Levenberg shift while a Newton step exceeds this × the cap",
+    )
     p.add_argument("--max-step", type=float, help="'run': the solver's cap on a Newton step, node move / r")
-    p.add_argument("--stabilisation", type=float, help="'run': the solver's stabilisation (weak foundation) factor")
+    p.add_argument(
+        "--stabilisation", type=float, help="'run': the solver's stabilisation (weak foundation) factor"
+    )
     p.add_argument("--threads", default="1,2", help="'forms': thread counts of the solid's element chunks")
     p.add_argument("--json")
     args = p.parse_args(argv)
-    rows = {"mesh": bench_mesh, "iteration": bench_iteration, "forms": bench_forms, "run": bench_run, "law": bench_law,
-            "trace": bench_trace}[args.what](args)
+    rows = {
+        "mesh": bench_mesh,
+        "iteration": bench_iteration,
+        "forms": bench_forms,
+        "run": bench_run,
+        "law": bench_law,
+        "trace": bench_trace,
+    }[args.what](args)
     print(table(rows))
     if args.json:
         with open(args.json, "w") as fh:

@@ -30,7 +30,7 @@ EFFECTS = ["large_deformation", "bending", "contact", "self_contact", "prestress
 
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    passed = argv[argv.index("--") + 1:] if "--" in argv else []
+    passed = argv[argv.index("--") + 1 :] if "--" in argv else []
     own = argv[: argv.index("--")] if "--" in argv else argv
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--pattern", default="jersey")
@@ -40,18 +40,26 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--steps", type=int, default=6)
     ap.add_argument("--out", required=True, help="output folder of the ladder")
     ap.add_argument("--timings", default=None, help="also write the converged rungs' timings (JSON) here")
-    ap.add_argument("--check-estimates", default=None, metavar="CSV",
-                    help="after the run, print each rung's time estimated from this earlier ladder.csv alone "
-                         "against the measured one")
+    ap.add_argument(
+        "--check-estimates",
+        default=None,
+        metavar="CSV",
+        help="after the run, print each rung's time estimated from this earlier ladder.csv alone "
+        "against the measured one",
+    )
     args = ap.parse_args(own)
 
     from knitframe.cli import main as knitframe_main
 
-    config = {"pipeline": {"name": f"ladder-{args.pattern}-sl{args.stitch_length:g}-{args.yarn}"},
-              "fabric": {"pattern": args.pattern, "stitch_length": args.stitch_length, "yarn": args.yarn},
-              "scene": {"effects": EFFECTS,
-                        "load": {"kind": "equibiaxial", "max_strain": args.max_strain, "steps": args.steps}},
-              "ladder": {}}
+    config = {
+        "pipeline": {"name": f"ladder-{args.pattern}-sl{args.stitch_length:g}-{args.yarn}"},
+        "fabric": {"pattern": args.pattern, "stitch_length": args.stitch_length, "yarn": args.yarn},
+        "scene": {
+            "effects": EFFECTS,
+            "load": {"kind": "equibiaxial", "max_strain": args.max_strain, "steps": args.steps},
+        },
+        "ladder": {},
+    }
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / f"{config['pipeline']['name']}.toml"
         path.write_text(tomli_w.dumps(config), encoding="utf-8")
@@ -61,21 +69,32 @@ def main(argv: list[str] | None = None) -> int:
     import csv
 
     with open(Path(args.out) / "ladder.csv", encoding="utf-8") as fh:
-        rows = [{**r, "dofs": int(r["dofs"]), "increments": int(r["increments"]),
-                 "wall_time_s": float(r["wall_time_s"]),
-                 "peak_rss_mb": float(r["peak_rss_mb"]) if r["peak_rss_mb"] else None}
-                for r in csv.DictReader(fh) if r["status"] == "ok" and r["family"] != "reduced"]
+        rows = [
+            {
+                **r,
+                "dofs": int(r["dofs"]),
+                "increments": int(r["increments"]),
+                "wall_time_s": float(r["wall_time_s"]),
+                "peak_rss_mb": float(r["peak_rss_mb"]) if r["peak_rss_mb"] else None,
+            }
+            for r in csv.DictReader(fh)
+            if r["status"] == "ok" and r["family"] != "reduced"
+        ]
     if args.check_estimates:
         from knitframe.ladder import CostModel, format_duration, read_timings
 
         model = CostModel(read_timings(args.check_estimates))
-        print(f"| rung | DOFs | estimated from {Path(args.check_estimates).name} | measured | measured / estimated |")
+        print(
+            f"| rung | DOFs | estimated from {Path(args.check_estimates).name} | measured | measured / estimated |"
+        )
         print("|---|---|---|---|---|")
         for r in rows:
             e = model.estimate(r["family"], r["dofs"], r["increments"])
             if e is not None:
-                print(f"| {r['rung']} | {r['dofs']} | {format_duration(e.seconds)} | "
-                      f"{format_duration(r['wall_time_s'])} | {r['wall_time_s'] / e.seconds:.2f} |")
+                print(
+                    f"| {r['rung']} | {r['dofs']} | {format_duration(e.seconds)} | "
+                    f"{format_duration(r['wall_time_s'])} | {r['wall_time_s'] / e.seconds:.2f} |"
+                )
     if args.timings:
         from knitframe.ladder import timings_json
 

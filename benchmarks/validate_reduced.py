@@ -69,25 +69,47 @@ def main() -> None:
                 b = curve_scores(h2m, r, predictive=True)
                 d = ("course", "wale")[r.loaded_direction]
                 strain = float(((r.lambda1, r.lambda2)[r.loaded_direction]).max() - 1)
-                rows.append((yarn, pattern, d, strain, r.n_samples, a["tension"], a["free_tension"], p["tension"],
-                             b["tension"], b["transverse"]))
+                rows.append(
+                    (
+                        yarn,
+                        pattern,
+                        d,
+                        strain,
+                        r.n_samples,
+                        a["tension"],
+                        a["free_tension"],
+                        p["tension"],
+                        b["tension"],
+                        b["transverse"],
+                    )
+                )
     print(f"fitter: {args.fitter}; {time.perf_counter() - t0:.0f} s for 24 fits of each model\n")
-    print("| yarn | pattern | direction | max strain | repeats | hgo NRMSE (λ2 measured) | hgo free-side tension / max T "
-          "| hgo NRMSE (free side solved) | hgo2m NRMSE tension | hgo2m NRMSE transverse |")
+    print(
+        "| yarn | pattern | direction | max strain | repeats | hgo NRMSE (λ2 measured) | hgo free-side tension / max T "
+        "| hgo NRMSE (free side solved) | hgo2m NRMSE tension | hgo2m NRMSE transverse |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|")
     for y, pat, d, s, n, a, ft, p, b, bt in rows:
-        print(f"| {y} | {pat} | {d} | {100 * s:.0f} % | {n} | {100 * a:.1f} % | {100 * ft:.0f} % | {100 * p:.0f} % "
-              f"| {100 * b:.1f} % | {100 * bt:.1f} % |")
+        print(
+            f"| {y} | {pat} | {d} | {100 * s:.0f} % | {n} | {100 * a:.1f} % | {100 * ft:.0f} % | {100 * p:.0f} % "
+            f"| {100 * b:.1f} % | {100 * bt:.1f} % |"
+        )
     med = np.median(np.array([r[5:] for r in rows]), axis=0)
-    print(f"| **median** | | | | | {100 * med[0]:.1f} % | {100 * med[1]:.0f} % | {100 * med[2]:.0f} % | "
-          f"{100 * med[3]:.1f} % | {100 * med[4]:.1f} % |")
+    print(
+        f"| **median** | | | | | {100 * med[0]:.1f} % | {100 * med[1]:.0f} % | {100 * med[2]:.0f} % | "
+        f"{100 * med[3]:.1f} % | {100 * med[4]:.1f} % |"
+    )
     print("\nFitted parameters (a, μ, K in N/mm; θ in degrees)\n")
     print("| yarn | pattern | hgo a | hgo b | hgo θ | hgo2m μ1 | μ2 | K | a1 | b1 | a2 | b2 |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for y, pat, hgo, h2m in params:
         a, b, th = hgo.params
         q = h2m.params
-        print(f"| {y} | {pat} | {a:.3g} | {b:.3g} | {math.degrees(th):.1f} | " + " | ".join(f"{v:.3g}" for v in q) + " |")
+        print(
+            f"| {y} | {pat} | {a:.3g} | {b:.3g} | {math.degrees(th):.1f} | "
+            + " | ".join(f"{v:.3g}" for v in q)
+            + " |"
+        )
 
 
 if __name__ == "__main__":

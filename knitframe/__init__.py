@@ -11,7 +11,8 @@ Public API::
 
 from __future__ import annotations
 
-from importlib.metadata import PackageNotFoundError, version as _version
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as _version
 
 try:
     __version__ = _version("knitframe")
@@ -28,13 +29,13 @@ from knitframe.errors import (  # noqa: E402
     UnknownPluginError,
     UnsupportedEffectError,
 )
-from knitframe.hookspecs import hookimpl  # noqa: E402
-from knitframe.plugins import Registry, get_registry, load_registry  # noqa: E402
-from knitframe.records import EFFECTS, Fabric, LoadPath, Provenance, Response, Scene, Yarn  # noqa: E402
-from knitframe.pipeline import PipelineResult, run  # noqa: E402
 from knitframe.examples import example_config  # noqa: E402
 from knitframe.garment.api import design  # noqa: E402
+from knitframe.hookspecs import hookimpl  # noqa: E402
 from knitframe.ladder import ladder  # noqa: E402
+from knitframe.pipeline import PipelineResult, run  # noqa: E402
+from knitframe.plugins import Registry, get_registry, load_registry  # noqa: E402
+from knitframe.records import EFFECTS, Fabric, LoadPath, Provenance, Response, Scene, Yarn  # noqa: E402
 
 __all__ = [
     "__version__",

@@ -44,9 +44,9 @@ import re
 import sys
 import tempfile
 import types
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import attrs
 
@@ -92,8 +92,20 @@ def _code_digest(code: types.CodeType, h: Any) -> None:
     line numbers (moving a function does not change it), and sets in a fixed order (their iteration
     order depends on the process's hash seed)."""
     h.update(code.co_code)
-    h.update(repr((code.co_name, code.co_names, code.co_varnames, code.co_freevars, code.co_cellvars,
-                   code.co_argcount, code.co_kwonlyargcount, code.co_flags)).encode())
+    h.update(
+        repr(
+            (
+                code.co_name,
+                code.co_names,
+                code.co_varnames,
+                code.co_freevars,
+                code.co_cellvars,
+                code.co_argcount,
+                code.co_kwonlyargcount,
+                code.co_flags,
+            )
+        ).encode()
+    )
     for c in code.co_consts:
         _const_digest(c, h)
 
@@ -133,8 +145,11 @@ def _function_digest(fn: Callable[..., Any]) -> str:
         h.update(repr(getattr(fn, "__qualname__", fn)).encode())
         return h.hexdigest()
     _code_digest(code, h)
-    h.update(_canonical_json({"defaults": list(target.__defaults__ or ()),
-                              "kwdefaults": dict(target.__kwdefaults__ or {})}).encode())
+    h.update(
+        _canonical_json(
+            {"defaults": list(target.__defaults__ or ()), "kwdefaults": dict(target.__kwdefaults__ or {})}
+        ).encode()
+    )
     for cell in target.__closure__ or ():
         try:
             value = cell.cell_contents
@@ -298,7 +313,9 @@ def job_keys(fn: Callable[..., Any], jobs: Iterable[Mapping[str, Any]]) -> list[
         mods = _cache_modules(fn, job)
         if mods not in codes:
             codes[mods] = code_hash(fn, mods)
-        text = _canonical_json({"recipe": KEY_RECIPE, "fn": name, "code": codes[mods], "env": env, "job": job})
+        text = _canonical_json(
+            {"recipe": KEY_RECIPE, "fn": name, "code": codes[mods], "env": env, "job": job}
+        )
         keys.append(hashlib.sha256(text.encode()).hexdigest())
     return keys
 
@@ -348,7 +365,9 @@ class JobCache:
         except Exception:  # noqa: BLE001 - unreadable (truncated, classes changed): recompute and replace
             return False, None
 
-    def split(self, fn: Callable[..., Any], jobs: list[Mapping[str, Any]]) -> tuple[list[str], list[Any], list[int]]:
+    def split(
+        self, fn: Callable[..., Any], jobs: list[Mapping[str, Any]]
+    ) -> tuple[list[str], list[Any], list[int]]:
         """``(keys, results, todo)``: each job's key, cached results in place (None elsewhere), and
         the indices of the jobs still to run."""
         keys = job_keys(fn, jobs)
@@ -379,8 +398,11 @@ class JobCache:
         """The cache's own files: results (``<64 hex>.pkl``) and leftovers of interrupted writes."""
         if self.directory is None or not self.directory.is_dir():
             return []
-        return sorted(p for p in self.directory.iterdir()
-                      if p.is_file() and (_KEY_FILE.match(p.name) or _TMP_FILE.match(p.name)))
+        return sorted(
+            p
+            for p in self.directory.iterdir()
+            if p.is_file() and (_KEY_FILE.match(p.name) or _TMP_FILE.match(p.name))
+        )
 
     def info(self) -> tuple[int, int]:
         """``(results, bytes)`` held."""

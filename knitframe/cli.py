@@ -30,7 +30,9 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="knitframe", description="Mechanics of weft-knitted fabrics: simulate, fit and design.")
+    parser = _Parser(
+        prog="knitframe", description="Mechanics of weft-knitted fabrics: simulate, fit and design."
+    )
     parser.add_argument("--version", action="version", version=f"knitframe {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name in COMMANDS:
@@ -78,7 +80,11 @@ def _log_to_stderr(*, quiet: bool) -> None:
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
     """Warnings as one line on stderr: ``knitframe: warning: <message>`` (no source line)."""
     text = " ".join(str(message).split())
-    prefix = "knitframe: warning: " if issubclass(category, KnitframeWarning) else f"knitframe: warning: {category.__name__}: "
+    prefix = (
+        "knitframe: warning: "
+        if issubclass(category, KnitframeWarning)
+        else f"knitframe: warning: {category.__name__}: "
+    )
     print(prefix + text, file=sys.stderr)
 
 

@@ -43,9 +43,13 @@ def load_toml(path: str | Path) -> dict[str, Any]:
     except tomllib.TOMLDecodeError as e:
         raise ConfigError("", f"malformed TOML: {e}", source=str(p)) from None
     except RecursionError:  # tomllib parses nested arrays and inline tables recursively
-        raise ConfigError("", "malformed TOML: arrays or inline tables nested too deeply", source=str(p)) from None
+        raise ConfigError(
+            "", "malformed TOML: arrays or inline tables nested too deeply", source=str(p)
+        ) from None
     except ValueError as e:  # e.g. an integer of more digits than Python converts
-        raise ConfigError("", f"malformed TOML: {' '.join(str(e).split(';')[0].split())}", source=str(p)) from None
+        raise ConfigError(
+            "", f"malformed TOML: {' '.join(str(e).split(';')[0].split())}", source=str(p)
+        ) from None
 
 
 @attrs.frozen
@@ -56,7 +60,7 @@ class PluginSpec:
     options: dict[str, Any] = attrs.Factory(dict)
 
     @classmethod
-    def parse(cls, value: Any, path: str) -> "PluginSpec":
+    def parse(cls, value: Any, path: str) -> PluginSpec:
         """From ``"name"`` or ``{kind = "name", ...options}``."""
         if isinstance(value, PluginSpec):
             return value

@@ -22,11 +22,14 @@ from knitframe.periodic import Lattice
 __all__ = ["closest_points", "SegmentTopology", "Pairs", "find_pairs", "IMAGES"]
 
 #: periodic images searched: (0, 0) first, then the 8 neighbours
-IMAGES = np.array([(0, 0), (1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)], dtype=np.int64)
+IMAGES = np.array(
+    [(0, 0), (1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)], dtype=np.int64
+)
 
 
-def closest_points(p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndarray, eps: float = 1e-14
-                   ) -> tuple[np.ndarray, np.ndarray]:
+def closest_points(
+    p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndarray, eps: float = 1e-14
+) -> tuple[np.ndarray, np.ndarray]:
     """Parameters (s, t) ∈ [0, 1]² of the closest points of segments p0–p1 and q0–q1, vectorised.
 
     Minimises |p0 + s (p1 − p0) − q0 − t (q1 − q0)|² over the unit square (Ericson, Real-Time
@@ -158,7 +161,9 @@ def find_pairs(
     half = 0.5 * np.linalg.norm(p1 - p0, axis=1)
     reach = cutoff + 2.0 * float(half.max(initial=0.0))
     images = IMAGES if lattice is not None else IMAGES[:1]
-    shifts = lattice.shift(images, np.zeros(6) if h is None else h) if lattice is not None else np.zeros((1, 3))
+    shifts = (
+        lattice.shift(images, np.zeros(6) if h is None else h) if lattice is not None else np.zeros((1, 3))
+    )
     img_mid = (mid[None, :, :] + shifts[:, None, :]).reshape(-1, 3)
     found = cKDTree(mid).sparse_distance_matrix(cKDTree(img_mid), reach, output_type="ndarray")
     i = found["i"].astype(np.int64)

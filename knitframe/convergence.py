@@ -49,7 +49,7 @@ class Richardson:
 
 
 def _ratio(p: float, h1: float, h2: float, h3: float) -> float:
-    return (h3 ** p - h2 ** p) / (h2 ** p - h1 ** p)
+    return (h3**p - h2**p) / (h2**p - h1**p)
 
 
 def richardson(h: Sequence[float], f: Sequence[float]) -> Richardson:
@@ -86,20 +86,33 @@ def richardson(h: Sequence[float], f: Sequence[float]) -> Richardson:
             if hi / lo - 1.0 < 1e-12:
                 break
         p = math.sqrt(lo * hi)
-    C = e21 / (h2 ** p - h1 ** p)
-    f0 = f1 - C * h1 ** p
+    C = e21 / (h2**p - h1**p)
+    f0 = f1 - C * h1**p
     err = abs(f1 - f0) / abs(f0) if f0 != 0 else math.inf
     gci = 1.25 * abs(e21 / f1) / ((h2 / h1) ** p - 1.0) if f1 != 0 else math.inf
     return Richardson(float(p), float(f0), float(err), float(gci), "converging")
 
 
 #: columns of ``convergence.csv``
-CONVERGENCE_COLUMNS = ("family", "rungs", "direction", "strain", "T_finest", "T_middle", "T_coarsest",
-                       "order", "T_extrapolated", "error_finest", "gci_finest", "behaviour")
+CONVERGENCE_COLUMNS = (
+    "family",
+    "rungs",
+    "direction",
+    "strain",
+    "T_finest",
+    "T_middle",
+    "T_coarsest",
+    "order",
+    "T_extrapolated",
+    "error_finest",
+    "gci_finest",
+    "behaviour",
+)
 
 
-def mesh_convergence(rungs: Mapping[str, float], curves: Mapping[str, Any], load: str,
-                     family: str) -> list[dict[str, Any]]:
+def mesh_convergence(
+    rungs: Mapping[str, float], curves: Mapping[str, Any], load: str, family: str
+) -> list[dict[str, Any]]:
     """Richardson at every load step of the three finest of ``rungs`` (name → mesh size h).
 
     ``curves`` maps each rung name to its Response (same scene, so the same load steps; a
@@ -126,10 +139,22 @@ def mesh_convergence(rungs: Mapping[str, float], curves: Mapping[str, Any], load
                 continue
             vals = [float(T[i]) for T in Ts]
             r = richardson([rungs[m] for m in names], vals)
-            rows.append({"family": family, "rungs": " ".join(names), "direction": ("course", "wale")[d],
-                         "strain": strain, "T_finest": vals[0], "T_middle": vals[1], "T_coarsest": vals[2],
-                         "order": r.order, "T_extrapolated": r.extrapolated, "error_finest": r.error_finest,
-                         "gci_finest": r.gci_finest, "behaviour": r.behaviour})
+            rows.append(
+                {
+                    "family": family,
+                    "rungs": " ".join(names),
+                    "direction": ("course", "wale")[d],
+                    "strain": strain,
+                    "T_finest": vals[0],
+                    "T_middle": vals[1],
+                    "T_coarsest": vals[2],
+                    "order": r.order,
+                    "T_extrapolated": r.extrapolated,
+                    "error_finest": r.error_finest,
+                    "gci_finest": r.gci_finest,
+                    "behaviour": r.behaviour,
+                }
+            )
     return rows
 
 
@@ -147,8 +172,12 @@ def write_convergence(path, rows: Sequence[Mapping[str, Any]]) -> None:
         w = csv.writer(fh)
         w.writerow(CONVERGENCE_COLUMNS)
         for r in rows:
-            w.writerow(["" if r[c] is None else (f"{r[c]:.10g}" if isinstance(r[c], float) else r[c])
-                        for c in CONVERGENCE_COLUMNS])
+            w.writerow(
+                [
+                    "" if r[c] is None else (f"{r[c]:.10g}" if isinstance(r[c], float) else r[c])
+                    for c in CONVERGENCE_COLUMNS
+                ]
+            )
 
 
 def convergence_table(rows: Sequence[Mapping[str, Any]]) -> str:
@@ -157,15 +186,22 @@ def convergence_table(rows: Sequence[Mapping[str, Any]]) -> str:
     for family in dict.fromkeys(r["family"] for r in rows):
         mine = [r for r in rows if r["family"] == family]
         finest, middle, coarsest = mine[0]["rungs"].split()
-        lines += ["", f"### Mesh convergence of {family}", "",
-                  f"Tension (N/mm) on {coarsest}, {middle} and {finest}; the observed order p and the "
-                  "Richardson estimate of the mesh-converged tension and of the finest mesh's error "
-                  "(knitframe.convergence).", "",
-                  "| direction | strain | coarsest | middle | finest | order p | extrapolated | error of the finest | GCI | behaviour |",
-                  "|---|---|---|---|---|---|---|---|---|---|"]
+        lines += [
+            "",
+            f"### Mesh convergence of {family}",
+            "",
+            f"Tension (N/mm) on {coarsest}, {middle} and {finest}; the observed order p and the "
+            "Richardson estimate of the mesh-converged tension and of the finest mesh's error "
+            "(knitframe.convergence).",
+            "",
+            "| direction | strain | coarsest | middle | finest | order p | extrapolated | error of the finest | GCI | behaviour |",
+            "|---|---|---|---|---|---|---|---|---|---|",
+        ]
         for r in mine:
-            lines.append(f"| {r['direction']} | {100 * r['strain']:.3g} % | {_fmt(r['T_coarsest'])} | "
-                         f"{_fmt(r['T_middle'])} | {_fmt(r['T_finest'])} | {_fmt(r['order'])} | "
-                         f"{_fmt(r['T_extrapolated'])} | {_fmt(r['error_finest'], True)} | "
-                         f"{_fmt(r['gci_finest'], True)} | {r['behaviour']} |")
+            lines.append(
+                f"| {r['direction']} | {100 * r['strain']:.3g} % | {_fmt(r['T_coarsest'])} | "
+                f"{_fmt(r['T_middle'])} | {_fmt(r['T_finest'])} | {_fmt(r['order'])} | "
+                f"{_fmt(r['T_extrapolated'])} | {_fmt(r['error_finest'], True)} | "
+                f"{_fmt(r['gci_finest'], True)} | {r['behaviour']} |"
+            )
     return "\n".join(lines) + "\n"

@@ -21,8 +21,17 @@ import numpy as np
 
 from knitframe.errors import DataError, KnitframeWarning
 
-__all__ = ["read_table", "Table", "strains_as_fractions", "tension_per_width", "check_tension", "check_loading",
-           "PERCENT_STRAIN", "FORCE_TENSION", "UNLOADING"]
+__all__ = [
+    "read_table",
+    "Table",
+    "strains_as_fractions",
+    "tension_per_width",
+    "check_tension",
+    "check_loading",
+    "PERCENT_STRAIN",
+    "FORCE_TENSION",
+    "UNLOADING",
+]
 
 #: An engineering strain beyond this (500 %) reads as percent: no knit test goes that far.
 PERCENT_STRAIN = 5.0
@@ -37,12 +46,21 @@ _DECIMAL_COMMA = re.compile(r"[+-]?\d+,\d+")
 class Table:
     """Columns of a CSV file: ``table["strain"]`` is a float64 array, ``table.text("video")`` a list."""
 
-    def __init__(self, path: Path, header: list[str], rows: list[list[str]], lines: list[int], comments: list[str],
-                 header_line: int | None = None):
+    def __init__(
+        self,
+        path: Path,
+        header: list[str],
+        rows: list[list[str]],
+        lines: list[int],
+        comments: list[str],
+        header_line: int | None = None,
+    ):
         self.path = path
         self.header = header
         self.header_line = header_line  #: 1-based file line number of the header row
-        self.warnings: list[str] = []  #: unit conversions made while reading (also issued as KnitframeWarning)
+        self.warnings: list[
+            str
+        ] = []  #: unit conversions made while reading (also issued as KnitframeWarning)
         self.rows = rows
         self.lines = lines  #: 1-based file line number of each row
         self.comments = comments  #: leading ``#`` lines without the ``#``
@@ -72,10 +90,13 @@ class Table:
                     hint = ": write decimals with '.', not a decimal comma"
                 elif not cell:
                     hint = " (the cell is empty)"
-                raise DataError(self.path, f"expected a number, got {cell!r}{hint}", line=self.lines[i],
-                                column=column) from None
+                raise DataError(
+                    self.path, f"expected a number, got {cell!r}{hint}", line=self.lines[i], column=column
+                ) from None
             if not math.isfinite(x):
-                raise DataError(self.path, f"expected a finite number, got {cell!r}", line=self.lines[i], column=column)
+                raise DataError(
+                    self.path, f"expected a finite number, got {cell!r}", line=self.lines[i], column=column
+                )
             out[i] = x
         return out
 
@@ -98,8 +119,11 @@ def _text(p: Path) -> str:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as e:
         start = e.start + (3 if data.startswith(b"\xef\xbb\xbf") else 0)
-        raise DataError(p, f"not UTF-8 text (byte 0x{data[start]:02x}); save the file as UTF-8",
-                        line=data[:start].count(b"\n") + 1) from None
+        raise DataError(
+            p,
+            f"not UTF-8 text (byte 0x{data[start]:02x}); save the file as UTF-8",
+            line=data[:start].count(b"\n") + 1,
+        ) from None
 
 
 def _delimiter_problem(header_text: str, lines: list[str], lineno: int) -> str | None:
@@ -107,9 +131,13 @@ def _delimiter_problem(header_text: str, lines: list[str], lineno: int) -> str |
     for sep, name in ((";", "';'"), ("\t", "tabs"), ("|", "'|'")):
         if sep in header_text:
             data = next((ln for ln in lines[lineno:] if ln.strip() and not ln.lstrip().startswith("#")), "")
-            decimal = " and the numbers use decimal commas (e.g. '0,5')" if _DECIMAL_COMMA.search(data) else ""
-            return (f"the columns are separated by {name}, not commas{decimal}: save it as comma-separated CSV "
-                    "with '.' as the decimal point")
+            decimal = (
+                " and the numbers use decimal commas (e.g. '0,5')" if _DECIMAL_COMMA.search(data) else ""
+            )
+            return (
+                f"the columns are separated by {name}, not commas{decimal}: save it as comma-separated CSV "
+                "with '.' as the decimal point"
+            )
     return None
 
 
@@ -152,8 +180,11 @@ def read_table(path: str | Path, required: tuple[str, ...] = (), *, need_rows: b
             _check_unique(p, header, lineno)
             continue
         if len(row) != len(header):
-            raise DataError(p, _ragged(row, len(header), raw_lines[lineno - 1] if lineno <= len(raw_lines) else ""),
-                            line=lineno)
+            raise DataError(
+                p,
+                _ragged(row, len(header), raw_lines[lineno - 1] if lineno <= len(raw_lines) else ""),
+                line=lineno,
+            )
         rows.append(row)
         lines.append(lineno)
     if header is None:
@@ -172,8 +203,12 @@ def _check_unique(p: Path, header: list[str], lineno: int) -> None:
     for j, name in enumerate(header):
         key = name.lower()
         if key and key in seen:
-            raise DataError(p, f"the header names this column twice (columns {seen[key] + 1} and {j + 1})",
-                            line=lineno, column=name)
+            raise DataError(
+                p,
+                f"the header names this column twice (columns {seen[key] + 1} and {j + 1})",
+                line=lineno,
+                column=name,
+            )
         seen.setdefault(key, j)
 
 
@@ -191,6 +226,7 @@ def strains_as_fractions(table: Table, columns: dict[str, np.ndarray], lead: str
     100 and the warning names what was divided and what was kept. A column in percent next to a
     lead that is not is a DataError at its cell: give every strain in the same unit.
     """
+
     def size(name: str) -> tuple[float, int]:
         x = np.abs(columns[name] - (1.0 if _is_stretch(name) else 0.0))
         i = int(np.argmax(x))
@@ -202,19 +238,34 @@ def strains_as_fractions(table: Table, columns: dict[str, np.ndarray], lead: str
         if percent:
             name = percent[0]
             i = size(name)[1]
-            raise DataError(table.path, f"{columns[name][i]:g} reads as percent while '{lead}' reads as a fraction: "
-                                        "give every strain in the same unit", line=table.lines[i], column=name)
+            raise DataError(
+                table.path,
+                f"{columns[name][i]:g} reads as percent while '{lead}' reads as a fraction: "
+                "give every strain in the same unit",
+                line=table.lines[i],
+                column=name,
+            )
         return dict(columns)
     unit = "stretch" if _is_stretch(lead) else "strain"
     kept = [n for n in columns if n not in percent]
     note = "".join(f"; kept '{n}' (at most {size(n)[0]:g}, a fraction)" for n in kept)
-    _warn(table, f"{table.path}: column '{lead}' reaches {columns[lead][size(lead)[1]]:g}, which reads as percent, "
-                 f"not {unit} (beyond {PERCENT_STRAIN:g}): divided {', '.join(repr(c) for c in percent)} by 100{note}")
+    _warn(
+        table,
+        f"{table.path}: column '{lead}' reaches {columns[lead][size(lead)[1]]:g}, which reads as percent, "
+        f"not {unit} (beyond {PERCENT_STRAIN:g}): divided {', '.join(repr(c) for c in percent)} by 100{note}",
+    )
     return {name: x / 100.0 if name in percent else x for name, x in columns.items()}
 
 
-def tension_per_width(table: Table, column: str, tension: np.ndarray, width: float | np.ndarray | None,
-                      how_to_give_width: str, *, limit: float = FORCE_TENSION) -> np.ndarray:
+def tension_per_width(
+    table: Table,
+    column: str,
+    tension: np.ndarray,
+    width: float | np.ndarray | None,
+    how_to_give_width: str,
+    *,
+    limit: float = FORCE_TENSION,
+) -> np.ndarray:
     """A tension column (N/mm) that reaches past ``limit`` reads as a force in N.
 
     With a known specimen ``width`` (mm) it is divided by it, with one warning; without one it is
@@ -224,14 +275,19 @@ def tension_per_width(table: Table, column: str, tension: np.ndarray, width: flo
     i = int(np.argmax(tension))
     if not tension[i] > limit:
         return tension
-    detected = (f"{tension[i]:g} is more than a knit carries (above {limit:g} N/mm): the column reads as a force in N, "
-                "not a tension in N/mm")
+    detected = (
+        f"{tension[i]:g} is more than a knit carries (above {limit:g} N/mm): the column reads as a force in N, "
+        "not a tension in N/mm"
+    )
     if width is None:
         raise DataError(table.path, f"{detected}; {how_to_give_width}", line=table.lines[i], column=column)
     w = np.asarray(width, dtype=np.float64)
     shown = f"{float(w):g} mm" if w.ndim == 0 else "the width_mm column"
-    _warn(table, f"{table.path}: column '{column}' reaches {tension[i]:g}, which reads as a force in N, not N/mm "
-                 f"(above {limit:g}): divided by the specimen width, {shown}")
+    _warn(
+        table,
+        f"{table.path}: column '{column}' reaches {tension[i]:g}, which reads as a force in N, not N/mm "
+        f"(above {limit:g}): divided by the specimen width, {shown}",
+    )
     return tension / w
 
 
@@ -241,19 +297,28 @@ def _warn(table: Table, message: str) -> None:
     warnings.warn(message, KnitframeWarning, stacklevel=3)
 
 
-def check_tension(table: Table, column: str, tension: np.ndarray, rows: np.ndarray | None = None,
-                  what: str = "") -> None:
+def check_tension(
+    table: Table, column: str, tension: np.ndarray, rows: np.ndarray | None = None, what: str = ""
+) -> None:
     """A curve whose tension is zero on every row, or nowhere positive, is a DataError: nothing to fit."""
     idx = np.flatnonzero(np.ones(len(tension), bool) if rows is None else rows)
     t = tension[idx]
     of = f" of the {what} rows" if what else ""
     if np.all(t == 0):
-        raise DataError(table.path, f"the tension is zero on every row{of}: the file holds no load",
-                        line=table.lines[idx[0]], column=column)
+        raise DataError(
+            table.path,
+            f"the tension is zero on every row{of}: the file holds no load",
+            line=table.lines[idx[0]],
+            column=column,
+        )
     if t.max() <= 0:
-        raise DataError(table.path, f"the tension is negative on every row{of} (down to {t.min():g}): "
-                                    "knitframe reads tension as positive", line=table.lines[idx[int(np.argmin(t))]],
-                        column=column)
+        raise DataError(
+            table.path,
+            f"the tension is negative on every row{of} (down to {t.min():g}): "
+            "knitframe reads tension as positive",
+            line=table.lines[idx[int(np.argmin(t))]],
+            column=column,
+        )
 
 
 def check_loading(table: Table, column: str, strain: np.ndarray, groups: Sequence[np.ndarray]) -> None:
@@ -268,6 +333,10 @@ def check_loading(table: Table, column: str, strain: np.ndarray, groups: Sequenc
         fall = top - s
         if span > 0 and fall.max() > UNLOADING * span:
             k = int(np.argmax(fall > UNLOADING * span))
-            raise DataError(table.path, f"the strain falls from {top[k]:g} back to {s[k]:g}: the test holds an "
-                                        "unloading branch; keep the loading part only", line=table.lines[idx[k]],
-                            column=column)
+            raise DataError(
+                table.path,
+                f"the strain falls from {top[k]:g} back to {s[k]:g}: the test holds an "
+                "unloading branch; keep the loading part only",
+                line=table.lines[idx[k]],
+                column=column,
+            )

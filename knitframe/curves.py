@@ -33,19 +33,47 @@ def average_repeats(
     return grid, lat.mean(0), lat.std(0, ddof=ddof), ten.mean(0), ten.std(0, ddof=ddof)
 
 
-def uniaxial_response(load: str, axial: np.ndarray, lateral: np.ndarray, tension: np.ndarray,
-                      lat_sd: np.ndarray | None, ten_sd: np.ndarray | None, n: int, label: str,
-                      prov: Provenance) -> Response:
+def uniaxial_response(
+    load: str,
+    axial: np.ndarray,
+    lateral: np.ndarray,
+    tension: np.ndarray,
+    lat_sd: np.ndarray | None,
+    ten_sd: np.ndarray | None,
+    n: int,
+    label: str,
+    prov: Provenance,
+) -> Response:
     """Response of a free-sides uniaxial test from engineering strains and tension (N/mm).
 
     ``load`` is ``uniaxial-course`` (λ1 = 1 + axial, λ2 = 1 + lateral, T2 = 0) or ``uniaxial-wale``.
     """
     zero = np.zeros_like(tension)
     if load == "uniaxial-course":
-        return Response(1 + axial, 1 + lateral, tension, zero, load=load, label=label, n_samples=n,
-                        T1_sd=ten_sd, lambda2_sd=lat_sd, provenance=prov)
-    return Response(1 + lateral, 1 + axial, zero, tension, load=load, label=label, n_samples=n,
-                    T2_sd=ten_sd, lambda1_sd=lat_sd, provenance=prov)
+        return Response(
+            1 + axial,
+            1 + lateral,
+            tension,
+            zero,
+            load=load,
+            label=label,
+            n_samples=n,
+            T1_sd=ten_sd,
+            lambda2_sd=lat_sd,
+            provenance=prov,
+        )
+    return Response(
+        1 + lateral,
+        1 + axial,
+        zero,
+        tension,
+        load=load,
+        label=label,
+        n_samples=n,
+        T2_sd=ten_sd,
+        lambda1_sd=lat_sd,
+        provenance=prov,
+    )
 
 
 def nrmse_between(ref: Response, r: Response) -> float:
@@ -58,7 +86,10 @@ def nrmse_between(ref: Response, r: Response) -> float:
     """
     scale = max(np.abs(ref.T1).max(), np.abs(ref.T2).max())
     err = []
-    for lam_r, T_r, lam, T in ((ref.lambda1, ref.T1, r.lambda1, r.T1), (ref.lambda2, ref.T2, r.lambda2, r.T2)):
+    for lam_r, T_r, lam, T in (
+        (ref.lambda1, ref.T1, r.lambda1, r.T1),
+        (ref.lambda2, ref.T2, r.lambda2, r.T2),
+    ):
         o = np.argsort(lam)
         err.append(np.interp(lam_r, lam[o], T[o]) - T_r)
     return float(np.sqrt(np.mean(np.concatenate(err) ** 2)) / scale)

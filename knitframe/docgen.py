@@ -20,8 +20,18 @@ from knitframe.schema import _hints, type_name
 __all__ = ["field_docs", "schema_table", "configuration_md"]
 
 #: plugin kinds selectable from a config, in the order they are documented
-CONFIG_KINDS = ("solver", "contact_law", "linear_solver", "homogenizer", "fitter", "reader", "executor",
-                "design_objective", "pattern", "yarn_model")
+CONFIG_KINDS = (
+    "solver",
+    "contact_law",
+    "linear_solver",
+    "homogenizer",
+    "fitter",
+    "reader",
+    "executor",
+    "design_objective",
+    "pattern",
+    "yarn_model",
+)
 
 
 def field_docs(cls: type) -> dict[str, str]:
@@ -93,8 +103,8 @@ def configuration_md(registry: Registry | None = None) -> str:
         "angles in degrees in configs. Relative paths resolve against the config file's directory.",
         "Any error names the TOML path of the offending key, e.g. `fabric.stitch_length: must be > 0, got -1`.",
         "",
-        "A plugin is chosen by name — `fitter = \"lbfgs\"` — or by a table with `kind` plus its options —",
-        "`fitter = { kind = \"mads\", max_evals = 500 }`. The options of every built-in plugin are listed below.",
+        'A plugin is chosen by name — `fitter = "lbfgs"` — or by a table with `kind` plus its options —',
+        '`fitter = { kind = "mads", max_evals = 500 }`. The options of every built-in plugin are listed below.',
         "",
         "## `[pipeline]`",
         "",
@@ -116,8 +126,12 @@ def configuration_md(registry: Registry | None = None) -> str:
         else:
             out += ["This stage takes no keys of its own.", ""]
     out += ["## Records used in configs", ""]
-    for title, cls in (("`[fabric]`", Fabric), ("`[fabric.yarn]` (or a yarn name)", Yarn),
-                       ("`[scene]`", Scene), ("`[scene.load]`", LoadPath)):
+    for title, cls in (
+        ("`[fabric]`", Fabric),
+        ("`[fabric.yarn]` (or a yarn name)", Yarn),
+        ("`[scene]`", Scene),
+        ("`[scene.load]`", LoadPath),
+    ):
         out += [f"### {title}", "", _doc(cls), "", schema_table(cls), ""]
     out += ["Effects a scene may ask for (`scene.effects`):", ""]
     out += [f"- `{k}`: {v}" for k, v in EFFECTS.items()] + [""]
@@ -132,8 +146,11 @@ def configuration_md(registry: Registry | None = None) -> str:
             if isinstance(e.obj, type) and attrs.has(e.obj) and any(f.init for f in attrs.fields(e.obj)):
                 out += [schema_table(e.obj), ""]
             elif callable(e.obj) and not isinstance(e.obj, type):
-                params = [p for p in inspect.signature(e.obj).parameters.values() if p.kind == p.KEYWORD_ONLY or
-                          p.default is not p.empty]
+                params = [
+                    p
+                    for p in inspect.signature(e.obj).parameters.values()
+                    if p.kind == p.KEYWORD_ONLY or p.default is not p.empty
+                ]
                 if params:
                     out += ["| key | default |", "|---|---|"]
                     out += [f"| `{p.name}` | `{p.default!r}` |" for p in params] + [""]

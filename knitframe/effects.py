@@ -36,7 +36,11 @@ def require_effects(scene: Scene, solver: Any, registry: Registry, *, name: str 
     key = scene.load.response_kind
     if loads is not None and key not in loads and scene.load.kind not in loads:
         kind = registry["solver"]
-        others = [n for n in kind if key in getattr(kind[n], "loads", ()) or scene.load.kind in getattr(kind[n], "loads", ())]
+        others = [
+            n
+            for n in kind
+            if key in getattr(kind[n], "loads", ()) or scene.load.kind in getattr(kind[n], "loads", ())
+        ]
         raise ConfigError(
             "scene.load.kind",
             f"solver '{solver_name}' cannot follow load '{key}'; solvers that can: {', '.join(others) or 'none installed'}",

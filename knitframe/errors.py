@@ -95,8 +95,7 @@ class UnsupportedEffectError(KnitframeError):
         self.supporting = sorted(supporting)
         alt = ", ".join(self.supporting) if self.supporting else "none installed"
         super().__init__(
-            f"scene.effects: solver '{solver}' does not support effect '{effect}'; "
-            f"solvers that do: {alt}"
+            f"scene.effects: solver '{solver}' does not support effect '{effect}'; solvers that do: {alt}"
         )
 
 

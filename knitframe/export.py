@@ -113,10 +113,13 @@ def load_params(path: str | Path, option: str = "PARAMS") -> dict[str, Any]:
     try:
         data = json.loads(text)
     except ValueError as e:
-        raise ConfigError(option, f"{where}: is not JSON (line {getattr(e, 'lineno', '?')}): "
-                          f"{getattr(e, 'msg', str(e))}") from None
+        raise ConfigError(
+            option, f"{where}: is not JSON (line {getattr(e, 'lineno', '?')}): {getattr(e, 'msg', str(e))}"
+        ) from None
     if not isinstance(data, dict):
-        raise ConfigError(option, f"{where}: expected a JSON object (a params.json), got {type(data).__name__}")
+        raise ConfigError(
+            option, f"{where}: expected a JSON object (a params.json), got {type(data).__name__}"
+        )
     return data
 
 
@@ -126,13 +129,17 @@ def model_of(data: Mapping[str, Any], path: str = "params", registry=None):
     from knitframe.plugins import get_registry
 
     if "model" not in data:
-        raise ConfigError(f"{path}.model", "required key is missing (the homogenizer the parameters belong to)")
+        raise ConfigError(
+            f"{path}.model", "required key is missing (the homogenizer the parameters belong to)"
+        )
     if not isinstance(data["model"], str):
         raise ConfigError(f"{path}.model", f"expected a homogenizer name, got {data['model']!r}")
     options = data.get("options", {})
     if not isinstance(options, dict):
         raise ConfigError(f"{path}.options", f"expected a table of model options, got {options!r}")
-    return instantiate(registry or get_registry(), "homogenizer", {"kind": data["model"], **options}, f"{path}.model")
+    return instantiate(
+        registry or get_registry(), "homogenizer", {"kind": data["model"], **options}, f"{path}.model"
+    )
 
 
 def stored_params(model: Any, data: Mapping[str, Any], path: str = "params") -> dict[str, float]:
@@ -140,7 +147,9 @@ def stored_params(model: Any, data: Mapping[str, Any], path: str = "params") -> 
     from knitframe.fitting import params_from_json, params_to_json
 
     keys = list(params_to_json(model.param_names, [0.0] * len(model.param_names)))
-    params_from_json(model.param_names, {k: data[k] for k in keys if k in data}, path)  # missing/non-finite: one line
+    params_from_json(
+        model.param_names, {k: data[k] for k in keys if k in data}, path
+    )  # missing/non-finite: one line
     return {k: float(data[k]) for k in keys}
 
 
@@ -154,11 +163,20 @@ def card_refusal(model: Any, fmt: str) -> str | None:
     reason = getattr(model, "card_refusal", "") or "it defines no material cards"
     if formats:
         return f"homogenizer '{model.name}' has no {fmt} card ({reason}); it can be written as {', '.join(formats)}"
-    return f"homogenizer '{model.name}' has no {fmt} card: none of {', '.join(FORMATS)} can express it: {reason}"
+    return (
+        f"homogenizer '{model.name}' has no {fmt} card: none of {', '.join(FORMATS)} can express it: {reason}"
+    )
 
 
-def export_card(data: Mapping[str, Any], fmt: str, *, path: str = "params", registry=None,
-                options: Mapping[str, str] | None = None, **card_options: Any) -> str:
+def export_card(
+    data: Mapping[str, Any],
+    fmt: str,
+    *,
+    path: str = "params",
+    registry=None,
+    options: Mapping[str, str] | None = None,
+    **card_options: Any,
+) -> str:
     """The card text of a params.json's model in format ``fmt``.
 
     ``card_options`` go to the homogenizer's ``card`` (for ``hgo``: ``thickness`` mm, ``name``,
@@ -186,8 +204,12 @@ def _source_note(data: Mapping[str, Any]) -> str:
     if isinstance(data.get("fitter"), str) and data["fitter"]:
         parts.append(f"fitted by {data['fitter']}")
     nrmse = data.get("nrmse")
-    if isinstance(nrmse, dict) and isinstance(nrmse.get("overall"), (int, float)) and not isinstance(
-            nrmse.get("overall"), bool) and math.isfinite(nrmse["overall"]):
+    if (
+        isinstance(nrmse, dict)
+        and isinstance(nrmse.get("overall"), (int, float))
+        and not isinstance(nrmse.get("overall"), bool)
+        and math.isfinite(nrmse["overall"])
+    ):
         parts.append(f"NRMSE {100 * nrmse['overall']:.2f} %")
     return ", ".join(parts)
 
@@ -224,11 +246,16 @@ def check_out_file(out: str | Path, *, overwrite: bool = False, option: str = "-
         if not p.is_file():
             raise ConfigError(option, f"{text}: exists and is not a regular file")
         if not overwrite:
-            raise ConfigError(option, f"{text}: exists; name a new file, or give --overwrite to replace a card "
-                              "knitframe wrote")
+            raise ConfigError(
+                option,
+                f"{text}: exists; name a new file, or give --overwrite to replace a card knitframe wrote",
+            )
         if not is_knitframe_card(p):
-            raise ConfigError(option, f"{text}: exists and is not a knitframe card (its first line is not "
-                              f"'** {CARD_TAG}: ...'); --overwrite only replaces knitframe's own cards")
+            raise ConfigError(
+                option,
+                f"{text}: exists and is not a knitframe card (its first line is not "
+                f"'** {CARD_TAG}: ...'); --overwrite only replaces knitframe's own cards",
+            )
     return p
 
 
@@ -253,7 +280,9 @@ def write_card(out: str | Path, text: str, *, overwrite: bool = False, option: s
             try:
                 os.link(tmp, p)
             except FileExistsError:
-                raise ConfigError(option, f"{out}: appeared while the card was written; not replaced") from None
+                raise ConfigError(
+                    option, f"{out}: appeared while the card was written; not replaced"
+                ) from None
             except OSError:  # a file system without hard links
                 os.replace(tmp, p)
             Path(tmp).unlink(missing_ok=True)
@@ -266,8 +295,10 @@ def write_card(out: str | Path, text: str, *, overwrite: bool = False, option: s
 # ---------------------------------------------------------------------------------------------
 # the CalculiX check
 # ---------------------------------------------------------------------------------------------
-_CASE = re.compile(r"^\*\* check case (?P<set>[A-Z]+): (?P<kind>[a-z-]+), lam1 1 -> (?P<l1>[0-9.eE+-]+), "
-                   r"lam2 1 -> (?P<l2>[0-9.eE+-]+), (?P<n>\d+) increments")
+_CASE = re.compile(
+    r"^\*\* check case (?P<set>[A-Z]+): (?P<kind>[a-z-]+), lam1 1 -> (?P<l1>[0-9.eE+-]+), "
+    r"lam2 1 -> (?P<l2>[0-9.eE+-]+), (?P<n>\d+) increments"
+)
 _TOTAL = re.compile(r"total force \(fx,fy,fz\) for set (?P<set>\S+) and time\s+(?P<t>\S+)")
 _DISP = re.compile(r"displacements \(vx,vy,vz\) for set (?P<set>\S+) and time\s+(?P<t>\S+)")
 _THICK = re.compile(r"^\*\* check block thickness t0 = (?P<t0>[0-9.eE+-]+) mm")
@@ -286,11 +317,18 @@ def read_check_cases(deck: str) -> list[dict[str, Any]]:
         line = line.strip()
         m = _CASE.match(line)
         if m:
-            cases.append({"set": m["set"], "kind": m["kind"], "lam1": float(m["l1"]), "lam2": float(m["l2"]),
-                          "increments": int(m["n"])})
-        if (m := _THICK.match(line)):
+            cases.append(
+                {
+                    "set": m["set"],
+                    "kind": m["kind"],
+                    "lam1": float(m["l1"]),
+                    "lam2": float(m["l2"]),
+                    "increments": int(m["n"]),
+                }
+            )
+        if m := _THICK.match(line):
             t0 = float(m["t0"])
-        if (m := _EXPECTED.match(line)):
+        if m := _EXPECTED.match(line):
             expected.setdefault(m["set"], []).append(tuple(float(v) for v in m["v"].split()))
     for case in cases:
         case["t0"] = t0
@@ -306,7 +344,7 @@ def read_dat_totals(text: str) -> dict[str, list[tuple[float, tuple[float, float
         m = _TOTAL.search(line)
         if not m:
             continue
-        values = next((ln.split() for ln in lines[i + 1:i + 4] if ln.strip()), None)
+        values = next((ln.split() for ln in lines[i + 1 : i + 4] if ln.strip()), None)
         if values is None or len(values) != 3:
             raise NumericalError(f"CalculiX output: no force totals after '{line.strip()}'")
         out.setdefault(m["set"].upper(), []).append((float(m["t"]), tuple(float(v) for v in values)))
@@ -322,7 +360,7 @@ def read_dat_displacements(text: str) -> dict[str, list[tuple[float, dict[int, t
         if not m:
             continue
         nodes: dict[int, tuple[float, float, float]] = {}
-        for ln in lines[i + 1:]:
+        for ln in lines[i + 1 :]:
             parts = ln.split()
             if not parts:
                 if nodes:
@@ -335,8 +373,14 @@ def read_dat_displacements(text: str) -> dict[str, list[tuple[float, dict[int, t
     return out
 
 
-def run_calculix(deck: str, *, ccx: str = "ccx", job: str = "check", timeout: float = 300.0,
-                 workdir: str | Path | None = None) -> str:
+def run_calculix(
+    deck: str,
+    *,
+    ccx: str = "ccx",
+    job: str = "check",
+    timeout: float = 300.0,
+    workdir: str | Path | None = None,
+) -> str:
     """Run CalculiX on ``deck`` in a temporary folder (or ``workdir``) and return the ``.dat`` text.
 
     A missing ``ccx``, a non-zero exit or an ``*ERROR`` in its output is a one-line
@@ -344,12 +388,16 @@ def run_calculix(deck: str, *, ccx: str = "ccx", job: str = "check", timeout: fl
     """
     exe = shutil.which(ccx)
     if exe is None:
-        raise KnitframeError(f"CalculiX '{ccx}' is not on the PATH (Debian/Ubuntu: apt-get install calculix-ccx)")
+        raise KnitframeError(
+            f"CalculiX '{ccx}' is not on the PATH (Debian/Ubuntu: apt-get install calculix-ccx)"
+        )
     with tempfile.TemporaryDirectory(prefix="knitframe-ccx-") as tmp:
         folder = Path(workdir) if workdir is not None else Path(tmp)
         (folder / f"{job}.inp").write_text(deck, encoding="utf-8")
         env = {**os.environ, "OMP_NUM_THREADS": "1", "CCX_NPROC_STIFFNESS": "1"}
-        proc = subprocess.run([exe, "-i", job], cwd=folder, capture_output=True, text=True, timeout=timeout, env=env)
+        proc = subprocess.run(
+            [exe, "-i", job], cwd=folder, capture_output=True, text=True, timeout=timeout, env=env
+        )
         log = proc.stdout + proc.stderr
         dat = folder / f"{job}.dat"
         error = next((ln.strip() for ln in log.splitlines() if "*ERROR" in ln), None)
@@ -358,7 +406,9 @@ def run_calculix(deck: str, *, ccx: str = "ccx", job: str = "check", timeout: fl
         return dat.read_text(encoding="utf-8", errors="replace")
 
 
-def calculix_check(data: Mapping[str, Any], *, ccx: str = "ccx", path: str = "params", **options: Any) -> list[dict]:
+def calculix_check(
+    data: Mapping[str, Any], *, ccx: str = "ccx", path: str = "params", **options: Any
+) -> list[dict]:
     """Run the ``calculix-deck`` of a params.json and compare CalculiX with knitframe's own model.
 
     Returns one row per load case and increment: ``case``, ``kind``, ``time``, ``lam1``, ``lam2``,
@@ -388,7 +438,18 @@ def calculix_check(data: Mapping[str, Any], *, ccx: str = "ccx", path: str = "pa
             l1, l2 = 1.0 + t * (case["lam1"] - 1.0), 1.0 + t * (case["lam2"] - 1.0)
             P1, P2 = model.stress(params, np.array([l1]), np.array([l2]))
             l3 = 1.0 + float(np.mean([u[2] for u in nodes.values()])) / case["t0"]
-            rows.append({"case": case["set"], "kind": case["kind"], "time": t, "lam1": l1, "lam2": l2,
-                         "ccx": (fxv[0], fyv[1]), "lam3": l3, "J": l1 * l2 * l3,
-                         "knitframe": (float(P1[0]), float(P2[0])), "card": (exp[4], exp[5])})
+            rows.append(
+                {
+                    "case": case["set"],
+                    "kind": case["kind"],
+                    "time": t,
+                    "lam1": l1,
+                    "lam2": l2,
+                    "ccx": (fxv[0], fyv[1]),
+                    "lam3": l3,
+                    "J": l1 * l2 * l3,
+                    "knitframe": (float(P1[0]), float(P2[0])),
+                    "card": (exp[4], exp[5]),
+                }
+            )
     return rows

@@ -89,8 +89,14 @@ def _pair(d: int, lam_load, lam_free):
     return (lam_load, lam_free) if d == 0 else (lam_free, lam_load)
 
 
-def solve_free_side(model: Any, params: np.ndarray, lam: np.ndarray, direction: str | int = "course", *,
-                    guess: np.ndarray | None = None):
+def solve_free_side(
+    model: Any,
+    params: np.ndarray,
+    lam: np.ndarray,
+    direction: str | int = "course",
+    *,
+    guess: np.ndarray | None = None,
+):
     """Uniaxial load with a free side: the free stretch λf with ``P_free(λ, λf) = 0``.
 
     The root is bracketed from the reference λf = 1: if P_free(λ, 1) > 0 the bracket is
@@ -161,13 +167,24 @@ def free_side_zero_message(model: str, top: float, slack: float, direction: str 
     hgo loaded along the course, 1/sin θ along the wale).
     """
     trig = "cos" if direction_index(direction) == 0 else "sin"
-    return (f"'{model}' with a free side gives zero tension at every loaded stretch up to {top:.4g}: P_free = 0 "
-            f"forces I4 = 1 until stretch 1/{trig}(theta) = {slack:.4g}; use 'hgo2m', which predicts the free side, "
-            "or a fixed lateral side")
+    return (
+        f"'{model}' with a free side gives zero tension at every loaded stretch up to {top:.4g}: P_free = 0 "
+        f"forces I4 = 1 until stretch 1/{trig}(theta) = {slack:.4g}; use 'hgo2m', which predicts the free side, "
+        "or a fixed lateral side"
+    )
 
 
-def bracketed_newton(fdf, lo: np.ndarray, hi: np.ndarray, x0: np.ndarray, *, xtol: float = 1e-13,
-                     xscale: float = 1.0, maxiter: int = 200, increasing: bool | None = None) -> np.ndarray:
+def bracketed_newton(
+    fdf,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    x0: np.ndarray,
+    *,
+    xtol: float = 1e-13,
+    xscale: float = 1.0,
+    maxiter: int = 200,
+    increasing: bool | None = None,
+) -> np.ndarray:
     """Vectorised safeguarded Newton: a root of ``f`` in [lo, hi] for every element.
 
     ``fdf(x) -> (f, df)``. Needs sign(f(lo)) != sign(f(hi)) (or a zero at an end); ``increasing``
@@ -195,11 +212,19 @@ def bracketed_newton(fdf, lo: np.ndarray, hi: np.ndarray, x0: np.ndarray, *, xto
         tol = xtol * np.maximum(xscale, np.abs(x))
         if np.all((step <= tol) | (hi - lo <= tol)):
             return x
-    raise NumericalError(f"bracketed Newton did not converge in {maxiter} steps (widest bracket {np.max(hi - lo):.3g})")
+    raise NumericalError(
+        f"bracketed Newton did not converge in {maxiter} steps (widest bracket {np.max(hi - lo):.3g})"
+    )
 
 
-def free_side_grad(model: Any, params: np.ndarray, lam: np.ndarray, direction: str | int = "course", *,
-                   guess: np.ndarray | None = None):
+def free_side_grad(
+    model: Any,
+    params: np.ndarray,
+    lam: np.ndarray,
+    direction: str | int = "course",
+    *,
+    guess: np.ndarray | None = None,
+):
     """:func:`solve_free_side` plus parameter derivatives.
 
     Returns ``(lam_free, P_loaded, dlam_free (n, k), dP_loaded (n, k))``. The implicit
@@ -237,7 +262,9 @@ def params_from_json(names: Sequence[str], data: dict[str, Any], path: str = "pa
     for n in names:
         key = f"{n}_deg" if _is_angle(n) else n
         if key not in data:
-            raise ConfigError(f"{path}.{key}", f"required parameter is missing (model needs {', '.join(names)})")
+            raise ConfigError(
+                f"{path}.{key}", f"required parameter is missing (model needs {', '.join(names)})"
+            )
         v = data[key]
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             raise ConfigError(f"{path}.{key}", f"expected a finite number, got {v!r}")
@@ -408,7 +435,9 @@ class FitResult:
     """A fitted reduced model: the model, its parameters (radians inside) and how well it fits."""
 
     model: Any  #: the homogenizer instance (with its options)
-    params: np.ndarray = attrs.field(converter=lambda p: np.array(p, dtype=np.float64))  #: ordered as param_names
+    params: np.ndarray = attrs.field(
+        converter=lambda p: np.array(p, dtype=np.float64)
+    )  #: ordered as param_names
     nrmse: dict[str, float] = attrs.Factory(dict)  #: tension NRMSE: course, wale, overall
     nrmse_transverse: dict[str, float] = attrs.Factory(dict)  #: transverse-strain NRMSE (lateral models)
     objective: float = 0.0
@@ -419,8 +448,12 @@ class FitResult:
     message: str = ""
     labels: tuple[str, ...] = ()  #: labels of the fitted Responses
     diagnostics: dict[str, Any] = attrs.Factory(dict)
-    at_bound: tuple[str, ...] = ()  #: parameters (as named in params.json) that ended at a bound of the model's box
-    warnings: tuple[str, ...] = ()  #: why the result is suspect: unit conversions of its data, parameters at a bound
+    at_bound: tuple[
+        str, ...
+    ] = ()  #: parameters (as named in params.json) that ended at a bound of the model's box
+    warnings: tuple[
+        str, ...
+    ] = ()  #: why the result is suspect: unit conversions of its data, parameters at a bound
 
     @property
     def param_names(self) -> tuple[str, ...]:
@@ -446,12 +479,20 @@ class FitResult:
         out["nrmse"] = dict(self.nrmse)
         if self.nrmse_transverse:
             out["nrmse_transverse"] = dict(self.nrmse_transverse)
-        out.update({
-            "fitter": self.fitter, "objective": self.objective, "n_evals": self.n_evals,
-            "wall_time_s": round(self.wall_time, 6), "converged": self.converged, "message": self.message,
-            "responses": list(self.labels), "diagnostics": self.diagnostics,
-            "at_bound": list(self.at_bound), "warnings": list(self.warnings),
-        })
+        out.update(
+            {
+                "fitter": self.fitter,
+                "objective": self.objective,
+                "n_evals": self.n_evals,
+                "wall_time_s": round(self.wall_time, 6),
+                "converged": self.converged,
+                "message": self.message,
+                "responses": list(self.labels),
+                "diagnostics": self.diagnostics,
+                "at_bound": list(self.at_bound),
+                "warnings": list(self.warnings),
+            }
+        )
         out, bad = finite_json(out)
         if bad:
             out["non_finite"] = bad
@@ -459,7 +500,7 @@ class FitResult:
         return out
 
     @classmethod
-    def from_json(cls, data: dict[str, Any], registry=None, path: str = "params") -> "FitResult":
+    def from_json(cls, data: dict[str, Any], registry=None, path: str = "params") -> FitResult:
         """Rebuild from :meth:`to_json` output (the model is looked up in the registry)."""
         from knitframe.config import instantiate
         from knitframe.plugins import get_registry
@@ -470,12 +511,22 @@ class FitResult:
         model = instantiate(registry or get_registry(), "homogenizer", spec, f"{path}.model")
         keys = {f"{n}_deg" if _is_angle(n) else n for n in model.param_names}
         params = params_from_json(model.param_names, {k: v for k, v in data.items() if k in keys}, path)
-        return cls(model, params, nrmse=data.get("nrmse", {}), nrmse_transverse=data.get("nrmse_transverse", {}),
-                   objective=data.get("objective", 0.0), n_evals=data.get("n_evals", 0),
-                   wall_time=data.get("wall_time_s", 0.0), fitter=data.get("fitter", ""),
-                   converged=data.get("converged", True), message=data.get("message", ""),
-                   labels=tuple(data.get("responses", ())), diagnostics=data.get("diagnostics", {}),
-                   at_bound=tuple(data.get("at_bound", ())), warnings=tuple(data.get("warnings", ())))
+        return cls(
+            model,
+            params,
+            nrmse=data.get("nrmse", {}),
+            nrmse_transverse=data.get("nrmse_transverse", {}),
+            objective=data.get("objective", 0.0),
+            n_evals=data.get("n_evals", 0),
+            wall_time=data.get("wall_time_s", 0.0),
+            fitter=data.get("fitter", ""),
+            converged=data.get("converged", True),
+            message=data.get("message", ""),
+            labels=tuple(data.get("responses", ())),
+            diagnostics=data.get("diagnostics", {}),
+            at_bound=tuple(data.get("at_bound", ())),
+            warnings=tuple(data.get("warnings", ())),
+        )
 
     def headline(self) -> str:
         """One line: model, fitter and NRMSE in percent."""
@@ -577,13 +628,23 @@ def at_bound(model: Any, params: np.ndarray) -> tuple[tuple[str, ...], str]:
             parts.append(f"{key} = {shown[key]:.4g} (its {side} bound is {edge:.4g})")
     if not names:
         return (), ""
-    return tuple(names), (f"{model.name} fit: {'; '.join(parts)}: the data do not determine "
-                          f"{'this parameter' if len(names) == 1 else 'these parameters'} inside the model's range "
-                          "(check the data's units and strain range)")
+    return tuple(names), (
+        f"{model.name} fit: {'; '.join(parts)}: the data do not determine "
+        f"{'this parameter' if len(names) == 1 else 'these parameters'} inside the model's range "
+        "(check the data's units and strain range)"
+    )
 
 
-def finish(problem: FitProblem, params: np.ndarray, *, fitter: str, t0: float, converged: bool,
-           message: str, diagnostics: dict[str, Any] | None = None) -> FitResult:
+def finish(
+    problem: FitProblem,
+    params: np.ndarray,
+    *,
+    fitter: str,
+    t0: float,
+    converged: bool,
+    message: str,
+    diagnostics: dict[str, Any] | None = None,
+) -> FitResult:
     """Build the :class:`FitResult` of a finished optimisation (NRMSE, wall time, evaluations).
 
     Non-finite parameters are a NumericalError. Parameters at a bound of the model's box are
@@ -605,9 +666,22 @@ def finish(problem: FitProblem, params: np.ndarray, *, fitter: str, t0: float, c
     if bound:
         warnings.warn(bound, KnitframeWarning, stacklevel=2)
         notes.append(bound)
-    return FitResult(problem.model, params, ten, tra, objective, n_evals, time.perf_counter() - t0, fitter,
-                     converged, message, tuple(r.label for r in problem.responses), diag, names,
-                     tuple(dict.fromkeys(notes)))
+    return FitResult(
+        problem.model,
+        params,
+        ten,
+        tra,
+        objective,
+        n_evals,
+        time.perf_counter() - t0,
+        fitter,
+        converged,
+        message,
+        tuple(r.label for r in problem.responses),
+        diag,
+        names,
+        tuple(dict.fromkeys(notes)),
+    )
 
 
 def predict(result: FitResult, response: Response) -> Response:
@@ -625,8 +699,15 @@ def predict(result: FitResult, response: Response) -> Response:
     P1, P2 = result.stress(lam1, lam2)
     if d is not None:  # the free side carries no load by definition of the test
         P1, P2 = (P1, np.zeros_like(P2)) if d == 0 else (np.zeros_like(P1), P2)
-    return Response(lam1, lam2, P1, P2, load=response.load, label=f"{response.label} ({result.model.name})",
-                    provenance=Provenance(kind="model", source=result.model.name, notes=f"fitted by {result.fitter}"))
+    return Response(
+        lam1,
+        lam2,
+        P1,
+        P2,
+        load=response.load,
+        label=f"{response.label} ({result.model.name})",
+        provenance=Provenance(kind="model", source=result.model.name, notes=f"fitted by {result.fitter}"),
+    )
 
 
 def plot_fit(path: Path, result: FitResult, responses: Sequence[Response], *, title: str = "") -> None:
@@ -674,8 +755,11 @@ def plot_fit(path: Path, result: FitResult, responses: Sequence[Response], *, ti
         bx = axes[0, 1]
         bx.set_xlabel("engineering strain in the loaded direction, -")
         bx.set_ylabel("transverse strain, -")
-        bx.set_title("free side: measured" + (" vs model" if result.model.predicts_lateral else " (imposed in the fit)"),
-                     fontsize=8)
+        bx.set_title(
+            "free side: measured"
+            + (" vs model" if result.model.predicts_lateral else " (imposed in the fit)"),
+            fontsize=8,
+        )
         bx.grid(alpha=0.3)
     notes = result.to_json()["warnings"]
     if notes:  # suspect results say so on the figure, in red below the axes
@@ -690,7 +774,9 @@ def plot_fit(path: Path, result: FitResult, responses: Sequence[Response], *, ti
     plt.close(fig)
 
 
-def write_fit_outputs(result: FitResult, responses: Sequence[Response], params_path: Path, plot_path: Path) -> None:
+def write_fit_outputs(
+    result: FitResult, responses: Sequence[Response], params_path: Path, plot_path: Path
+) -> None:
     """Write ``params.json`` (parameters, θ in degrees, NRMSE, metadata, warnings) and the fit plot.
 
     The JSON is strict: NaN and Infinity cannot be written (see :meth:`FitResult.to_json`); a

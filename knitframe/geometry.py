@@ -26,8 +26,9 @@ and writers for VTU (:func:`write_vtu`) and a three-view PNG (:func:`plot_views`
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any
 
 import attrs
 import numpy as np
@@ -144,7 +145,9 @@ class Centerline:
         ok[ok] = speed[ok] > 1e-12 * (1.0 + speed[ok].max(initial=0.0))
         if not np.all(ok):
             bad = int(np.flatnonzero(~ok)[0])
-            raise NumericalError(f"yarn '{self.name}': no tangent at t = {t[bad]:.6g} (speed {speed[bad]:.3g})")
+            raise NumericalError(
+                f"yarn '{self.name}': no tangent at t = {t[bad]:.6g} (speed {speed[bad]:.3g})"
+            )
         return t, x, d / speed[:, None]
 
     def arc_length(self) -> float:
@@ -185,7 +188,9 @@ class UnitCell:
         n = len(self.yarns)
         targets = sorted(j for _, j in self.end_pairs)
         if sorted(i for i, _ in self.end_pairs) != list(range(n)) or targets != list(range(n)):
-            raise GeometryError(f"end_pairs {self.end_pairs} must pair each of the {n} yarns' ends exactly once")
+            raise GeometryError(
+                f"end_pairs {self.end_pairs} must pair each of the {n} yarns' ends exactly once"
+            )
 
     @property
     def dk(self) -> float:
@@ -238,12 +243,14 @@ def check_stitch_lengths(instance, attribute, value) -> None:
         try:
             float(key)
         except ValueError:
-            raise FieldError(f"{attribute.name}.{key}", "key must be a machine setting number, e.g. \"11\"") from None
+            raise FieldError(
+                f"{attribute.name}.{key}", 'key must be a machine setting number, e.g. "11"'
+            ) from None
         if not (isinstance(length, (int, float)) and np.isfinite(length) and length > 0):
             raise FieldError(f"{attribute.name}.{key}", f"must be an arc length > 0 mm, got {length!r}")
 
 
-def arc_length_for(fabric: "Fabric", table: dict[str, float]) -> float:
+def arc_length_for(fabric: Fabric, table: dict[str, float]) -> float:
     """Yarn length per stitch, mm: ``fabric.arc_length`` if given, else the machine setting looked up in ``table``."""
     if fabric.arc_length is not None:
         return float(fabric.arc_length)
@@ -257,7 +264,9 @@ def arc_length_for(fabric: "Fabric", table: dict[str, float]) -> float:
     )
 
 
-def munden_pitches(arc: float, fabric: "Fabric", Kc: float = MUNDEN_KC, Kw: float = MUNDEN_KW) -> tuple[float, float]:
+def munden_pitches(
+    arc: float, fabric: Fabric, Kc: float = MUNDEN_KC, Kw: float = MUNDEN_KW
+) -> tuple[float, float]:
     """(course, wale) pitch in mm: the fabric's if given, else Munden's p_c = ℓ/Kw and p_w = ℓ/Kc.
 
     ``arc`` is the yarn length per stitch ℓ in mm; Kc and Kw are the dimensionless constants
@@ -280,7 +289,9 @@ def smooth_sign(c: np.ndarray, kappa: float) -> tuple[np.ndarray, np.ndarray]:
     return th / k, kappa * (1.0 - th * th) / k
 
 
-def solve_arc_length(per_stitch: Callable[[float], float], target: float, lower: float, upper: float, *, context: str) -> float:
+def solve_arc_length(
+    per_stitch: Callable[[float], float], target: float, lower: float, upper: float, *, context: str
+) -> float:
     """The shape parameter h >= ``lower`` at which ``per_stitch(h)`` (mm of yarn per stitch) equals ``target``.
 
     ``per_stitch`` must grow with h. The bracket [lower, upper] is widened by doubling ``upper``,
@@ -531,7 +542,11 @@ def _excluded(sm: _Samples, a: np.ndarray, b: np.ndarray, k: np.ndarray, excl: f
 
 
 def clearance(
-    cell: UnitCell, *, spacing: float | None = None, self_exclusion: float | None = None, threshold: float | None = None
+    cell: UnitCell,
+    *,
+    spacing: float | None = None,
+    self_exclusion: float | None = None,
+    threshold: float | None = None,
 ) -> Clearance:
     """Minimum centerline-to-centerline distance, with periodic images and self-contact.
 
@@ -634,7 +649,9 @@ def _local_minima(cell, sm, a, b, k, dist, excl):
             is_min &= ~inside | ex | (dist <= dn)
             boundary |= inside & ex
     sel = np.flatnonzero(is_min)
-    return [(int(a[i]), int(b[i]), (int(k[i, 0]), int(k[i, 1])), float(dist[i]), bool(boundary[i])) for i in sel]
+    return [
+        (int(a[i]), int(b[i]), (int(k[i, 0]), int(k[i, 1])), float(dist[i]), bool(boundary[i])) for i in sel
+    ]
 
 
 def _eval(cell: UnitCell, yarn: np.ndarray, t: np.ndarray, which: str) -> np.ndarray:
@@ -646,7 +663,9 @@ def _eval(cell: UnitCell, yarn: np.ndarray, t: np.ndarray, which: str) -> np.nda
     return out
 
 
-def _refine(cell: UnitCell, sm: _Samples, ia: np.ndarray, ib: np.ndarray, k: np.ndarray, d0: np.ndarray, excl: float):
+def _refine(
+    cell: UnitCell, sm: _Samples, ia: np.ndarray, ib: np.ndarray, k: np.ndarray, d0: np.ndarray, excl: float
+):
     """Closest pairs near the sampled pairs (ia, ib + image k): vectorised bounded Newton on (t_a, t_b).
 
     f = |r_a(t_a) - r_b(t_b) - s|² / 2 has the exact gradient (diff·r_a', -diff·r_b') and the
@@ -661,8 +680,20 @@ def _refine(cell: UnitCell, sm: _Samples, ia: np.ndarray, ib: np.ndarray, k: np.
     counts = np.bincount(sm.yarn, minlength=len(cell.yarns))
     t0s, t1s = np.array([c.t0 for c in cell.yarns]), np.array([c.t1 for c in cell.yarns])
     ta0, tb0 = sm.t[ia].copy(), sm.t[ib].copy()
-    lo = np.stack([np.maximum(t0s[ya], ta0 - 3 * span[ya] / counts[ya]), np.maximum(t0s[yb], tb0 - 3 * span[yb] / counts[yb])], 1)
-    hi = np.stack([np.minimum(t1s[ya], ta0 + 3 * span[ya] / counts[ya]), np.minimum(t1s[yb], tb0 + 3 * span[yb] / counts[yb])], 1)
+    lo = np.stack(
+        [
+            np.maximum(t0s[ya], ta0 - 3 * span[ya] / counts[ya]),
+            np.maximum(t0s[yb], tb0 - 3 * span[yb] / counts[yb]),
+        ],
+        1,
+    )
+    hi = np.stack(
+        [
+            np.minimum(t1s[ya], ta0 + 3 * span[ya] / counts[ya]),
+            np.minimum(t1s[yb], tb0 + 3 * span[yb] / counts[yb]),
+        ],
+        1,
+    )
     eps = 1e-6 * span
 
     def fval(t):
@@ -673,8 +704,14 @@ def _refine(cell: UnitCell, sm: _Samples, ia: np.ndarray, ib: np.ndarray, k: np.
     f, diff = fval(t)
     for _ in range(40):
         da, db = _eval(cell, ya, t[:, 0], "derivative"), _eval(cell, yb, t[:, 1], "derivative")
-        dda = (_eval(cell, ya, t[:, 0] + eps[ya], "derivative") - _eval(cell, ya, t[:, 0] - eps[ya], "derivative")) / (2 * eps[ya])[:, None]
-        ddb = (_eval(cell, yb, t[:, 1] + eps[yb], "derivative") - _eval(cell, yb, t[:, 1] - eps[yb], "derivative")) / (2 * eps[yb])[:, None]
+        dda = (
+            _eval(cell, ya, t[:, 0] + eps[ya], "derivative")
+            - _eval(cell, ya, t[:, 0] - eps[ya], "derivative")
+        ) / (2 * eps[ya])[:, None]
+        ddb = (
+            _eval(cell, yb, t[:, 1] + eps[yb], "derivative")
+            - _eval(cell, yb, t[:, 1] - eps[yb], "derivative")
+        ) / (2 * eps[yb])[:, None]
         g = np.stack([np.einsum("ij,ij->i", diff, da), -np.einsum("ij,ij->i", diff, db)], 1)
         h11 = np.einsum("ij,ij->i", da, da) + np.einsum("ij,ij->i", diff, dda)
         h22 = np.einsum("ij,ij->i", db, db) - np.einsum("ij,ij->i", diff, ddb)
@@ -706,7 +743,12 @@ def _refine(cell: UnitCell, sm: _Samples, ia: np.ndarray, ib: np.ndarray, k: np.
     if np.any(same):
         Sa = sm.S[ia] + _interp_yarn(sm, ya, t[:, 0]) - _interp_yarn(sm, ya, ta0)
         Sb = sm.S[ib] + _interp_yarn(sm, yb, t[:, 1]) - _interp_yarn(sm, yb, tb0)
-        sm2 = attrs.evolve(sm, S=np.concatenate([Sa, Sb]), yarn=np.concatenate([ya, yb]), strand=np.concatenate([sm.strand[ia], sm.strand[ib]]))
+        sm2 = attrs.evolve(
+            sm,
+            S=np.concatenate([Sa, Sb]),
+            yarn=np.concatenate([ya, yb]),
+            strand=np.concatenate([sm.strand[ia], sm.strand[ib]]),
+        )
         m = len(ia)
         bad |= same & _excluded(sm2, np.arange(m), np.arange(m, 2 * m), k, excl)
     t[bad] = np.stack([ta0, tb0], 1)[bad]
@@ -727,7 +769,13 @@ def _contact(cell, ia, ib, kb, ta, tb, d, sm) -> Contact:
     pa = cell.yarns[ya].position(np.array([ta]))[0]
     pb = cell.yarns[yb].position(np.array([tb]))[0] + kb[0] * cell.L1 + kb[1] * cell.L2
     mid = 0.5 * (pa + pb)
-    return Contact((ya, yb), (int(kb[0]), int(kb[1])), (float(ta), float(tb)), (float(mid[0]), float(mid[1]), float(mid[2])), float(d))
+    return Contact(
+        (ya, yb),
+        (int(kb[0]), int(kb[1])),
+        (float(ta), float(tb)),
+        (float(mid[0]), float(mid[1]), float(mid[2])),
+        float(d),
+    )
 
 
 def _dedupe(contacts: list[Contact]) -> list[Contact]:
@@ -740,7 +788,9 @@ def _dedupe(contacts: list[Contact]) -> list[Contact]:
     return list(out.values())
 
 
-def crossings(cell: UnitCell, upper: int, lower: int, shift: np.ndarray, n: int = 800) -> list[tuple[float, float, float]]:
+def crossings(
+    cell: UnitCell, upper: int, lower: int, shift: np.ndarray, n: int = 800
+) -> list[tuple[float, float, float]]:
     """Crossings in the x-y projection of yarn ``upper`` with yarn ``lower`` shifted by ``shift`` (and ±L1).
 
     Both yarns are sampled as polylines of ``n`` segments. Returns ``(t_upper, x, z_upper -
@@ -764,7 +814,13 @@ def crossings(cell: UnitCell, upper: int, lower: int, shift: np.ndarray, n: int 
         for i, j in zip(*np.nonzero(hit)):
             zu = xu[i, 2] + lam[i, j] * (xu[i + 1, 2] - xu[i, 2])
             zl = xl[j, 2] + mu[i, j] * (xl[j + 1, 2] - xl[j, 2])
-            out.append((float(tu[i] + lam[i, j] * (tu[1] - tu[0])), float(xu[i, 0] + lam[i, j] * r[i, 0, 0]), float(zu - zl)))
+            out.append(
+                (
+                    float(tu[i] + lam[i, j] * (tu[1] - tu[0])),
+                    float(xu[i, 0] + lam[i, j] * r[i, 0, 0]),
+                    float(zu - zl),
+                )
+            )
     return sorted(out)
 
 
@@ -775,7 +831,10 @@ def tube_surface(fr: Frames, radius: float, sides: int = 12) -> tuple[np.ndarray
     Returns points ((n+1)·sides, 3) mm and quad cells (n·sides, 4), ring by ring.
     """
     phi = 2.0 * np.pi * np.arange(sides) / sides
-    ring = np.cos(phi)[None, :, None] * fr.normal[:, None, :] + np.sin(phi)[None, :, None] * fr.binormal[:, None, :]
+    ring = (
+        np.cos(phi)[None, :, None] * fr.normal[:, None, :]
+        + np.sin(phi)[None, :, None] * fr.binormal[:, None, :]
+    )
     pts = (fr.x[:, None, :] + radius * ring).reshape(-1, 3)
     i = np.arange(len(fr.t) - 1)[:, None]
     j = np.arange(sides)[None, :]
@@ -819,7 +878,12 @@ def write_vtu(cell: UnitCell, out: str | Path, *, n: int = 256, sides: int = 16)
             point_data={"yarn": np.concatenate(yid), "tangent": np.vstack(tan), "normal": np.vstack(nrm)},
         ),
     )
-    meshio.write(paths[1], meshio.Mesh(np.vstack(tpts), [("quad", np.vstack(tquads))], point_data={"yarn": np.concatenate(tyid)}))
+    meshio.write(
+        paths[1],
+        meshio.Mesh(
+            np.vstack(tpts), [("quad", np.vstack(tquads))], point_data={"yarn": np.concatenate(tyid)}
+        ),
+    )
     return paths
 
 
@@ -866,7 +930,9 @@ def plot_views(cell: UnitCell, path: str | Path, *, tiles: int = 2, n: int = 400
         dep = np.concatenate(depth[v])[order]
         shade = (0.55 + 0.45 * (dep - dep.min()) / max(float(np.ptp(dep)), 1e-300))[:, None]
         ax.add_collection(
-            LineCollection(s[order], colors=allc[order] * shade, linewidths=cell.dk * pts_per_mm, capstyle="round")
+            LineCollection(
+                s[order], colors=allc[order] * shade, linewidths=cell.dk * pts_per_mm, capstyle="round"
+            )
         )
         ax.set_xlabel(labels[views[v][0]])
         ax.set_ylabel(labels[views[v][1]])
@@ -904,7 +970,7 @@ def summary(cell: UnitCell, clr: Clearance | None = None) -> dict[str, Any]:
     return out
 
 
-def unit_cell(fabric: "Fabric", registry=None) -> UnitCell:
+def unit_cell(fabric: Fabric, registry=None) -> UnitCell:
     """The unit cell of ``fabric``: its pattern plugin, built with ``fabric.pattern_options``, asked for the cell.
 
     Both unit-cell solvers call this, so a pattern option set in a config (``[fabric.pattern_options]``)
@@ -921,7 +987,7 @@ ARC_LENGTH_RANGE_DK = (np.pi, 200.0)
 MIN_PITCH_DK = 0.5
 
 
-def checked_cell(fabric: "Fabric", registry=None) -> UnitCell:
+def checked_cell(fabric: Fabric, registry=None) -> UnitCell:
     """The unit cell of ``fabric``, its dimensions checked before it is built; errors name the ``fabric.*`` key.
 
     Refused, each with a ConfigError: a machine setting missing from the pattern's
@@ -945,29 +1011,43 @@ def checked_cell(fabric: "Fabric", registry=None) -> UnitCell:
         arc = next((float(length) for key, length in table.items() if float(key) == setting), None)
         if arc is None:
             keys = ", ".join(sorted(table, key=float))
-            raise ConfigError("fabric.stitch_length", f"{setting:g} is not in the stitch-length table ({keys}); "
-                              "give fabric.arc_length in mm")
+            raise ConfigError(
+                "fabric.stitch_length",
+                f"{setting:g} is not in the stitch-length table ({keys}); give fabric.arc_length in mm",
+            )
     dk = float(fabric.yarn.dk)
     given = [k for k in ("course_pitch", "wale_pitch") if getattr(fabric, k) is not None]
 
     def check_arc(length: float) -> None:
         lo, hi = ARC_LENGTH_RANGE_DK
         if not lo * dk <= length <= hi * dk:
-            what = f"{length:g} mm per stitch" if arc_key == "fabric.arc_length" else \
-                f"setting {float(fabric.stitch_length):g} gives {length:g} mm per stitch, which"
-            raise ConfigError(arc_key, f"{what} is outside [{lo * dk:.4g}, {hi * dk:.4g}] mm, the yarn per stitch "
-                              f"a yarn of dk {dk:g} mm can knit (pi to {hi:g} times dk)")
+            what = (
+                f"{length:g} mm per stitch"
+                if arc_key == "fabric.arc_length"
+                else f"setting {float(fabric.stitch_length):g} gives {length:g} mm per stitch, which"
+            )
+            raise ConfigError(
+                arc_key,
+                f"{what} is outside [{lo * dk:.4g}, {hi * dk:.4g}] mm, the yarn per stitch "
+                f"a yarn of dk {dk:g} mm can knit (pi to {hi:g} times dk)",
+            )
 
     if arc is not None:
         check_arc(arc)
     for key in given:
         value, span = float(getattr(fabric, key)), (1.0 if key == "course_pitch" else 0.5)
         if value < MIN_PITCH_DK * dk:
-            raise ConfigError(f"fabric.{key}", f"{value:g} mm is under {MIN_PITCH_DK:g} dk = {MIN_PITCH_DK * dk:.4g} mm: "
-                              "neighbouring stitches would pass through each other")
+            raise ConfigError(
+                f"fabric.{key}",
+                f"{value:g} mm is under {MIN_PITCH_DK:g} dk = {MIN_PITCH_DK * dk:.4g} mm: "
+                "neighbouring stitches would pass through each other",
+            )
         if arc is not None and value > span * arc:
-            raise ConfigError(f"fabric.{key}", f"{value:g} mm is more than the {span * arc:.4g} mm that "
-                              f"{arc:g} mm of yarn per stitch can span")
+            raise ConfigError(
+                f"fabric.{key}",
+                f"{value:g} mm is more than the {span * arc:.4g} mm that "
+                f"{arc:g} mm of yarn per stitch can span",
+            )
     try:
         cell = pattern.cell(fabric)
     except (GeometryError, NumericalError) as e:
@@ -977,7 +1057,7 @@ def checked_cell(fabric: "Fabric", registry=None) -> UnitCell:
     return cell
 
 
-def pattern_for(fabric: "Fabric", registry=None) -> Any:
+def pattern_for(fabric: Fabric, registry=None) -> Any:
     """The pattern plugin instance of ``fabric`` with its ``pattern_options``; ConfigError on bad names or options."""
     from knitframe.config import instantiate
     from knitframe.errors import ConfigError, UnknownPluginError
@@ -988,5 +1068,6 @@ def pattern_for(fabric: "Fabric", registry=None) -> Any:
         registry["pattern"].entry(fabric.pattern)
     except UnknownPluginError as e:
         raise ConfigError("fabric.pattern", str(e)) from None
-    return instantiate(registry, "pattern", {"kind": fabric.pattern, **fabric.pattern_options},
-                       "fabric.pattern_options")
+    return instantiate(
+        registry, "pattern", {"kind": fabric.pattern, **fabric.pattern_options}, "fabric.pattern_options"
+    )

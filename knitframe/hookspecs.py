@@ -23,7 +23,7 @@ __all__ = ["hookspec", "hookimpl"]
 
 
 @hookspec
-def register_patterns(register: "Register") -> None:
+def register_patterns(register: Register) -> None:
     """Register stitch patterns: unit-cell yarn centerlines and lattice vectors (:class:`~knitframe.interfaces.Pattern`).
 
     :param register: call ``register(PatternClass)`` once per pattern.
@@ -31,7 +31,7 @@ def register_patterns(register: "Register") -> None:
 
 
 @hookspec
-def register_yarns(register: "Register") -> None:
+def register_yarns(register: Register) -> None:
     """Register named yarns for the yarn library (:class:`~knitframe.records.Yarn` records).
 
     :param register: call ``register(Yarn(...))`` once per yarn; the yarn's ``name`` is its key.
@@ -39,7 +39,7 @@ def register_yarns(register: "Register") -> None:
 
 
 @hookspec
-def register_yarn_models(register: "Register") -> None:
+def register_yarn_models(register: Register) -> None:
     """Register yarn constitutive laws and their rod stiffnesses (:class:`~knitframe.interfaces.YarnModel`).
 
     :param register: call ``register(YarnModelClass)`` once per law.
@@ -47,7 +47,7 @@ def register_yarn_models(register: "Register") -> None:
 
 
 @hookspec
-def register_solvers(register: "Register") -> None:
+def register_solvers(register: Register) -> None:
     """Register unit-cell solvers that turn a Fabric and a Scene into a Response (:class:`~knitframe.interfaces.Solver`).
 
     :param register: call ``register(SolverClass)``; the class declares its supported ``effects``.
@@ -55,7 +55,7 @@ def register_solvers(register: "Register") -> None:
 
 
 @hookspec
-def register_contact_laws(register: "Register") -> None:
+def register_contact_laws(register: Register) -> None:
     """Register yarn-yarn contact laws for a solver's discretisation (:class:`~knitframe.interfaces.ContactLaw`).
 
     :param register: call ``register(ContactLawClass)`` once per law.
@@ -63,7 +63,7 @@ def register_contact_laws(register: "Register") -> None:
 
 
 @hookspec
-def register_linear_solvers(register: "Register") -> None:
+def register_linear_solvers(register: Register) -> None:
     """Register sparse linear solvers as factories returning ``solve(A, b) -> x`` closures.
 
     :param register: call ``register(factory, name="direct")``.
@@ -71,7 +71,7 @@ def register_linear_solvers(register: "Register") -> None:
 
 
 @hookspec
-def register_homogenizers(register: "Register") -> None:
+def register_homogenizers(register: Register) -> None:
     """Register reduced-order fabric models: energy, stresses and export cards (:class:`~knitframe.interfaces.Homogenizer`).
 
     :param register: call ``register(HomogenizerClass)`` once per model.
@@ -79,7 +79,7 @@ def register_homogenizers(register: "Register") -> None:
 
 
 @hookspec
-def register_fitters(register: "Register") -> None:
+def register_fitters(register: Register) -> None:
     """Register optimisers that fit a homogenizer to Responses (:class:`~knitframe.interfaces.Fitter`).
 
     :param register: call ``register(FitterClass)`` once per fitter.
@@ -87,7 +87,7 @@ def register_fitters(register: "Register") -> None:
 
 
 @hookspec
-def register_design_objectives(register: "Register") -> None:
+def register_design_objectives(register: Register) -> None:
     """Register scores of a garment assignment (:class:`~knitframe.interfaces.DesignObjective`).
 
     :param register: call ``register(ObjectiveClass)`` once per objective.
@@ -95,7 +95,7 @@ def register_design_objectives(register: "Register") -> None:
 
 
 @hookspec
-def register_executors(register: "Register") -> None:
+def register_executors(register: Register) -> None:
     """Register executors that run many independent jobs (:class:`~knitframe.interfaces.Executor`).
 
     :param register: call ``register(ExecutorClass)`` once per executor.
@@ -103,7 +103,7 @@ def register_executors(register: "Register") -> None:
 
 
 @hookspec
-def register_readers(register: "Register") -> None:
+def register_readers(register: Register) -> None:
     """Register data-file readers that turn test files into Responses (:class:`~knitframe.interfaces.Reader`).
 
     :param register: call ``register(ReaderClass)`` once per file format.
@@ -111,7 +111,7 @@ def register_readers(register: "Register") -> None:
 
 
 @hookspec
-def register_stages(register: "Register") -> None:
+def register_stages(register: Register) -> None:
     """Register pipeline stages, each owning a top-level config table (:class:`~knitframe.interfaces.Stage`).
 
     :param register: call ``register(StageClass)`` once per stage.

@@ -8,8 +8,9 @@ so a config table ``[solver] kind = "rod"`` plus other keys becomes ``RodSolver(
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, ClassVar, Iterable, Mapping, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -43,7 +44,7 @@ class Pattern(Protocol):
     name: ClassVar[str]
     description: ClassVar[str]
 
-    def cell(self, fabric: "Fabric") -> Any:
+    def cell(self, fabric: Fabric) -> Any:
         """Unit cell (centerlines with exact tangents, lattice vectors, end pairing, layout)."""
 
 
@@ -55,7 +56,7 @@ class YarnModel(Protocol):
     description: ClassVar[str]
 
     @classmethod
-    def from_yarn(cls, yarn: "Yarn") -> "YarnModel":
+    def from_yarn(cls, yarn: Yarn) -> YarnModel:
         """Model parameterised by a Yarn record."""
 
 
@@ -72,7 +73,7 @@ class Solver(Protocol):
     effects: ClassVar[frozenset[str]]
     loads: ClassVar[frozenset[str]]
 
-    def simulate(self, fabric: "Fabric", scene: "Scene", *, progress: Progress | None = None) -> "Response":
+    def simulate(self, fabric: Fabric, scene: Scene, *, progress: Progress | None = None) -> Response:
         """Run the scene and return the tension-stretch Response."""
 
 
@@ -116,7 +117,7 @@ class Fitter(Protocol):
     name: ClassVar[str]
     description: ClassVar[str]
 
-    def fit(self, model: Homogenizer, responses: "Iterable[Response]") -> Any:
+    def fit(self, model: Homogenizer, responses: Iterable[Response]) -> Any:
         """Best parameters with NRMSE per direction and overall, wall time and evaluation count."""
 
 
@@ -142,8 +143,9 @@ class DesignObjective(Protocol):
     def score(self, tension: np.ndarray, area: np.ndarray, radius: np.ndarray | None = None) -> float:
         """Score of per-element circumferential tension (N/mm), element area (mm²), limb radius (mm)."""
 
-    def element_cost(self, value: np.ndarray, area: np.ndarray, position: np.ndarray,
-                     level: float | None = None) -> np.ndarray:
+    def element_cost(
+        self, value: np.ndarray, area: np.ndarray, position: np.ndarray, level: float | None = None
+    ) -> np.ndarray:
         """Additive cost of each element's value (shape ``(..., E)``), its area (E,) and its position
         along the limb (E,, 0 distal to 1 at the top); ``level`` is τ for relative objectives."""
 
@@ -169,7 +171,7 @@ class Reader(Protocol):
     name: ClassVar[str]
     description: ClassVar[str]
 
-    def read(self, path: Path) -> "list[Response]":
+    def read(self, path: Path) -> list[Response]:
         """Responses in the file; a malformed file raises DataError naming file, line and column."""
 
 
@@ -187,8 +189,8 @@ class Stage(Protocol):
     uses: ClassVar[tuple[str, ...]]
 
     @classmethod
-    def from_config(cls, config: Mapping[str, Any], ctx: "BuildContext") -> "Stage":
+    def from_config(cls, config: Mapping[str, Any], ctx: BuildContext) -> Stage:
         """Validated stage from the whole config dict."""
 
-    def run(self, ctx: "RunContext") -> None:
+    def run(self, ctx: RunContext) -> None:
         """Do the work, reading and adding to the run context."""

@@ -90,26 +90,71 @@ _VOL = "volumetric"
 
 #: Every rung, from the cheapest and least faithful to the most faithful. The best rung that ran
 #: (converged) is the reference of the others; ``reduced`` is fitted to it.
-RUNGS: dict[str, Rung] = {r.name: r for r in (
-    Rung("reduced", "reduced", {}, "reduced", True,
-         "the paper's reduced model (hgo; hgo2m under a free side) fitted by L-BFGS to the best rung's curve"),
-    Rung("rod:8", "rod", {"segments_per_stitch": 8}, "rod", True, "rod, 8 segments per stitch"),
-    Rung("rod:16", "rod", {"segments_per_stitch": 16}, "rod", True, "rod, 16 segments per stitch"),
-    Rung("rod:32", "rod", {"segments_per_stitch": 32}, "rod", True, "rod, 32 segments per stitch"),
-    Rung("rod:64", "rod", {"segments_per_stitch": 64}, "rod", False, "rod, 64 segments per stitch"),
-    Rung("volumetric:p1:coarse", _VOL, {"order": 1, "seed": 1.0}, "volumetric:p1", True,
-         "volumetric, P1 tetrahedra, seed r (coarse); locks in bending: a quick look"),
-    Rung("volumetric:p1:r/1.67", _VOL, {"order": 1, "seed": 0.6}, "volumetric:p1", False,
-         "volumetric, P1 tetrahedra, seed r/1.67; locks in bending: a quick look"),
-    Rung("volumetric:p1:r/3", _VOL, {"order": 1, "seed": 1.0 / 3.0}, "volumetric:p1", True,
-         "volumetric, P1 tetrahedra, seed r/3; locks in bending: a quick look"),
-    Rung("volumetric:p2:coarse", _VOL, {"order": 2, "seed": 1.0}, "volumetric:p2", False,
-         "volumetric, P2 tetrahedra, seed r (coarse)"),
-    Rung("volumetric:p2:r/1.67", _VOL, {"order": 2, "seed": 0.6}, "volumetric:p2", True,
-         "volumetric, P2 tetrahedra, seed r/1.67"),
-    Rung("volumetric:p2:r/3", _VOL, {"order": 2, "seed": 1.0 / 3.0}, "volumetric:p2", False,
-         "volumetric, P2 tetrahedra, seed r/3 (the paper's mesh)"),
-)}
+RUNGS: dict[str, Rung] = {
+    r.name: r
+    for r in (
+        Rung(
+            "reduced",
+            "reduced",
+            {},
+            "reduced",
+            True,
+            "the paper's reduced model (hgo; hgo2m under a free side) fitted by L-BFGS to the best rung's curve",
+        ),
+        Rung("rod:8", "rod", {"segments_per_stitch": 8}, "rod", True, "rod, 8 segments per stitch"),
+        Rung("rod:16", "rod", {"segments_per_stitch": 16}, "rod", True, "rod, 16 segments per stitch"),
+        Rung("rod:32", "rod", {"segments_per_stitch": 32}, "rod", True, "rod, 32 segments per stitch"),
+        Rung("rod:64", "rod", {"segments_per_stitch": 64}, "rod", False, "rod, 64 segments per stitch"),
+        Rung(
+            "volumetric:p1:coarse",
+            _VOL,
+            {"order": 1, "seed": 1.0},
+            "volumetric:p1",
+            True,
+            "volumetric, P1 tetrahedra, seed r (coarse); locks in bending: a quick look",
+        ),
+        Rung(
+            "volumetric:p1:r/1.67",
+            _VOL,
+            {"order": 1, "seed": 0.6},
+            "volumetric:p1",
+            False,
+            "volumetric, P1 tetrahedra, seed r/1.67; locks in bending: a quick look",
+        ),
+        Rung(
+            "volumetric:p1:r/3",
+            _VOL,
+            {"order": 1, "seed": 1.0 / 3.0},
+            "volumetric:p1",
+            True,
+            "volumetric, P1 tetrahedra, seed r/3; locks in bending: a quick look",
+        ),
+        Rung(
+            "volumetric:p2:coarse",
+            _VOL,
+            {"order": 2, "seed": 1.0},
+            "volumetric:p2",
+            False,
+            "volumetric, P2 tetrahedra, seed r (coarse)",
+        ),
+        Rung(
+            "volumetric:p2:r/1.67",
+            _VOL,
+            {"order": 2, "seed": 0.6},
+            "volumetric:p2",
+            True,
+            "volumetric, P2 tetrahedra, seed r/1.67",
+        ),
+        Rung(
+            "volumetric:p2:r/3",
+            _VOL,
+            {"order": 2, "seed": 1.0 / 3.0},
+            "volumetric:p2",
+            False,
+            "volumetric, P2 tetrahedra, seed r/3 (the paper's mesh)",
+        ),
+    )
+}
 
 #: The rungs run when none are named.
 DEFAULT_RUNGS: tuple[str, ...] = tuple(name for name, r in RUNGS.items() if r.default)
@@ -134,14 +179,24 @@ def rung(name: str) -> Rung:
     if m := _ROD_RE.fullmatch(name):
         n = int(m.group(1))
         if not ROD_SEGMENTS[0] <= n <= ROD_SEGMENTS[1]:
-            raise ValueError(f"rung {name!r}: segments per stitch must be {ROD_SEGMENTS[0]}..{ROD_SEGMENTS[1]}")
+            raise ValueError(
+                f"rung {name!r}: segments per stitch must be {ROD_SEGMENTS[0]}..{ROD_SEGMENTS[1]}"
+            )
         return Rung(name, "rod", {"segments_per_stitch": n}, "rod", False, f"rod, {n} segments per stitch")
     if m := _VOL_RE.fullmatch(name):
         order, x = int(m.group(1)), float(m.group(2))
         if not MESH_DIVISORS[0] <= x <= MESH_DIVISORS[1]:
-            raise ValueError(f"rung {name!r}: the mesh divisor X of r/X must be {MESH_DIVISORS[0]:g}..{MESH_DIVISORS[1]:g}")
-        return Rung(name, _VOL, {"order": order, "seed": 1.0 / x}, f"volumetric:p{order}", False,
-                    f"volumetric, P{order} tetrahedra, seed r/{m.group(2)}")
+            raise ValueError(
+                f"rung {name!r}: the mesh divisor X of r/X must be {MESH_DIVISORS[0]:g}..{MESH_DIVISORS[1]:g}"
+            )
+        return Rung(
+            name,
+            _VOL,
+            {"order": order, "seed": 1.0 / x},
+            f"volumetric:p{order}",
+            False,
+            f"volumetric, P{order} tetrahedra, seed r/{m.group(2)}",
+        )
     raise ValueError(f"unknown rung {name!r}; the rungs are {', '.join(RUNGS)}, or any of {RUNG_FORMS}")
 
 
@@ -235,12 +290,17 @@ class CostModel:
             self.points.append(point)
 
     def _series(self, family: str, tier: str, value) -> list[tuple[float, float]]:
-        return [(p.dofs, y) for p in self.points if p.family == family and p.source == tier
-                and (y := value(p)) is not None and y > 0]
+        return [
+            (p.dofs, y)
+            for p in self.points
+            if p.family == family and p.source == tier and (y := value(p)) is not None and y > 0
+        ]
 
     def _siblings(self, family: str) -> list[str]:
         solver = family.split(":")[0]
-        return sorted({p.family for p in self.points if p.family != family and p.family.split(":")[0] == solver})
+        return sorted(
+            {p.family for p in self.points if p.family != family and p.family.split(":")[0] == solver}
+        )
 
     def _fit(self, family: str, value, tiers: tuple[str, ...] = _TIERS) -> tuple[float, float, str] | None:
         """``(c, p, tier)`` of value ≈ c·DOFs^p, the scale from ``tier``; None without measurements."""
@@ -253,6 +313,7 @@ class CostModel:
 
     def estimate(self, family: str, dofs: int, increments: int) -> Estimate | None:
         """Estimated cost of a rung of ``family`` with ``dofs`` unknowns over ``increments`` steps."""
+
         def per_increment(pt: TimingPoint) -> float:
             return pt.wall_time_s / max(pt.increments, 1)
 
@@ -275,7 +336,7 @@ class CostModel:
                 basis += f", ×{factor:.2g} as this run's {' and '.join(names)} rungs compare with them"
         m = self._fit(family, lambda pt: pt.peak_rss_mb)
         rss = None if m is None else m[0] * dofs ** m[1]
-        return Estimate(c * dofs ** p * max(increments, 1), rss, basis)
+        return Estimate(c * dofs**p * max(increments, 1), rss, basis)
 
 
 def shipped_timings_path() -> Path:
@@ -310,9 +371,17 @@ def read_timings(path: str | Path, source: str = "given") -> list[TimingPoint]:
             if str(row.get("status", "ok")) != "ok" or row.get("family") in (None, "", "reduced"):
                 continue
             rss = row.get("peak_rss_mb")
-            out.append(TimingPoint(str(row["family"]), int(float(row["dofs"])), int(float(row["increments"])),
-                                   float(row["wall_time_s"]), float(rss) if rss not in (None, "") else None,
-                                   source, str(row.get("rung", ""))))
+            out.append(
+                TimingPoint(
+                    str(row["family"]),
+                    int(float(row["dofs"])),
+                    int(float(row["increments"])),
+                    float(row["wall_time_s"]),
+                    float(rss) if rss not in (None, "") else None,
+                    source,
+                    str(row.get("rung", "")),
+                )
+            )
     except (ValueError, KeyError, TypeError) as e:
         raise DataError(str(p), f"not a ladder.csv or a timings JSON ({type(e).__name__}: {e})") from None
     return out
@@ -327,14 +396,18 @@ def timings_json(rows: Sequence[Mapping[str, Any]], *, command: str, note: str =
         "note": note,
         "date": time.strftime("%Y-%m-%d"),
         "machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.system()}",
-        "rows": [{k: row[k] for k in keep} | {"status": "ok"} for row in rows
-                 if row.get("status") == "ok" and row.get("family") != "reduced"],
+        "rows": [
+            {k: row[k] for k in keep} | {"status": "ok"}
+            for row in rows
+            if row.get("status") == "ok" and row.get("family") != "reduced"
+        ],
     }
 
 
 # ------------------------------------------------------------------------------------ rung jobs
-_CHILD = ("import sys; from knitframe.ladder import _child_main; "
-          "sys.exit(_child_main(sys.argv[1], sys.argv[2]))")
+_CHILD = (
+    "import sys; from knitframe.ladder import _child_main; sys.exit(_child_main(sys.argv[1], sys.argv[2]))"
+)
 
 
 def run_rung(job: Mapping[str, Any]) -> dict[str, Any]:
@@ -349,15 +422,26 @@ def run_rung(job: Mapping[str, Any]) -> dict[str, Any]:
     with tempfile.TemporaryDirectory(prefix="knitframe-rung-") as tmp:
         job_path, out_path = Path(tmp) / "job.json", Path(tmp) / "result.json"
         job_path.write_text(json.dumps(job), encoding="utf-8")
-        proc = subprocess.run([sys.executable, "-c", _CHILD, str(job_path), str(out_path)],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, errors="replace")
+        proc = subprocess.run(
+            [sys.executable, "-c", _CHILD, str(job_path), str(out_path)],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+            errors="replace",
+        )
         if out_path.is_file():
             result = json.loads(out_path.read_text(encoding="utf-8"))
         else:
             lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
-            how = (f"killed by signal {-proc.returncode}" if proc.returncode < 0
-                   else f"exit code {proc.returncode}")
-            result = {"status": f"crashed: {how}" + (f": {lines[-1].strip()}" if lines else ""), "crashed": True}
+            how = (
+                f"killed by signal {-proc.returncode}"
+                if proc.returncode < 0
+                else f"exit code {proc.returncode}"
+            )
+            result = {
+                "status": f"crashed: {how}" + (f": {lines[-1].strip()}" if lines else ""),
+                "crashed": True,
+            }
     result.setdefault("rung", job.get("rung"))
     result["started_unix"], result["finished_unix"] = started, time.time()
     return result
@@ -388,12 +472,16 @@ def rung_modules(job: Mapping[str, Any]) -> list[str]:
         yarn = fabric.get("yarn")
         if isinstance(yarn, str) and yarn in reg["yarn"]:
             yarn = {"model": getattr(reg["yarn"][yarn], "model", None)}
-        found += [module("pattern", fabric.get("pattern")),
-                  module("yarn_model", yarn.get("model") if isinstance(yarn, dict) else None)]
+        found += [
+            module("pattern", fabric.get("pattern")),
+            module("yarn_model", yarn.get("model") if isinstance(yarn, dict) else None),
+        ]
         cls = reg["solver"][solver["kind"]]
         defaults = {f.name: f.default for f in attrs.fields(cls)} if attrs.has(cls) else {}
         options = {**{k: d for k, d in defaults.items() if isinstance(d, (str, dict))}, **solver}
-        found += [module(kind, value) for value in options.values() for kind in ("linear_solver", "contact_law")]
+        found += [
+            module(kind, value) for value in options.values() for kind in ("linear_solver", "contact_law")
+        ]
     return sorted({m for m in found if m})
 
 
@@ -410,7 +498,9 @@ def _child_main(job_path: str, out_path: str) -> int:
     caught: list[str] = []
     with warnings.catch_warnings(record=True) as seen:
         warnings.simplefilter("always", KnitframeWarning)
-        warnings.simplefilter("error", RuntimeWarning)  # as the command line does: a non-finite value is an error
+        warnings.simplefilter(
+            "error", RuntimeWarning
+        )  # as the command line does: a non-finite value is an error
         try:
             result = _reduced(job) if job["solver"]["kind"] == "reduced" else _simulate(job)
         except KnitframeError as e:
@@ -457,8 +547,13 @@ def _simulate(job: Mapping[str, Any]) -> dict[str, Any]:
     wall = time.perf_counter() - t0
     prov = response.provenance
     status = "ok" if prov.converged else f"stopped: {prov.notes or 'the solver stopped early'}"
-    return {"status": status, "wall_time_s": wall, "curve": _curve(response),
-            "mesh": prov.mesh or "", "notes": prov.notes}
+    return {
+        "status": status,
+        "wall_time_s": wall,
+        "curve": _curve(response),
+        "mesh": prov.mesh or "",
+        "notes": prov.notes,
+    }
 
 
 def _reduced(job: Mapping[str, Any]) -> dict[str, Any]:
@@ -485,20 +580,39 @@ def _reduced(job: Mapping[str, Any]) -> dict[str, Any]:
         wall = time.perf_counter() - t0
         if wall > 0.2 or n >= 10000:
             break
-    return {"status": "ok", "wall_time_s": wall / n, "curve": _curve(response), "fit_time_s": fit.wall_time,
-            "params": params_to_json(fit.param_names, fit.params), "model": model.name,
-            "nrmse_fit": fit.nrmse.get("overall"), "notes": response.provenance.notes}
+    return {
+        "status": "ok",
+        "wall_time_s": wall / n,
+        "curve": _curve(response),
+        "fit_time_s": fit.wall_time,
+        "params": params_to_json(fit.param_names, fit.params),
+        "model": model.name,
+        "nrmse_fit": fit.nrmse.get("overall"),
+        "notes": response.provenance.notes,
+    }
 
 
 def _curve(r: Response) -> dict[str, Any]:
-    return {"lambda1": r.lambda1.tolist(), "lambda2": r.lambda2.tolist(), "T1": r.T1.tolist(),
-            "T2": r.T2.tolist(), "load": r.load, "label": r.label}
+    return {
+        "lambda1": r.lambda1.tolist(),
+        "lambda2": r.lambda2.tolist(),
+        "T1": r.T1.tolist(),
+        "T2": r.T2.tolist(),
+        "load": r.load,
+        "label": r.label,
+    }
 
 
 def _response(curve: Mapping[str, Any], label: str | None = None, kind: str = "simulation") -> Response:
-    return Response(np.asarray(curve["lambda1"]), np.asarray(curve["lambda2"]), np.asarray(curve["T1"]),
-                    np.asarray(curve["T2"]), load=curve["load"], label=label or curve.get("label", ""),
-                    provenance=Provenance(kind=kind, source="ladder"))
+    return Response(
+        np.asarray(curve["lambda1"]),
+        np.asarray(curve["lambda2"]),
+        np.asarray(curve["T1"]),
+        np.asarray(curve["T2"]),
+        load=curve["load"],
+        label=label or curve.get("label", ""),
+        provenance=Provenance(kind=kind, source="ladder"),
+    )
 
 
 # ------------------------------------------------------------------------------------ errors
@@ -533,8 +647,13 @@ def tension_errors(ref: Response, r: Response) -> dict[str, float | None]:
 def within_range(measured: Response, top: float) -> Response | None:
     """The measured points up to the simulated path's largest stretch ``top`` (None if fewer than 2)."""
     d = loaded_directions(measured.load)
-    lam = measured.lambda1 if d == (0,) else measured.lambda2 if d == (1,) else np.maximum(
-        measured.lambda1, measured.lambda2)
+    lam = (
+        measured.lambda1
+        if d == (0,)
+        else measured.lambda2
+        if d == (1,)
+        else np.maximum(measured.lambda1, measured.lambda2)
+    )
     keep = lam <= top + 1e-9
     if keep.sum() < 2:
         return None
@@ -544,10 +663,32 @@ def within_range(measured: Response, top: float) -> Response | None:
 
 # ------------------------------------------------------------------------------------ outputs
 CSV_COLUMNS = (
-    "rung", "family", "solver", "options", "effects", "dofs", "increments", "status", "cached", "reference",
-    "wall_time_s", "peak_rss_mb", "estimated_time_s", "estimated_rss_mb", "estimate_basis",
-    "T1_end_N_per_mm", "T2_end_N_per_mm", "nrmse_vs_best", "nrmse_course_vs_best", "nrmse_wale_vs_best",
-    "nrmse_vs_measured", "nrmse_course_vs_measured", "nrmse_wale_vs_measured", "fabric", "load", "notes",
+    "rung",
+    "family",
+    "solver",
+    "options",
+    "effects",
+    "dofs",
+    "increments",
+    "status",
+    "cached",
+    "reference",
+    "wall_time_s",
+    "peak_rss_mb",
+    "estimated_time_s",
+    "estimated_rss_mb",
+    "estimate_basis",
+    "T1_end_N_per_mm",
+    "T2_end_N_per_mm",
+    "nrmse_vs_best",
+    "nrmse_course_vs_best",
+    "nrmse_wale_vs_best",
+    "nrmse_vs_measured",
+    "nrmse_course_vs_measured",
+    "nrmse_wale_vs_measured",
+    "fabric",
+    "load",
+    "notes",
 )
 
 
@@ -585,25 +726,59 @@ def _tension(x: float) -> str:
 def write_table(path: Path, rows: Sequence[Mapping[str, Any]], *, title: str, measured: Sequence[str]) -> str:
     """``ladder.md``: the Markdown table (returned as well)."""
     has_measured = bool(measured)
-    head = ["rung", "DOFs", "wall time", "peak memory", "estimated before", "T1, T2 at the end (N/mm)",
-            "NRMSE vs best (course, wale)"] + (["NRMSE vs measured"] if has_measured else []) + ["status"]
+    head = (
+        [
+            "rung",
+            "DOFs",
+            "wall time",
+            "peak memory",
+            "estimated before",
+            "T1, T2 at the end (N/mm)",
+            "NRMSE vs best (course, wale)",
+        ]
+        + (["NRMSE vs measured"] if has_measured else [])
+        + ["status"]
+    )
     lines = [f"**{title}**", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for row in rows:
         ok = row.get("wall_time_s") is not None
-        best = ("reference" if row.get("reference") else
-                f"{_pct(row.get('nrmse_vs_best'))} ({_pct(row.get('nrmse_course_vs_best'))}, "
-                f"{_pct(row.get('nrmse_wale_vs_best'))})" if row.get("nrmse_vs_best") is not None else "–")
-        est = "–" if row.get("estimated_time_s") is None else (
-            format_duration(row["estimated_time_s"]) + ("" if row.get("estimated_rss_mb") is None
-                                                        else f", {format_memory(row['estimated_rss_mb'])}"))
-        ends = ("–" if row.get("T1_end_N_per_mm") is None
-                else f"{_tension(row['T1_end_N_per_mm'])}, {_tension(row['T2_end_N_per_mm'])}")
+        best = (
+            "reference"
+            if row.get("reference")
+            else f"{_pct(row.get('nrmse_vs_best'))} ({_pct(row.get('nrmse_course_vs_best'))}, "
+            f"{_pct(row.get('nrmse_wale_vs_best'))})"
+            if row.get("nrmse_vs_best") is not None
+            else "–"
+        )
+        est = (
+            "–"
+            if row.get("estimated_time_s") is None
+            else (
+                format_duration(row["estimated_time_s"])
+                + (
+                    ""
+                    if row.get("estimated_rss_mb") is None
+                    else f", {format_memory(row['estimated_rss_mb'])}"
+                )
+            )
+        )
+        ends = (
+            "–"
+            if row.get("T1_end_N_per_mm") is None
+            else f"{_tension(row['T1_end_N_per_mm'])}, {_tension(row['T2_end_N_per_mm'])}"
+        )
         status = row.get("status", "")
         if row.get("cached"):
             status += " (cached)"
-        cells = [row["rung"], f"{row['dofs']:,}".replace(",", " ") if row.get("dofs") else "–",
-                 format_duration(row["wall_time_s"]) if ok else "–",
-                 format_memory(row["peak_rss_mb"]) if row.get("peak_rss_mb") else "–", est, ends, best]
+        cells = [
+            row["rung"],
+            f"{row['dofs']:,}".replace(",", " ") if row.get("dofs") else "–",
+            format_duration(row["wall_time_s"]) if ok else "–",
+            format_memory(row["peak_rss_mb"]) if row.get("peak_rss_mb") else "–",
+            est,
+            ends,
+            best,
+        ]
         if has_measured:
             cells.append(_pct(row.get("nrmse_vs_measured")))
         cells.append(status.replace("|", "/"))
@@ -638,13 +813,24 @@ def plot_pareto(path: Path, rows: Sequence[Mapping[str, Any]], *, title: str) ->
     front_key = series[-1][0]
     plotted = 0
     for key, label, marker, color, filled in series:
-        pts = [(r["wall_time_s"], r[key], r["rung"]) for r in rows
-               if r.get("wall_time_s") and r.get(key) is not None and r[key] > 0]
+        pts = [
+            (r["wall_time_s"], r[key], r["rung"])
+            for r in rows
+            if r.get("wall_time_s") and r.get(key) is not None and r[key] > 0
+        ]
         if not pts:
             continue
         plotted += len(pts)
-        ax.scatter([p[0] for p in pts], [p[1] for p in pts], marker=marker, s=42, label=label, zorder=3,
-                   facecolors=color if filled else "none", edgecolors=color)
+        ax.scatter(
+            [p[0] for p in pts],
+            [p[1] for p in pts],
+            marker=marker,
+            s=42,
+            label=label,
+            zorder=3,
+            facecolors=color if filled else "none",
+            edgecolors=color,
+        )
         for x, y, name in pts:
             ax.annotate(name, (x, y), textcoords="offset points", xytext=(5, 4), fontsize=7.5, color=color)
         if key == front_key:
@@ -655,22 +841,45 @@ def plot_pareto(path: Path, rows: Sequence[Mapping[str, Any]], *, title: str) ->
                     front.append((x, y))
                     low = y
             if len(front) > 1:
-                ax.step([p[0] for p in front], [p[1] for p in front], where="post", ls="--", lw=1, color=color,
-                        alpha=0.6, label="Pareto front")
+                ax.step(
+                    [p[0] for p in front],
+                    [p[1] for p in front],
+                    where="post",
+                    ls="--",
+                    lw=1,
+                    color=color,
+                    alpha=0.6,
+                    label="Pareto front",
+                )
     if plotted:
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.legend(fontsize=8, loc="best")
     else:
-        ax.text(0.5, 0.5, "only one rung finished: nothing to compare", ha="center", va="center",
-                transform=ax.transAxes)
+        ax.text(
+            0.5,
+            0.5,
+            "only one rung finished: nothing to compare",
+            ha="center",
+            va="center",
+            transform=ax.transAxes,
+        )
     ref = next((r for r in rows if r.get("reference")), None)
     if ref is not None and ref.get("wall_time_s"):
         # the best rung has no error against itself: a vertical line at its time
         ax.axvline(ref["wall_time_s"], color="C0", ls=":", lw=1.2)
-        ax.annotate(f"{ref['rung']} (best rung)", (ref["wall_time_s"], 0.03), xycoords=("data", "axes fraction"),
-                    rotation=90, ha="right", va="bottom", fontsize=7.5, color="C0", xytext=(-3, 0),
-                    textcoords="offset points")
+        ax.annotate(
+            f"{ref['rung']} (best rung)",
+            (ref["wall_time_s"], 0.03),
+            xycoords=("data", "axes fraction"),
+            rotation=90,
+            ha="right",
+            va="bottom",
+            fontsize=7.5,
+            color="C0",
+            xytext=(-3, 0),
+            textcoords="offset points",
+        )
         if not plotted:
             ax.set_xscale("log")
     ax.set_xlabel("wall time of the rung, s")
@@ -682,8 +891,15 @@ def plot_pareto(path: Path, rows: Sequence[Mapping[str, Any]], *, title: str) ->
     plt.close(fig)
 
 
-def plot_curves(path: Path, curves: Mapping[str, Response], measured: Sequence[Response], *, title: str,
-                load: str, reference: str | None = None) -> None:
+def plot_curves(
+    path: Path,
+    curves: Mapping[str, Response],
+    measured: Sequence[Response],
+    *,
+    title: str,
+    load: str,
+    reference: str | None = None,
+) -> None:
     """``curves.png``: every rung's tension curves over the measured ones.
 
     Equibiaxial and general loads: course and wale tension; uniaxial: the loaded tension and the
@@ -692,8 +908,11 @@ def plot_curves(path: Path, curves: Mapping[str, Response], measured: Sequence[R
     """
     plt = _plt()
     dirs = loaded_directions(load)
-    panels = [("course", 0, "T"), ("wale", 1, "T")] if len(dirs) == 2 else [
-        ("course" if dirs[0] == 0 else "wale", dirs[0], "T"), ("lateral", dirs[0], "lateral")]
+    panels = (
+        [("course", 0, "T"), ("wale", 1, "T")]
+        if len(dirs) == 2
+        else [("course" if dirs[0] == 0 else "wale", dirs[0], "T"), ("lateral", dirs[0], "lateral")]
+    )
     fig, axes = plt.subplots(1, 2, figsize=(10.0, 4.2), dpi=110)
 
     def xy(r: Response, d: int, what: str):
@@ -705,7 +924,11 @@ def plot_curves(path: Path, curves: Mapping[str, Response], measured: Sequence[R
     for ax, (name, d, what) in zip(axes, panels):
         for m in measured:
             x, y = xy(m, d, what)
-            sd = (m.T1_sd if d == 0 else m.T2_sd) if what == "T" else (m.lambda2_sd if d == 0 else m.lambda1_sd)
+            sd = (
+                (m.T1_sd if d == 0 else m.T2_sd)
+                if what == "T"
+                else (m.lambda2_sd if d == 0 else m.lambda1_sd)
+            )
             ax.plot(x, y, "k.", ms=4, label=f"measured: {m.label}")
             if sd is not None:
                 scale = 1.0 if what == "T" else 100.0
@@ -714,8 +937,17 @@ def plot_curves(path: Path, curves: Mapping[str, Response], measured: Sequence[R
         for i, (rung, r) in enumerate(curves.items()):
             x, y = xy(r, d, what)
             best = rung == reference
-            ax.plot(x, y, "-", marker=".", ms=3, lw=2.6 if best else 1.3, color=f"C{i % 10}",
-                    label=f"{rung} (best rung)" if best else rung, zorder=2 if best else 3)
+            ax.plot(
+                x,
+                y,
+                "-",
+                marker=".",
+                ms=3,
+                lw=2.6 if best else 1.3,
+                color=f"C{i % 10}",
+                label=f"{rung} (best rung)" if best else rung,
+                zorder=2 if best else 3,
+            )
             ends.append(float(y[-1]))
             low = min(low, float(np.min(y[y > 0], initial=np.inf)))
         if what == "T" and ends and min(ends) > 0 and max(ends) > 10 * min(ends):
@@ -749,8 +981,12 @@ class LadderResult:
         return next(r for r in self.rows if r["rung"] == rung)
 
 
-def ladder_config(config: str | Path | Mapping[str, Any], *, rungs: Sequence[str] | None = None,
-                  max_time: float | None = None) -> tuple[dict[str, Any], Path, str | None]:
+def ladder_config(
+    config: str | Path | Mapping[str, Any],
+    *,
+    rungs: Sequence[str] | None = None,
+    max_time: float | None = None,
+) -> tuple[dict[str, Any], Path, str | None]:
     """A config with its ``[ladder]`` table given or amended: ``(config, base_dir, source)``."""
     from knitframe.config import load_toml
 
@@ -769,9 +1005,15 @@ def ladder_config(config: str | Path | Mapping[str, Any], *, rungs: Sequence[str
     return data, base, source
 
 
-def ladder(config: str | Path | Mapping[str, Any], out: str | Path | None = None, *,
-           rungs: Sequence[str] | None = None, max_time: float | None = None, overwrite: bool = False,
-           quiet: bool = True) -> LadderResult:
+def ladder(
+    config: str | Path | Mapping[str, Any],
+    out: str | Path | None = None,
+    *,
+    rungs: Sequence[str] | None = None,
+    max_time: float | None = None,
+    overwrite: bool = False,
+    quiet: bool = True,
+) -> LadderResult:
     """Run a config's pipeline with the ladder stage; the Python twin of ``knitframe ladder``.
 
     Parameters

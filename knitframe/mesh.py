@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import functools
 import time
-from collections.abc import Sequence
 from typing import Any
 
 import attrs
@@ -140,7 +139,9 @@ def arc_length_samples(centerline: Any, n: int, *, resolution: int = 64) -> tupl
     t_even = tf[::2]
     total = s_even[-1]
     if not np.isfinite(total) or total <= 0:
-        raise GeometryError(f"yarn '{getattr(centerline, 'name', '?')}': centerline has no finite positive length")
+        raise GeometryError(
+            f"yarn '{getattr(centerline, 'name', '?')}': centerline has no finite positive length"
+        )
     s = np.linspace(0.0, total, n + 1)
     t = np.interp(s, s_even, t_even)
     t[0], t[-1] = centerline.t0, centerline.t1
@@ -169,7 +170,9 @@ class CellMesh:
     element_body: np.ndarray  #: (n_elements,) yarn index of each tetrahedron
     surface: np.ndarray  #: (M, 3) P1 or (M, 6) P2 node indices of the lateral-surface facets, outward
     surface_body: np.ndarray  #: (M,) yarn index of each surface triangle
-    end_pairs: tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]  #: (end nodes, start nodes, shift (3,)): x_end = x_start + shift
+    end_pairs: tuple[
+        tuple[np.ndarray, np.ndarray, np.ndarray], ...
+    ]  #: (end nodes, start nodes, shift (3,)): x_end = x_start + shift
     clearance: Any = None  #: :class:`knitframe.geometry.Clearance` found before meshing (None if unchecked)
     timings: dict[str, float] = attrs.Factory(dict)  #: seconds spent per meshing step
 
@@ -329,7 +332,9 @@ def cell_mesh(
         x, T, N, B = frames[iy]
         xv, Tv, Nv, Bv = x[::2], T[::2], N[::2], B[::2]
         nl = layers[iy]
-        off = radius * (sec.points[None, :, 0, None] * Nv[:, None, :] + sec.points[None, :, 1, None] * Bv[:, None, :])
+        off = radius * (
+            sec.points[None, :, 0, None] * Nv[:, None, :] + sec.points[None, :, 1, None] * Bv[:, None, :]
+        )
         P.append((xv[:, None, :] + off).reshape(-1, 3))
         offs.append(off.reshape(-1, 3))
         arc.append(np.repeat(ss[iy][::2], n2d))

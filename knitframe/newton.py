@@ -121,20 +121,32 @@ class NewtonOptions:
     max_iter: int = 60
     armijo: float = 1e-4  #: sufficient-decrease constant c
     max_backtracks: int = 40
-    residual_backtracks: int = 6  #: trials of the residual-decrease fallback when no step lowers the energy (0: off)
+    residual_backtracks: int = (
+        6  #: trials of the residual-decrease fallback when no step lowers the energy (0: off)
+    )
     stabilisation: float = 1e-6  #: relative Hessian shift while stabilise(info) is true
     max_shift_increases: int = 12
     max_step: float = math.inf  #: cap on step_norm(dx)
     xtol: float = 0.0  #: also converged when an unshifted full Newton step moves no DOF more than this (round-off floor)
     flux_rtol: float = 0.0  #: R_n: also converged when max|g_f| ≤ R_n·q̃, q̃ = info["flux"] (0: off)
-    correction_rtol: float = 1e-2  #: C_n: ... and the last correction ≤ C_n × the increment's largest displacement
-    late_flux_rtol: float = 0.0  #: R_P: the flux ratio from iteration ``late_iteration`` on (0: R_n throughout)
+    correction_rtol: float = (
+        1e-2  #: C_n: ... and the last correction ≤ C_n × the increment's largest displacement
+    )
+    late_flux_rtol: float = (
+        0.0  #: R_P: the flux ratio from iteration ``late_iteration`` on (0: R_n throughout)
+    )
     late_iteration: int = 9  #: I_P: iterations after which R_P replaces R_n
-    stall_iterations: int = 0  #: give up when the smallest residual has not improved in this many iterations (0: off)
+    stall_iterations: int = (
+        0  #: give up when the smallest residual has not improved in this many iterations (0: off)
+    )
     cap_shift: float = 0.0  #: raise the Levenberg shift (instead of scaling the step) while step_norm(dx) > this × max_step (0: off)
-    projection: str = attrs.field(default="off", validator=attrs.validators.in_(("off", "adaptive", "always")))  #: Hessian: exact ("off"), PSD-projected ("always", fun(x, 2, projected=True)) or projected while exact steps fail ("adaptive")
+    projection: str = attrs.field(
+        default="off", validator=attrs.validators.in_(("off", "adaptive", "always"))
+    )  #: Hessian: exact ("off"), PSD-projected ("always", fun(x, 2, projected=True)) or projected while exact steps fail ("adaptive")
     step_tol: float = 0.0  #: also converged when an unshifted Newton step (exact, or projected while projecting) has step_norm(dx) ≤ this (IPC's criterion; 0: off)
-    release_step: float = 0.5  #: "adaptive": back to the exact Hessian after a projected step ≤ this × max_step
+    release_step: float = (
+        0.5  #: "adaptive": back to the exact Hessian after a projected step ≤ this × max_step
+    )
     start_projected: bool = False  #: "adaptive": start on the projected Hessian (saves the exact factorisation of a first step that would fail)
     chord: bool = False  #: after a Newton step the line search shortened (α < 1), reuse its factorisation for chord steps −H_k⁻¹·g(x) while they lower E at least as fast per second as that Newton step (needs ``solve.factorize``)
     chord_full: bool = False  #: with ``chord``, chord steps also after a full Newton step (α = 1): where full steps converge only linearly (a Hessian too stiff along a slow mode) a chord step gains about as much for a gradient and a back-substitution
@@ -152,7 +164,9 @@ class NewtonResult:
     gradient: np.ndarray
     iterations: int
     converged: bool
-    history: tuple[dict, ...]  #: per iteration: energy, residual, alpha, shift, step_energy (E at the accepted step, as the line search evaluated it), step (size of the Newton step / max_step, before the cap; the size itself without a cap), alpha0 (the line search's first α: 1 or the CCD bound), wall_s (the iteration's wall time: its iterate's evaluation, factorisations, line search)
+    history: tuple[
+        dict, ...
+    ]  #: per iteration: energy, residual, alpha, shift, step_energy (E at the accepted step, as the line search evaluated it), step (size of the Newton step / max_step, before the cap; the size itself without a cap), alpha0 (the line search's first α: 1 or the CCD bound), wall_s (the iteration's wall time: its iterate's evaluation, factorisations, line search)
     info: dict
 
 
@@ -162,8 +176,11 @@ def _diag_scale(A: sp.spmatrix) -> float:
 
 
 def _fmt(history: Sequence[dict], last: int = 6) -> str:
-    rows = [f"it {h['it']}: E={h['energy']:.6g} |g|={h['residual']:.3g} alpha={h.get('alpha', 0):.3g} "
-            f"shift={h.get('shift', 0):.2g}" for h in history[-last:]]
+    rows = [
+        f"it {h['it']}: E={h['energy']:.6g} |g|={h['residual']:.3g} alpha={h.get('alpha', 0):.3g} "
+        f"shift={h.get('shift', 0):.2g}"
+        for h in history[-last:]
+    ]
     return "; ".join(rows)
 
 
@@ -211,7 +228,9 @@ def minimise(
     """
     x = np.array(x0, dtype=np.float64, copy=True)
     free = np.asarray(free, bool)
-    projecting = options.projection == "always" or (options.projection == "adaptive" and options.start_projected)
+    projecting = options.projection == "always" or (
+        options.projection == "adaptive" and options.start_projected
+    )
 
     def evaluate(x: np.ndarray) -> tuple[float, Any, Any, dict]:
         return fun(x, 2, projected=True) if projecting else fun(x, 2)
@@ -219,7 +238,9 @@ def minimise(
     t_it = time.perf_counter()
     E, g, H, info = evaluate(x)
     if not np.isfinite(E):
-        raise NumericalError(f"Newton: the starting state is inadmissible (energy {E}); {info.get('diagnostic', '')}".strip())
+        raise NumericalError(
+            f"Newton: the starting state is inadmissible (energy {E}); {info.get('diagnostic', '')}".strip()
+        )
     r0 = float(np.max(np.abs(g[free]), initial=0.0))
     tol = max(options.atol, options.rtol * r0)
     history: list[dict] = []
@@ -260,7 +281,11 @@ def minimise(
             if res <= tol:
                 _report(on_iteration, history, t_it)
                 return NewtonResult(x, float(E), g, it, True, tuple(history), info)
-            ratio = options.late_flux_rtol if options.late_flux_rtol > 0 and it >= options.late_iteration else options.flux_rtol
+            ratio = (
+                options.late_flux_rtol
+                if options.late_flux_rtol > 0 and it >= options.late_iteration
+                else options.flux_rtol
+            )
             if ratio > 0 and it > 0 and res <= ratio * float(info.get("flux", 0.0)):
                 if correction <= options.correction_rtol * measure(x - x_start):
                     _report(on_iteration, history, t_it)
@@ -268,25 +293,38 @@ def minimise(
             if it - n_chord_total == options.max_iter:  # chord steps do not count against max_iter
                 break
             if options.stall_iterations and it >= options.stall_iterations:
-                window = [h["residual"] for h in history[-options.stall_iterations:]]
-                best_before = min(h["residual"] for h in history[:-options.stall_iterations])
+                window = [h["residual"] for h in history[-options.stall_iterations :]]
+                best_before = min(h["residual"] for h in history[: -options.stall_iterations])
                 target = max(tol, ratio * float(info.get("flux", 0.0)))
                 if min(window) >= best_before and best_before > STALL_FACTOR * target:
                     _report(on_iteration, history, t_it)
                     raise _failure(
                         f"Newton: stalled, no residual below {best_before:.3g} in the last {options.stall_iterations} "
-                        f"iterations (tol {tol:.3g}); {_fmt(history)}", history)
+                        f"iterations (tol {tol:.3g}); {_fmt(history)}",
+                        history,
+                    )
             if chord_next:
                 chord_next = False
                 if projecting:  # the kept factorisation is of the projected Hessian
                     history[-1]["projected"] = True
-                chord = _chord_step(fun, x, E, g, kept, free, options, step_norm, step_limit, history[-1],
-                                    max_size=CHORD_SIZE_FACTOR * newton_size)
+                chord = _chord_step(
+                    fun,
+                    x,
+                    E,
+                    g,
+                    kept,
+                    free,
+                    options,
+                    step_norm,
+                    step_limit,
+                    history[-1],
+                    max_size=CHORD_SIZE_FACTOR * newton_size,
+                )
                 if chord is None and n_chord == 0:
                     # the first chord step after a Newton step refused: back off, 2^k − 1 chances skipped after
                     # the k-th such refusal in a row (stale factors refuse them in streaks, each a wasted gradient)
                     refused += 1
-                    skip = 2 ** refused - 1
+                    skip = 2**refused - 1
                 if chord is not None:
                     refused = 0
                     alpha, x_new, E_new = chord
@@ -319,7 +357,11 @@ def minimise(
                     break
                 tried = shift_rel
                 size = math.nan
-                A = Hff + sp.identity(Hff.shape[0], format="csc") * (shift_rel * scale) if shift_rel > 0 else Hff
+                A = (
+                    Hff + sp.identity(Hff.shape[0], format="csc") * (shift_rel * scale)
+                    if shift_rel > 0
+                    else Hff
+                )
                 dx_f = None
                 try:
                     with np.errstate(all="ignore"):
@@ -338,8 +380,11 @@ def minimise(
                     dx[free] = dx_f
                     if step_norm is not None and (np.isfinite(options.max_step) or options.step_tol > 0):
                         size = step_norm(dx)
-                if options.projection == "adaptive" and not projecting and (
-                        not descent or (np.isfinite(size) and size > options.max_step)):
+                if (
+                    options.projection == "adaptive"
+                    and not projecting
+                    and (not descent or (np.isfinite(size) and size > options.max_step))
+                ):
                     # the exact Hessian sends the step uphill or far off: projected Newton for the rest of the increment
                     projecting = True
                     history[-1]["projected"] = True
@@ -347,8 +392,13 @@ def minimise(
                     Hff = H[free][:, free].tocsc()
                     scale = _diag_scale(Hff)
                     continue
-                if (descent and options.step_tol > 0 and shift_rel == 0.0 and np.isfinite(size)
-                        and size <= options.step_tol):
+                if (
+                    descent
+                    and options.step_tol > 0
+                    and shift_rel == 0.0
+                    and np.isfinite(size)
+                    and size <= options.step_tol
+                ):
                     # the Newton step would move nothing by more than step_tol: x is the solution to that accuracy
                     # (a projected step is H_p⁻¹g with H_p ⪰ the exact curvature's positive part: IPC's criterion)
                     history[-1]["step"] = _step_ratio(size, options)
@@ -356,8 +406,12 @@ def minimise(
                     _report(on_iteration, history, t_it)
                     return NewtonResult(x, float(E), g, it, True, tuple(history), info)
                 if descent:
-                    if (options.cap_shift and np.isfinite(size) and size > options.cap_shift * options.max_step
-                            and max(10.0 * shift_rel, 1e-8) <= max_shift * (1.0 + 1e-9)):
+                    if (
+                        options.cap_shift
+                        and np.isfinite(size)
+                        and size > options.cap_shift * options.max_step
+                        and max(10.0 * shift_rel, 1e-8) <= max_shift * (1.0 + 1e-9)
+                    ):
                         # far outside the cap: a near-singular mode dominates dx, and scaling the whole step
                         # down would leave the rest of it at nothing; damp that mode with a shift instead
                         shift_rel = max(10.0 * shift_rel, 1e-8)
@@ -366,7 +420,9 @@ def minimise(
                         history[-1]["step"] = _step_ratio(size, options)
                     dx, slope, alpha0 = _capped(x, dx, slope, size, options, step_limit)
                     history[-1]["alpha0"] = alpha0
-                    step = _line_search(fun, x, E, g, dx, slope, options, free, alpha0) if alpha0 > 0 else None
+                    step = (
+                        _line_search(fun, x, E, g, dx, slope, options, free, alpha0) if alpha0 > 0 else None
+                    )
                     step = _extrapolated(fun, x, E, dx, slope, size, step, options, step_limit, history[-1])
                     if options.halve_reversals:
                         step = _halved_reversal(fun, x, dx, step, last_move, free, history[-1])
@@ -379,18 +435,30 @@ def minimise(
                 _report(on_iteration, history, t_it)
                 raise _failure(
                     f"Newton: no descent step at iteration {it} (residual {res:.3g} > tol {tol:.3g}, shift up to "
-                    f"{tried:.2g}); {_fmt(history)}", history)
+                    f"{tried:.2g}); {_fmt(history)}",
+                    history,
+                )
             history[-1]["alpha"] = alpha
-            history[-1]["step_energy"] = float(E_new)  # as the line search saw it: the next entry's energy may differ
-            _report(on_iteration, history, t_it)  # wall_s: this iteration's evaluations, factorisations, line search
+            history[-1]["step_energy"] = float(
+                E_new
+            )  # as the line search saw it: the next entry's energy may differ
+            _report(
+                on_iteration, history, t_it
+            )  # wall_s: this iteration's evaluations, factorisations, line search
             near = options.step_tol > 0 and np.isfinite(size) and size <= CHORD_SIZE_FACTOR * options.step_tol
             if near and options.chord_full and alpha >= 1.0 and np.isfinite(last_size) and last_size > 0:
                 # a full step: the next Newton step is expected at size·ρ, ρ = this step / the last one (under
                 # linear convergence ρ ≈ 1, and a step twice the test is many iterations from passing it)
                 near = size * min(1.0, size / last_size) <= options.step_tol
             last_size = size
-            if (options.chord and kept is not None and (alpha < 1.0 or options.chord_full) and shift_rel == 0.0
-                    and not near and not history[-1].get("halved")):
+            if (
+                options.chord
+                and kept is not None
+                and (alpha < 1.0 or options.chord_full)
+                and shift_rel == 0.0
+                and not near
+                and not history[-1].get("halved")
+            ):
                 # a shortened step (or with chord_full any step): chord steps on this factorisation while they gain
                 # energy at least this fast (not when the step was nearly within step_tol: the next Newton step
                 # may end the iteration)
@@ -402,25 +470,39 @@ def minimise(
             correction = measure(x_new - x)
             last_move = x_new - x
             x = x_new
-            if projecting and options.projection == "adaptive" and np.isfinite(size) and \
-                    size <= options.release_step * options.max_step:
+            if (
+                projecting
+                and options.projection == "adaptive"
+                and np.isfinite(size)
+                and size <= options.release_step * options.max_step
+            ):
                 projecting = False  # in the basin: the exact tangent converges quadratically
             E, g, H, info = fun(x, 1) if chord_next else evaluate(x)
             if alpha == 1.0 and shift_rel == 0.0 and float(np.max(np.abs(dx), initial=0.0)) <= options.xtol:
                 res = float(np.max(np.abs(g[free]), initial=0.0))
-                history.append({"it": it + 1, "energy": float(E), "residual": res, "shift": 0.0, "xtol": True})
+                history.append(
+                    {"it": it + 1, "energy": float(E), "residual": res, "shift": 0.0, "xtol": True}
+                )
                 _report(on_iteration, history, t_it)
                 return NewtonResult(x, float(E), g, it + 1, True, tuple(history), info)
         _report(on_iteration, history, t_it)
         raise _failure(
             f"Newton: no convergence in {options.max_iter} iterations (residual {history[-1]['residual']:.3g} > "
-            f"tol {tol:.3g}); {_fmt(history)}", history)
+            f"tol {tol:.3g}); {_fmt(history)}",
+            history,
+        )
     finally:
         release()
 
 
-def _capped(x: np.ndarray, dx: np.ndarray, slope: float, size: float, options: NewtonOptions,
-            step_limit: Callable[[np.ndarray, np.ndarray], float] | None) -> tuple[np.ndarray, float, float]:
+def _capped(
+    x: np.ndarray,
+    dx: np.ndarray,
+    slope: float,
+    size: float,
+    options: NewtonOptions,
+    step_limit: Callable[[np.ndarray, np.ndarray], float] | None,
+) -> tuple[np.ndarray, float, float]:
     """A step of size ``size`` scaled down to ``options.max_step`` (dx and its slope g·dx), and the line
     search's first α: 1, or the crossing-free fraction ``step_limit(x, dx)`` when smaller."""
     if np.isfinite(size) and size > options.max_step:
@@ -429,9 +511,15 @@ def _capped(x: np.ndarray, dx: np.ndarray, slope: float, size: float, options: N
     return dx, slope, 1.0 if step_limit is None else min(1.0, float(step_limit(x, dx)))
 
 
-def _halved_reversal(fun: Problem, x: np.ndarray, dx: np.ndarray, step: tuple[float, np.ndarray, float] | None,
-                     last_move: np.ndarray | None, free: np.ndarray,
-                     entry: dict) -> tuple[float, np.ndarray, float] | None:
+def _halved_reversal(
+    fun: Problem,
+    x: np.ndarray,
+    dx: np.ndarray,
+    step: tuple[float, np.ndarray, float] | None,
+    last_move: np.ndarray | None,
+    free: np.ndarray,
+    entry: dict,
+) -> tuple[float, np.ndarray, float] | None:
     """A full step that reverses the last move where it is largest, halved if that lowers the energy further.
 
     Where the energy has a kink (IPC friction's mollifier is only C¹ at the stick-slip switch), a
@@ -458,10 +546,18 @@ def _halved_reversal(fun: Problem, x: np.ndarray, dx: np.ndarray, step: tuple[fl
     return step
 
 
-def _extrapolated(fun: Problem, x: np.ndarray, E: float, dx: np.ndarray, slope: float, size: float,
-                  step: tuple[float, np.ndarray, float] | None, options: NewtonOptions,
-                  step_limit: Callable[[np.ndarray, np.ndarray], float] | None,
-                  entry: dict) -> tuple[float, np.ndarray, float] | None:
+def _extrapolated(
+    fun: Problem,
+    x: np.ndarray,
+    E: float,
+    dx: np.ndarray,
+    slope: float,
+    size: float,
+    step: tuple[float, np.ndarray, float] | None,
+    options: NewtonOptions,
+    step_limit: Callable[[np.ndarray, np.ndarray], float] | None,
+    entry: dict,
+) -> tuple[float, np.ndarray, float] | None:
     """The line search's ``step``, or a longer one along dx where the full step's energy says the model was too stiff.
 
     After a full step (α = 1) was accepted, the quadratic through φ(0) = E, φ'(0) = g·dx and
@@ -503,10 +599,19 @@ def _extrapolated(fun: Problem, x: np.ndarray, E: float, dx: np.ndarray, slope: 
     return step
 
 
-def _chord_step(fun: Problem, x: np.ndarray, E: float, g: np.ndarray, factor: Callable[[np.ndarray], np.ndarray],
-                free: np.ndarray, options: NewtonOptions, step_norm: Callable[[np.ndarray], float] | None,
-                step_limit: Callable[[np.ndarray, np.ndarray], float] | None,
-                entry: dict, max_size: float = math.nan) -> tuple[float, np.ndarray, float] | None:
+def _chord_step(
+    fun: Problem,
+    x: np.ndarray,
+    E: float,
+    g: np.ndarray,
+    factor: Callable[[np.ndarray], np.ndarray],
+    free: np.ndarray,
+    options: NewtonOptions,
+    step_norm: Callable[[np.ndarray], float] | None,
+    step_limit: Callable[[np.ndarray, np.ndarray], float] | None,
+    entry: dict,
+    max_size: float = math.nan,
+) -> tuple[float, np.ndarray, float] | None:
     """A chord step dx = −H_k⁻¹·g(x) on a kept factorisation, capped and bounded as a Newton step; None if it
     is no descent direction, is within ``step_tol`` (only a Newton step may end the iteration), is larger than
     ``max_size`` (the kept factorisation no longer models the energy here) or finds no α.
@@ -522,8 +627,11 @@ def _chord_step(fun: Problem, x: np.ndarray, E: float, g: np.ndarray, factor: Ca
         return None
     dx = np.zeros_like(x)
     dx[free] = dx_f
-    size = step_norm(dx) if step_norm is not None and (np.isfinite(options.max_step) or options.step_tol > 0) \
+    size = (
+        step_norm(dx)
+        if step_norm is not None and (np.isfinite(options.max_step) or options.step_tol > 0)
         else math.nan
+    )
     if options.step_tol > 0 and np.isfinite(size) and size <= options.step_tol:
         return None
     if np.isfinite(size) and np.isfinite(max_size) and size > max_size:
@@ -573,9 +681,17 @@ def _failure(message: str, history: Sequence[dict]) -> NumericalError:
     return err
 
 
-def _line_search(fun: Problem, x: np.ndarray, E: float, g: np.ndarray, dx: np.ndarray, slope: float,
-                 options: NewtonOptions, free: np.ndarray | None = None,
-                 alpha0: float = 1.0) -> tuple[float, np.ndarray, float] | None:
+def _line_search(
+    fun: Problem,
+    x: np.ndarray,
+    E: float,
+    g: np.ndarray,
+    dx: np.ndarray,
+    slope: float,
+    options: NewtonOptions,
+    free: np.ndarray | None = None,
+    alpha0: float = 1.0,
+) -> tuple[float, np.ndarray, float] | None:
     """Backtracking Armijo search on E from α = ``alpha0``, then (if no step lowers E) a residual-decrease fallback.
 
     Near round-off level a step that lowers |g| is accepted directly. The fallback tries
@@ -685,8 +801,12 @@ class StepCheckpoints:
 
     def announce(self, index: int, total: int) -> None:
         """Log the one line a resumed run prints: ``resuming from step N of M (checkpoint …)``."""
-        logging.getLogger("knitframe").info("resuming from step %d of %d (checkpoint %s)", index + 1, total,
-                                            self.directory / f"step-{index:04d}.npz")
+        logging.getLogger("knitframe").info(
+            "resuming from step %d of %d (checkpoint %s)",
+            index + 1,
+            total,
+            self.directory / f"step-{index:04d}.npz",
+        )
 
     def _mine(self):
         """(index, path, meta) of this run's readable checkpoints, the latest first."""

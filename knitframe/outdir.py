@@ -48,8 +48,11 @@ def fingerprint(obj: Any) -> str:
 
 def add_overwrite_argument(parser: Any) -> None:
     """The ``--overwrite`` option of every command that writes an output folder."""
-    parser.add_argument("--overwrite", action="store_true",
-                        help="replace an earlier knitframe run's outputs in --out (other files are never touched)")
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an earlier knitframe run's outputs in --out (other files are never touched)",
+    )
 
 
 def _previous_outputs(out: Path) -> tuple[set[str], str | None]:
@@ -87,8 +90,16 @@ class OutputDir:
             od.commit({"command": "fit"})       # moves the outputs into place, writes summary.json
     """
 
-    def __init__(self, out: str | Path, *, option: str = "--out", command: str, fingerprint: str = "",
-                 resume: bool = False, overwrite: bool = False):
+    def __init__(
+        self,
+        out: str | Path,
+        *,
+        option: str = "--out",
+        command: str,
+        fingerprint: str = "",
+        resume: bool = False,
+        overwrite: bool = False,
+    ):
         self.option = option
         self.command = command
         self.fingerprint = fingerprint
@@ -132,8 +143,9 @@ class OutputDir:
             raise self._fail(f"cannot write in {base}")
         if self.out.is_dir():
             if self._busy():
-                raise self._fail("another knitframe run is writing to this folder; wait for it or name "
-                                 "another folder")
+                raise self._fail(
+                    "another knitframe run is writing to this folder; wait for it or name another folder"
+                )
             self._check_contents()
 
     def _busy(self) -> bool:
@@ -162,11 +174,14 @@ class OutputDir:
         if unfinished:
             info = self._run_info()
             if self.resume and info.get("fingerprint") != self.fingerprint:
-                raise self._fail(f"holds an unfinished '{info.get('command', '?')}' run of another config; "
-                                 "--resume needs the same config (or give --overwrite)")
+                raise self._fail(
+                    f"holds an unfinished '{info.get('command', '?')}' run of another config; "
+                    "--resume needs the same config (or give --overwrite)"
+                )
             if not (self.resume or self.overwrite):
-                raise self._fail("holds an unfinished run; give --resume to continue it or --overwrite to start "
-                                 "again")
+                raise self._fail(
+                    "holds an unfinished run; give --resume to continue it or --overwrite to start again"
+                )
         others = names - {WORK}
         if not others:
             return
@@ -179,8 +194,10 @@ class OutputDir:
             if previous:
                 raise self._fail("holds a finished run of another config; --resume needs the same config")
             raise self._fail("holds no knitframe run to resume")
-        raise self._fail("is not empty; name a new folder, or give --overwrite to replace the outputs of an "
-                         "earlier knitframe run there (other files are never touched)")
+        raise self._fail(
+            "is not empty; name a new folder, or give --overwrite to replace the outputs of an "
+            "earlier knitframe run there (other files are never touched)"
+        )
 
     def _run_info(self) -> dict[str, Any]:
         try:
@@ -190,7 +207,7 @@ class OutputDir:
             return {}
 
     # ------------------------------------------------------------------ enter / exit
-    def __enter__(self) -> "OutputDir":
+    def __enter__(self) -> OutputDir:
         self.check()
         try:
             self._mkdirs(self.out)
@@ -209,9 +226,19 @@ class OutputDir:
                 shutil.rmtree(self.checkpoints, ignore_errors=True)
             self.staging.mkdir(exist_ok=True)
             self.checkpoints.mkdir(exist_ok=True)
-            _write_atomic(self.work / "run.json", json.dumps(
-                {"command": self.command, "fingerprint": self.fingerprint, "pid": os.getpid(),
-                 "started": time.strftime("%Y-%m-%dT%H:%M:%S")}, indent=2) + "\n")
+            _write_atomic(
+                self.work / "run.json",
+                json.dumps(
+                    {
+                        "command": self.command,
+                        "fingerprint": self.fingerprint,
+                        "pid": os.getpid(),
+                        "started": time.strftime("%Y-%m-%dT%H:%M:%S"),
+                    },
+                    indent=2,
+                )
+                + "\n",
+            )
         except BaseException:
             self._abandon(keep_checkpoints=False)
             raise
@@ -243,8 +270,9 @@ class OutputDir:
             lock.acquire()
         except Timeout:
             self._remove_created()
-            raise self._fail("another knitframe run is writing to this folder; wait for it or name another "
-                             "folder") from None
+            raise self._fail(
+                "another knitframe run is writing to this folder; wait for it or name another folder"
+            ) from None
         except OSError as e:
             self._remove_created()
             raise self._fail(f"cannot lock it: {e.strerror}") from None
@@ -257,8 +285,11 @@ class OutputDir:
 
     def _abandon(self, *, keep_checkpoints: bool) -> None:
         """After a failure: keep resumable checkpoints, remove everything else this run made."""
-        has_checkpoints = keep_checkpoints and self.checkpoints.is_dir() and any(
-            p.is_file() for p in self.checkpoints.rglob("*"))
+        has_checkpoints = (
+            keep_checkpoints
+            and self.checkpoints.is_dir()
+            and any(p.is_file() for p in self.checkpoints.rglob("*"))
+        )
         if not has_checkpoints:
             shutil.rmtree(self.work, ignore_errors=True)
         self._release()
@@ -287,8 +318,9 @@ class OutputDir:
         previous, _ = _previous_outputs(self.out)
         clash = [s for s in staged + ["summary.json"] if (self.out / s).exists() and s not in previous]
         if clash:
-            raise self._fail(f"would replace '{clash[0]}', which no knitframe run wrote; move it or name "
-                             "another folder")
+            raise self._fail(
+                f"would replace '{clash[0]}', which no knitframe run wrote; move it or name another folder"
+            )
         for old in sorted(previous - set(staged) - {"summary.json"}):
             # an earlier run's own output that this run does not make again
             p = self.out / old

@@ -57,7 +57,7 @@ class ResponseCurve:
     label: str = ""
 
     @classmethod
-    def from_response(cls, r: Response, direction: str | int | None = None) -> "ResponseCurve":
+    def from_response(cls, r: Response, direction: str | int | None = None) -> ResponseCurve:
         """The loaded direction of a uniaxial test, or ``direction`` of any Response."""
         d = r.loaded_direction if direction is None else direction_index(direction)
         if d is None:
@@ -70,14 +70,18 @@ class ResponseCurve:
         if lam[0] > 1.0:
             lam, T = np.r_[1.0, lam], np.r_[0.0, T]
         if len(lam) < 2 or T[-1] <= 0:
-            raise ValueError(f"response '{r.label}' needs at least two points and some tension to act as a region")
+            raise ValueError(
+                f"response '{r.label}' needs at least two points and some tension to act as a region"
+            )
         return cls(lam, T, r.label)
 
     def tension(self, lam: np.ndarray) -> np.ndarray:
         """T(λ), N/mm; linear beyond the last point."""
         lam = np.asarray(lam, dtype=np.float64)
         slope = (self.T[-1] - self.T[-2]) / (self.lam[-1] - self.lam[-2])
-        return np.where(lam > self.lam[-1], self.T[-1] + slope * (lam - self.lam[-1]), np.interp(lam, self.lam, self.T))
+        return np.where(
+            lam > self.lam[-1], self.T[-1] + slope * (lam - self.lam[-1]), np.interp(lam, self.lam, self.T)
+        )
 
     def stretch(self, T: np.ndarray) -> np.ndarray:
         """λ(T), the inverse; on a plateau the largest stretch of the plateau (slack taken up)."""
@@ -92,7 +96,9 @@ class ResponseCurve:
     def slope(self, lam: np.ndarray) -> np.ndarray:
         """dT/dλ of the segment holding λ (the last segment beyond the end), N/mm."""
         seg = np.diff(self.T) / np.diff(self.lam)
-        i = np.clip(np.searchsorted(self.lam, np.asarray(lam, dtype=np.float64), side="right") - 1, 0, len(seg) - 1)
+        i = np.clip(
+            np.searchsorted(self.lam, np.asarray(lam, dtype=np.float64), side="right") - 1, 0, len(seg) - 1
+        )
         return seg[i]
 
     def extrapolated(self, lam: np.ndarray) -> np.ndarray:
@@ -114,11 +120,15 @@ class ModelCurve:
     def _state(self, lam: np.ndarray):
         """Free-side stretch (or 1) and tension at loaded stretch λ."""
         if self.lateral == "free":
-            with warnings.catch_warnings():  # tabulation and inversion probe stretches; grid() warns on the result
+            with (
+                warnings.catch_warnings()
+            ):  # tabulation and inversion probe stretches; grid() warns on the result
                 warnings.simplefilter("ignore", KnitframeWarning)
                 return self.model.solve_uniaxial(self.params, lam, self.direction)
         one = np.ones_like(lam)
-        return one, self.model.stress(self.params, *((lam, one) if self.direction == 0 else (one, lam)))[self.direction]
+        return one, self.model.stress(self.params, *((lam, one) if self.direction == 0 else (one, lam)))[
+            self.direction
+        ]
 
     def tension(self, lam: np.ndarray) -> np.ndarray:
         """Loaded tension at stretch λ, N/mm."""
@@ -137,7 +147,9 @@ class ModelCurve:
         if not 1.0 < top <= slack:
             return None
         where = f"patchwork region '{self.label}': " if self.label else "patchwork region: "
-        return where + free_side_zero_message(getattr(self.model, "name", "model"), top, slack, self.direction)
+        return where + free_side_zero_message(
+            getattr(self.model, "name", "model"), top, slack, self.direction
+        )
 
     def slope(self, lam: np.ndarray) -> np.ndarray:
         """dT/dλ along the load path: ∂P_l/∂λ_l, condensed by the free side (K_ll − K_lf²/K_ff) when it is free."""
@@ -163,7 +175,9 @@ class ModelCurve:
             if lam is not None:
                 top = 1.0 + 2.0 * (lam[-1] - 1.0)
                 if top > 1e3:
-                    raise NumericalError(f"region '{self.label}': tension {T_max:.4g} N/mm not reached up to stretch {lam[-1]:.4g}")
+                    raise NumericalError(
+                        f"region '{self.label}': tension {T_max:.4g} N/mm not reached up to stretch {lam[-1]:.4g}"
+                    )
             lam = np.linspace(1.0, top, 257)
             T = np.maximum.accumulate(self.tension(lam))
         self._table.update(lam=lam, T=T)
@@ -179,6 +193,7 @@ class ModelCurve:
         i = np.clip(np.searchsorted(Tg, T), 1, len(lam) - 1)
         lo, hi = lam[i - 1], lam[i]
         x0 = np.interp(T, Tg, lam)
+
         def fdf(x):
             t, k = self.tension_slope(x)
             return t - T, k
@@ -201,7 +216,9 @@ def as_curve(source: Any, direction: str | int = "course", lateral: str = "free"
         model, params = source.model, source.params
     else:
         raise TypeError(f"cannot make a patchwork region from {type(source).__name__}")
-    return ModelCurve(model, np.asarray(params, dtype=np.float64), d, lateral, label or getattr(model, "name", ""))
+    return ModelCurve(
+        model, np.asarray(params, dtype=np.float64), d, lateral, label or getattr(model, "name", "")
+    )
 
 
 @attrs.frozen(eq=False)
@@ -213,7 +230,9 @@ class PatchworkResult:
     force: np.ndarray  #: (s,) total force, N
     row_tension: np.ndarray  #: (s, rows) tension carried by each row (series chain), N/mm
     stretch: np.ndarray  #: (s, rows, cols) stretch of every region along the load, -
-    interface_displacement: np.ndarray  #: (s, rows, cols − 1) displacement of each interface from the fixed end, mm
+    interface_displacement: (
+        np.ndarray
+    )  #: (s, rows, cols − 1) displacement of each interface from the fixed end, mm
     widths: np.ndarray  #: (rows,) mm
     lengths: np.ndarray  #: (rows, cols) mm
     mode: str = "grid"
@@ -223,11 +242,24 @@ class PatchworkResult:
         d = direction_index(direction)
         lam = 1.0 + self.strain
         one, zero = np.ones_like(lam), np.zeros_like(lam)
-        prov = Provenance(kind="model", source=f"patchwork ({self.mode}, {self.stretch.shape[1]}x{self.stretch.shape[2]})",
-                          extra={"transverse_measured": False})
+        prov = Provenance(
+            kind="model",
+            source=f"patchwork ({self.mode}, {self.stretch.shape[1]}x{self.stretch.shape[2]})",
+            extra={"transverse_measured": False},
+        )
         if d == 0:
-            return Response(lam, one, self.tension, zero, load="uniaxial-course", label=label or "patchwork", provenance=prov)
-        return Response(one, lam, zero, self.tension, load="uniaxial-wale", label=label or "patchwork", provenance=prov)
+            return Response(
+                lam,
+                one,
+                self.tension,
+                zero,
+                load="uniaxial-course",
+                label=label or "patchwork",
+                provenance=prov,
+            )
+        return Response(
+            one, lam, zero, self.tension, load="uniaxial-wale", label=label or "patchwork", provenance=prov
+        )
 
 
 def _chain(curves: Sequence[Any], lengths: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -251,7 +283,9 @@ def _chain(curves: Sequence[Any], lengths: np.ndarray, u: np.ndarray) -> tuple[n
     slack = (lam0 - 1.0) @ lengths
     taut = u > slack + 1e-12 * lengths.sum()
     T = np.zeros_like(u)
-    lam = np.where(slack[:, None] > 0, 1.0 + (lam0 - 1.0) * (u / np.where(slack > 0, slack, 1.0))[:, None], 1.0)
+    lam = np.where(
+        slack[:, None] > 0, 1.0 + (lam0 - 1.0) * (u / np.where(slack > 0, slack, 1.0))[:, None], 1.0
+    )
     if taut.any():
         ut = u[taut]
         # every region at the mean stretch: the stiffest one's tension bounds the chain's from above
@@ -266,8 +300,15 @@ def _chain(curves: Sequence[Any], lengths: np.ndarray, u: np.ndarray) -> tuple[n
             raise NumericalError("series patchwork: no tension reaches the requested stretch")
         if all(hasattr(c, "slope") for c in curves):
             # the inner inversions hold λ to ~1e-12, so the tension is asked for to 1e-9 (relative)
-            Tt = bracketed_newton(lambda x: gap_newton(x, ut), np.zeros_like(ut), hi, 0.5 * hi, xtol=1e-9,
-                                  xscale=1e3 * TAUT, increasing=True)
+            Tt = bracketed_newton(
+                lambda x: gap_newton(x, ut),
+                np.zeros_like(ut),
+                hi,
+                0.5 * hi,
+                xtol=1e-9,
+                xscale=1e3 * TAUT,
+                increasing=True,
+            )
         else:  # curves without a slope: derivative-free bracketed search
             res = find_root(gap, (np.zeros_like(ut), hi), args=(ut,))
             if not np.all(res.success):
@@ -278,8 +319,16 @@ def _chain(curves: Sequence[Any], lengths: np.ndarray, u: np.ndarray) -> tuple[n
     return T, lam
 
 
-def grid(regions: Sequence[Sequence[Any]], widths: Sequence[float], lengths: Sequence[Sequence[float]],
-         strain: np.ndarray, *, direction: str | int = "course", lateral: str = "free", mode: str = "grid") -> PatchworkResult:
+def grid(
+    regions: Sequence[Sequence[Any]],
+    widths: Sequence[float],
+    lengths: Sequence[Sequence[float]],
+    strain: np.ndarray,
+    *,
+    direction: str | int = "course",
+    lateral: str = "free",
+    mode: str = "grid",
+) -> PatchworkResult:
     """Rows (across the load) acting in parallel, each a series chain of regions along the load.
 
     Parameters
@@ -295,7 +344,9 @@ def grid(regions: Sequence[Sequence[Any]], widths: Sequence[float], lengths: Seq
         raise ValueError("patchwork strains must be finite and >= 0 (tension only)")
     w = np.asarray(widths, dtype=np.float64)
     if len(regions) != len(w) or len(lengths) != len(w):
-        raise ValueError(f"{len(regions)} rows of regions, {len(w)} widths and {len(lengths)} rows of lengths differ")
+        raise ValueError(
+            f"{len(regions)} rows of regions, {len(w)} widths and {len(lengths)} rows of lengths differ"
+        )
     if np.any(w <= 0):
         raise ValueError("widths must be > 0")
     rows = [[as_curve(r, direction, lateral) for r in row] for row in regions]
@@ -308,7 +359,9 @@ def grid(regions: Sequence[Sequence[Any]], widths: Sequence[float], lengths: Seq
     total = L[0].sum()
     for i, ls in enumerate(L):
         if not np.isclose(ls.sum(), total, rtol=1e-9):
-            raise ValueError(f"row {i} is {ls.sum():g} mm long, row 0 is {total:g} mm: rows must have the same length")
+            raise ValueError(
+                f"row {i} is {ls.sum():g} mm long, row 0 is {total:g} mm: rows must have the same length"
+            )
     ncol = max(len(r) for r in rows)
     s = len(strain)
     lam = np.full((s, len(rows), ncol), np.nan)
@@ -336,7 +389,8 @@ def parallel(regions: Sequence[Any], widths: Sequence[float], strain: np.ndarray
     return grid([[r] for r in regions], widths, [[1.0]] * len(regions), strain, mode="parallel", **kw)
 
 
-def series(regions: Sequence[Any], lengths: Sequence[float], strain: np.ndarray, *, width: float = 1.0,
-           **kw) -> PatchworkResult:
+def series(
+    regions: Sequence[Any], lengths: Sequence[float], strain: np.ndarray, *, width: float = 1.0, **kw
+) -> PatchworkResult:
     """Regions one after another along the load: equal tension, partitioned strain."""
     return grid([list(regions)], [width], [list(lengths)], strain, mode="series", **kw)

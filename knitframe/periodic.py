@@ -61,7 +61,9 @@ class Lattice:
 
     def __attrs_post_init__(self) -> None:
         if abs(self.L1[2]) > 1e-12 or abs(self.L2[2]) > 1e-12:
-            raise GeometryError(f"lattice vectors must lie in the z = 0 plane, got L1 = {self.L1}, L2 = {self.L2}")
+            raise GeometryError(
+                f"lattice vectors must lie in the z = 0 plane, got L1 = {self.L1}, L2 = {self.L2}"
+            )
         if self.area <= 1e-12 * (np.linalg.norm(self.L1) * np.linalg.norm(self.L2) + 1e-300):
             raise GeometryError(f"lattice vectors are parallel: L1 = {self.L1}, L2 = {self.L2}")
 
@@ -111,8 +113,9 @@ class Lattice:
         P = self.nominal_stress(reaction)
         return float(P[0, 0]), float(P[1, 1])
 
-    def constraints(self, lam1: float | None, lam2: float | None, *, F: np.ndarray | None = None
-                    ) -> tuple[np.ndarray, np.ndarray]:
+    def constraints(
+        self, lam1: float | None, lam2: float | None, *, F: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Which macro DOFs are prescribed, and their values, for stretches λ1, λ2.
 
         F̄ = diag(λ1, λ2, 1); shear and out-of-plane components are held at zero, which also
@@ -171,12 +174,16 @@ class PointMap:
             S = self.lattice.reference_shift(images)  # (m, k, 3)
             macro = 3 * self.n_nodes + 2 * c[None, None, :, None] + np.arange(2)  # (1, 1, 3, 2)
             dofs = np.concatenate([node_dof[..., None], np.broadcast_to(macro, (m, k, 3, 2))], axis=-1)
-            w = np.concatenate([np.ones((m, k, 3, 1)), np.broadcast_to(S[:, :, None, :2], (m, k, 3, 2))], axis=-1)
+            w = np.concatenate(
+                [np.ones((m, k, 3, 1)), np.broadcast_to(S[:, :, None, :2], (m, k, 3, 2))], axis=-1
+            )
         object.__setattr__(self, "nodes", nodes)
         object.__setattr__(self, "images", images)
         object.__setattr__(self, "dofs", dofs)
         object.__setattr__(self, "weights", w)
-        object.__setattr__(self, "imaged", np.any(images != 0, axis=(1, 2)) if periodic else np.zeros(m, bool))
+        object.__setattr__(
+            self, "imaged", np.any(images != 0, axis=(1, 2)) if periodic else np.zeros(m, bool)
+        )
 
     @property
     def n_dof(self) -> int:
@@ -216,16 +223,22 @@ class PointMap:
             S = self.weights[sel][..., 1:].reshape(len(Hs), n3, 2)
             M = np.zeros((len(Hs), n3, N_MACRO))
             for c in range(3):
-                M[:, c::3, 2 * c: 2 * c + 2] = S[:, c::3, :]
+                M[:, c::3, 2 * c : 2 * c + 2] = S[:, c::3, :]
             HM = Hs @ M
             MHM = np.einsum("mai,mab->ib", M, HM)
             macro = 3 * self.n_nodes + np.arange(N_MACRO)
             nds = nd[sel]
             shape = HM.shape
-            rows += [np.broadcast_to(nds[:, :, None], shape).reshape(-1),
-                     np.broadcast_to(macro[None, None, :], shape).reshape(-1), np.repeat(macro, N_MACRO)]
-            cols += [np.broadcast_to(macro[None, None, :], shape).reshape(-1),
-                     np.broadcast_to(nds[:, :, None], shape).reshape(-1), np.tile(macro, N_MACRO)]
+            rows += [
+                np.broadcast_to(nds[:, :, None], shape).reshape(-1),
+                np.broadcast_to(macro[None, None, :], shape).reshape(-1),
+                np.repeat(macro, N_MACRO),
+            ]
+            cols += [
+                np.broadcast_to(macro[None, None, :], shape).reshape(-1),
+                np.broadcast_to(nds[:, :, None], shape).reshape(-1),
+                np.tile(macro, N_MACRO),
+            ]
             vals += [HM.reshape(-1), np.einsum("mab,mbi->mai", Hs, M).reshape(-1), MHM.reshape(-1)]
         return np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
 
@@ -235,8 +248,9 @@ class PointMap:
         return sp.csr_matrix((v, (r, c)), shape=(self.n_dof, self.n_dof))
 
 
-def periodic_transform(n_nodes: int, slave: np.ndarray, master: np.ndarray, images: np.ndarray,
-                       lattice: Lattice) -> tuple[sp.csr_matrix, np.ndarray]:
+def periodic_transform(
+    n_nodes: int, slave: np.ndarray, master: np.ndarray, images: np.ndarray, lattice: Lattice
+) -> tuple[sp.csr_matrix, np.ndarray]:
     """Sparse T with ``u = T · [u_independent (3 n_ind), h (6)]`` for a mesh with periodic node pairs.
 
     Node ``slave[p]`` is the image ``images[p]`` (k1, k2) of node ``master[p]``:
@@ -269,9 +283,12 @@ def periodic_transform(n_nodes: int, slave: np.ndarray, master: np.ndarray, imag
     col_of[independent] = np.arange(len(independent))
     pm = PointMap(len(independent), col_of[parent][:, None], img[:, None, :], lattice)
     n_cols = 3 * len(independent) + N_MACRO
-    rows = np.broadcast_to((3 * np.arange(n_nodes)[:, None, None] + np.arange(3)[None, :, None]),
-                           pm.dofs[:, 0].shape)
-    T = sp.csr_matrix((pm.weights[:, 0].reshape(-1), (rows.reshape(-1), pm.dofs[:, 0].reshape(-1))),
-                      shape=(3 * n_nodes, n_cols))
+    rows = np.broadcast_to(
+        (3 * np.arange(n_nodes)[:, None, None] + np.arange(3)[None, :, None]), pm.dofs[:, 0].shape
+    )
+    T = sp.csr_matrix(
+        (pm.weights[:, 0].reshape(-1), (rows.reshape(-1), pm.dofs[:, 0].reshape(-1))),
+        shape=(3 * n_nodes, n_cols),
+    )
     T.eliminate_zeros()
     return T, independent

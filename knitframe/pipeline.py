@@ -112,8 +112,14 @@ class PipelineResult:
 class Pipeline:
     """Validated stages of one config, ready to run."""
 
-    def __init__(self, config: Mapping[str, Any], *, base_dir: Path, source: str | None = None,
-                 registry: Registry | None = None):
+    def __init__(
+        self,
+        config: Mapping[str, Any],
+        *,
+        base_dir: Path,
+        source: str | None = None,
+        registry: Registry | None = None,
+    ):
         self.registry = registry or get_registry()
         self.config = dict(config)
         self.source = source
@@ -141,7 +147,9 @@ class Pipeline:
         present = [stage_kind[n] for n in stage_kind if _table(stage_kind[n]) in self.config]
         if not present:
             stages = ", ".join(f"[{_table(stage_kind[n])}]" for n in stage_kind)
-            raise ConfigError("", f"nothing to do: the config has none of the stage tables {stages}", source=source)
+            raise ConfigError(
+                "", f"nothing to do: the config has none of the stage tables {stages}", source=source
+            )
         self.stages = []
         for cls in sorted(present, key=lambda c: c.order):
             self.stages.extend(self._build(cls, ctx))
@@ -157,14 +165,17 @@ class Pipeline:
             try:
                 stages.append(cls.from_config({**self.config, key: entry}, ctx))
             except ConfigError as e:
-                path = f"{key}[{i}]" + e.path[len(key):] if e.path.startswith(key) else e.path
+                path = f"{key}[{i}]" + e.path[len(key) :] if e.path.startswith(key) else e.path
                 raise ConfigError(path, e.problem, source=e.source) from None
         labels = [_label(s) for s in stages]
         dup = next((lab for lab in labels if labels.count(lab) > 1), None)
         if dup is not None:
             i = labels.index(dup, labels.index(dup) + 1)
-            raise ConfigError(f"{key}[{i}].name", f"repeated [[{key}]] tables need distinct names, "
-                              f"'{dup}' is used twice", source=self.source)
+            raise ConfigError(
+                f"{key}[{i}].name",
+                f"repeated [[{key}]] tables need distinct names, '{dup}' is used twice",
+                source=self.source,
+            )
         return stages
 
     def _check_pipeline_table(self) -> None:
@@ -172,8 +183,11 @@ class Pipeline:
         allowed = {"name", "description"}
         for k, v in table.items():
             if k not in allowed:
-                raise ConfigError(f"pipeline.{k}", f"unknown key; expected one of {', '.join(sorted(allowed))}",
-                                  source=self.source)
+                raise ConfigError(
+                    f"pipeline.{k}",
+                    f"unknown key; expected one of {', '.join(sorted(allowed))}",
+                    source=self.source,
+                )
             if not isinstance(v, str):
                 raise ConfigError(f"pipeline.{k}", f"expected a string, got {v!r}", source=self.source)
 
@@ -181,8 +195,15 @@ class Pipeline:
     def name(self) -> str:
         return self.config.get("pipeline", {}).get("name", Path(self.source or "pipeline").stem)
 
-    def run(self, out: str | Path | None, *, resume: bool = False, overwrite: bool = False,
-            quiet: bool = False, no_cache: bool = False) -> PipelineResult:
+    def run(
+        self,
+        out: str | Path | None,
+        *,
+        resume: bool = False,
+        overwrite: bool = False,
+        quiet: bool = False,
+        no_cache: bool = False,
+    ) -> PipelineResult:
         """Run every stage; outputs appear in ``out`` only if all succeed (None: no files).
 
         ``resume`` continues the same config's killed run from its checkpoints; ``overwrite``
@@ -193,14 +214,26 @@ class Pipeline:
             import tempfile
 
             with tempfile.TemporaryDirectory(prefix="knitframe-") as tmp:
-                ctx = RunContext(self.registry, Path(tmp), checkpoints=Path(tmp) / ".checkpoints", quiet=quiet,
-                                 no_cache=no_cache)
+                ctx = RunContext(
+                    self.registry,
+                    Path(tmp),
+                    checkpoints=Path(tmp) / ".checkpoints",
+                    quiet=quiet,
+                    no_cache=no_cache,
+                )
                 summary = self._run_stages(ctx)
                 return PipelineResult(None, ctx.responses, ctx.models, ctx.results, summary, ctx.objects)
-        with OutputDir(out, command="run", fingerprint=fingerprint(self.config), resume=resume,
-                       overwrite=overwrite) as od:
-            ctx = RunContext(self.registry, od.staging, checkpoints=od.checkpoints, resume=resume, quiet=quiet,
-                             no_cache=no_cache)
+        with OutputDir(
+            out, command="run", fingerprint=fingerprint(self.config), resume=resume, overwrite=overwrite
+        ) as od:
+            ctx = RunContext(
+                self.registry,
+                od.staging,
+                checkpoints=od.checkpoints,
+                resume=resume,
+                quiet=quiet,
+                no_cache=no_cache,
+            )
             summary = od.commit(self._run_stages(ctx))
         return PipelineResult(od.out, ctx.responses, ctx.models, ctx.results, summary, ctx.objects)
 
@@ -223,7 +256,9 @@ class Pipeline:
                 t0 = time.perf_counter()
                 stage.run(ctx)
                 timings.append({"stage": _label(stage), "seconds": round(time.perf_counter() - t0, 6)})
-        missing = sorted(set(ctx.outputs) - {str(p.relative_to(ctx.out)) for p in ctx.out.rglob("*") if p.is_file()})
+        missing = sorted(
+            set(ctx.outputs) - {str(p.relative_to(ctx.out)) for p in ctx.out.rglob("*") if p.is_file()}
+        )
         if missing:
             raise RuntimeError(f"stages declared outputs they did not write: {missing}")
         return {
@@ -269,9 +304,16 @@ def _jsonable(obj: Any) -> Any:
     return str(obj)
 
 
-def run(config: str | Path | Mapping[str, Any], out: str | Path | None = None, *, resume: bool = False,
-        overwrite: bool = False, quiet: bool = True, registry: Registry | None = None,
-        no_cache: bool = False) -> PipelineResult:
+def run(
+    config: str | Path | Mapping[str, Any],
+    out: str | Path | None = None,
+    *,
+    resume: bool = False,
+    overwrite: bool = False,
+    quiet: bool = True,
+    registry: Registry | None = None,
+    no_cache: bool = False,
+) -> PipelineResult:
     """Run a pipeline from a TOML path or a config dict; the Python twin of ``knitframe run``.
 
     Parameters
@@ -289,6 +331,7 @@ def run(config: str | Path | Mapping[str, Any], out: str | Path | None = None, *
         pipeline = Pipeline(config, base_dir=Path.cwd(), registry=registry)
     else:
         path = Path(config)
-        pipeline = Pipeline(load_toml(path), base_dir=path.resolve().parent, source=str(path), registry=registry)
+        pipeline = Pipeline(
+            load_toml(path), base_dir=path.resolve().parent, source=str(path), registry=registry
+        )
     return pipeline.run(out, resume=resume, overwrite=overwrite, quiet=quiet, no_cache=no_cache)
-

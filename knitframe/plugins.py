@@ -168,7 +168,9 @@ class Registry:
 
     def _fail(self, plugin: str, dist: str, reason: str) -> None:
         self.failed.append((plugin, reason))
-        warnings.warn(f"knitframe plugin '{plugin}' ({dist}) failed to register: {reason}", PluginWarning, stacklevel=3)
+        warnings.warn(
+            f"knitframe plugin '{plugin}' ({dist}) failed to register: {reason}", PluginWarning, stacklevel=3
+        )
 
     def _register_fn(self, kind: str, plugin: str, dist: str, version: str) -> Register:
         def register(impl: Any, name: str | None = None, description: str | None = None) -> None:
@@ -196,7 +198,9 @@ def _external_disabled() -> bool:
     return os.environ.get(DISABLE_EXTERNAL_ENV, "").strip().lower() not in ("", "0", "false", "no")
 
 
-def load_registry(extra: Mapping[str, ModuleType | object] | None = None, *, external: bool | None = None) -> Registry:
+def load_registry(
+    extra: Mapping[str, ModuleType | object] | None = None, *, external: bool | None = None
+) -> Registry:
     """Load every entry-point plugin (and ``extra`` plugin objects by name) into a new Registry.
 
     Parameters

@@ -25,7 +25,6 @@ from tqdm import tqdm
 __all__ = ["ProgressBar"]
 
 
-
 def _bar_format(message: str) -> str:
     """``label [####....]  35.7%  message  00:04<00:07`` (the message's braces escaped for tqdm)."""
     text = message.replace("{", "{{").replace("}", "}}")
@@ -55,9 +54,17 @@ class ProgressBar:
         if self.tty:
             # a terminal that reports no size (a fresh pseudo-terminal) would get no bar at all
             size = shutil.get_terminal_size((100, 24))
-            self._bar = tqdm(total=1, desc=label, bar_format=_bar_format(""), ascii=".#", file=self.stream,
-                             leave=True, ncols=size.columns if size.columns >= 40 else 100,
-                             nrows=size.lines if size.lines >= 2 else 24, mininterval=0)
+            self._bar = tqdm(
+                total=1,
+                desc=label,
+                bar_format=_bar_format(""),
+                ascii=".#",
+                file=self.stream,
+                leave=True,
+                ncols=size.columns if size.columns >= 40 else 100,
+                nrows=size.lines if size.lines >= 2 else 24,
+                mininterval=0,
+            )
         else:
             self._thread = threading.Thread(target=self._tick, name="knitframe-progress", daemon=True)
             self._thread.start()
@@ -75,11 +82,16 @@ class ProgressBar:
         elapsed = time.perf_counter() - self.t0
         if not self.total:  # before the first step: meshing, assembly, the first solve
             return f"knitframe: {self.label}: setting up, {tqdm.format_interval(elapsed)} elapsed"
-        left = "unknown" if self.done <= 0 else "about " + tqdm.format_interval(
-            elapsed * max(self.total - self.done, 0.0) / self.done)
+        left = (
+            "unknown"
+            if self.done <= 0
+            else "about " + tqdm.format_interval(elapsed * max(self.total - self.done, 0.0) / self.done)
+        )
         what = f" ({self.message})" if self.message else ""
-        return (f"knitframe: {self.label}: step {self.done:g}/{self.total:g}{what}, "
-                f"{tqdm.format_interval(elapsed)} elapsed, {left} left")
+        return (
+            f"knitframe: {self.label}: step {self.done:g}/{self.total:g}{what}, "
+            f"{tqdm.format_interval(elapsed)} elapsed, {left} left"
+        )
 
     def _tick(self) -> None:
         while not self._stop.wait(self.interval):

@@ -92,10 +92,18 @@ class Yarn(Record):
     dk: float = attrs.field(validator=_DIAMETER)  #: knitted (compressed) diameter, mm
     E_axial: float = attrs.field(validator=_MODULUS)  #: axial Young's modulus, MPa
     E_transverse: float = attrs.field(validator=_MODULUS)  #: transverse Young's modulus, MPa
-    G_axial: float | None = attrs.field(default=None, validator=v.optional(_MODULUS))  #: axial shear modulus, MPa
-    nu: float = attrs.field(default=0.3, validator=v.in_range(-1.0, 0.5, lo_open=True, hi_open=True))  #: Poisson ratio, -
-    failure_strain: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: axial strain at failure, -
-    bending_stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: measured EI, N·mm²; unset: solid section E_axial·π·dk⁴/64
+    G_axial: float | None = attrs.field(
+        default=None, validator=v.optional(_MODULUS)
+    )  #: axial shear modulus, MPa
+    nu: float = attrs.field(
+        default=0.3, validator=v.in_range(-1.0, 0.5, lo_open=True, hi_open=True)
+    )  #: Poisson ratio, -
+    failure_strain: float | None = attrs.field(
+        default=None, validator=v.optional(v.positive)
+    )  #: axial strain at failure, -
+    bending_stiffness: float | None = attrs.field(
+        default=None, validator=v.optional(v.positive)
+    )  #: measured EI, N·mm²; unset: solid section E_axial·π·dk⁴/64
     model: str = "transverse_isotropic"  #: yarn-model plugin name
     source: str = ""  #: where the numbers come from
 
@@ -104,8 +112,11 @@ class Yarn(Record):
             raise FieldError("dk", f"must be <= d0 = {self.d0}, got {self.dk}")
         solid = self.E_axial * np.pi * self.d0**4 / 64.0
         if self.bending_stiffness is not None and self.bending_stiffness > solid:
-            raise FieldError("bending_stiffness", f"must be <= {solid:.4g} N·mm², the solid rod of diameter d0 and "
-                             f"modulus E_axial (no yarn is stiffer), got {self.bending_stiffness:g}")
+            raise FieldError(
+                "bending_stiffness",
+                f"must be <= {solid:.4g} N·mm², the solid rod of diameter d0 and "
+                f"modulus E_axial (no yarn is stiffer), got {self.bending_stiffness:g}",
+            )
 
     @property
     def rk(self) -> float:
@@ -128,11 +139,21 @@ class Fabric(Record):
 
     pattern: str  #: pattern plugin name, e.g. "jersey"
     yarn: Yarn  #: yarn record, or in a config a yarn-library name
-    stitch_length: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: machine setting, -
-    arc_length: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: yarn per stitch, mm
-    course_pitch: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: stitch width, mm
-    wale_pitch: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: stitch height, mm
-    pattern_options: dict[str, Any] = attrs.Factory(dict)  #: options of the pattern plugin, e.g. stitch_lengths
+    stitch_length: float | None = attrs.field(
+        default=None, validator=v.optional(v.positive)
+    )  #: machine setting, -
+    arc_length: float | None = attrs.field(
+        default=None, validator=v.optional(v.positive)
+    )  #: yarn per stitch, mm
+    course_pitch: float | None = attrs.field(
+        default=None, validator=v.optional(v.positive)
+    )  #: stitch width, mm
+    wale_pitch: float | None = attrs.field(
+        default=None, validator=v.optional(v.positive)
+    )  #: stitch height, mm
+    pattern_options: dict[str, Any] = attrs.Factory(
+        dict
+    )  #: options of the pattern plugin, e.g. stitch_lengths
 
     def __attrs_post_init__(self) -> None:
         if self.stitch_length is None and self.arc_length is None:
@@ -155,7 +176,9 @@ class LoadPath(Record):
     """
 
     kind: Literal["equibiaxial", "uniaxial", "general"] = "equibiaxial"  #: load-path type
-    max_strain: float = attrs.field(default=0.3, validator=v.in_range(0.0, 5.0, lo_open=True))  #: engineering strain, -
+    max_strain: float = attrs.field(
+        default=0.3, validator=v.in_range(0.0, 5.0, lo_open=True)
+    )  #: engineering strain, -
     steps: int = attrs.field(default=10, validator=v.in_range(1, MAX_LOAD_POINTS))  #: load increments, -
     direction: Literal["course", "wale"] = "course"  #: loaded direction for ``uniaxial``
     lambda1: tuple[float, ...] = ()  #: course stretch path for ``general``, -
@@ -164,9 +187,13 @@ class LoadPath(Record):
     def __attrs_post_init__(self) -> None:
         if self.kind == "general":
             if not self.lambda1 or len(self.lambda1) != len(self.lambda2):
-                raise FieldError("lambda1", "general load path needs lambda1 and lambda2 of equal, non-zero length")
+                raise FieldError(
+                    "lambda1", "general load path needs lambda1 and lambda2 of equal, non-zero length"
+                )
             if len(self.lambda1) > MAX_LOAD_POINTS:
-                raise FieldError("lambda1", f"must hold at most {MAX_LOAD_POINTS} points, got {len(self.lambda1)}")
+                raise FieldError(
+                    "lambda1", f"must hold at most {MAX_LOAD_POINTS} points, got {len(self.lambda1)}"
+                )
             lo, hi = STRETCH_RANGE
             for name in ("lambda1", "lambda2"):
                 for i, lam in enumerate(getattr(self, name)):
@@ -204,7 +231,9 @@ class Scene(Record):
         validator=v.subset_of(EFFECTS),
     )  #: names from :data:`EFFECTS`
     outputs: frozenset[str] = attrs.field(
-        default=frozenset({"response"}), converter=frozenset, validator=v.subset_of(("response", "vtu", "checkpoints"))
+        default=frozenset({"response"}),
+        converter=frozenset,
+        validator=v.subset_of(("response", "vtu", "checkpoints")),
     )  #: what to write besides the Response
 
     def __attrs_post_init__(self) -> None:
@@ -246,13 +275,30 @@ class Response(Record):
     load: LoadKind = "equibiaxial"  #: which sides are loaded and which are free
     label: str = ""  #: curve name
     n_samples: int = attrs.field(default=1, validator=v.in_range(1, 10**9))  #: repeats behind the mean
-    T1_sd: np.ndarray | None = attrs.field(default=None, converter=_f64_opt, validator=v.finite_array)  #: N/mm
-    T2_sd: np.ndarray | None = attrs.field(default=None, converter=_f64_opt, validator=v.finite_array)  #: N/mm
-    lambda1_sd: np.ndarray | None = attrs.field(default=None, converter=_f64_opt, validator=v.finite_array)  #: -
-    lambda2_sd: np.ndarray | None = attrs.field(default=None, converter=_f64_opt, validator=v.finite_array)  #: -
+    T1_sd: np.ndarray | None = attrs.field(
+        default=None, converter=_f64_opt, validator=v.finite_array
+    )  #: N/mm
+    T2_sd: np.ndarray | None = attrs.field(
+        default=None, converter=_f64_opt, validator=v.finite_array
+    )  #: N/mm
+    lambda1_sd: np.ndarray | None = attrs.field(
+        default=None, converter=_f64_opt, validator=v.finite_array
+    )  #: -
+    lambda2_sd: np.ndarray | None = attrs.field(
+        default=None, converter=_f64_opt, validator=v.finite_array
+    )  #: -
     provenance: Provenance = attrs.Factory(Provenance)  #: origin of the curve
 
-    _ARRAYS: ClassVar[tuple[str, ...]] = ("lambda1", "lambda2", "T1", "T2", "T1_sd", "T2_sd", "lambda1_sd", "lambda2_sd")
+    _ARRAYS: ClassVar[tuple[str, ...]] = (
+        "lambda1",
+        "lambda2",
+        "T1",
+        "T2",
+        "T1_sd",
+        "T2_sd",
+        "lambda1_sd",
+        "lambda2_sd",
+    )
 
     def __attrs_post_init__(self) -> None:
         n = self.lambda1.shape[0]
@@ -292,6 +338,6 @@ class Response(Record):
         """0 for a uniaxial-course test, 1 for uniaxial-wale, None otherwise."""
         return {"uniaxial-course": 0, "uniaxial-wale": 1}.get(self.load)
 
-    def evolve(self, **changes: Any) -> "Response":
+    def evolve(self, **changes: Any) -> Response:
         """Copy with some fields replaced."""
         return attrs.evolve(self, **changes)

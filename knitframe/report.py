@@ -10,12 +10,28 @@ import numpy as np
 
 from knitframe.records import Response
 
-__all__ = ["write_responses_csv", "plot_responses", "curve", "compare", "plot_comparison", "validate_uniaxial",
-           "plot_validation"]
+__all__ = [
+    "write_responses_csv",
+    "plot_responses",
+    "curve",
+    "compare",
+    "plot_comparison",
+    "validate_uniaxial",
+    "plot_validation",
+]
 
 CSV_COLUMNS = (
-    "label", "load", "n_samples", "lambda1", "lambda2", "T1_N_per_mm", "T2_N_per_mm",
-    "T1_sd", "T2_sd", "lambda1_sd", "lambda2_sd",
+    "label",
+    "load",
+    "n_samples",
+    "lambda1",
+    "lambda2",
+    "T1_N_per_mm",
+    "T2_N_per_mm",
+    "T1_sd",
+    "T2_sd",
+    "lambda1_sd",
+    "lambda2_sd",
 )
 
 
@@ -27,7 +43,9 @@ def write_responses_csv(path: Path, responses: Sequence[Response]) -> None:
         for r in responses:
             cols = [r.lambda1, r.lambda2, r.T1, r.T2, r.T1_sd, r.T2_sd, r.lambda1_sd, r.lambda2_sd]
             for i in range(len(r)):
-                w.writerow([r.label, r.load, r.n_samples] + ["" if c is None else f"{c[i]:.10g}" for c in cols])
+                w.writerow(
+                    [r.label, r.load, r.n_samples] + ["" if c is None else f"{c[i]:.10g}" for c in cols]
+                )
 
 
 def curve(r: Response) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray | None]]:
@@ -65,7 +83,9 @@ def plot_responses(
             ls = "-" if name == "course" else "--"
             label = f"{r.label or r.load} ({name})"
             order = np.argsort(strain)
-            ax.plot(strain[order], T[order], ls, color=c, lw=1.2, marker="." if len(r) < 40 else None, label=label)
+            ax.plot(
+                strain[order], T[order], ls, color=c, lw=1.2, marker="." if len(r) < 40 else None, label=label
+            )
             if sd is not None:
                 ax.fill_between(strain[order], (T - sd)[order], (T + sd)[order], color=c, alpha=0.2, lw=0)
             if pred is not None:
@@ -118,8 +138,14 @@ def from_origin(strain: np.ndarray, tension: np.ndarray) -> tuple[np.ndarray, np
     return strain, tension
 
 
-def plot_comparison(path: Path, simulated: Sequence[Response], measured: Sequence[Response], *, title: str = "",
-                    ratios: dict[str, dict[str, float]] | None = None) -> None:
+def plot_comparison(
+    path: Path,
+    simulated: Sequence[Response],
+    measured: Sequence[Response],
+    *,
+    title: str = "",
+    ratios: dict[str, dict[str, float]] | None = None,
+) -> None:
     """Simulated curves (solid, from the relaxed cell at zero tension) over the measured ones of the
     same load (dashed, ±1 sd band), one colour per load and direction, with the tension ratios."""
     import matplotlib
@@ -147,10 +173,20 @@ def plot_comparison(path: Path, simulated: Sequence[Response], measured: Sequenc
                         order = np.argsort(em)
                         ax.fill_between(xm, (Tm - sd)[order], (Tm + sd)[order], color=c, alpha=0.15, lw=0)
     if ratios:
-        text = "\n".join(f"{load}: " + ", ".join(f"{v:.2g}" for v in row.values()) + " at " + ", ".join(row)
-                         for load, row in ratios.items())
-        ax.text(0.98, 0.02, "simulated / measured tension\n" + text, transform=ax.transAxes, ha="right",
-                va="bottom", fontsize=7, bbox={"facecolor": "white", "alpha": 0.85, "lw": 0.5})
+        text = "\n".join(
+            f"{load}: " + ", ".join(f"{v:.2g}" for v in row.values()) + " at " + ", ".join(row)
+            for load, row in ratios.items()
+        )
+        ax.text(
+            0.98,
+            0.02,
+            "simulated / measured tension\n" + text,
+            transform=ax.transAxes,
+            ha="right",
+            va="bottom",
+            fontsize=7,
+            bbox={"facecolor": "white", "alpha": 0.85, "lw": 0.5},
+        )
     _finish_tension_plot(fig, ax, path, title)
 
 
@@ -182,7 +218,9 @@ def lateral(r: Response) -> tuple[np.ndarray, np.ndarray]:
     return _sorted(axial - 1.0, side - 1.0)
 
 
-def validate_uniaxial(simulated: Response, measured: Response, *, lateral_at: float = LATERAL_AT) -> dict[str, float | None]:
+def validate_uniaxial(
+    simulated: Response, measured: Response, *, lateral_at: float = LATERAL_AT
+) -> dict[str, float | None]:
     """How a simulated uniaxial test (free sides) agrees with the measured one of the same load.
 
     * ``nrmse``: sqrt(mean (T_sim − T_meas)²) / max T_meas over the measured points inside the
@@ -198,9 +236,11 @@ def validate_uniaxial(simulated: Response, measured: Response, *, lateral_at: fl
     Raises ValueError when the loads differ or are not uniaxial.
     """
     if simulated.load != measured.load or simulated.loaded_direction is None:
-        raise ValueError(f"compare two uniaxial tests of the same load, got {simulated.load} and {measured.load}")
-    (_, es, Ts, _), = curve(simulated)
-    (_, em, Tm, _), = curve(measured)
+        raise ValueError(
+            f"compare two uniaxial tests of the same load, got {simulated.load} and {measured.load}"
+        )
+    ((_, es, Ts, _),) = curve(simulated)
+    ((_, em, Tm, _),) = curve(measured)
     es, Ts = from_origin(*_sorted(es, Ts))
     em, Tm = _sorted(em, Tm)
     keep = (em >= 0.0) & (em <= es.max() + 1e-9)
@@ -209,16 +249,24 @@ def validate_uniaxial(simulated: Response, measured: Response, *, lateral_at: fl
         err = np.interp(em[keep], es, Ts) - Tm[keep]
         nrmse = float(np.sqrt(np.mean(err**2)) / np.abs(Tm[keep]).max())
     ratios = compare([simulated], [measured]).get(simulated.load, {})
-    out: dict[str, float | None] = {"simulated_to": float(es.max()), "measured_to": float(em.max()), "nrmse": nrmse}
+    out: dict[str, float | None] = {
+        "simulated_to": float(es.max()),
+        "measured_to": float(em.max()),
+        "nrmse": nrmse,
+    }
     out.update({f"ratio_{100 * e:.0f}": ratios.get(f"{100 * e:.0f} %") for e in COMPARE_AT})
     ls_e, ls = lateral(simulated)
     ls_e, ls = from_origin(ls_e, ls)
     lm_e, lm = lateral(measured)
     at = min(lateral_at, float(ls_e.max()), float(lm_e.max()))
     ok = at > 0 and at >= max(float(lm_e.min()), 0.0)
-    out.update({"lateral_at": at if ok else None,
-                "lateral_simulated": float(np.interp(at, ls_e, ls)) if ok else None,
-                "lateral_measured": float(np.interp(at, lm_e, lm)) if ok else None})
+    out.update(
+        {
+            "lateral_at": at if ok else None,
+            "lateral_simulated": float(np.interp(at, ls_e, ls)) if ok else None,
+            "lateral_measured": float(np.interp(at, lm_e, lm)) if ok else None,
+        }
+    )
     return out
 
 
@@ -250,15 +298,32 @@ def plot_validation(path: Path, panels: Sequence[dict], *, title: str = "", colu
                 x, y = from_origin(*_sorted(e, T))
                 ax.plot(x, y, "-", color="C3", lw=1.5, marker=".", ms=4, label="simulated")
         if m is not None:
-            lines = ["NRMSE " + (f"{100 * m['nrmse']:.0f} %" if m.get("nrmse") is not None else "–"),
-                     "sim/meas " + "/".join("–" if m.get(f"ratio_{100 * e:.0f}") is None
-                                            else f"{m[f'ratio_{100 * e:.0f}']:.2g}" for e in COMPARE_AT)
-                     + " at " + "/".join(f"{100 * e:.0f}" for e in COMPARE_AT) + " %"]
+            lines = [
+                "NRMSE " + (f"{100 * m['nrmse']:.0f} %" if m.get("nrmse") is not None else "–"),
+                "sim/meas "
+                + "/".join(
+                    "–" if m.get(f"ratio_{100 * e:.0f}") is None else f"{m[f'ratio_{100 * e:.0f}']:.2g}"
+                    for e in COMPARE_AT
+                )
+                + " at "
+                + "/".join(f"{100 * e:.0f}" for e in COMPARE_AT)
+                + " %",
+            ]
             if m.get("lateral_at") is not None:
-                lines.append(f"lateral at {100 * m['lateral_at']:.0f} %: {m['lateral_simulated']:+.3f} sim, "
-                             f"{m['lateral_measured']:+.3f} meas")
-            ax.text(0.03, 0.97, "\n".join(lines), transform=ax.transAxes, ha="left", va="top", fontsize=6.5,
-                    bbox={"facecolor": "white", "alpha": 0.85, "lw": 0.5})
+                lines.append(
+                    f"lateral at {100 * m['lateral_at']:.0f} %: {m['lateral_simulated']:+.3f} sim, "
+                    f"{m['lateral_measured']:+.3f} meas"
+                )
+            ax.text(
+                0.03,
+                0.97,
+                "\n".join(lines),
+                transform=ax.transAxes,
+                ha="left",
+                va="top",
+                fontsize=6.5,
+                bbox={"facecolor": "white", "alpha": 0.85, "lw": 0.5},
+            )
         else:
             import textwrap
 
@@ -267,7 +332,7 @@ def plot_validation(path: Path, panels: Sequence[dict], *, title: str = "", colu
         ax.set_title(panel["title"], fontsize=8)
         ax.tick_params(labelsize=7)
         ax.grid(alpha=0.3)
-    for ax in axes.flat[len(panels):]:
+    for ax in axes.flat[len(panels) :]:
         ax.set_visible(False)
     for ax in axes[-1]:
         ax.set_xlabel("strain in the pull, -", fontsize=7)

@@ -95,7 +95,9 @@ def _coerce(value: Any, tp: Any, path: str, source: str | None) -> Any:
     if origin is Literal:
         if value not in get_args(tp):
             raise ConfigError(
-                path, f"must be one of {', '.join(map(repr, get_args(tp)))}, got {shown(value)}", source=source
+                path,
+                f"must be one of {', '.join(map(repr, get_args(tp)))}, got {shown(value)}",
+                source=source,
             )
         return value
     if tp is bool:

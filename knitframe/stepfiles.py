@@ -61,8 +61,10 @@ class StepSeries:
 
     def _write_pvd(self) -> None:
         rows = "\n".join(f'    <DataSet timestep="{i}" file="{name}"/>' for i, name in sorted(self.files))
-        text = (f'<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n{rows}\n'
-                "  </Collection>\n</VTKFile>\n")
+        text = (
+            f'<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n{rows}\n'
+            "  </Collection>\n</VTKFile>\n"
+        )
         fd, tmp = tempfile.mkstemp(dir=self.folder, prefix=f".{self.prefix}.pvd.", suffix=".tmp")
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)

@@ -96,17 +96,23 @@ def _fits(rows: Iterable[Mapping[str, Any]]) -> tuple[list[_Fit], list[str]]:
         name = str(r.get("name") or r.get("index") or "?")
         if r.get("status", "done") != "done":
             reason = str(r.get("reason") or "no reason").split("; ")[0]
-            left.append(f"{name}: {r.get('status')} ({reason if len(reason) <= 160 else reason[:157] + '...'}), not used")
+            left.append(
+                f"{name}: {r.get('status')} ({reason if len(reason) <= 160 else reason[:157] + '...'}), not used"
+            )
             continue
         sl = _num(r.get("stitch_length"))
         a, b, th = _num(r.get("a")), _num(r.get("b")), _num(r.get("theta_deg"))
         if sl is None or (a is None and b is None and th is None):
-            left.append(f"{name}: " + ("no stitch length" if sl is None else "no fitted parameters") + ", not used")
+            left.append(
+                f"{name}: " + ("no stitch length" if sl is None else "no fitted parameters") + ", not used"
+            )
             continue
         key = (str(r["pattern"]), str(r["yarn"]), sl)
         if key in seen:
-            raise ValueError(f"two rows for {key[0]} SL{sl:g} {key[1]} ({seen[key]} and {name}): the trends compare "
-                             "one fit per pattern, stitch length and yarn")
+            raise ValueError(
+                f"two rows for {key[0]} SL{sl:g} {key[1]} ({seen[key]} and {name}): the trends compare "
+                "one fit per pattern, stitch length and yarn"
+            )
         seen[key] = name
         fits.append(_Fit(key[0], key[1], sl, a, b, th, frozenset(str(r.get("at_bound") or "").split())))
     return fits, left
@@ -125,7 +131,9 @@ def _g(x: float | None) -> str:
     return "" if x is None else f"{x:.3g}"
 
 
-def _verdict(hits: int, cases: int, share: float, min_cases: int, total: int = 0, min_determined: float = 0.0) -> str:
+def _verdict(
+    hits: int, cases: int, share: float, min_cases: int, total: int = 0, min_determined: float = 0.0
+) -> str:
     """Reproduced when ``hits`` reach ``share`` of the determined ``cases``; undetermined when fewer than
     ``min_cases`` cases, or fewer than ``min_determined`` of all ``total`` comparisons, are determined."""
     if cases < max(min_cases, min_determined * total):
@@ -170,13 +178,18 @@ def _stitch_b(fits: list[_Fit], share: float, min_cases: int, min_determined: fl
                 continue
             ratio = ""
             if "b" in s.bound or "b" in lo.bound:
-                notes.append(f"{pattern} {yarn}: b at a bound in "
-                             + ", ".join(f.label for f in (s, lo) if "b" in f.bound))
+                notes.append(
+                    f"{pattern} {yarn}: b at a bound in "
+                    + ", ".join(f.label for f in (s, lo) if "b" in f.bound)
+                )
                 (s_lo, s_hi), (l_lo, l_hi) = _interval(s, "b"), _interval(lo, "b")
                 side = "larger" if s_lo > l_hi else "smaller" if s_hi < l_lo else "unknown"
                 one_sided[side] += 1
-                verdict = {"larger": "left out (the bounds say: larger)", "smaller": "left out (the bounds say: smaller)",
-                           "unknown": "left out"}[side]
+                verdict = {
+                    "larger": "left out (the bounds say: larger)",
+                    "smaller": "left out (the bounds say: smaller)",
+                    "unknown": "left out",
+                }[side]
             else:
                 cases += 1
                 up = s.b > lo.b
@@ -184,16 +197,24 @@ def _stitch_b(fits: list[_Fit], share: float, min_cases: int, min_determined: fl
                 ratio = _g(s.b / lo.b)
                 verdict = "larger at the shorter stitch" if up else "not larger"
             mid = [by.get((pattern, yarn, x)) for x in sls[1:-1]]
-            rows.append((pattern, yarn, _cell(s, "b"), *[_cell(m, "b") for m in mid], _cell(lo, "b"), ratio, verdict))
+            rows.append(
+                (pattern, yarn, _cell(s, "b"), *[_cell(m, "b") for m in mid], _cell(lo, "b"), ratio, verdict)
+            )
     columns = ("pattern", "yarn", *[f"b SL{x:g}" for x in sls], f"b SL{short:g} / SL{long_:g}", "")
     verdict = _verdict(hits, cases, share, min_cases, len(rows), min_determined)
     left = len(rows) - cases
-    summary = (f"b larger at SL{short:g} than at SL{long_:g} in {hits} of {cases} pattern-yarn pairs with b "
-               f"determined at both; {left} of {len(rows)} pair(s) left out with b at a bound")
+    summary = (
+        f"b larger at SL{short:g} than at SL{long_:g} in {hits} of {cases} pattern-yarn pairs with b "
+        f"determined at both; {left} of {len(rows)} pair(s) left out with b at a bound"
+    )
     if left:
-        summary += (f" (where a bound gives a side: b smaller at SL{short:g} in {one_sided['smaller']}, larger in "
-                    f"{one_sided['larger']}; {one_sided['unknown']} at the same bound at both)")
-    return Trend("stitch_b", "a shorter stitch gives a larger b", verdict, summary, columns, tuple(rows), tuple(notes))
+        summary += (
+            f" (where a bound gives a side: b smaller at SL{short:g} in {one_sided['smaller']}, larger in "
+            f"{one_sided['larger']}; {one_sided['unknown']} at the same bound at both)"
+        )
+    return Trend(
+        "stitch_b", "a shorter stitch gives a larger b", verdict, summary, columns, tuple(rows), tuple(notes)
+    )
 
 
 def _pattern_theta(fits: list[_Fit], share: float, min_cases: int, spread_deg: float) -> Trend:
@@ -211,12 +232,26 @@ def _pattern_theta(fits: list[_Fit], share: float, min_cases: int, spread_deg: f
             spread = max(ths) - min(ths)
             hits += spread >= spread_deg
             lo, hi = min(used, key=lambda f: f.theta), max(used, key=lambda f: f.theta)
-            rows.append((yarn, f"{sl:g}", ", ".join(f"{f.pattern} {f.theta:.1f}" for f in used), f"{spread:.1f}",
-                         f"{lo.pattern} → {hi.pattern}"))
+            rows.append(
+                (
+                    yarn,
+                    f"{sl:g}",
+                    ", ".join(f"{f.pattern} {f.theta:.1f}" for f in used),
+                    f"{spread:.1f}",
+                    f"{lo.pattern} → {hi.pattern}",
+                )
+            )
     verdict = _verdict(hits, cases, share, min_cases)
-    summary = (f"θ spread across patterns ≥ {spread_deg:g}° in {hits} of {cases} yarn-stitch-length groups")
-    return Trend("pattern_theta", "the pattern moves θ", verdict, summary,
-                 ("yarn", "SL", "θ by pattern, °", "spread, °", "lowest → highest"), tuple(rows), tuple(notes))
+    summary = f"θ spread across patterns ≥ {spread_deg:g}° in {hits} of {cases} yarn-stitch-length groups"
+    return Trend(
+        "pattern_theta",
+        "the pattern moves θ",
+        verdict,
+        summary,
+        ("yarn", "SL", "θ by pattern, °", "spread, °", "lowest → highest"),
+        tuple(rows),
+        tuple(notes),
+    )
 
 
 def _yarn_ab(fits: list[_Fit], share: float, min_cases: int, min_determined: float, factor: float) -> Trend:
@@ -242,7 +277,9 @@ def _yarn_ab(fits: list[_Fit], share: float, min_cases: int, min_determined: flo
                 bound = [f.label for f in group.values() if p in f.bound]
                 if bound:  # a yarn's value is only a side: the spread across yarns is not known
                     notes.append(f"{pattern} SL{sl:g}: {p} at a bound in " + ", ".join(bound))
-                    least = max(lo / hi for y1, (lo, _) in spans.items() for y2, (_, hi) in spans.items() if y1 != y2)
+                    least = max(
+                        lo / hi for y1, (lo, _) in spans.items() for y2, (_, hi) in spans.items() if y1 != y2
+                    )
                     beyond[p] += least > factor
                     cells += [values, f"left out (bounds: > {least:.3g})" if least > 1.0 else "left out"]
                     continue
@@ -252,7 +289,9 @@ def _yarn_ab(fits: list[_Fit], share: float, min_cases: int, min_determined: flo
                 hits[p] += spread > factor
                 cells += [values, f"{spread:.3g}"]
             rows.append((pattern, f"{sl:g}", *cells))
-    verdicts = {p: _verdict(hits[p], cases[p], share, min_cases, total[p], min_determined) for p in ("a", "b")}
+    verdicts = {
+        p: _verdict(hits[p], cases[p], share, min_cases, total[p], min_determined) for p in ("a", "b")
+    }
     if NOT_REPRODUCED in verdicts.values():
         verdict = NOT_REPRODUCED
     elif UNDETERMINED in verdicts.values():
@@ -261,15 +300,24 @@ def _yarn_ab(fits: list[_Fit], share: float, min_cases: int, min_determined: flo
         verdict = REPRODUCED
     parts = []
     for p in ("a", "b"):
-        text = (f"{p} moves more than {factor:g}× across the yarns in {hits[p]} of {cases[p]} pattern-stitch-length "
-                f"groups with {p} determined for every yarn, of {total[p]}")
+        text = (
+            f"{p} moves more than {factor:g}× across the yarns in {hits[p]} of {cases[p]} pattern-stitch-length "
+            f"groups with {p} determined for every yarn, of {total[p]}"
+        )
         if total[p] > cases[p]:
             text += f" (the bounds alone put it above {factor:g}× in {beyond[p]} of the {total[p] - cases[p]} others)"
         parts.append(text + f": {verdicts[p]}")
     names = " / ".join(yarns)
     columns = ("pattern", "SL", f"a ({names}), N/mm", "a max/min", f"b ({names})", "b max/min")
-    return Trend("yarn_ab", f"the yarn moves a and b by more than {factor:g}×", verdict, "; ".join(parts), columns,
-                 tuple(rows), tuple(notes))
+    return Trend(
+        "yarn_ab",
+        f"the yarn moves a and b by more than {factor:g}×",
+        verdict,
+        "; ".join(parts),
+        columns,
+        tuple(rows),
+        tuple(notes),
+    )
 
 
 def _jersey_theta(fits: list[_Fit], share: float, min_cases: int, tol_deg: float) -> Trend:
@@ -277,19 +325,42 @@ def _jersey_theta(fits: list[_Fit], share: float, min_cases: int, tol_deg: float
     used = [f for f in jersey if "theta_deg" not in f.bound]
     notes = tuple(f"{f.label}: θ at a bound, left out" for f in jersey if "theta_deg" in f.bound)
     hits = sum(abs(f.theta - 45.0) <= tol_deg for f in used)
-    rows = tuple((f.yarn, f"{f.sl:g}", f"{f.theta:.1f}", f"{f.theta - 45.0:+.1f}",
-                  "yes" if abs(f.theta - 45.0) <= tol_deg else "no") for f in used)
+    rows = tuple(
+        (
+            f.yarn,
+            f"{f.sl:g}",
+            f"{f.theta:.1f}",
+            f"{f.theta - 45.0:+.1f}",
+            "yes" if abs(f.theta - 45.0) <= tol_deg else "no",
+        )
+        for f in used
+    )
     verdict = _verdict(hits, len(used), share, 1)
     summary = f"jersey θ within {tol_deg:g}° of 45° in {hits} of {len(used)} fits"
     if used:
         ths = sorted(f.theta for f in used)
         summary += f" (θ {ths[0]:.1f}–{ths[-1]:.1f}°)"
-    return Trend("jersey_theta", "jersey θ is near 45°", verdict, summary,
-                 ("yarn", "SL", "θ, °", "θ − 45°", f"within {tol_deg:g}°"), rows, notes)
+    return Trend(
+        "jersey_theta",
+        "jersey θ is near 45°",
+        verdict,
+        summary,
+        ("yarn", "SL", "θ, °", "θ − 45°", f"within {tol_deg:g}°"),
+        rows,
+        notes,
+    )
 
 
-def trends(rows: Iterable[Mapping[str, Any]], *, share: float = 0.75, min_cases: int = 2, min_determined: float = 0.5,
-           theta_spread_deg: float = 5.0, yarn_factor: float = 10.0, jersey_tol_deg: float = 5.0) -> list[Trend]:
+def trends(
+    rows: Iterable[Mapping[str, Any]],
+    *,
+    share: float = 0.75,
+    min_cases: int = 2,
+    min_determined: float = 0.5,
+    theta_spread_deg: float = 5.0,
+    yarn_factor: float = 10.0,
+    jersey_tol_deg: float = 5.0,
+) -> list[Trend]:
     """The paper's four trends judged on a sweep's rows (see the module's text for the rules).
 
     ``rows``: sweep.csv's rows (strings, as :class:`csv.DictReader` reads them) or the sweep stage's
@@ -299,13 +370,19 @@ def trends(rows: Iterable[Mapping[str, Any]], *, share: float = 0.75, min_cases:
     yarn, or when the rows do not span 2 stitch lengths, 2 patterns and 2 yarns.
     """
     fits, left = _fits(rows)
-    missing = [what for what, k in (("stitch lengths", "sl"), ("patterns", "pattern"), ("yarns", "yarn"))
-               if len({getattr(f, k) for f in fits}) < 2]
+    missing = [
+        what
+        for what, k in (("stitch lengths", "sl"), ("patterns", "pattern"), ("yarns", "yarn"))
+        if len({getattr(f, k) for f in fits}) < 2
+    ]
     if missing:
         raise ValueError("the trends need fitted fabrics at 2 or more " + ", ".join(missing))
-    out = [_stitch_b(fits, share, min_cases, min_determined), _pattern_theta(fits, share, min_cases, theta_spread_deg),
-           _yarn_ab(fits, share, min_cases, min_determined, yarn_factor),
-           _jersey_theta(fits, share, min_cases, jersey_tol_deg)]
+    out = [
+        _stitch_b(fits, share, min_cases, min_determined),
+        _pattern_theta(fits, share, min_cases, theta_spread_deg),
+        _yarn_ab(fits, share, min_cases, min_determined, yarn_factor),
+        _jersey_theta(fits, share, min_cases, jersey_tol_deg),
+    ]
     return [attrs.evolve(t, notes=t.notes + tuple(left)) for t in out]
 
 

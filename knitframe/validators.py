@@ -7,21 +7,42 @@ Each message has the form ``must be > 0, got -1`` so that the config layer can p
 from __future__ import annotations
 
 import math
-from typing import Any, Callable, Iterable
+from collections.abc import Callable, Iterable
+from typing import Any
 
 import numpy as np
 
 from knitframe.errors import FieldError
 
-__all__ = ["shown", "positive", "non_negative", "at_least", "at_most", "in_range", "one_of", "finite", "optional", "subset_of", "finite_array", "boolean",
-           "within_model_bounds", "near_own", "OVERRIDE_FACTOR"]
+__all__ = [
+    "shown",
+    "positive",
+    "non_negative",
+    "at_least",
+    "at_most",
+    "in_range",
+    "one_of",
+    "finite",
+    "optional",
+    "subset_of",
+    "finite_array",
+    "boolean",
+    "within_model_bounds",
+    "near_own",
+    "OVERRIDE_FACTOR",
+]
 
 Validator = Callable[[Any, Any, Any], None]
 
 
 def _fmt(value: Any) -> str:
     """Numbers as the user would write them: -1 rather than -1.0."""
-    if isinstance(value, (float, np.floating)) and math.isfinite(value) and float(value).is_integer() and abs(value) < 1e15:
+    if (
+        isinstance(value, (float, np.floating))
+        and math.isfinite(value)
+        and float(value).is_integer()
+        and abs(value) < 1e15
+    ):
         return str(int(value))
     return repr(value.item() if isinstance(value, np.generic) else value)
 
@@ -102,7 +123,9 @@ def one_of(choices: Iterable[str]) -> Validator:
 
     def check(instance, attribute, value) -> None:
         if value not in allowed:
-            raise FieldError(attribute.name, f"must be one of {', '.join(map(repr, allowed))}, got {shown(value)}")
+            raise FieldError(
+                attribute.name, f"must be one of {', '.join(map(repr, allowed))}, got {shown(value)}"
+            )
 
     return check
 
@@ -160,8 +183,11 @@ def within_model_bounds(model: Any, params: Any) -> None:
     slack = 1e-9 * np.maximum(np.abs(lo), np.abs(hi))
     for i, key in enumerate(shown):
         if not lo[i] - slack[i] <= p[i] <= hi[i] + slack[i]:
-            raise FieldError(key, f"must be in [{_fmt(low[key])}, {_fmt(high[key])}] (the bounds of model "
-                                  f"'{getattr(model, 'name', type(model).__name__)}'), got {_fmt(shown[key])}")
+            raise FieldError(
+                key,
+                f"must be in [{_fmt(low[key])}, {_fmt(high[key])}] (the bounds of model "
+                f"'{getattr(model, 'name', type(model).__name__)}'), got {_fmt(shown[key])}",
+            )
 
 
 #: Furthest a stiffness override may be from the value it replaces, as a factor either way.
@@ -174,5 +200,7 @@ def near_own(field: str, value: float | None, own: float, unit: str) -> None:
     Further off is a slip of units rather than a yarn, and it overflows the solvers' arithmetic.
     """
     if value is not None and not own / OVERRIDE_FACTOR <= value <= own * OVERRIDE_FACTOR:
-        raise FieldError(field, f"{value:.4g} {unit} is more than {OVERRIDE_FACTOR:g} times off the yarn's own "
-                                f"{own:.4g} {unit}")
+        raise FieldError(
+            field,
+            f"{value:.4g} {unit} is more than {OVERRIDE_FACTOR:g} times off the yarn's own {own:.4g} {unit}",
+        )

@@ -51,7 +51,9 @@ __all__ = [
 COLUMNS = ("displacement_mm", "force_N")
 
 
-def line_contact_approach(f: np.ndarray, radius: float, E: float, nu: float, *, rigid_partner: bool = False) -> np.ndarray:
+def line_contact_approach(
+    f: np.ndarray, radius: float, E: float, nu: float, *, rigid_partner: bool = False
+) -> np.ndarray:
     """Approach δ of the axes of two identical parallel elastic cylinders under line load f (2D Hertz).
 
     Puttock & Thwaite (1969), Johnson (Contact Mechanics, 1985, §5.6): each body contributes
@@ -73,11 +75,15 @@ def line_contact_approach(f: np.ndarray, radius: float, E: float, nu: float, *, 
     r_eff, e_star = (radius, 1.0 / k) if rigid_partner else (0.5 * radius, 0.5 / k)
     b = np.sqrt(4.0 * f * r_eff / (np.pi * e_star))
     with np.errstate(divide="ignore", invalid="ignore"):
-        per_body = np.where(f > 0, 2.0 * f / np.pi * k * (np.log(4.0 * radius / np.where(b > 0, b, 1.0)) - 0.5), 0.0)
+        per_body = np.where(
+            f > 0, 2.0 * f / np.pi * k * (np.log(4.0 * radius / np.where(b > 0, b, 1.0)) - 0.5), 0.0
+        )
     return per_body if rigid_partner else 2.0 * per_body
 
 
-def line_contact_load(delta: np.ndarray, radius: float, E: float, nu: float, *, rigid_partner: bool = False) -> np.ndarray:
+def line_contact_load(
+    delta: np.ndarray, radius: float, E: float, nu: float, *, rigid_partner: bool = False
+) -> np.ndarray:
     """Line load f (N/mm) at approach ``delta`` (mm): the inverse of :func:`line_contact_approach`.
 
     δ(f) increases while b < 4R/e, where the law ends; beyond that a NumericalError is raised.
@@ -89,7 +95,9 @@ def line_contact_load(delta: np.ndarray, radius: float, E: float, nu: float, *, 
     f_max = (4.0 * radius / np.e) ** 2 * np.pi * e_star / (4.0 * r_eff)
     d_max = float(line_contact_approach(np.array([f_max]), radius, E, nu, rigid_partner=rigid_partner)[0])
     if np.any(d > d_max):
-        raise NumericalError(f"line contact: approach {float(d.max()):.3g} mm is beyond the Hertz law's range ({d_max:.3g} mm)")
+        raise NumericalError(
+            f"line contact: approach {float(d.max()):.3g} mm is beyond the Hertz law's range ({d_max:.3g} mm)"
+        )
     lo = np.full(d.shape, np.log(f_max) - 80.0)
     hi = np.full(d.shape, np.log(f_max))
     while np.any(hi - lo > 1e-13):
@@ -109,7 +117,7 @@ def pretension(line_load: float, curvature_radius: float) -> float:
     return float(line_load) * float(curvature_radius)
 
 
-def read_test(path: str | Path, kind: str) -> tuple[np.ndarray, np.ndarray, dict[str, str], "object"]:
+def read_test(path: str | Path, kind: str) -> tuple[np.ndarray, np.ndarray, dict[str, str], object]:
     """Displacement (mm), force (N), header metadata and the table of a ``kind`` test file."""
     table = read_table(path, COLUMNS)
     meta: dict[str, str] = {}
@@ -185,10 +193,14 @@ def fit_tension(path: str | Path, *, diameter: float, gauge_length: float | None
     pre_u, pre_F = u[: ipk + 1], F[: ipk + 1]
     win = (pre_F >= 0.2 * fpk) & (pre_F <= 0.8 * fpk)
     if np.count_nonzero(win) < 3:
-        raise DataError(table.path, "fewer than 3 points between 20 % and 80 % of the peak force before the peak")
+        raise DataError(
+            table.path, "fewer than 3 points between 20 % and 80 % of the peak force before the peak"
+        )
     k, c = np.polyfit(pre_u[win], pre_F[win], 1)
     if k <= 0:
-        raise DataError(table.path, f"force falls with displacement in the linear window (slope {k:.3g} N/mm)")
+        raise DataError(
+            table.path, f"force falls with displacement in the linear window (slope {k:.3g} N/mm)"
+        )
     u0 = -c / k
     rmse = float(np.sqrt(np.mean((pre_F[win] - k * (pre_u[win] - u0)) ** 2)))
     area = np.pi * diameter**2 / 4.0
@@ -233,7 +245,9 @@ def fit_compression(
     u, f = u[order], F[order] / (n * Lp)
     uk = d0 - dk
     if u[-1] < uk:
-        raise DataError(table.path, f"the plate travels {u[-1]:g} mm, never compressing d0 = {d0:g} to dk = {dk:g} mm")
+        raise DataError(
+            table.path, f"the plate travels {u[-1]:g} mm, never compressing d0 = {d0:g} to dk = {dk:g} mm"
+        )
     fk0 = max(float(np.interp(uk, u, f)), 0.0)
     sel = (u > uk) & (u <= uk + window * dk)
     if np.count_nonzero(sel) < 5:
@@ -251,7 +265,9 @@ def fit_compression(
         return uk + 2.0 * line_contact_approach(fs - fk, R, E, nu, rigid_partner=True)
 
     # δ ∝ 1/E up to the slowly varying log term: start from the E that matches the mean travel
-    E1 = float(np.mean(2.0 * line_contact_approach(fs - fk0, R, 1.0, nu, rigid_partner=True)) / np.mean(us - uk))
+    E1 = float(
+        np.mean(2.0 * line_contact_approach(fs - fk0, R, 1.0, nu, rigid_partner=True)) / np.mean(us - uk)
+    )
     if not (np.isfinite(E1) and E1 > 0):
         raise DataError(table.path, "force does not grow with plate travel beyond dk", column="force_N")
     res = least_squares(
@@ -301,5 +317,13 @@ def fit_yarn(
         )
     kind = model or ("transverse_isotropic" if compression is not None else "isotropic")
     return Yarn(
-        name=name, d0=d0, dk=dk, E_axial=t.E_axial, E_transverse=E_T, nu=nu, failure_strain=t.failure_strain, model=kind, source=src
+        name=name,
+        d0=d0,
+        dk=dk,
+        E_axial=t.E_axial,
+        E_transverse=E_T,
+        nu=nu,
+        failure_strain=t.failure_strain,
+        model=kind,
+        source=src,
     )

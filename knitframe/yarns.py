@@ -14,7 +14,8 @@ A config may define its own yarns in a top-level ``[yarns]`` table and refer to 
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 from knitframe.errors import ConfigError, FieldError, UnknownPluginError
 from knitframe.records import Yarn

@@ -43,15 +43,23 @@ def cli(tmp_path):
         full_env = {**os.environ, **(env or {})}
         return subprocess.run(
             [sys.executable, "-m", "knitframe", *args],
-            capture_output=True, text=True, cwd=cwd or tmp_path, env=full_env, timeout=600,
+            capture_output=True,
+            text=True,
+            cwd=cwd or tmp_path,
+            env=full_env,
+            timeout=600,
         )
 
     return run
 
 
 def _pip(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "pip", "--disable-pip-version-check", "-q", *args],
-                          capture_output=True, text=True, timeout=600)
+    return subprocess.run(
+        [sys.executable, "-m", "pip", "--disable-pip-version-check", "-q", *args],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
 
 
 @pytest.fixture(scope="session")

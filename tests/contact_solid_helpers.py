@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import skfem
-
-from knitframe.contact_search import SegmentTopology
-from knitframe.mesh import surface_facets
-from knitframe.newton import NewtonOptions, minimise
 from knitframe_contact.solid_geometry import SolidSurface
 from knitframe_linsolvers.direct import direct
 from knitframe_solvers.volumetric_material import SolidForms, YarnLaw
 from knitframe_yarns.isotropic import Isotropic
+
+from knitframe.contact_search import SegmentTopology
+from knitframe.mesh import surface_facets
+from knitframe.newton import NewtonOptions, minimise
 
 
 def join(meshes: list, order: int):
@@ -40,8 +40,14 @@ def surface(mesh, body: np.ndarray, slave_facets: np.ndarray, master_facets: np.
     n = nodes(mesh).shape[0]
     nb = int(body.max()) + 1
     topo = SegmentTopology(body, np.zeros(n, np.int64), np.zeros(n), np.zeros(nb, np.int64), np.zeros(nb))
-    return SolidSurface.build(nodes(mesh), np.vstack([fs, fm]), np.arange(len(fs)), np.arange(len(fs), len(fs) + len(fm)),
-                              topo, exclusion=1.0)
+    return SolidSurface.build(
+        nodes(mesh),
+        np.vstack([fs, fm]),
+        np.arange(len(fs)),
+        np.arange(len(fs), len(fs) + len(fm)),
+        topo,
+        exclusion=1.0,
+    )
 
 
 def stacked_blocks(order: int):
@@ -60,8 +66,16 @@ def stacked_blocks(order: int):
     return mesh, body, surface(mesh, body, bf[(vb == 1) & at], bf[(vb == 0) & at]), lo.t.shape[1]
 
 
-def solve(forms: SolidForms, law, surf: SolidSurface, u0: np.ndarray, free: np.ndarray, stiffness: float,
-          reach: float, friction_state=None):
+def solve(
+    forms: SolidForms,
+    law,
+    surf: SolidSurface,
+    u0: np.ndarray,
+    free: np.ndarray,
+    stiffness: float,
+    reach: float,
+    friction_state=None,
+):
     """Equilibrium of elasticity + contact (+ lagged friction) by the shared Newton driver; returns (u, contact info)."""
     X = nodes(forms.mesh)
     n = forms.ndof
@@ -70,8 +84,15 @@ def solve(forms: SolidForms, law, surf: SolidSurface, u0: np.ndarray, free: np.n
         E = forms.energy(u)
         if not np.isfinite(E):
             return np.inf, None, None, {}
-        Ec, gc, Hc, info = law.evaluate(surf, X + u.reshape(-1, 3), None, order, stiffness=stiffness, reach=reach,
-                                        friction_state=friction_state)
+        Ec, gc, Hc, info = law.evaluate(
+            surf,
+            X + u.reshape(-1, 3),
+            None,
+            order,
+            stiffness=stiffness,
+            reach=reach,
+            friction_state=friction_state,
+        )
         if order == 0:
             return E + Ec, None, None, info
         g = forms.residual(u) + gc[:n]
@@ -79,7 +100,9 @@ def solve(forms: SolidForms, law, surf: SolidSurface, u0: np.ndarray, free: np.n
             return E + Ec, g, None, info
         return E + Ec, g, forms.tangent(u) + Hc[:n, :n], info
 
-    res = minimise(fun, u0, free, solve=direct(), options=NewtonOptions(atol=1e-10, rtol=1e-8, max_iter=60, xtol=1e-12))
+    res = minimise(
+        fun, u0, free, solve=direct(), options=NewtonOptions(atol=1e-10, rtol=1e-8, max_iter=60, xtol=1e-12)
+    )
     return res.x, fun(res.x, 1)[3]
 
 
@@ -141,8 +164,9 @@ def quarter_cylinder_on_flat(R: float, h_contact: float, h_far: float, thickness
     remap[used] = np.arange(used.size)
     cyl = skfem.MeshTet1(xyz.reshape(-1, 3)[used].T.copy(), remap[tet].T.copy())
     nb = max(int(round(0.5 * R / h_contact / 4)), 4)
-    block = skfem.MeshTet1.init_tensor(np.linspace(0, 0.5 * R, nb + 1), np.linspace(-1.2 * R, -R, 3),
-                                       np.linspace(0, thickness, 2))
+    block = skfem.MeshTet1.init_tensor(
+        np.linspace(0, 0.5 * R, nb + 1), np.linspace(-1.2 * R, -R, 3), np.linspace(0, thickness, 2)
+    )
     mesh, body = join([cyl, block], order)
     if order == 2:
         # curved isoparametric arc: push the arc's mid-edge nodes onto the circle
@@ -156,8 +180,11 @@ def quarter_cylinder_on_flat(R: float, h_contact: float, h_far: float, thickness
     fx = Xn[mesh.facets[:, bf]]  # (3, nbf, 3)
     vb = body[mesh.facets[0, bf]]
     rr = np.hypot(fx[..., 0], fx[..., 1])
-    arc_f = bf[(vb == 0) & np.all(np.abs(rr - R) < 1e-6 * R + 0.01 * h_contact, axis=0)
-               & ~np.all(np.isclose(fx[..., 2], fx[0:1, :, 2]), axis=0)]
+    arc_f = bf[
+        (vb == 0)
+        & np.all(np.abs(rr - R) < 1e-6 * R + 0.01 * h_contact, axis=0)
+        & ~np.all(np.isclose(fx[..., 2], fx[0:1, :, 2]), axis=0)
+    ]
     top_f = bf[(vb == 1) & np.all(np.isclose(fx[..., 1], -R), axis=0)]
     return mesh, body, arc_f, top_f
 
@@ -172,11 +199,11 @@ def image_blocks():
     (the gap has kinks there). Returns (X, surface, n_nodes).
     """
     import skfem
+    from knitframe_contact.solid_geometry import SolidSurface
 
     from knitframe.contact_search import SegmentTopology
     from knitframe.mesh import surface_facets
     from knitframe.periodic import Lattice
-    from knitframe_contact.solid_geometry import SolidSurface
 
     a = skfem.MeshTet1.init_tensor(np.linspace(0.5, 1, 3), np.linspace(0.2, 0.8, 4), np.linspace(0.1, 0.4, 3))
     b = skfem.MeshTet1.init_tensor(np.linspace(0, 0.4, 3), np.linspace(0, 1, 5), np.linspace(0, 0.5, 4))
@@ -189,7 +216,9 @@ def image_blocks():
     n = len(X)
     topo = SegmentTopology(body, np.zeros(n, np.int64), np.zeros(n), np.zeros(2, np.int64), np.zeros(2))
     lattice = Lattice([0.98, 0.0731, 0], [0, 3.0, 0])
-    surf = SolidSurface.build(X, facets, np.arange(len(right)), np.arange(len(right), len(facets)), topo, 1.0, lattice)
+    surf = SolidSurface.build(
+        X, facets, np.arange(len(right)), np.arange(len(right), len(facets)), topo, 1.0, lattice
+    )
     return X, surf, n
 
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from knitframe_solvers.rod import branch_jumps
 
 from knitframe.records import LoadPath
-from knitframe_solvers.rod import branch_jumps
 
 
 def rows(l1, l2):
@@ -54,14 +54,29 @@ def test_a_tension_that_falls_while_its_stretch_grows_is_a_snap():
     eq = LoadPath(kind="equibiaxial", max_strain=0.5, steps=10)
     assert tension_drops(np.column_stack([lam, lam, T1, T2]), eq) == []
     T2_snap = T2.copy()
-    T2_snap[8:] = [0.105, 0.2]  # rib SL12 cotton: the wale tension fell 7.33 -> 0.105 N/mm between 40 and 45 %
+    T2_snap[8:] = [
+        0.105,
+        0.2,
+    ]  # rib SL12 cotton: the wale tension fell 7.33 -> 0.105 N/mm between 40 and 45 %
     (drop,) = tension_drops(np.column_stack([lam, lam, T1, T2_snap]), eq)
-    assert drop == {"step": 9, "direction": "wale", "from": pytest.approx(T2[7]), "to": 0.105, "kind": "tension drop"}
+    assert drop == {
+        "step": 9,
+        "direction": "wale",
+        "from": pytest.approx(T2[7]),
+        "to": 0.105,
+        "kind": "tension drop",
+    }
     small = T1.copy()
     small[4] = 0.95 * small[3]  # a 5 % dip is below the 10 % threshold
     assert tension_drops(np.column_stack([lam, lam, small, T2]), eq) == []
     tiny = T1.copy()
-    tiny[0], tiny[1] = 1e-4, -1e-4  # a fall of 2e-4 N/mm when the path reaches 3 N/mm: below 1 % of the largest
+    tiny[0], tiny[1] = (
+        1e-4,
+        -1e-4,
+    )  # a fall of 2e-4 N/mm when the path reaches 3 N/mm: below 1 % of the largest
     assert tension_drops(np.column_stack([lam, lam, tiny, T2]), eq) == []
     # a uniaxial path is branch_jumps' business
-    assert tension_drops(np.column_stack([lam, lam, T1, T2_snap]), LoadPath(kind="uniaxial", direction="course")) == []
+    assert (
+        tension_drops(np.column_stack([lam, lam, T1, T2_snap]), LoadPath(kind="uniaxial", direction="course"))
+        == []
+    )

@@ -41,4 +41,7 @@ def test_run_example_from_cli(cli, tmp_path):
 def test_run_needs_a_config_or_example(cli):
     """`knitframe run` without a config is a one-line usage error."""
     proc = cli("run")
-    assert proc.returncode == 2 and proc.stderr.strip() == "knitframe: error: give a CONFIG file or --example (not both)"
+    assert (
+        proc.returncode == 2
+        and proc.stderr.strip() == "knitframe: error: give a CONFIG file or --example (not both)"
+    )

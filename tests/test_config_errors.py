@@ -15,15 +15,28 @@ def _config(tmp_path, singal_file, body: str):
 
 
 CASES = [
-    ("unknown key", f'[data]\nfilez = ["{GOOD_FILE}"]\n', "data.filez: unknown key; expected one of files, reader"),
+    (
+        "unknown key",
+        f'[data]\nfilez = ["{GOOD_FILE}"]\n',
+        "data.filez: unknown key; expected one of files, reader",
+    ),
     ("wrong type", '[data]\nfiles = "x.csv"\n', "data.files: expected array of string, got 'x.csv'"),
     ("wrong item type", "[data]\nfiles = [3]\n", "data.files[0]: expected a string, got 3"),
-    ("out of range", f'[data]\nfiles = ["{GOOD_FILE}"]\nreader = {{ kind = "singal2024", points = 1 }}\n',
-     "data.reader.points: must be in [2, 100000], got 1"),
-    ("unknown option", f'[data]\nfiles = ["{GOOD_FILE}"]\nreader = {{ kind = "singal2024", smooth = 3 }}\n',
-     "data.reader.smooth: unknown key; expected one of average, points"),
-    ("unknown plugin", f'[data]\nfiles = ["{GOOD_FILE}"]\nreader = "nope"\n',
-     "data.reader: unknown reader 'nope'; available: auto, generic, singal2024"),
+    (
+        "out of range",
+        f'[data]\nfiles = ["{GOOD_FILE}"]\nreader = {{ kind = "singal2024", points = 1 }}\n',
+        "data.reader.points: must be in [2, 100000], got 1",
+    ),
+    (
+        "unknown option",
+        f'[data]\nfiles = ["{GOOD_FILE}"]\nreader = {{ kind = "singal2024", smooth = 3 }}\n',
+        "data.reader.smooth: unknown key; expected one of average, points",
+    ),
+    (
+        "unknown plugin",
+        f'[data]\nfiles = ["{GOOD_FILE}"]\nreader = "nope"\n',
+        "data.reader: unknown reader 'nope'; available: auto, generic, singal2024",
+    ),
     ("missing file", '[data]\nfiles = ["missing.csv"]\n', "data.files[0]: file not found: missing.csv"),
     ("malformed toml", "[data\nfiles = 1\n", "malformed TOML"),
     ("unknown table", f'[dataa]\nfiles = ["{GOOD_FILE}"]\n', "dataa: unknown table; expected one of"),
@@ -51,7 +64,9 @@ def test_missing_config_file(tmp_path, cli):
     """A config path that does not exist is one line and exit 2."""
     proc = cli("run", str(tmp_path / "nope.toml"))
     assert proc.returncode == 2
-    assert proc.stderr.strip().splitlines() == [f"knitframe: error: config file not found: {tmp_path / 'nope.toml'}"]
+    assert proc.stderr.strip().splitlines() == [
+        f"knitframe: error: config file not found: {tmp_path / 'nope.toml'}"
+    ]
 
 
 def test_malformed_csv_names_file_line_and_column(tmp_path, singal_file, cli):
@@ -64,7 +79,10 @@ def test_malformed_csv_names_file_line_and_column(tmp_path, singal_file, cli):
     cfg.write_text('[data]\nfiles = ["broken-x.csv"]\n')
     proc = cli("run", str(cfg), "--out", str(tmp_path / "out"))
     assert proc.returncode == 2
-    assert proc.stderr.strip() == f"knitframe: error: {bad}, line 6, column 'strain_axial': expected a number, got 'abc'"
+    assert (
+        proc.stderr.strip()
+        == f"knitframe: error: {bad}, line 6, column 'strain_axial': expected a number, got 'abc'"
+    )
     assert not (tmp_path / "out").exists()
 
 

@@ -6,18 +6,18 @@ import attrs
 import numpy as np
 import pytest
 import skfem
-
 from contact_solid_helpers import hertz_supports, iso, join, nodes, quarter_cylinder_on_flat, surface
-from knitframe.contact_search import SegmentTopology
-from knitframe.mesh import surface_facets
-from knitframe.newton import NewtonOptions, minimise
-from knitframe.periodic import Lattice
-from knitframe.plugins import get_registry
 from knitframe_contact.ipc import SolidIPC, collision_mesh
 from knitframe_contact.solid_geometry import SolidSurface
 from knitframe_linsolvers.direct import direct
 from knitframe_solvers.volumetric_material import SolidForms
 from knitframe_yarns.law import line_contact_approach
+
+from knitframe.contact_search import SegmentTopology
+from knitframe.mesh import surface_facets
+from knitframe.newton import NewtonOptions, minimise
+from knitframe.periodic import Lattice
+from knitframe.plugins import get_registry
 
 
 def test_ipc_is_registered_for_solids():
@@ -72,15 +72,21 @@ def test_ipc_projected_hessian_is_positive_semidefinite(cylinder):
     ev = np.linalg.eigvalsh(H[act][:, act].toarray())
     assert ev.max() > 0 and ev.min() > -1e-10 * ev.max()
     # without the projection the same state has negative curvature (edge–edge and point–edge pairs)
-    _, _, H0, _ = attrs.evolve(law, psd=False).evaluate(surf, X + u.reshape(-1, 3), None, 2, stiffness=1e3, reach=0.1)
+    _, _, H0, _ = attrs.evolve(law, psd=False).evaluate(
+        surf, X + u.reshape(-1, 3), None, 2, stiffness=1e3, reach=0.1
+    )
     assert np.linalg.eigvalsh(H0[act][:, act].toarray()).min() < -1e-6 * ev.max()
 
 
 def _block_row(count: int, gap: float):
     """``count`` unit blocks along x, each 1 − gap wide, on a lattice L1 = (count, 0, 0): each block's
     right face is ``gap`` from the next block's (or the next image's) left face."""
-    blocks = [skfem.MeshTet1.init_tensor(np.linspace(k, k + 1 - gap, 3), np.linspace(0, 0.6, 3), np.linspace(0, 0.5, 3))
-              for k in range(count)]
+    blocks = [
+        skfem.MeshTet1.init_tensor(
+            np.linspace(k, k + 1 - gap, 3), np.linspace(0, 0.6, 3), np.linspace(0, 0.5, 3)
+        )
+        for k in range(count)
+    ]
     m, body = join(blocks, 1)
     X = m.p.T
     facets = surface_facets(m, m.boundary_facets())
@@ -88,7 +94,11 @@ def _block_row(count: int, gap: float):
     nb = count
     topo = SegmentTopology(body, np.zeros(n, np.int64), np.zeros(n), np.zeros(nb, np.int64), np.zeros(nb))
     lattice = Lattice([float(count), 0, 0], [0, 3.0, 0])
-    return X, body, SolidSurface.build(X, facets, np.arange(len(facets)), np.arange(len(facets)), topo, 1.0, lattice)
+    return (
+        X,
+        body,
+        SolidSurface.build(X, facets, np.arange(len(facets)), np.arange(len(facets)), topo, 1.0, lattice),
+    )
 
 
 def test_periodic_cell_counts_each_pair_once():
@@ -110,7 +120,9 @@ def test_periodic_cell_counts_each_pair_once():
     assert E2 == pytest.approx(2 * E1, rel=1e-10)
     n1, n2 = 3 * len(X1), 3 * len(X2)
     # each block of the supercell feels the forces of the cell's block
-    assert np.allclose(g2[:n1], g1[:n1], atol=1e-10 * np.abs(g1).max())  # the first block's forces are the cell's
+    assert np.allclose(
+        g2[:n1], g1[:n1], atol=1e-10 * np.abs(g1).max()
+    )  # the first block's forces are the cell's
     assert np.allclose(g2[n1:n2], g1[:n1], atol=1e-10 * np.abs(g1).max())
 
 
@@ -149,9 +161,9 @@ def test_step_limit_checks_half_steps_when_the_ccd_runs_out_of_memory(monkeypatc
     the step's first half (scaled), still crossing-free; a step that fails at every length gives a one-line
     NumericalError."""
     import ipctk
+    from knitframe_contact import ipc
 
     from knitframe.errors import NumericalError
-    from knitframe_contact import ipc
 
     law = SolidIPC(dhat=0.1)
     X, _, surf = _block_row(1, 0.04)
@@ -175,7 +187,7 @@ def test_step_limit_checks_half_steps_when_the_ccd_runs_out_of_memory(monkeypatc
         raise MemoryError("std::bad_alloc")
 
     monkeypatch.setattr(ipctk, "compute_collision_free_stepsize", never)
-    with pytest.raises(NumericalError, match=f"1/{2 ** ipc.CCD_HALVINGS}") as err:
+    with pytest.raises(NumericalError, match=f"1/{2**ipc.CCD_HALVINGS}") as err:
         law.step_limit(surf, X, np.zeros(6), dx, np.zeros(6), stiffness=100.0)
     assert "\n" not in str(err.value)
 
@@ -211,15 +223,23 @@ def test_hertz_cylinder_on_flat_with_the_barrier(cylinder):
     u = u.ravel()
     for step in np.linspace(lift, -d, 5)[1:]:
         u[3 * np.flatnonzero(sym) + 1] = step
-        res = minimise(fun, u, free, solve=direct(), step_limit=limit,
-                       options=NewtonOptions(atol=1e-9, rtol=1e-9, max_iter=200, xtol=1e-13))
+        res = minimise(
+            fun,
+            u,
+            free,
+            solve=direct(),
+            step_limit=limit,
+            options=NewtonOptions(atol=1e-9, rtol=1e-9, max_iter=200, xtol=1e-13),
+        )
         u = res.x
     reaction = forms.residual(u).reshape(-1, 3)
     f = -2 * reaction[sym, 1].sum() / t  # line load on the whole cylinder, N/mm
     info = fun(u, 1)[3]
     assert info["min_distance"] > 0
     ratio = d / line_contact_approach(np.array([f]), R, E, nu, rigid_partner=True)[0]
-    print(f"Hertz with the barrier, P{2 if isinstance(mesh, skfem.MeshTet2) else 1}: approach / Hertz = {ratio:.4f}")
+    print(
+        f"Hertz with the barrier, P{2 if isinstance(mesh, skfem.MeshTet2) else 1}: approach / Hertz = {ratio:.4f}"
+    )
     assert ratio == pytest.approx(1.0, abs=0.05)
 
 
@@ -258,16 +278,28 @@ def _facing_blocks(arc_b: float, strand_b: int, exclusion: float):
     facets = surface_facets(m, m.boundary_facets())
     n = len(body)
     strand = np.where(body == 1, strand_b, 0)
-    topo = SegmentTopology(strand, np.zeros(n, np.int64), np.where(body == 1, arc_b, 0.0), np.zeros(2, np.int64), np.zeros(2))
-    return m.p.T, SolidSurface.build(m.p.T, facets, np.arange(len(facets)), np.arange(len(facets)), topo, exclusion)
+    topo = SegmentTopology(
+        strand, np.zeros(n, np.int64), np.where(body == 1, arc_b, 0.0), np.zeros(2, np.int64), np.zeros(2)
+    )
+    return m.p.T, SolidSurface.build(
+        m.p.T, facets, np.arange(len(facets)), np.arange(len(facets)), topo, exclusion
+    )
 
 
-@pytest.mark.parametrize(("arc_b", "strand_b", "exclusion", "pairs"), [
-    (0.5, 0, 1.0, False),      # one strand, 0.5 apart along it: the yarn's own material
-    (1.5, 0, 1.0, True),       # one strand, beyond the exclusion: self-contact
-    (0.5, 1, 1.0, True),       # two strands: contact whatever their arcs
-    (1.5, 0, np.inf, False),   # no self-contact (scene without "self_contact"): a strand never meets itself
-])
+@pytest.mark.parametrize(
+    ("arc_b", "strand_b", "exclusion", "pairs"),
+    [
+        (0.5, 0, 1.0, False),  # one strand, 0.5 apart along it: the yarn's own material
+        (1.5, 0, 1.0, True),  # one strand, beyond the exclusion: self-contact
+        (0.5, 1, 1.0, True),  # two strands: contact whatever their arcs
+        (
+            1.5,
+            0,
+            np.inf,
+            False,
+        ),  # no self-contact (scene without "self_contact"): a strand never meets itself
+    ],
+)
 def test_pairs_of_a_yarn_with_its_own_material_are_excluded(arc_b, strand_b, exclusion, pairs):
     """Surfaces 0.02 apart, within d̂: barrier pairs form unless both lie on one strand copy within its exclusion."""
     law = SolidIPC(dhat=0.5)
@@ -302,7 +334,6 @@ def test_own_material_filter_excludes_within_three_quarters_of_the_exclusion_and
     assert not allowed[same & (d < 0.75 * 1.3)].any()
     assert allowed[~same | (d >= 1.3)].all()
     assert (~allowed[same & (d >= 0.75 * 1.3) & (d < 1.3)]).any()  # some between: the binnings' slack
-
 
 
 def test_held_candidates_give_the_collisions_of_a_fresh_search(cylinder):

@@ -39,19 +39,30 @@ def test_parallel_and_degenerate_segments():
 
 
 def _topology(n_seg, strand, arc, cycle=(0,), length=(0.0,)):
-    return SegmentTopology(np.asarray(strand), np.zeros(n_seg, np.int64), np.asarray(arc, float),
-                           np.asarray(cycle), np.asarray(length, float))
+    return SegmentTopology(
+        np.asarray(strand),
+        np.zeros(n_seg, np.int64),
+        np.asarray(arc, float),
+        np.asarray(cycle),
+        np.asarray(length, float),
+    )
 
 
 def test_self_contact_needs_the_effect_and_skips_neighbours():
     """A hairpin's legs touch only with self-contact on; adjacent segments are never contacts."""
     s = np.linspace(0, np.pi, 30)
     leg = np.linspace(0, 3, 10)
-    pts = np.vstack([np.stack([leg[::-1], np.full(10, 0.2), np.zeros(10)], 1)[:-1],
-                     np.stack([-0.2 * np.sin(s), 0.2 * np.cos(s), np.zeros(30)], 1)[:-1],
-                     np.stack([leg, np.full(10, -0.2), np.zeros(10)], 1)])
+    pts = np.vstack(
+        [
+            np.stack([leg[::-1], np.full(10, 0.2), np.zeros(10)], 1)[:-1],
+            np.stack([-0.2 * np.sin(s), 0.2 * np.cos(s), np.zeros(30)], 1)[:-1],
+            np.stack([leg, np.full(10, -0.2), np.zeros(10)], 1),
+        ]
+    )
     p0, p1 = pts[:-1], pts[1:]
-    arc = np.concatenate([[0], np.cumsum(np.linalg.norm(p1 - p0, axis=1))])[:-1] + 0.5 * np.linalg.norm(p1 - p0, axis=1)
+    arc = np.concatenate([[0], np.cumsum(np.linalg.norm(p1 - p0, axis=1))])[:-1] + 0.5 * np.linalg.norm(
+        p1 - p0, axis=1
+    )
     topo = _topology(len(p0), np.zeros(len(p0), np.int64), arc)
     off = find_pairs(p0, p1, 0.45, topology=topo)
     on = find_pairs(p0, p1, 0.45, topology=topo, self_contact=True, exclusion=np.pi * 0.45)
@@ -66,14 +77,16 @@ def test_images_follow_the_macro_stretch():
     x = np.linspace(0, 1, 5)[:-1]
     p0 = np.stack([x, np.zeros(4), np.zeros(4)], 1)
     p1 = p0 + [0.25, 0, 0]
-    topo = SegmentTopology(np.zeros(4, np.int64), np.zeros(4, np.int64), x + 0.125, np.array([1]), np.array([1.0]))
+    topo = SegmentTopology(
+        np.zeros(4, np.int64), np.zeros(4, np.int64), x + 0.125, np.array([1]), np.array([1.0])
+    )
     h = np.zeros(6)
     close = find_pairs(p0, p1, 0.6, topology=topo, lattice=lat, h=h)
     assert len(close) > 0 and np.all(close.k[:, 1] != 0) and close.distance.min() == pytest.approx(0.5)
     h[macro_index(1, 1)] = 0.3  # wale stretch 1.3: images 0.65 apart
     assert len(find_pairs(p0, p1, 0.6, topology=topo, lattice=lat, h=h)) == 0
     # along the course the yarn continues into its own image: those are neighbours, not contacts
-    assert not np.any((close.k[:, 1] == 0))
+    assert not np.any(close.k[:, 1] == 0)
 
 
 def test_pairs_are_not_double_counted():
@@ -81,7 +94,9 @@ def test_pairs_are_not_double_counted():
     lat = Lattice([1.0, 0, 0], [0, 0.5, 0])
     x = np.linspace(0, 1, 5)[:-1]
     p0 = np.stack([x, np.zeros(4), np.zeros(4)], 1)
-    topo = SegmentTopology(np.zeros(4, np.int64), np.zeros(4, np.int64), x + 0.125, np.array([1]), np.array([1.0]))
+    topo = SegmentTopology(
+        np.zeros(4, np.int64), np.zeros(4, np.int64), x + 0.125, np.array([1]), np.array([1.0])
+    )
     pr = find_pairs(p0, p0 + [0.25, 0, 0], 0.51, topology=topo, lattice=lat, h=np.zeros(6))
     keys = {(a, b, tuple(k)) for a, b, k in zip(pr.i, pr.j, pr.k)}
     twins = {(b, a, (-k[0], -k[1])) for a, b, k in keys}

@@ -5,21 +5,38 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import skfem
-
 from contact_solid_helpers import (
-    assert_derivatives, hertz_supports, image_blocks, iso, nodes, quarter_cylinder_on_flat, solve, stacked_blocks, surface,
+    assert_derivatives,
+    hertz_supports,
+    image_blocks,
+    iso,
+    nodes,
+    quarter_cylinder_on_flat,
+    solve,
+    stacked_blocks,
+    surface,
 )
-from knitframe.geometry import Centerline, UnitCell
-from knitframe.mesh import cell_mesh
-from knitframe.plugins import get_registry
 from knitframe_contact.mortar import SolidMortar
 from knitframe_contact.penalty import SolidPenalty
 from knitframe_contact.solid_geometry import (
-    chain_facet_derivatives, facet_gap, nagata_facets, node_normals, p2_gap_derivatives, p2_shape, penalty_depth,
-    penalty_terms, plane_gap, project_p2, select_pairs,
+    chain_facet_derivatives,
+    facet_gap,
+    nagata_facets,
+    node_normals,
+    p2_gap_derivatives,
+    p2_shape,
+    penalty_depth,
+    penalty_terms,
+    plane_gap,
+    project_p2,
+    select_pairs,
 )
 from knitframe_solvers.volumetric_material import SolidForms
 from knitframe_yarns.law import line_contact_approach
+
+from knitframe.geometry import Centerline, UnitCell
+from knitframe.mesh import cell_mesh
+from knitframe.plugins import get_registry
 
 
 def test_laws_are_registered_for_solids():
@@ -78,7 +95,9 @@ def test_quadratic_projection_finds_the_closest_point():
     corners = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]])
     mids = 0.5 * (corners[[0, 1, 2]] + corners[[1, 2, 0]]) + np.array([0, 0, 0.1])
     Xf = np.tile(np.vstack([corners, mids]), (3, 1, 1))
-    p = np.array([[0.3, 0.2, 0.3], [0.5, -0.3, 0.1], [-0.2, -0.3, 0.0]])  # inside, beyond edge 01, beyond corner 0
+    p = np.array(
+        [[0.3, 0.2, 0.3], [0.5, -0.3, 0.1], [-0.2, -0.3, 0.0]]
+    )  # inside, beyond edge 01, beyond corner 0
     pr = project_p2(p, Xf)
     grid = np.linspace(0, 1, 401)
     S, T = np.meshgrid(grid, grid)
@@ -94,39 +113,59 @@ def test_quadratic_projection_finds_the_closest_point():
 
 BOWED_PATCHES = {
     # a full Newton step from the corners' plane overshot to a rim minimum 0.037 mm away
-    "overshoot": ([0.4407618642255221, 0.291526210328928, 0.1067607992832436],
-                  [[0.3731746766708867, 0.25803144511617837, 0.162663772120205],
-                   [0.4858454240960754, 0.2812460431411018, 0.08522744735096027],
-                   [0.41377076440576466, 0.3160315027017038, 0.11573131897514108],
-                   [0.42366621074882976, 0.2768208200886712, 0.12456078336076531],
-                   [0.42868746208262126, 0.3037119402294923, 0.11362306373601246],
-                   [0.3939669607668355, 0.2801387428976035, 0.1421454372121445]], 0.00279109),
+    "overshoot": (
+        [0.4407618642255221, 0.291526210328928, 0.1067607992832436],
+        [
+            [0.3731746766708867, 0.25803144511617837, 0.162663772120205],
+            [0.4858454240960754, 0.2812460431411018, 0.08522744735096027],
+            [0.41377076440576466, 0.3160315027017038, 0.11573131897514108],
+            [0.42366621074882976, 0.2768208200886712, 0.12456078336076531],
+            [0.42868746208262126, 0.3037119402294923, 0.11362306373601246],
+            [0.3939669607668355, 0.2801387428976035, 0.1421454372121445],
+        ],
+        0.00279109,
+    ),
     # from the plane projection Newton sat 12 iterations near 0.027 mm and returned an unconverged point
-    "slow": ([-0.7267101481682067, 0.18192358125331393, 0.04938587579145677],
-             [[-0.6527192980025082, 0.10605802392821007, 0.07153553938907382],
-              [-0.7586507267611693, 0.13916489922601594, 0.07097893630598316],
-              [-0.7373373928636375, 0.29506642144364725, 0.01651511338591843],
-              [-0.724489851789253, 0.11913301731608467, 0.06587979642311893],
-              [-0.7649106443636946, 0.24270276132316482, 0.0551749933033462],
-              [-0.711304750786362, 0.1965917265616802, 0.0483297652335191]], 0.00675581),
+    "slow": (
+        [-0.7267101481682067, 0.18192358125331393, 0.04938587579145677],
+        [
+            [-0.6527192980025082, 0.10605802392821007, 0.07153553938907382],
+            [-0.7586507267611693, 0.13916489922601594, 0.07097893630598316],
+            [-0.7373373928636375, 0.29506642144364725, 0.01651511338591843],
+            [-0.724489851789253, 0.11913301731608467, 0.06587979642311893],
+            [-0.7649106443636946, 0.24270276132316482, 0.0551749933033462],
+            [-0.711304750786362, 0.1965917265616802, 0.0483297652335191],
+        ],
+        0.00675581,
+    ),
     # the plane projection lies near edge t = 0 and the full step leaves the triangle: halving the chord
     # to the clipped step (not a descent direction) crept along for 25 iterations
-    "clipped": ([1.2446381771308965, 0.2924632528020442, 0.059730367838484524],
-                [[1.2660415848614008, 0.2859341479555903, 0.07645327847854691],
-                 [1.1783248232012102, 0.299838302465308, 0.027647157677238382],
-                 [1.2687122008215979, 0.32816601504678805, -0.08719551712814164],
-                 [1.2225360197656583, 0.29040233787463093, 0.049463619044287824],
-                 [1.2048882052149839, 0.30818322110005153, -0.0025670856434849287],
-                 [1.2382776399257813, 0.30205199435381724, 0.010189926541353374]], 0.00344649),
+    "clipped": (
+        [1.2446381771308965, 0.2924632528020442, 0.059730367838484524],
+        [
+            [1.2660415848614008, 0.2859341479555903, 0.07645327847854691],
+            [1.1783248232012102, 0.299838302465308, 0.027647157677238382],
+            [1.2687122008215979, 0.32816601504678805, -0.08719551712814164],
+            [1.2225360197656583, 0.29040233787463093, 0.049463619044287824],
+            [1.2048882052149839, 0.30818322110005153, -0.0025670856434849287],
+            [1.2382776399257813, 0.30205199435381724, 0.010189926541353374],
+        ],
+        0.00344649,
+    ),
     # the plane projection lies in the basin of a rim minimum 0.0093 mm away; the closest point is inside
     # at 0.0034 mm (jersey at 23 %): only a start search over the triangle finds it
-    "far_basin": ([1.29687973048491, 0.47618651566179127, 0.1947390264525694],
-                  [[1.3322934526825287, 0.39804303645191236, 0.14934596361681934],
-                   [1.3273166149881142, 0.5602977310306162, 0.13529362770756018],
-                   [1.2898930066731085, 0.4559453842197101, 0.2192933944462193],
-                   [1.3096604500099063, 0.49764080694227625, 0.16012699123129137],
-                   [1.2994641227708805, 0.5098075595659571, 0.17863451084030552],
-                   [1.2960738473463362, 0.4441382817324463, 0.20106323409328836]], 0.00343040),
+    "far_basin": (
+        [1.29687973048491, 0.47618651566179127, 0.1947390264525694],
+        [
+            [1.3322934526825287, 0.39804303645191236, 0.14934596361681934],
+            [1.3273166149881142, 0.5602977310306162, 0.13529362770756018],
+            [1.2898930066731085, 0.4559453842197101, 0.2192933944462193],
+            [1.3096604500099063, 0.49764080694227625, 0.16012699123129137],
+            [1.2994641227708805, 0.5098075595659571, 0.17863451084030552],
+            [1.2960738473463362, 0.4441382817324463, 0.20106323409328836],
+        ],
+        0.00343040,
+    ),
 }
 
 
@@ -164,8 +203,9 @@ def test_rim_gap_sign_comes_from_the_edge_pseudo_normal():
     def gap(p, k, corner_normals):
         c = X[tri[k]]
         Xe = np.vstack([c, 0.5 * (c[[0, 1, 2]] + c[[1, 2, 0]])])[None]
-        return select_pairs(p, np.array([0]), np.array([k]), Xe, np.array([[0, 0, -1.0]]), 1.0,
-                            corner_normals=corner_normals).g[0]
+        return select_pairs(
+            p, np.array([0]), np.array([k]), Xe, np.array([[0, 0, -1.0]]), 1.0, corner_normals=corner_normals
+        ).g[0]
 
     for eps in (1e-9, -1e-9):  # just above and just below facet 0's tangent plane, far above facet 1
         p = np.array([[0.5, 0.5, 0.15 + eps]])
@@ -181,7 +221,9 @@ def prism(n_sides: int, R: float = 1.0, length: float = 1.0) -> tuple[np.ndarray
     X = np.concatenate([ring, ring + [0.0, 0.0, length]])
     i = np.arange(n_sides)
     j = (i + 1) % n_sides
-    tri = np.concatenate([np.column_stack([i, j, j + n_sides]), np.column_stack([i, j + n_sides, i + n_sides])])
+    tri = np.concatenate(
+        [np.column_stack([i, j, j + n_sides]), np.column_stack([i, j + n_sides, i + n_sides])]
+    )
     return X, tri
 
 
@@ -266,12 +308,20 @@ def test_folded_patch_is_not_a_penetration():
 
     The numbers are a triangle, its nodal normals and a slave point taken from a jersey cell run where
     this spurious pair made the contact energy jump."""
-    Xt = np.array([[0.3970220578290573, 0.6172234515365792, 0.13746648774933495],
-                   [0.5186977355848384, 0.6063778531860873, 0.2561806073084894],
-                   [0.4765906506443856, 0.7049691798592989, 0.16747823843478618]])
-    nt = np.array([[-0.6368880963383645, 0.16845692981560978, 0.7523269339453378],
-                   [-0.17745334564439583, 0.5815138302562098, 0.7939470859826632],
-                   [-0.1618329135962339, 0.6359132682948969, 0.7546021622573423]])
+    Xt = np.array(
+        [
+            [0.3970220578290573, 0.6172234515365792, 0.13746648774933495],
+            [0.5186977355848384, 0.6063778531860873, 0.2561806073084894],
+            [0.4765906506443856, 0.7049691798592989, 0.16747823843478618],
+        ]
+    )
+    nt = np.array(
+        [
+            [-0.6368880963383645, 0.16845692981560978, 0.7523269339453378],
+            [-0.17745334564439583, 0.5815138302562098, 0.7939470859826632],
+            [-0.1618329135962339, 0.6359132682948969, 0.7546021622573423],
+        ]
+    )
     p = np.array([[0.4958636184723171, 0.6634617543482386, 0.33105287966188657]])
     ns = np.array([[0.01062752663991197, -0.00489598085137729, 0.00696698809696292]])
     X6, _ = nagata_facets(Xt[None], nt[None])
@@ -307,7 +357,9 @@ def test_penalty_fades_out_continuously_at_the_reach():
     E, G, H, _ = f(v, 2)
     h = 1e-7
     assert abs(G @ du - (f(v + h * du, 0)[0] - f(v - h * du, 0)[0]) / (2 * h)) < 1e-6 * np.abs(G).sum()
-    assert np.allclose(H @ du, (f(v + h * du, 1)[1] - f(v - h * du, 1)[1]) / (2 * h), atol=1e-5 * np.abs(H).max())
+    assert np.allclose(
+        H @ du, (f(v + h * du, 1)[1] - f(v - h * du, 1)[1]) / (2 * h), atol=1e-5 * np.abs(H).max()
+    )
 
 
 @pytest.fixture(scope="module", params=[1, 2])
@@ -327,8 +379,11 @@ def pressed(cylinder, seed: int):
     return X, n, np.random.default_rng(seed), u
 
 
-@pytest.mark.parametrize("law", [SolidPenalty(), SolidMortar(), SolidPenalty(smoothing="none"), SolidMortar(smoothing="none")],
-                         ids=["penalty", "mortar", "penalty-flat", "mortar-flat"])
+@pytest.mark.parametrize(
+    "law",
+    [SolidPenalty(), SolidMortar(), SolidPenalty(smoothing="none"), SolidMortar(smoothing="none")],
+    ids=["penalty", "mortar", "penalty-flat", "mortar-flat"],
+)
 def test_contact_derivatives_match_finite_differences(cylinder, law):
     """Contact gradient = FD of the energy; Hessian = FD of the gradient (exact, on curved P2 facets too)."""
     mesh, body, surf = cylinder
@@ -357,15 +412,21 @@ def test_hertz_cylinder_on_flat(cylinder, law):
     reaction = forms.residual(u).reshape(-1, 3)
     f = -2 * reaction[sym, 1].sum() / t  # line load on the whole cylinder, N/mm
     assert 2 * info["force"] / t == pytest.approx(f, rel=1e-6)
-    assert d / line_contact_approach(np.array([f]), R, E, nu, rigid_partner=True)[0] == pytest.approx(1.0, abs=0.05)
+    assert d / line_contact_approach(np.array([f]), R, E, nu, rigid_partner=True)[0] == pytest.approx(
+        1.0, abs=0.05
+    )
 
 
-@pytest.mark.parametrize("order,law,tol", [
-    (1, SolidMortar(quadrature=10), 0.005),
-    (2, SolidMortar(quadrature=6), 0.03),
-    (1, SolidPenalty(), None),
-    (2, SolidPenalty(), None),
-], ids=["mortar-P1", "mortar-P2", "penalty-P1", "penalty-P2"])
+@pytest.mark.parametrize(
+    "order,law,tol",
+    [
+        (1, SolidMortar(quadrature=10), 0.005),
+        (2, SolidMortar(quadrature=6), 0.03),
+        (1, SolidPenalty(), None),
+        (2, SolidPenalty(), None),
+    ],
+    ids=["mortar-P1", "mortar-P2", "penalty-P1", "penalty-P2"],
+)
 def test_contact_patch_test(order, law, tol):
     """Two blocks with non-matching meshes in confined compression: mortar transmits a uniform stress.
 
@@ -411,16 +472,21 @@ def test_contact_with_periodic_image_moves_with_macro_dofs():
         eps = 1e-7
         Ep = law.evaluate(surf, X, eps * dh, 1, stiffness=100.0, reach=0.1)
         Em = law.evaluate(surf, X, -eps * dh, 1, stiffness=100.0, reach=0.1)
-        assert g[3 * n:] @ dh == pytest.approx((Ep[0] - Em[0]) / (2 * eps), rel=1e-6)
-        assert np.allclose(H[:, 3 * n:] @ dh, (Ep[1] - Em[1]) / (2 * eps), atol=1e-6 * np.abs(H).max())
+        assert g[3 * n :] @ dh == pytest.approx((Ep[0] - Em[0]) / (2 * eps), rel=1e-6)
+        assert np.allclose(H[:, 3 * n :] @ dh, (Ep[1] - Em[1]) / (2 * eps), atol=1e-6 * np.abs(H).max())
 
 
 def helix_cell(c: float, r: float = 0.3) -> UnitCell:
     """Two helical turns (pitch 2πc) periodic along the axis z."""
     R = 1.0
-    heli = Centerline("helix", lambda t: np.stack([R * np.cos(t), R * np.sin(t), c * t], 1),
-                      lambda t: np.stack([-R * np.sin(t), R * np.cos(t), c + 0 * t], 1), 0.0, 4 * np.pi,
-                      [0.0, 0.0, 4 * np.pi * c])
+    heli = Centerline(
+        "helix",
+        lambda t: np.stack([R * np.cos(t), R * np.sin(t), c * t], 1),
+        lambda t: np.stack([-R * np.sin(t), R * np.cos(t), c + 0 * t], 1),
+        0.0,
+        4 * np.pi,
+        [0.0, 0.0, 4 * np.pi * c],
+    )
     return UnitCell("helix", (heli,), heli.period, [10.0, 0, 0], r, ((0, 0),), (("k",),), 1.0, 1.0, 1.0)
 
 
@@ -436,8 +502,11 @@ def test_self_contact_between_helix_turns_only(law):
         assert (info["active"] > 0) == expect
 
 
-@pytest.mark.parametrize("law", [SolidPenalty(), SolidMortar(), SolidMortar(smoothing="none")],
-                         ids=["penalty", "mortar", "mortar-flat"])
+@pytest.mark.parametrize(
+    "law",
+    [SolidPenalty(), SolidMortar(), SolidMortar(smoothing="none")],
+    ids=["penalty", "mortar", "mortar-flat"],
+)
 def test_held_candidates_reproduce_the_search_and_are_differentiable(cylinder, law):
     """Evaluated with the candidates of its own search, a state gives the same energy, gradient and
     Hessian; at a moved state they give those of a fresh search, and the gradient and Hessian are
@@ -447,17 +516,25 @@ def test_held_candidates_reproduce_the_search_and_are_differentiable(cylinder, l
     E, g, H, info = law.evaluate(surf, X + u.reshape(-1, 3), None, 2, stiffness=1e3, reach=0.1)
     held = info["candidates"]
     assert info["active"] > 0 and len(held.point) > info["active"]
-    E2, g2, H2, info2 = law.evaluate(surf, X + u.reshape(-1, 3), None, 2, stiffness=1e3, reach=0.1, candidates=held)
-    assert E2 == E and np.array_equal(g2, g) and abs(H2 - H).max() == 0.0 and info2["active"] == info["active"]
+    E2, g2, H2, info2 = law.evaluate(
+        surf, X + u.reshape(-1, 3), None, 2, stiffness=1e3, reach=0.1, candidates=held
+    )
+    assert (
+        E2 == E and np.array_equal(g2, g) and abs(H2 - H).max() == 0.0 and info2["active"] == info["active"]
+    )
     # a different state: sideways slide and a deeper press, evaluated on the held candidates
     v = u + 1e-4 * rng.normal(size=n) + np.tile([0.003, -0.002, 0.0], len(X)) * np.repeat(body == 0, 3)
     du = rng.normal(size=n) * np.repeat(body == 0, 3)
     fresh = law.evaluate(surf, X + v.reshape(-1, 3), None, 1, stiffness=1e3, reach=0.1)
     kept = law.evaluate(surf, X + v.reshape(-1, 3), None, 1, stiffness=1e3, reach=0.1, candidates=held)
-    assert kept[0] == pytest.approx(fresh[0], rel=1e-12) and np.allclose(kept[1], fresh[1], rtol=1e-10, atol=1e-14)
+    assert kept[0] == pytest.approx(fresh[0], rel=1e-12) and np.allclose(
+        kept[1], fresh[1], rtol=1e-10, atol=1e-14
+    )
 
     def f(w, order):
-        return law.evaluate(surf, X + w.reshape(-1, 3), None, order, stiffness=1e3, reach=0.1, candidates=held)
+        return law.evaluate(
+            surf, X + w.reshape(-1, 3), None, order, stiffness=1e3, reach=0.1, candidates=held
+        )
 
     assert assert_derivatives(f, v, du, n)["active"] > 0
     # held candidates are all there is: those of a separated state see no contact at the pressed one
@@ -465,7 +542,9 @@ def test_held_candidates_reproduce_the_search_and_are_differentiable(cylinder, l
     apart[1::3] = 0.5 * (body == 0)
     none = law.evaluate(surf, X + apart.reshape(-1, 3), None, 0, stiffness=1e3, reach=0.1)[3]["candidates"]
     assert len(none.point) == 0
-    assert law.evaluate(surf, X + u.reshape(-1, 3), None, 1, stiffness=1e3, reach=0.1, candidates=none)[0] == 0.0
+    assert (
+        law.evaluate(surf, X + u.reshape(-1, 3), None, 1, stiffness=1e3, reach=0.1, candidates=none)[0] == 0.0
+    )
 
 
 def test_held_candidates_follow_the_macro_dofs():
@@ -485,21 +564,35 @@ def test_held_candidates_follow_the_macro_dofs():
 
 def _one_facet_gap(p, X6, order=2):
     """Gap of point p to the single quadratic facet X6 (6, 3) as the contact laws measure it, with derivatives."""
-    sel = select_pairs(p[None], np.zeros(1, np.int64), np.zeros(1, np.int64), X6[None],
-                       -np.cross(X6[1] - X6[0], X6[2] - X6[0])[None], 1.0)
+    sel = select_pairs(
+        p[None],
+        np.zeros(1, np.int64),
+        np.zeros(1, np.int64),
+        X6[None],
+        -np.cross(X6[1] - X6[0], X6[2] - X6[0])[None],
+        1.0,
+    )
     dg, Hg = p2_gap_derivatives(sel.projection, X6[None], None, order)
     return sel.g[0], dg[0], None if Hg is None else Hg[0], sel.projection
 
 
-@pytest.mark.parametrize("p,where", [
-    ([-0.05, 0.4, -0.03], "edge s = 0"), ([0.4, -0.1, 0.08], "edge t = 0"), ([0.6, 0.6, -0.05], "edge s + t = 1"),
-    ([-0.05, -0.06, -0.02], "corner"), ([0.3, 0.3, -0.02], "inside")])
+@pytest.mark.parametrize(
+    "p,where",
+    [
+        ([-0.05, 0.4, -0.03], "edge s = 0"),
+        ([0.4, -0.1, 0.08], "edge t = 0"),
+        ([0.6, 0.6, -0.05], "edge s + t = 1"),
+        ([-0.05, -0.06, -0.02], "corner"),
+        ([0.3, 0.3, -0.02], "inside"),
+    ],
+)
 def test_gap_beyond_the_rim_is_the_signed_distance_with_exact_derivatives(p, where):
     """Closest point on a curved facet's edge or corner: g = ±|p − x*|, and its gradient and Hessian in the
     point and the six facet nodes match central differences (inside: the usual n·(p − x*))."""
     rng = np.random.default_rng(0)
-    X6 = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0.5, 0, 0.1], [0.5, 0.5, 0.15], [0, 0.5, 0.05]]) \
-        + 0.02 * rng.normal(size=(6, 3))
+    X6 = np.array(
+        [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0.5, 0, 0.1], [0.5, 0.5, 0.15], [0, 0.5, 0.05]]
+    ) + 0.02 * rng.normal(size=(6, 3))
     p = np.array(p, float)
     g, dg, Hg, pr = _one_facet_gap(p, X6)
     assert pr.interior[0] == (where == "inside")
@@ -527,10 +620,14 @@ def test_gap_is_continuous_where_the_nearest_facet_changes_over_a_corner():
     pts = np.column_stack([s, 0.13 + 0 * s, 0.42 + 0 * s])  # above the apex, off the cone's ridges
     point = np.repeat(np.arange(len(pts)), 6)
     element = np.tile(np.arange(6), len(pts))
-    sel = select_pairs(pts[point], point, element, X6[element], np.tile([0.0, 0.0, -1.0], (len(point), 1)), 1.0)
+    sel = select_pairs(
+        pts[point], point, element, X6[element], np.tile([0.0, 0.0, -1.0], (len(point), 1)), 1.0
+    )
     assert len(sel.g) == len(pts)
     chosen = element[sel.rows]
-    assert len(np.unique(chosen)) >= 3 and np.any(~sel.projection.interior) and np.any(sel.projection.interior)
+    assert (
+        len(np.unique(chosen)) >= 3 and np.any(~sel.projection.interior) and np.any(sel.projection.interior)
+    )
     assert np.max(np.abs(np.diff(sel.g))) <= np.diff(s)[0] * (1 + 1e-9)
 
 
@@ -582,5 +679,9 @@ def test_a_flank_at_right_angles_stays_in_contact():
         ns = np.array([[np.sin(a), 0.0, np.cos(a)]])
         sel = select_pairs(p, one, one, X6, ns, 0.1)
         gaps.append(sel.g[0] if len(sel.g) else None)
-    assert gaps[0] == pytest.approx(-0.01) and gaps[1] == pytest.approx(-0.01) and gaps[2] == pytest.approx(-0.01)
+    assert (
+        gaps[0] == pytest.approx(-0.01)
+        and gaps[1] == pytest.approx(-0.01)
+        and gaps[2] == pytest.approx(-0.01)
+    )
     assert gaps[3] is None

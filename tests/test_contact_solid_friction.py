@@ -5,8 +5,16 @@ from __future__ import annotations
 import attrs
 import numpy as np
 import pytest
-
-from contact_solid_helpers import assert_derivatives, image_blocks, iso, nodes, quarter_cylinder_on_flat, solve, stacked_blocks, surface
+from contact_solid_helpers import (
+    assert_derivatives,
+    image_blocks,
+    iso,
+    nodes,
+    quarter_cylinder_on_flat,
+    solve,
+    stacked_blocks,
+    surface,
+)
 from knitframe_contact.mortar import SolidMortar
 from knitframe_contact.penalty import SolidPenalty
 from knitframe_contact.solid_geometry import friction_potential
@@ -65,7 +73,9 @@ def test_friction_derivatives_match_finite_differences(cylinder, law):
     du = rng.normal(size=n)
 
     def f(v, order):
-        return law.evaluate(surf, X + v.reshape(-1, 3), None, order, stiffness=1e3, reach=0.1, friction_state=state)
+        return law.evaluate(
+            surf, X + v.reshape(-1, 3), None, order, stiffness=1e3, reach=0.1, friction_state=state
+        )
 
     info = assert_derivatives(f, u, du, n)
     assert 0 < info["slipping"] < len(state)  # both regimes of the regularised law are exercised
@@ -89,8 +99,8 @@ def test_friction_with_periodic_image_macro_derivatives(law):
     dh = np.array([0.2, 0.3, -1.0, 0.5, 0.1, 0.0])
     eps = 1e-7
     Ep, Em = f(h0 + eps * dh, 1), f(h0 - eps * dh, 1)
-    assert g[3 * n:] @ dh == pytest.approx((Ep[0] - Em[0]) / (2 * eps), rel=1e-6)
-    assert np.allclose(H[:, 3 * n:] @ dh, (Ep[1] - Em[1]) / (2 * eps), atol=1e-6 * np.abs(H).max())
+    assert g[3 * n :] @ dh == pytest.approx((Ep[0] - Em[0]) / (2 * eps), rel=1e-6)
+    assert np.allclose(H[:, 3 * n :] @ dh, (Ep[1] - Em[1]) / (2 * eps), atol=1e-6 * np.abs(H).max())
 
 
 @pytest.mark.parametrize("law", LAWS, ids=IDS)
@@ -122,7 +132,9 @@ def test_friction_only_with_a_state(law):
     assert E0 == pytest.approx(free[0], rel=1e-14) and np.allclose(g0, free[1], rtol=0, atol=1e-14)
     assert info["friction_energy"] == 0.0
     # and with friction μ = 0 the state is ignored
-    off = attrs.evolve(law, friction=0.0).evaluate(surf, xs, None, 1, stiffness=100.0, reach=0.1, friction_state=state)
+    off = attrs.evolve(law, friction=0.0).evaluate(
+        surf, xs, None, 1, stiffness=100.0, reach=0.1, friction_state=state
+    )
     assert off[0] == free[0]
 
 

@@ -13,13 +13,13 @@ from knitframe.records import Response
 @pytest.mark.parametrize("h", [(1.0, 0.5, 0.25), (1 / 1.5, 1 / 2.25, 1 / 3.0), (0.9, 0.4, 0.3)])
 def test_exact_power_law_recovers_order_and_limit(p, h):
     f0, C = 0.2, 3.0
-    f = [f0 + C * x ** p for x in h]
+    f = [f0 + C * x**p for x in h]
     r = richardson(h, f)
     assert r.behaviour == "converging"
     assert r.order == pytest.approx(p, rel=1e-8)
     assert r.extrapolated == pytest.approx(f0, rel=1e-8)
     finest = min(h)
-    assert r.error_finest == pytest.approx(C * finest ** p / f0, rel=1e-7)
+    assert r.error_finest == pytest.approx(C * finest**p / f0, rel=1e-7)
 
 
 def test_constant_ratio_matches_closed_form():
@@ -28,8 +28,8 @@ def test_constant_ratio_matches_closed_form():
     r = richardson([0.25, 0.5, 1.0], [f1, f2, f3])
     p = math.log((f3 - f2) / (f2 - f1)) / math.log(2.0)
     assert r.order == pytest.approx(p, rel=1e-10)
-    assert r.extrapolated == pytest.approx(f1 + (f1 - f2) / (2 ** p - 1), rel=1e-10)
-    assert r.gci_finest == pytest.approx(1.25 * abs((f2 - f1) / f1) / (2 ** p - 1), rel=1e-10)
+    assert r.extrapolated == pytest.approx(f1 + (f1 - f2) / (2**p - 1), rel=1e-10)
+    assert r.gci_finest == pytest.approx(1.25 * abs((f2 - f1) / f1) / (2**p - 1), rel=1e-10)
 
 
 def test_order_does_not_depend_on_argument_order():
@@ -47,12 +47,15 @@ def test_oscillating_and_diverging_are_named_not_extrapolated():
     assert same.behaviour == "converged" and same.extrapolated == 2.0 and same.error_finest == 0.0
 
 
-@pytest.mark.parametrize("h, f, match", [
-    ([1.0, 0.5], [1.0, 2.0], "exactly three"),
-    ([1.0, 0.5, 0.5], [1.0, 2.0, 3.0], "different"),
-    ([1.0, -0.5, 0.2], [1.0, 2.0, 3.0], "positive"),
-    ([1.0, 0.5, 0.25], [1.0, float("nan"), 3.0], "finite"),
-])
+@pytest.mark.parametrize(
+    "h, f, match",
+    [
+        ([1.0, 0.5], [1.0, 2.0], "exactly three"),
+        ([1.0, 0.5, 0.5], [1.0, 2.0, 3.0], "different"),
+        ([1.0, -0.5, 0.2], [1.0, 2.0, 3.0], "positive"),
+        ([1.0, 0.5, 0.25], [1.0, float("nan"), 3.0], "finite"),
+    ],
+)
 def test_bad_input_is_refused(h, f, match):
     with pytest.raises(ValueError, match=match):
         richardson(h, f)
@@ -81,7 +84,9 @@ def test_mesh_convergence_over_a_path_stops_where_the_paths_part():
     # a truncated coarse run: only the steps all three reached
     short = dict(curves)
     c = curves["volumetric:p2:r/1.5"]
-    short["volumetric:p2:r/1.5"] = c.evolve(lambda1=c.lambda1[:3], lambda2=c.lambda2[:3], T1=c.T1[:3], T2=c.T2[:3])
+    short["volumetric:p2:r/1.5"] = c.evolve(
+        lambda1=c.lambda1[:3], lambda2=c.lambda2[:3], T1=c.T1[:3], T2=c.T2[:3]
+    )
     assert len(mesh_convergence(sizes, short, "equibiaxial", "volumetric:p2")) == 2 * 2
     assert mesh_convergence(dict(list(sizes.items())[:2]), curves, "equibiaxial", "volumetric:p2") == []
     text = convergence_table(rows)

@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+from hostile.conftest import assert_refused, snapshot
 
 import knitframe
 from knitframe.garment.core import compression_class, design
@@ -16,17 +17,25 @@ from knitframe.garment.limb import Limb, example_arm
 from knitframe.garment.optimise import runs
 from knitframe.garment.tube import MMHG_PER_MPA, Tube
 
-from hostile.conftest import assert_refused, snapshot
-
 
 def objective(name: str, **options):
     return knitframe.get_registry()["design_objective"][name](**options)
 
 
 def entry(name: str, a: float, b: float, theta_deg: float, *, pitch=(1.2, 0.9), limit=10.0, yarn="cotton"):
-    return FabricEntry(name=name, pattern="jersey", yarn=yarn, stitch_length=None, arc_length=None, model="hgo",
-                       params={"a": a, "b": b, "theta_deg": theta_deg}, course_pitch=pitch[0], wale_pitch=pitch[1],
-                       max_tension=limit, source="test values")
+    return FabricEntry(
+        name=name,
+        pattern="jersey",
+        yarn=yarn,
+        stitch_length=None,
+        arc_length=None,
+        model="hgo",
+        params={"a": a, "b": b, "theta_deg": theta_deg},
+        course_pitch=pitch[0],
+        wale_pitch=pitch[1],
+        max_tension=limit,
+        source="test values",
+    )
 
 
 def hgo_course_tension(a, b, theta, lam1, lam2):
@@ -45,7 +54,9 @@ def assert_valid(d, min_courses: float) -> None:
     first = np.concatenate([[0], np.cumsum(d.courses)])
     for r in regions:
         assert r["courses"][1] - r["courses"][0] >= min_courses - 1e-9, r
-        assert first[r["rows"][1]] - first[r["rows"][0]] == pytest.approx(r["courses"][1] - r["courses"][0], abs=2e-3)
+        assert first[r["rows"][1]] - first[r["rows"][0]] == pytest.approx(
+            r["courses"][1] - r["courses"][0], abs=2e-3
+        )
     tmax = np.array([e.max_tension for e in d.library.entries])[d.fabric]
     assert np.all(d.T1 <= tmax * (1 + 1e-9)) and d.limits_respected and not d.over_limit.any()
 
@@ -98,7 +109,9 @@ def test_scanned_cylinder_gives_the_parametric_design_within_one_percent(tmp_pat
     mesh.apply_translation([0, 0, L / 2])
     mesh.export(tmp_path / "cyl.stl")
     scan = Limb.from_scan(tmp_path / "cyl.stl", axis=[0, 0, 1], trim=0.05, n_stations=21, n_around=48)
-    para = Limb.from_measurements([0.0, scan.positions[-1]], [2 * math.pi * R] * 2, n_stations=21, n_around=48)
+    para = Limb.from_measurements(
+        [0.0, scan.positions[-1]], [2 * math.pi * R] * 2, n_stations=21, n_around=48
+    )
     lib = FabricLibrary("two", (entry("stiff", 0.04, 1.0, 35.0), entry("soft", 0.004, 0.5, 40.0)))
     prof = objective("pressure_uniformity", target_mmHg=20.0)
     a = design(scan, lib, prof, tube=Tube("knitting", needles=220), min_courses=5)
@@ -112,20 +125,33 @@ def test_scanned_cylinder_gives_the_parametric_design_within_one_percent(tmp_pat
 def test_knitting_mode_a_looser_stitch_knits_a_wider_tube():
     """On the same needles a fabric of larger course pitch is stretched less, by the ratio of the pitches."""
     limb = Limb.from_measurements([0.0, 200.0], [200.0, 200.0], n_stations=11, n_around=16)
-    lib = FabricLibrary("two", (entry("tight", 0.04, 1.0, 40.0, pitch=(1.0, 0.8)),
-                                entry("loose", 0.04, 1.0, 40.0, pitch=(1.25, 1.0))))
+    lib = FabricLibrary(
+        "two",
+        (
+            entry("tight", 0.04, 1.0, 40.0, pitch=(1.0, 0.8)),
+            entry("loose", 0.04, 1.0, 40.0, pitch=(1.25, 1.0)),
+        ),
+    )
     from knitframe.garment.core import _fabric_fields
     from knitframe.garment.tube import element_geometry
 
-    lam1, lam2, T1, _, courses, _ = _fabric_fields(lib, Tube("knitting", needles=160), element_geometry(limb),
-                                                   200.0, None)
+    lam1, lam2, T1, _, courses, _ = _fabric_fields(
+        lib, Tube("knitting", needles=160), element_geometry(limb), 200.0, None
+    )
     assert np.allclose(lam1[0], 1.25) and np.allclose(lam1[1], 1.0)
     assert np.all(T1[0] > 0) and np.allclose(T1[1], 0.0)  # the loose tube is not stretched at all
     assert np.allclose(courses[:, 0] * 0.8, 20.0) and np.allclose(courses[:, 1] * 1.0, 20.0)
 
 
-@pytest.mark.parametrize("name, options", [("stress_variance", {}), ("pressure_uniformity", {"target_mmHg": 20}),
-                                           ("pressure_uniformity", {}), ("pressure_profile", {"target_mmHg": 25})])
+@pytest.mark.parametrize(
+    "name, options",
+    [
+        ("stress_variance", {}),
+        ("pressure_uniformity", {"target_mmHg": 20}),
+        ("pressure_uniformity", {}),
+        ("pressure_profile", {"target_mmHg": 25}),
+    ],
+)
 @pytest.mark.parametrize("mode", ["knitting", "paper"])
 def test_every_design_respects_its_constraints(name, options, mode):
     """For each objective and tube mode on the example arm, regions are contiguous bands, large enough, and within limits."""
@@ -136,8 +162,14 @@ def test_every_design_respects_its_constraints(name, options, mode):
 
 def test_max_fabrics_is_respected_and_reported():
     """With at most two fabrics, the design uses at most two and says what its solver guarantees."""
-    d = design(example_arm(n_stations=21), builtin_library(), objective("pressure_profile"),
-               tube=Tube("knitting", needles=150), min_courses=10, max_fabrics=2)
+    d = design(
+        example_arm(n_stations=21),
+        builtin_library(),
+        objective("pressure_profile"),
+        tube=Tube("knitting", needles=150),
+        min_courses=10,
+        max_fabrics=2,
+    )
     assert len(np.unique(d.fabric)) <= 2 and "MILP" in d.guarantee
     assert_valid(d, 10)
 
@@ -154,9 +186,11 @@ def test_papers_scenario_cotton_over_its_limit_is_switched_and_the_stress_cv_fal
         assert d.limits_respected and set(np.unique(d.fabric)) != {lib.names.index(base["fabric"])}
         assert d.stress_cv() < base["stress_cv"]
         with capsys.disabled():
-            print(f"\n{method}: stress CV {base['stress_cv']:.3f} (all {base['fabric']}, "
-                  f"{base['elements_over_limit']} elements over its limit) -> {d.stress_cv():.3f}, "
-                  f"{len(d.regions())} regions")
+            print(
+                f"\n{method}: stress CV {base['stress_cv']:.3f} (all {base['fabric']}, "
+                f"{base['elements_over_limit']} elements over its limit) -> {d.stress_cv():.3f}, "
+                f"{len(d.regions())} regions"
+            )
         if method == "optimal":
             assert_valid(d, 10)
 
@@ -164,7 +198,16 @@ def test_papers_scenario_cotton_over_its_limit_is_switched_and_the_stress_cv_fal
 def test_compression_classes_follow_ral_gz_387():
     """Pressures fall in the RAL-GZ 387 classes I 18–21, II 23–32, III 34–46, IV ≥ 49, with the gaps named."""
     assert [compression_class(p) for p in (10, 18, 21, 22, 25, 33, 40, 47, 60)] == [
-        "below I", "I", "I", "between I and II", "II", "between II and III", "III", "between III and IV", "IV"]
+        "below I",
+        "I",
+        "I",
+        "between I and II",
+        "II",
+        "between II and III",
+        "III",
+        "between III and IV",
+        "IV",
+    ]
 
 
 def test_command_stage_and_api_give_the_same_design(tmp_path, cli):
@@ -173,15 +216,23 @@ def test_command_stage_and_api_give_the_same_design(tmp_path, cli):
     assert proc.returncode == 0, proc.stderr
     cli = json.loads((tmp_path / "cli" / "design.json").read_text())
     summary = json.loads((tmp_path / "cli" / "summary.json").read_text())
-    assert sorted(summary["outputs"]) == ["design.json", "design.vtu", "knit-map.csv", "knit-map.png",
-                                          "pressure.png"]
+    assert sorted(summary["outputs"]) == [
+        "design.json",
+        "design.vtu",
+        "knit-map.csv",
+        "knit-map.png",
+        "pressure.png",
+    ]
     for name in ("knit-map.png", "pressure.png"):
         assert (tmp_path / "cli" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     rows = (tmp_path / "cli" / "knit-map.csv").read_text().splitlines()
     assert len(rows) == 1 + 40 * 64 and rows[0].startswith("row,column,course_start")
-    (tmp_path / "d.toml").write_text('[design]\nlimb = "example"\n'
-                                     'objective = { kind = "pressure_profile", target_mmHg = 25.0 }\n')
-    staged = json.loads((knitframe.run(tmp_path / "d.toml", tmp_path / "stage").out / "design.json").read_text())
+    (tmp_path / "d.toml").write_text(
+        '[design]\nlimb = "example"\nobjective = { kind = "pressure_profile", target_mmHg = 25.0 }\n'
+    )
+    staged = json.loads(
+        (knitframe.run(tmp_path / "d.toml", tmp_path / "stage").out / "design.json").read_text()
+    )
     api = knitframe.design("example", objective={"kind": "pressure_profile", "target_mmHg": 25.0})
     for other in (staged, api.to_json()):
         assert other["objective"]["value"] == pytest.approx(cli["objective"]["value"], rel=1e-12)
@@ -222,8 +273,13 @@ def test_third_party_objective_plugs_in_through_the_hook():
 
     plugin.register_design_objectives = register_design_objectives
     reg = load_registry({"third": plugin})
-    d = design(example_arm(n_stations=21), builtin_library(), reg["design_objective"]["max_pressure"](),
-               tube=Tube("knitting", needles=50), min_courses=5)
+    d = design(
+        example_arm(n_stations=21),
+        builtin_library(),
+        reg["design_objective"]["max_pressure"](),
+        tube=Tube("knitting", needles=50),
+        min_courses=5,
+    )
     soft = min(range(len(d.library.entries)), key=lambda f: d.library.entries[f].tensions(1.3, 1.0)[0])
     assert d.value == pytest.approx(d.pressure_equivalent.max()) and soft in np.unique(d.fabric)
 

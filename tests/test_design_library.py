@@ -16,6 +16,8 @@ import pytest
 import knitframe
 from knitframe.cli import main as cli
 from knitframe.config import instantiate
+from knitframe.errors import ConfigError
+from knitframe.fitting import FitProblem, params_from_json
 from knitframe.garment.library import (
     BUILTIN_DATA,
     BUILTIN_FILE,
@@ -24,8 +26,6 @@ from knitframe.garment.library import (
     builtin_library,
     course_limits,
 )
-from knitframe.errors import ConfigError
-from knitframe.fitting import FitProblem, params_from_json
 
 ROOT = Path(__file__).resolve().parents[1]
 PATTERNS = {"stockinette": "jersey", "garter": "garter", "rib": "rib", "seed": "seed"}
@@ -35,9 +35,21 @@ NRMSE_OVERALL, NRMSE_DIRECTION, NRMSE_TRANSVERSE = 0.015, 0.02, 0.12
 
 
 def _entry(**over) -> dict:
-    e = {"name": "test-jersey", "pattern": "jersey", "yarn": "cotton", "stitch_length": 11, "arc_length": 4.7,
-         "model": "hgo", "params": {"a": 0.1, "b": 1.0, "theta_deg": 45.0}, "course_pitch": 1.2, "wale_pitch": 0.9,
-         "max_tension": 0.05, "max_stretch": 1.6, "source": "hand-written test entry", "pitch_source": "measured"}
+    e = {
+        "name": "test-jersey",
+        "pattern": "jersey",
+        "yarn": "cotton",
+        "stitch_length": 11,
+        "arc_length": 4.7,
+        "model": "hgo",
+        "params": {"a": 0.1, "b": 1.0, "theta_deg": 45.0},
+        "course_pitch": 1.2,
+        "wale_pitch": 0.9,
+        "max_tension": 0.05,
+        "max_stretch": 1.6,
+        "source": "hand-written test entry",
+        "pitch_source": "measured",
+    }
     e.update(over)
     return e
 
@@ -58,9 +70,18 @@ def _one_line_error(data, path_start: str) -> str:
 # ----------------------------------------------------------------------------------------- format
 def test_round_trip_json_and_file(tmp_path):
     """A library survives to_json/from_json and save/load unchanged, the built-in one included."""
-    lib = FabricLibrary.from_json(_library(_entry(), _entry(name="b", model="hgo2m", max_stretch=None, params={
-        "mu1": 0.01, "mu2": 0.02, "K": 0.03, "a1": 0.004, "b1": 0.5, "a2": 0.006, "b2": 2.0},
-        model_options={"compression_fibre": False})))
+    lib = FabricLibrary.from_json(
+        _library(
+            _entry(),
+            _entry(
+                name="b",
+                model="hgo2m",
+                max_stretch=None,
+                params={"mu1": 0.01, "mu2": 0.02, "K": 0.03, "a1": 0.004, "b1": 0.5, "a2": 0.006, "b2": 2.0},
+                model_options={"compression_fibre": False},
+            ),
+        )
+    )
     assert FabricLibrary.from_json(lib.to_json()) == lib
     for original in (lib, builtin_library()):
         original.save(tmp_path / "library.json")
@@ -74,24 +95,51 @@ def test_round_trip_json_and_file(tmp_path):
 
 
 BAD = [
-    (lambda d: d["entries"][0].update(model="hookean"), "library.entries[0].model: unknown homogenizer 'hookean'"),
-    (lambda d: d["entries"][0]["params"].update(a=-1), "library.entries[0].params.a: must be in [1e-06, 100]"),
-    (lambda d: d["entries"][0]["params"].update(a=math.nan), "library.entries[0].params.a: expected a finite number"),
-    (lambda d: d["entries"][0]["params"].update(theta_deg=120), "library.entries[0].params.theta_deg: must be in [0, 90]"),
-    (lambda d: d["entries"][0]["params"].pop("b"), "library.entries[0].params.b: required parameter is missing"),
+    (
+        lambda d: d["entries"][0].update(model="hookean"),
+        "library.entries[0].model: unknown homogenizer 'hookean'",
+    ),
+    (
+        lambda d: d["entries"][0]["params"].update(a=-1),
+        "library.entries[0].params.a: must be in [1e-06, 100]",
+    ),
+    (
+        lambda d: d["entries"][0]["params"].update(a=math.nan),
+        "library.entries[0].params.a: expected a finite number",
+    ),
+    (
+        lambda d: d["entries"][0]["params"].update(theta_deg=120),
+        "library.entries[0].params.theta_deg: must be in [0, 90]",
+    ),
+    (
+        lambda d: d["entries"][0]["params"].pop("b"),
+        "library.entries[0].params.b: required parameter is missing",
+    ),
     (lambda d: d["entries"][0]["params"].update(c=1.0), "library.entries[0].params.c: unknown parameter"),
     (lambda d: d["entries"][0].update(course_pitch=0), "library.entries[0].course_pitch: must be > 0"),
     (lambda d: d["entries"][0].update(wale_pitch=-2.0), "library.entries[0].wale_pitch: must be > 0"),
     (lambda d: d["entries"][0].update(wale_pitch="2"), "library.entries[0].wale_pitch: expected a number"),
-    (lambda d: d["entries"][0].update(max_tension=math.inf), "library.entries[0].max_tension: must be finite"),
+    (
+        lambda d: d["entries"][0].update(max_tension=math.inf),
+        "library.entries[0].max_tension: must be finite",
+    ),
     (lambda d: d["entries"][0].update(max_stretch=0.9), "library.entries[0].max_stretch: must be > 1"),
     (lambda d: d["entries"][0].update(arc_length=math.nan), "library.entries[0].arc_length: must be finite"),
-    (lambda d: d["entries"][0].update(pattern="crochet"), "library.entries[0].pattern: unknown pattern 'crochet'"),
+    (
+        lambda d: d["entries"][0].update(pattern="crochet"),
+        "library.entries[0].pattern: unknown pattern 'crochet'",
+    ),
     (lambda d: d["entries"][0].update(name=""), "library.entries[0].name: must not be empty"),
     (lambda d: d["entries"][0].pop("max_tension"), "library.entries[0].max_tension: required key is missing"),
     (lambda d: d["entries"][0].update(colour="red"), "library.entries[0].colour: unknown key"),
-    (lambda d: d["entries"][0].update(model_options={"stiffness": 2}), "library.entries[0].model_options.stiffness"),
-    (lambda d: d["entries"].append(copy.deepcopy(d["entries"][0])), "library.entries[1].name: duplicate name 'test-jersey'"),
+    (
+        lambda d: d["entries"][0].update(model_options={"stiffness": 2}),
+        "library.entries[0].model_options.stiffness",
+    ),
+    (
+        lambda d: d["entries"].append(copy.deepcopy(d["entries"][0])),
+        "library.entries[1].name: duplicate name 'test-jersey'",
+    ),
     (lambda d: d["entries"].clear(), "library.entries: the library has no entries"),
     (lambda d: d.pop("knitframe_library"), "library.knitframe_library: required key is missing"),
     (lambda d: d.update(knitframe_library=2), "library.knitframe_library: unsupported library format 2"),
@@ -147,7 +195,9 @@ def test_tensions_equal_the_homogenizer_stress():
         np.testing.assert_array_equal(T1, P1)
         np.testing.assert_array_equal(T2, P2)
         t1, t2 = e.tensions(1.3, 1.0)  # scalars too
-        assert float(t1) == pytest.approx(float(model.stress(p, np.array([1.3]), np.array([1.0]))[0][0]), rel=1e-15)
+        assert float(t1) == pytest.approx(
+            float(model.stress(p, np.array([1.3]), np.array([1.0]))[0][0]), rel=1e-15
+        )
     assert entries[0].homogenizer is entries[0].homogenizer  # built once
 
 
@@ -170,7 +220,10 @@ def test_builtin_library_entries_and_limits():
     assert sorted(lib.names) == sorted(f"{y}-{p}" for y in ("cotton", "acrylic") for p in PATTERNS.values())
     for yarn, pattern in ((y, p) for y in ("cotton", "acrylic") for p in PATTERNS):
         e = lib[f"{yarn}-{PATTERNS[pattern]}"]
-        assert e.pattern == PATTERNS[pattern] and e.yarn == {"cotton": "pearl-cotton", "acrylic": "acrylic"}[yarn]
+        assert (
+            e.pattern == PATTERNS[pattern]
+            and e.yarn == {"cotton": "pearl-cotton", "acrylic": "acrylic"}[yarn]
+        )
         assert e.model == "hgo2m" and e.fit["fitter"] == "lbfgs" and e.fit["at_bound"] == []
         t_max, lam_max, _ = course_limits(BUILTIN_DATA / f"{yarn}-{pattern}-x.csv")
         assert e.max_tension == t_max and e.max_stretch == lam_max
@@ -222,7 +275,9 @@ def test_builtin_data_attribution_and_package_data():
         assert text in readme
     csvs = sorted(BUILTIN_DATA.glob("*.csv"))
     assert len(csvs) == 16
-    globs = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]["knitframe"]
+    globs = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"][
+        "knitframe"
+    ]
     pkg = ROOT / "knitframe"
     for f in [*csvs, BUILTIN_DATA / "README.md", BUILTIN_FILE]:
         rel = f.relative_to(pkg).as_posix()
@@ -240,7 +295,11 @@ def test_builtin_rebuild_reproduces_shipped(tmp_path):
         for k in b.params:
             assert a.params[k] == pytest.approx(b.params[k], rel=1e-6), (b.name, k)
         assert (a.max_tension, a.max_stretch, a.course_pitch, a.wale_pitch) == (
-            b.max_tension, b.max_stretch, b.course_pitch, b.wale_pitch)
+            b.max_tension,
+            b.max_stretch,
+            b.course_pitch,
+            b.wale_pitch,
+        )
         assert a.source == b.source and a.pitch_source == b.pitch_source
 
 
@@ -253,7 +312,10 @@ def fitted(tmp_path_factory):
     for name in ("cotton-garter", "acrylic-seed"):
         folder = root / f"fit-{name}"
         data = [str(BUILTIN_DATA / f"{name}-{d}.csv") for d in "xy"]
-        assert cli(["fit", *data, "--model", "hgo2m", "--reader", "singal2024", "--out", str(folder), "--quiet"]) == 0
+        assert (
+            cli(["fit", *data, "--model", "hgo2m", "--reader", "singal2024", "--out", str(folder), "--quiet"])
+            == 0
+        )
         out.append(folder / "params.json")
     return out
 
@@ -262,15 +324,43 @@ def test_library_build_writes_a_loadable_library(fitted, tmp_path, capsys):
     """`knitframe library build` on two fits writes library.json through the output folder, with given pitches for
     one and Munden's from the arc length for the other."""
     out = tmp_path / "lib"
-    code = cli(["library", "build", *map(str, fitted), "--out", str(out), "--name", "mine",
-                "--pattern", "garter", "seed", "--yarn", "pearl-cotton", "acrylic", "--max-tension", "0.5",
-                "--max-stretch", "1.6", "1.55", "--course-pitch", "3.1", "--arc-length", "11.28"])
+    code = cli(
+        [
+            "library",
+            "build",
+            *map(str, fitted),
+            "--out",
+            str(out),
+            "--name",
+            "mine",
+            "--pattern",
+            "garter",
+            "seed",
+            "--yarn",
+            "pearl-cotton",
+            "acrylic",
+            "--max-tension",
+            "0.5",
+            "--max-stretch",
+            "1.6",
+            "1.55",
+            "--course-pitch",
+            "3.1",
+            "--arc-length",
+            "11.28",
+        ]
+    )
     assert code == 0
     assert "library 'mine': 2 fabrics (fit-cotton-garter, fit-acrylic-seed)" in capsys.readouterr().out
     lib = FabricLibrary.load(out / "library.json")
     assert lib.name == "mine" and lib.names == ["fit-cotton-garter", "fit-acrylic-seed"]
     garter, seed = lib
-    assert (garter.pattern, garter.yarn, garter.max_tension, garter.max_stretch) == ("garter", "pearl-cotton", 0.5, 1.6)
+    assert (garter.pattern, garter.yarn, garter.max_tension, garter.max_stretch) == (
+        "garter",
+        "pearl-cotton",
+        0.5,
+        1.6,
+    )
     assert seed.max_stretch == 1.55 and seed.arc_length == 11.28
     assert garter.course_pitch == 3.1 and garter.wale_pitch == pytest.approx(11.28 / 5.3)
     params = json.loads(fitted[0].read_text())
@@ -294,7 +384,9 @@ def test_from_fits_takes_fabric_metadata_from_the_params_file(fitted, tmp_path):
     assert (e.pattern, e.yarn, e.stitch_length, e.arc_length) == ("rib", "acrylic", 11.0, None)
     assert e.course_pitch == pytest.approx(4.7 / 4.0) and e.wale_pitch == pytest.approx(4.7 / 5.3)
     assert "stitch length 11" in e.pitch_source and "Munden" in e.pitch_source
-    with pytest.raises(ConfigError, match=r"rib-params.json: pattern: the params file says 'rib', the option says 'seed'"):
+    with pytest.raises(
+        ConfigError, match=r"rib-params.json: pattern: the params file says 'rib', the option says 'seed'"
+    ):
         FabricLibrary.from_fits([p], max_tension=0.3, pattern="seed")
 
 
@@ -322,18 +414,45 @@ def test_library_build_bad_input_refused_in_one_line(fitted, tmp_path, capsys):
         ([*good, "--max-tension", "0"], "--max-tension: must be > 0"),
         ([*good, "--max-tension", "nan"], "--max-tension: must be finite"),
         ([*good, "--max-tension", "0.2", "--course-pitch", "-1"], "--course-pitch: must be > 0"),
-        ([*map(str, fitted), "--yarn", "cotton", "--arc-length", "11", "--max-tension", "0.2"], "--pattern: not in the params"),
-        ([*good[:2], "--pattern", "crochet", "--yarn", "c", "--max-tension", "0.2", "--arc-length", "11"],
-         "unknown pattern 'crochet'"),
-        ([*map(str, fitted), "--pattern", "garter", "--yarn", "c", "--max-tension", "0.2"],
-         "--course-pitch: not given, and no arc length"),
-        ([str(tmp_path / "nope.json"), "--pattern", "jersey", "--yarn", "c", "--max-tension", "0.2"],
-         "params file not found"),
-        ([str(broken), "--pattern", "jersey", "--yarn", "c", "--max-tension", "0.2"], f"{broken}: not valid JSON"),
-        ([str(other), "--pattern", "jersey", "--yarn", "c", "--max-tension", "0.2", "--arc-length", "11"],
-         f"{other}: params.a1: must be in"),
-        ([fitted[0].as_posix(), fitted[0].as_posix(), "--pattern", "jersey", "--yarn", "c", "--max-tension", "0.2",
-          "--arc-length", "11"], "--entry-name: 'fit-cotton-garter' is the name of two params files"),
+        (
+            [*map(str, fitted), "--yarn", "cotton", "--arc-length", "11", "--max-tension", "0.2"],
+            "--pattern: not in the params",
+        ),
+        (
+            [*good[:2], "--pattern", "crochet", "--yarn", "c", "--max-tension", "0.2", "--arc-length", "11"],
+            "unknown pattern 'crochet'",
+        ),
+        (
+            [*map(str, fitted), "--pattern", "garter", "--yarn", "c", "--max-tension", "0.2"],
+            "--course-pitch: not given, and no arc length",
+        ),
+        (
+            [str(tmp_path / "nope.json"), "--pattern", "jersey", "--yarn", "c", "--max-tension", "0.2"],
+            "params file not found",
+        ),
+        (
+            [str(broken), "--pattern", "jersey", "--yarn", "c", "--max-tension", "0.2"],
+            f"{broken}: not valid JSON",
+        ),
+        (
+            [str(other), "--pattern", "jersey", "--yarn", "c", "--max-tension", "0.2", "--arc-length", "11"],
+            f"{other}: params.a1: must be in",
+        ),
+        (
+            [
+                fitted[0].as_posix(),
+                fitted[0].as_posix(),
+                "--pattern",
+                "jersey",
+                "--yarn",
+                "c",
+                "--max-tension",
+                "0.2",
+                "--arc-length",
+                "11",
+            ],
+            "--entry-name: 'fit-cotton-garter' is the name of two params files",
+        ),
     ]
     for args, expected in cases:
         _refused(args, capsys, tmp_path, expected)

@@ -11,6 +11,7 @@ import pytest
 import trimesh
 from scipy import integrate
 
+from knitframe.errors import ConfigError, DataError, GeometryError, KnitframeWarning
 from knitframe.garment.limb import (
     EXAMPLE_ARM_MEASUREMENTS,
     Limb,
@@ -19,7 +20,6 @@ from knitframe.garment.limb import (
     load_limb,
     loop_curvature_radius,
 )
-from knitframe.errors import ConfigError, DataError, GeometryError, KnitframeWarning
 
 R = 50.0
 H = 300.0
@@ -69,6 +69,7 @@ def raises_data_error(path, match: str, **kwargs) -> DataError:
 # scans: geometry
 # ----------------------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("flip", [False, True], ids=["upright", "upside-down"])
 def test_scanned_cylinder(tmp_path, flip):
     """A rotated, translated STL cylinder of radius R gives 2πR to 0.5 %, curvature radius R to 1 %, its axis and equal station steps."""
@@ -111,7 +112,7 @@ def test_scanned_cone_linear_and_small_end_first(tmp_path, small_end_up):
     assert fit[0] > 0 and c[0] < c[-1]
     # slope of the true cone: 2π (r_big - r_small)/H per mm
     assert fit[0] == pytest.approx(2 * np.pi * 30.0 / H, rel=2e-3)
-    small_end_axis = tf[:3, 2] * (-1 if small_end_up else 1)     # from small to big end
+    small_end_axis = tf[:3, 2] * (-1 if small_end_up else 1)  # from small to big end
     assert limb.axis_direction @ small_end_axis == pytest.approx(1.0, abs=1e-9)
     assert limb.named_stations == {"distal": 0, "largest": 30, "top": 30}
 
@@ -123,11 +124,11 @@ def test_scan_of_the_example_arm_gives_back_its_shape(tmp_path):
     tris = np.concatenate((quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]))
     rng = np.random.default_rng(0)
     points = fine.sections.reshape(-1, 3) + rng.normal(scale=0.05, size=(fine.sections.size // 3, 3))
-    scan = trimesh.Trimesh(points, tris, process=False)      # no caps: a scan is open at both ends
+    scan = trimesh.Trimesh(points, tris, process=False)  # no caps: a scan is open at both ends
     tf = rigid(6, flip=True)
     scan.apply_transform(tf)
     limb = Limb.from_scan(save(scan, tmp_path / "arm.ply"), n_stations=41, n_around=64)
-    assert limb.axis_direction @ tf[:3, 2] == pytest.approx(1.0, abs=1e-4)      # wrist -> upper arm
+    assert limb.axis_direction @ tf[:3, 2] == pytest.approx(1.0, abs=1e-4)  # wrist -> upper arm
     z = limb.positions + 0.05 * 420.0
     expected = np.interp(z, fine.positions, fine.circumference)
     assert np.abs(limb.circumference / expected - 1).max() < 5e-3
@@ -141,12 +142,12 @@ def test_axis_and_reference_arguments_override_the_detection(tmp_path):
     mesh = frustum(30.0, 60.0)
     mesh.apply_transform(tf)
     path = save(mesh, tmp_path / "cone.stl")
-    down = -tf[:3, 2] + 1e-3 * tf[:3, 0]             # big end first, slightly off the true axis
+    down = -tf[:3, 2] + 1e-3 * tf[:3, 0]  # big end first, slightly off the true axis
     limb = Limb.from_scan(path, axis=down, n_stations=11)
     assert np.allclose(limb.axis_direction, down / np.linalg.norm(down))
     assert limb.circumference[0] > limb.circumference[-1]
     assert (turning(limb) < 0).all()
-    ref = tf[:3, 1] + tf[:3, 2]                     # projected perpendicular to the axis: tf y
+    ref = tf[:3, 1] + tf[:3, 2]  # projected perpendicular to the axis: tf y
     limb = Limb.from_scan(path, reference=ref, n_stations=11)
     rel0 = limb.sections[:, 0] - limb.centroid
     assert np.allclose(rel0 / np.linalg.norm(rel0, axis=1)[:, None], tf[:3, 1], atol=1e-6)
@@ -163,8 +164,10 @@ def test_obj_and_ply_read_the_same_as_stl(tmp_path):
     """The same frustum saved as STL, OBJ and PLY gives the same limb."""
     mesh = frustum(35.0, 55.0)
     mesh.apply_transform(rigid(11))
-    limbs = [Limb.from_scan(save(mesh, tmp_path / f"arm.{ext}"), n_stations=11, n_around=32)
-             for ext in ("stl", "obj", "ply")]
+    limbs = [
+        Limb.from_scan(save(mesh, tmp_path / f"arm.{ext}"), n_stations=11, n_around=32)
+        for ext in ("stl", "obj", "ply")
+    ]
     for other in limbs[1:]:
         assert np.allclose(other.sections, limbs[0].sections, atol=1e-4)
         assert np.allclose(other.circumference, limbs[0].circumference, rtol=1e-7)
@@ -186,7 +189,11 @@ def test_metres_scan_is_converted_with_a_notice_and_a_warning(tmp_path):
     path = save(mesh, tmp_path / "arm_m.stl")
     with pytest.warns(KnitframeWarning, match="converted from metres"):
         limb = Limb.from_scan(path)
-    assert len(limb.notes) == 1 and limb.notes[0].startswith("converted from metres") and "\n" not in limb.notes[0]
+    assert (
+        len(limb.notes) == 1
+        and limb.notes[0].startswith("converted from metres")
+        and "\n" not in limb.notes[0]
+    )
     assert limb.circumference.mean() == pytest.approx(2 * np.pi * R, rel=5e-3)
     assert limb.positions[-1] == pytest.approx(0.9 * H, rel=1e-5)
     with warnings.catch_warnings():
@@ -195,7 +202,9 @@ def test_metres_scan_is_converted_with_a_notice_and_a_warning(tmp_path):
         as_mm = Limb.from_scan(path, units="mm")
     assert np.allclose(forced.sections, limb.sections)
     assert as_mm.notes == () and as_mm.circumference.mean() == pytest.approx(2 * np.pi * R / 1000, rel=5e-3)
-    mm = Limb.from_scan(save(trimesh.creation.cylinder(radius=R, height=H, sections=128), tmp_path / "arm_mm.stl"))
+    mm = Limb.from_scan(
+        save(trimesh.creation.cylinder(radius=R, height=H, sections=128), tmp_path / "arm_mm.stl")
+    )
     assert mm.notes == () and mm.positions[-1] == pytest.approx(0.9 * H, rel=1e-5)
 
 
@@ -224,7 +233,7 @@ def test_curvature_radius_is_signed_convex_positive_concave_negative():
     """A section with a dent has negative curvature radius in the dent and positive elsewhere; a circle gives R exactly."""
     n = 128
     th = 2 * np.pi * np.arange(4096) / 4096
-    r = 40.0 * (1 - 0.25 * np.exp(-((th - np.pi) / 0.3) ** 2))
+    r = 40.0 * (1 - 0.25 * np.exp(-(((th - np.pi) / 0.3) ** 2)))
     dense = np.column_stack((r * np.cos(th), r * np.sin(th)))
     seg = np.linalg.norm(np.roll(dense, -1, 0) - dense, axis=1)
     s = np.concatenate(([0], np.cumsum(seg)))
@@ -235,7 +244,9 @@ def test_curvature_radius_is_signed_convex_positive_concave_negative():
     angle = np.arctan2(loop[:, 1], loop[:, 0]) % (2 * np.pi)
     assert (rho[np.abs(angle - np.pi) < 0.05] < 0).all()
     assert (rho[np.abs(angle - np.pi) > 1.0] > 0).all()
-    circle = 25.0 * np.column_stack((np.cos(2 * np.pi * np.arange(16) / 16), np.sin(2 * np.pi * np.arange(16) / 16)))
+    circle = 25.0 * np.column_stack(
+        (np.cos(2 * np.pi * np.arange(16) / 16), np.sin(2 * np.pi * np.arange(16) / 16))
+    )
     assert np.allclose(loop_curvature_radius(circle), 25.0, rtol=1e-12)
     assert np.allclose(loop_curvature_radius(circle, max_harmonic=2), 25.0, rtol=1e-12)
 
@@ -252,7 +263,12 @@ def test_limb_record_checks_its_contract():
     with pytest.raises(GeometryError, match="not in a plane"):
         Limb("x", tilted, good.axis_origin, good.axis_direction)
     with pytest.raises(GeometryError, match="non-finite"):
-        Limb("x", np.where(tilted == tilted.max(), np.nan, good.sections), good.axis_origin, good.axis_direction)
+        Limb(
+            "x",
+            np.where(tilted == tilted.max(), np.nan, good.sections),
+            good.axis_origin,
+            good.axis_direction,
+        )
     assert not good.sections.flags.writeable
 
 
@@ -279,6 +295,7 @@ def test_to_vtu_writes_the_quad_surface_with_cell_data(tmp_path):
 # measurements and the example arm
 # ----------------------------------------------------------------------------------------------
 
+
 def test_from_measurements_reproduces_circumferences_exactly():
     """Measured circumferences are reproduced at their positions with exact ellipse perimeters, and PCHIP stays monotone between them."""
     pos = [0.0, 90.0, 190.0, 270.0, 420.0]
@@ -293,12 +310,17 @@ def test_from_measurements_reproduces_circumferences_exactly():
         x = limb.sections[i] - limb.centroid[i]
         a, b = np.abs(x[:, 0]).max(), np.abs(x[:, 1]).max()
         assert b / a == pytest.approx(k, rel=1e-9)
-        quad = integrate.quad(lambda s: np.sqrt(a**2 * np.sin(s) ** 2 + b**2 * np.cos(s) ** 2), 0, 2 * np.pi,
-                              epsabs=1e-12, epsrel=1e-12)[0]
+        quad = integrate.quad(
+            lambda s: np.sqrt(a**2 * np.sin(s) ** 2 + b**2 * np.cos(s) ** 2),
+            0,
+            2 * np.pi,
+            epsabs=1e-12,
+            epsrel=1e-12,
+        )[0]
         assert quad == pytest.approx(c, rel=1e-10)
     # monotone interpolation: no overshoot between measurements
     for j in range(len(pos) - 1):
-        seg = limb.circumference[at[j]:at[j + 1] + 1]
+        seg = limb.circumference[at[j] : at[j + 1] + 1]
         d = np.diff(seg) * np.sign(circ[j + 1] - circ[j])
         assert (d >= -1e-9).all()
     assert limb.source == "measurements" and limb.notes == ()
@@ -333,8 +355,11 @@ def test_example_arm_is_a_typical_adult_arm():
     assert 150 <= c[0] <= 170 and 260 <= c[-1] <= 340
     assert 1.8 <= c[-1] / c[0] <= 2.2
     assert arm.named_stations["largest"] == 40 and arm.named_stations["distal"] == 0
-    assert np.allclose(c[np.searchsorted(arm.positions, [m[0] for m in EXAMPLE_ARM_MEASUREMENTS])],
-                       [m[1] for m in EXAMPLE_ARM_MEASUREMENTS], rtol=1e-10)
+    assert np.allclose(
+        c[np.searchsorted(arm.positions, [m[0] for m in EXAMPLE_ARM_MEASUREMENTS])],
+        [m[1] for m in EXAMPLE_ARM_MEASUREMENTS],
+        rtol=1e-10,
+    )
     assert arm.source == "example"
     assert (arm.curvature_radius > 0).all()
     assert load_limb("example").circumference == pytest.approx(c)
@@ -345,6 +370,7 @@ def test_example_arm_is_a_typical_adult_arm():
 # ----------------------------------------------------------------------------------------------
 # bad scans
 # ----------------------------------------------------------------------------------------------
+
 
 def test_empty_or_unreadable_files_are_refused(tmp_path):
     """A zero-byte file, random bytes, text in an .obj, a PLY named .stl, a missing file and a folder each give one line naming the file."""
@@ -383,7 +409,7 @@ def test_non_finite_coordinates_are_refused(tmp_path):
     raises_data_error(tmp_path / "nan.obj", "non-finite coordinates")
     bad = mesh.copy()
     bad.vertices[5] = [np.inf, 0.0, 0.0]
-    with np.errstate(invalid="ignore"):             # the STL writer's face normals
+    with np.errstate(invalid="ignore"):  # the STL writer's face normals
         save(bad, tmp_path / "inf.stl")
     raises_data_error(tmp_path / "inf.stl", "non-finite coordinates")
 
@@ -391,9 +417,15 @@ def test_non_finite_coordinates_are_refused(tmp_path):
 def test_outer_shell_around_inner_shells_is_chosen_with_a_notice(tmp_path):
     """Skin around two bones (three shells, the outer enclosing both) gives the outer limb and says so; a small debris fragment is ignored with a notice."""
     skin = trimesh.creation.cylinder(radius=R, height=H, sections=128)
-    bones = [trimesh.creation.cylinder(radius=9.0, height=H - 20, sections=32,
-                                       transform=trimesh.transformations.translation_matrix([x, 5.0, 0]))
-             for x in (-20.0, 18.0)]
+    bones = [
+        trimesh.creation.cylinder(
+            radius=9.0,
+            height=H - 20,
+            sections=32,
+            transform=trimesh.transformations.translation_matrix([x, 5.0, 0]),
+        )
+        for x in (-20.0, 18.0)
+    ]
     tf = rigid(2)
     scan = trimesh.util.concatenate([skin, *bones])
     scan.apply_transform(tf)
@@ -409,21 +441,33 @@ def test_outer_shell_around_inner_shells_is_chosen_with_a_notice(tmp_path):
 def test_shells_side_by_side_are_refused_as_ambiguous(tmp_path):
     """Two arms side by side (two shells, neither inside the other) are refused as ambiguous."""
     a = trimesh.creation.cylinder(radius=R, height=H, sections=64)
-    b = trimesh.creation.cylinder(radius=45.0, height=H, sections=64,
-                                  transform=trimesh.transformations.translation_matrix([150.0, 0, 0]))
-    raises_data_error(save(trimesh.util.concatenate([a, b]), tmp_path / "two_arms.stl"), "2 separate shells side by side")
+    b = trimesh.creation.cylinder(
+        radius=45.0,
+        height=H,
+        sections=64,
+        transform=trimesh.transformations.translation_matrix([150.0, 0, 0]),
+    )
+    raises_data_error(
+        save(trimesh.util.concatenate([a, b]), tmp_path / "two_arms.stl"), "2 separate shells side by side"
+    )
     # one inside, one beside: still ambiguous
     c = trimesh.creation.cylinder(radius=10.0, height=H - 20, sections=32)
-    raises_data_error(save(trimesh.util.concatenate([a, b, c]), tmp_path / "mixed.stl"), "3 separate shells side by side (1 not inside")
+    raises_data_error(
+        save(trimesh.util.concatenate([a, b, c]), tmp_path / "mixed.stl"),
+        "3 separate shells side by side (1 not inside",
+    )
 
 
-@pytest.mark.parametrize("shape, match", [
-    ("sphere", "times its mean diameter"),
-    ("cube", "times its mean diameter"),
-    ("plate", "is flat"),
-    ("sheet", "no cross-section is a closed loop"),
-    ("pointed cone", "cross-section length varies"),
-])
+@pytest.mark.parametrize(
+    "shape, match",
+    [
+        ("sphere", "times its mean diameter"),
+        ("cube", "times its mean diameter"),
+        ("plate", "is flat"),
+        ("sheet", "no cross-section is a closed loop"),
+        ("pointed cone", "cross-section length varies"),
+    ],
+)
 def test_non_tubular_scans_are_refused(tmp_path, shape, match):
     """A sphere, a cube, a thin plate, an open sheet and a cone to a point are refused as not tubular."""
     if shape == "sphere":
@@ -458,7 +502,7 @@ def test_a_torn_section_is_refused_unless_in_the_trimmed_ends(tmp_path):
     hole = (np.abs(centres[:, 2] - (z_tip + 15.0)) < 6.0) & (centres[:, 0] > 25.0)
     mesh.update_faces(~hole)
     path = save(mesh, tmp_path / "torn.stl")
-    limb = Limb.from_scan(path, trim=0.08)        # the hole is within the 30 mm trimmed end
+    limb = Limb.from_scan(path, trim=0.08)  # the hole is within the 30 mm trimmed end
     assert limb.n_stations == 41
     err = raises_data_error(path, "section is not closed", trim=0.02)
     text = str(err)

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import re
 
-from knitframe.docgen import configuration_md
-
 from conftest import ROOT
+
+from knitframe.docgen import configuration_md
 
 
 def test_configuration_md_is_up_to_date():

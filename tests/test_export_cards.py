@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import EXAMPLE_DATA, ROOT, TEST_DATA
+
 from knitframe.errors import ConfigError
 from knitframe.export import (
     FORMATS,
@@ -28,8 +28,11 @@ from knitframe.export import (
 )
 
 CCX = shutil.which("ccx")
-needs_ccx = pytest.mark.skipif(CCX is None, reason="CalculiX 'ccx' is not on the PATH (Debian: apt-get install "
-                                                   "calculix-ccx; .ci/run installs it when apt-get is available)")
+needs_ccx = pytest.mark.skipif(
+    CCX is None,
+    reason="CalculiX 'ccx' is not on the PATH (Debian: apt-get install "
+    "calculix-ccx; .ci/run installs it when apt-get is available)",
+)
 #: a second, hand-made parameter set: another angle, a softer exponent and tension-only fibres
 OTHER = {"model": "hgo", "options": {"compression_fibre": False}, "a": 0.05, "b": 3.0, "theta_deg": 30.0}
 
@@ -48,7 +51,8 @@ def fitted(tmp_path_factory) -> Path:
     files = [str(_data_file(n)) for n in ("cotton-stockinette-x.csv", "cotton-stockinette-y.csv")]
     (folder / "fit.toml").write_text(
         f'[data]\nreader = "singal2024"\nfiles = {json.dumps(files)}\n\n'
-        f'[fit]\nmodel = "hgo"\nexport = {json.dumps(list(FORMATS))}\n')
+        f'[fit]\nmodel = "hgo"\nexport = {json.dumps(list(FORMATS))}\n'
+    )
     knitframe.run(folder / "fit.toml", out=folder / "out")
     return folder / "out"
 
@@ -66,12 +70,17 @@ def _model_and_params(data: dict):
 
 
 def _table(rows, title):
-    lines = [title, f"{'case':<6}{'lam1':>8}{'lam2':>8}{'ccx T1':>12}{'kf T1':>12}{'diff':>9}{'ccx T2':>12}"
-             f"{'kf T2':>12}{'diff':>9}"]
+    lines = [
+        title,
+        f"{'case':<6}{'lam1':>8}{'lam2':>8}{'ccx T1':>12}{'kf T1':>12}{'diff':>9}{'ccx T2':>12}"
+        f"{'kf T2':>12}{'diff':>9}",
+    ]
     for r in rows:
         (c1, c2), (k1, k2) = r["ccx"], r["knitframe"]
-        lines.append(f"{r['case']:<6}{r['lam1']:>8.4f}{r['lam2']:>8.4f}{c1:>12.6g}{k1:>12.6g}"
-                     f"{100 * (c1 / k1 - 1):>8.3f}%{c2:>12.6g}{k2:>12.6g}{100 * (c2 / k2 - 1):>8.3f}%")
+        lines.append(
+            f"{r['case']:<6}{r['lam1']:>8.4f}{r['lam2']:>8.4f}{c1:>12.6g}{k1:>12.6g}"
+            f"{100 * (c1 / k1 - 1):>8.3f}%{c2:>12.6g}{k2:>12.6g}{100 * (c2 / k2 - 1):>8.3f}%"
+        )
     return "\n".join(lines)
 
 
@@ -123,8 +132,14 @@ def test_calculix_compression_branch_is_matrix_only_as_the_header_says(fitted):
     assert np.all(np.abs(ccx[:, 1]) < 1e-2 * np.abs(P2))
     slack = _model_and_params({**data, "options": {"compression_fibre": False}})[0]
     assert np.all(slack.stress(params, lam, lam)[0] == 0)  # the paper's model without compression: zero too
-    print("\n" + "\n".join(f"COMP lam {r['lam1']:.3f}: ccx T1 {r['ccx'][0]:.4g}, matrix {m:.4g}, knitframe "
-                           f"(compression kept) {p:.4g} N/mm" for r, m, p in zip(rows, matrix, P1)))
+    print(
+        "\n"
+        + "\n".join(
+            f"COMP lam {r['lam1']:.3f}: ccx T1 {r['ccx'][0]:.4g}, matrix {m:.4g}, knitframe "
+            f"(compression kept) {p:.4g} N/mm"
+            for r, m, p in zip(rows, matrix, P1)
+        )
+    )
 
 
 @needs_ccx
@@ -134,8 +149,14 @@ def test_calculix_deck_written_by_the_fit_runs_as_is(fitted, tmp_path):
 
     deck = (fitted / "params.calculix-check.inp").read_text()
     shutil.copy(fitted / "params.calculix-check.inp", tmp_path / "deck.inp")
-    proc = subprocess.run([CCX, "-i", "deck"], cwd=tmp_path, capture_output=True, text=True, timeout=300,
-                          env={**os.environ, "OMP_NUM_THREADS": "1"})
+    proc = subprocess.run(
+        [CCX, "-i", "deck"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+    )
     assert proc.returncode == 0, proc.stdout[-500:]
     totals = read_dat_totals((tmp_path / "deck.dat").read_text())
     for case in read_check_cases(deck):
@@ -186,7 +207,9 @@ def test_abaqus_and_febio_cards_match_the_calculix_deck_value_by_value(fitted):
     deck = _calculix_constants((fitted / "params.calculix-check.inp").read_text())
     assert deck == _calculix_constants((fitted / "params.calculix.inp").read_text())
     theta = math.radians(data["theta_deg"])
-    assert deck["k1"] == pytest.approx(2 * data["a"] / 1.0, rel=1e-9) and deck["k2"] == pytest.approx(data["b"], rel=1e-9)
+    assert deck["k1"] == pytest.approx(2 * data["a"] / 1.0, rel=1e-9) and deck["k2"] == pytest.approx(
+        data["b"], rel=1e-9
+    )
     np.testing.assert_allclose(deck["direction"], (math.cos(theta), math.sin(theta)), atol=1e-9)
     assert 0 < deck["c10"] < 1e-3 * deck["k1"] and 0 < deck["d"] * deck["k1"] < 1e-3
 
@@ -194,11 +217,15 @@ def test_abaqus_and_febio_cards_match_the_calculix_deck_value_by_value(fitted):
     holz = abq["ANISOTROPIC HYPERELASTIC"][0]
     assert holz["opts"] == ["HOLZAPFEL", "LOCAL DIRECTIONS=1"]
     c10, d, k1, k2, kappa = holz["data"][0]
-    assert (c10, d, k1, k2, kappa) == pytest.approx((deck["c10"], deck["d"], deck["k1"], deck["k2"], 0.0), rel=1e-9)
+    assert (c10, d, k1, k2, kappa) == pytest.approx(
+        (deck["c10"], deck["d"], deck["k1"], deck["k2"], 0.0), rel=1e-9
+    )
     ori = abq["ORIENTATION"][0]
     assert "LOCAL DIRECTIONS=1" in ori["opts"] and ori["data"][0] == [1, 0, 0, 0, 1, 0]
     np.testing.assert_allclose(ori["data"][-1], (*deck["direction"], 0.0), atol=1e-12)
-    assert f"ORIENTATION=ORI-{abq['MATERIAL'][0]['opts'][0][5:]}" in (fitted / "params.abaqus.inp").read_text()
+    assert (
+        f"ORIENTATION=ORI-{abq['MATERIAL'][0]['opts'][0][5:]}" in (fitted / "params.abaqus.inp").read_text()
+    )
 
     root = ET.fromstring((fitted / "params.febio.xml").read_text())
     assert root.tag == "material" and root.get("type") == "Holzapfel-Gasser-Ogden"
@@ -270,12 +297,23 @@ def test_every_card_header_states_units_angles_and_the_four_differences(fitted, 
     assert is_knitframe_card(path)
     head = " ".join(line.strip("*<!-> ") for line in text.split("<material")[0].splitlines())
     data = _params(fitted)
-    for words in ("Units: mm, N, MPa", "angles in degrees", f"theta = {data['theta_deg']:.10g} deg",
-                  "Macaulay bracket", "Isochoric invariants", "(3) Matrix: C10", "(4) Bulk:",
-                  "Tension per unit width (N/mm) = t0 x nominal stress"):
+    for words in (
+        "Units: mm, N, MPa",
+        "angles in degrees",
+        f"theta = {data['theta_deg']:.10g} deg",
+        "Macaulay bracket",
+        "Isochoric invariants",
+        "(3) Matrix: C10",
+        "(4) Bulk:",
+        "Tension per unit width (N/mm) = t0 x nominal stress",
+    ):
         assert words in head, words
-    cite = {"abaqus": "*ANISOTROPIC HYPERELASTIC with HOLZAPFEL", "calculix": "ELASTIC_FIBER",
-            "calculix-deck": "Fiber reinforced materials", "febio": "'Holzapfel-Gasser-Ogden'"}[fmt]
+    cite = {
+        "abaqus": "*ANISOTROPIC HYPERELASTIC with HOLZAPFEL",
+        "calculix": "ELASTIC_FIBER",
+        "calculix-deck": "Fiber reinforced materials",
+        "febio": "'Holzapfel-Gasser-Ogden'",
+    }[fmt]
     assert cite in head
 
 
@@ -296,7 +334,9 @@ def test_old_abaqus_and_febio_methods_still_take_radians():
     m = get_registry()["homogenizer"]["hgo"]()
     old = _keywords(m.abaqus(np.array([0.1, 2.0, math.radians(30)])))
     assert old["ANISOTROPIC HYPERELASTIC"][0]["data"][0][1] == 0.0  # D = 0 as before
-    np.testing.assert_allclose(old["ORIENTATION"][0]["data"][-1], (math.cos(math.radians(30)), 0.5, 0), atol=1e-9)
+    np.testing.assert_allclose(
+        old["ORIENTATION"][0]["data"][-1], (math.cos(math.radians(30)), 0.5, 0), atol=1e-9
+    )
 
 
 def _main(argv, capsys):
@@ -315,8 +355,21 @@ def _main(argv, capsys):
 def test_hgo2m_is_refused_in_every_format_in_one_line(tmp_path, capsys, fmt):
     """hgo2m has no card: one line naming every format and the reason, exit 2, nothing written."""
     params = tmp_path / "params.json"
-    params.write_text(json.dumps({"model": "hgo2m", "options": {"compression_fibre": False}, "mu1": 0.05,
-                                  "mu2": 0.08, "K": 0.13, "a1": 0.002, "b1": 1.5, "a2": 0.06, "b2": 5.5}))
+    params.write_text(
+        json.dumps(
+            {
+                "model": "hgo2m",
+                "options": {"compression_fibre": False},
+                "mu1": 0.05,
+                "mu2": 0.08,
+                "K": 0.13,
+                "a1": 0.002,
+                "b1": 1.5,
+                "a2": 0.06,
+                "b2": 5.5,
+            }
+        )
+    )
     code, out, err = _main(["export", str(params), "--format", fmt, "--out", str(tmp_path / "card")], capsys)
     assert code == 2 and out == "" and err.count("\n") == 1
     assert f"'hgo2m' has no {fmt} card: none of abaqus, calculix, calculix-deck, febio can express it" in err
@@ -327,11 +380,27 @@ def test_hgo2m_is_refused_in_every_format_in_one_line(tmp_path, capsys, fmt):
 
 
 def _snapshot(folder: Path) -> dict:
-    return {p.name: (p.read_bytes() if p.is_file() and not p.is_symlink() else None) for p in folder.iterdir()}
+    return {
+        p.name: (p.read_bytes() if p.is_file() and not p.is_symlink() else None) for p in folder.iterdir()
+    }
 
 
-@pytest.mark.parametrize("case", ["exists", "exists-not-card", "folder", "missing-parent", "dot", "dotdot", "empty",
-                                  "trailing-slash", "under-a-file", "link", "unwritable"])
+@pytest.mark.parametrize(
+    "case",
+    [
+        "exists",
+        "exists-not-card",
+        "folder",
+        "missing-parent",
+        "dot",
+        "dotdot",
+        "empty",
+        "trailing-slash",
+        "under-a-file",
+        "link",
+        "unwritable",
+    ],
+)
 def test_out_refusals_are_one_line_exit_2_and_write_nothing(tmp_path, capsys, monkeypatch, fitted, case):
     """Every --out refusal is one line with exit 2, and leaves the folder exactly as it was."""
     work = tmp_path / "w"
@@ -344,9 +413,16 @@ def test_out_refusals_are_one_line_exit_2_and_write_nothing(tmp_path, capsys, mo
     (work / "link.inp").symlink_to(work / "old.inp")
     monkeypatch.chdir(work)
     out, extra = {
-        "exists": ("old.inp", []), "exists-not-card": ("notes.inp", ["--overwrite"]), "folder": ("sub", []),
-        "missing-parent": ("nope/card.inp", []), "dot": (".", []), "dotdot": ("..", []), "empty": ("", []),
-        "trailing-slash": ("new/", []), "under-a-file": ("afile/card.inp", []), "link": ("link.inp", ["--overwrite"]),
+        "exists": ("old.inp", []),
+        "exists-not-card": ("notes.inp", ["--overwrite"]),
+        "folder": ("sub", []),
+        "missing-parent": ("nope/card.inp", []),
+        "dot": (".", []),
+        "dotdot": ("..", []),
+        "empty": ("", []),
+        "trailing-slash": ("new/", []),
+        "under-a-file": ("afile/card.inp", []),
+        "link": ("link.inp", ["--overwrite"]),
         "unwritable": ("/proc/knit-card.inp", []),
     }[case]
     before = _snapshot(work)
@@ -361,15 +437,22 @@ def test_other_refusals_are_one_line_exit_2_and_write_nothing(tmp_path, capsys, 
     good = tmp_path / "params.json"
     shutil.copy(fitted / "params.json", good)
     bad = {
-        "null-theta": {**_params(fitted), "theta_deg": None}, "negative-a": {**_params(fitted), "a": -1.0},
-        "no-model": {"a": 0.1, "b": 1.0, "theta_deg": 30.0}, "unknown-model": {"model": "nope"},
+        "null-theta": {**_params(fitted), "theta_deg": None},
+        "negative-a": {**_params(fitted), "a": -1.0},
+        "no-model": {"a": 0.1, "b": 1.0, "theta_deg": 30.0},
+        "unknown-model": {"model": "nope"},
         "list": [1, 2],
     }
-    cases = [[str(good), "--format", "pdf"], [str(good), "--format", "abaqus", "--thickness", "0"],
-             [str(good), "--format", "abaqus", "--thickness", "nan"], [str(good), "--format", "abaqus", "--name", "a b"],
-             [str(good), "--format", "abaqus", "--max-stretch", "1.3"],
-             [str(good), "--format", "calculix-deck", "--max-stretch", "0.9"],
-             [str(tmp_path / "missing.json"), "--format", "abaqus"], [str(tmp_path), "--format", "abaqus"]]
+    cases = [
+        [str(good), "--format", "pdf"],
+        [str(good), "--format", "abaqus", "--thickness", "0"],
+        [str(good), "--format", "abaqus", "--thickness", "nan"],
+        [str(good), "--format", "abaqus", "--name", "a b"],
+        [str(good), "--format", "abaqus", "--max-stretch", "1.3"],
+        [str(good), "--format", "calculix-deck", "--max-stretch", "0.9"],
+        [str(tmp_path / "missing.json"), "--format", "abaqus"],
+        [str(tmp_path), "--format", "abaqus"],
+    ]
     for name, content in bad.items():
         (tmp_path / f"{name}.json").write_text(json.dumps(content))
         cases.append([str(tmp_path / f"{name}.json"), "--format", "calculix"])
@@ -386,13 +469,30 @@ def test_overwrite_replaces_only_a_knitframe_card_atomically(tmp_path, capsys, f
     """--overwrite replaces an earlier card (no temporary file left); without it the card is kept."""
     shutil.copy(fitted / "params.json", tmp_path / "params.json")
     card = tmp_path / "knit.inp"
-    code, out, _ = _main(["export", str(tmp_path / "params.json"), "--format", "calculix", "--out", str(card)], capsys)
+    code, out, _ = _main(
+        ["export", str(tmp_path / "params.json"), "--format", "calculix", "--out", str(card)], capsys
+    )
     assert code == 0 and "wrote" in out and is_knitframe_card(card)
     first = card.read_text()
-    code, _, err = _main(["export", str(tmp_path / "params.json"), "--format", "abaqus", "--out", str(card)], capsys)
+    code, _, err = _main(
+        ["export", str(tmp_path / "params.json"), "--format", "abaqus", "--out", str(card)], capsys
+    )
     assert code == 2 and "exists" in err and card.read_text() == first
-    code, _, _ = _main(["export", str(tmp_path / "params.json"), "--format", "abaqus", "--out", str(card),
-                        "--overwrite", "--thickness", "2", "--quiet"], capsys)
+    code, _, _ = _main(
+        [
+            "export",
+            str(tmp_path / "params.json"),
+            "--format",
+            "abaqus",
+            "--out",
+            str(card),
+            "--overwrite",
+            "--thickness",
+            "2",
+            "--quiet",
+        ],
+        capsys,
+    )
     assert code == 0 and card.read_text() == export_card(_params(fitted), "abaqus", thickness=2.0)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["knit.inp", "params.json"]
 
@@ -416,8 +516,9 @@ def test_fit_stage_export_writes_the_cards_and_lists_them_in_summary(fitted):
     data = _params(fitted)
     for fmt, name in zip(FORMATS, cards):
         assert (fitted / name).read_text() == export_card(data, fmt, path="params.json"), fmt
-    from knitframe_stages.fit import FitTable
     import typing
+
+    from knitframe_stages.fit import FitTable
 
     hint = typing.get_type_hints(FitTable)["export"]
     assert typing.get_args(typing.get_args(hint)[0]) == tuple(FORMATS)
@@ -428,10 +529,15 @@ def test_fit_stage_refuses_an_impossible_export_before_any_work(tmp_path):
     import knitframe
 
     files = [str(_data_file("cotton-stockinette-x.csv"))]
-    for model, export, where in (("hgo2m", ["calculix"], "fit.export[0]"), ("hgo", ["abaqus", "abaqus"], "fit.export[1]")):
+    for model, export, where in (
+        ("hgo2m", ["calculix"], "fit.export[0]"),
+        ("hgo", ["abaqus", "abaqus"], "fit.export[1]"),
+    ):
         cfg = tmp_path / f"{model}.toml"
-        cfg.write_text(f'[data]\nreader = "singal2024"\nfiles = {json.dumps(files)}\n\n'
-                       f'[fit]\nmodel = "{model}"\nexport = {json.dumps(export)}\n')
+        cfg.write_text(
+            f'[data]\nreader = "singal2024"\nfiles = {json.dumps(files)}\n\n'
+            f'[fit]\nmodel = "{model}"\nexport = {json.dumps(export)}\n'
+        )
         with pytest.raises(ConfigError) as e:
             knitframe.run(cfg, out=tmp_path / f"out-{model}")
         assert where in str(e.value) and "\n" not in str(e.value)
@@ -442,13 +548,18 @@ def test_ci_installs_calculix_before_the_test_command(tmp_path):
     """.ci/run installs calculix-ccx when apt-get exists and ccx is missing, and a failed install does not stop CI."""
     text = (ROOT / ".ci" / "run").read_text()
     assert text.index("apt-get install") < text.index(".venv/bin/python -m pytest")
-    block = text[text.index("if ! command -v ccx"):text.index("\nfi\n") + 4]
+    block = text[text.index("if ! command -v ccx") : text.index("\nfi\n") + 4]
     fake = tmp_path / "bin"
     fake.mkdir()
-    (fake / "apt-get").write_text("#!/bin/sh\necho \"apt-get $*\" >> \"$LOG\"\nexit 100\n")
+    (fake / "apt-get").write_text('#!/bin/sh\necho "apt-get $*" >> "$LOG"\nexit 100\n')
     (fake / "apt-get").chmod(0o755)
     env = {"PATH": str(fake), "LOG": str(tmp_path / "log")}
-    proc = subprocess.run(["/bin/bash", "-c", "set -euo pipefail\n" + block + "echo reached"], capture_output=True,
-                          text=True, timeout=60, env=env)
+    proc = subprocess.run(
+        ["/bin/bash", "-c", "set -euo pipefail\n" + block + "echo reached"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env=env,
+    )
     assert proc.returncode == 0 and proc.stdout.strip() == "reached", proc.stderr
     assert "will be skipped" in proc.stderr and "apt-get update" in (tmp_path / "log").read_text()

@@ -27,7 +27,9 @@ def parse_abaqus(text: str) -> dict:
             current = head.upper()
             out["keywords"][current] = {"params": [p.upper() for p in params], "data": []}
         else:
-            out["keywords"][current]["data"].append([float(x) if _is_number(x) else x for x in line.split(",")])
+            out["keywords"][current]["data"].append(
+                [float(x) if _is_number(x) else x for x in line.split(",")]
+            )
     return out
 
 
@@ -84,7 +86,9 @@ def test_febio_block_reproduces_the_fibre_energy():
     assert float(fib.find("fiber").findtext("theta")) == pytest.approx(30.0)
     assert float(fib.find("fiber").findtext("phi")) == 90.0
     lam = np.linspace(1.0, 1.3, 7)  # equibiaxial: I4 = λ² whatever θ
-    np.testing.assert_allclose(fibre_energy(ksi, alpha, lam**2), m.energy(np.array([a, b, th]), lam, lam), rtol=1e-12)
+    np.testing.assert_allclose(
+        fibre_energy(ksi, alpha, lam**2), m.energy(np.array([a, b, th]), lam, lam), rtol=1e-12
+    )
     text = m.febio(np.array([a, b, th]))
     assert "<!--" in text and "compression" in text and "isochoric" in text
 
@@ -95,7 +99,10 @@ def test_hgo2m_febio_has_course_and_wale_fibres():
     p = np.array([0.03, 0.01, 0.01, 0.02, 2.0, 0.05, 1.0])
     root = ET.fromstring(m.febio(p, thickness=2.0))
     fibres = [s for s in root.findall("solid") if s.get("type") == "fiber-exp-pow"]
-    got = [(float(f.findtext("ksi")), float(f.findtext("alpha")), float(f.find("fiber").findtext("theta"))) for f in fibres]
+    got = [
+        (float(f.findtext("ksi")), float(f.findtext("alpha")), float(f.find("fiber").findtext("theta")))
+        for f in fibres
+    ]
     assert got == [pytest.approx((0.02, 2.0, 0.0)), pytest.approx((0.05, 1.0, 90.0))]
     nh = root.find("solid[@type='neo-Hookean']")
     E, v = float(nh.findtext("E")), float(nh.findtext("v"))

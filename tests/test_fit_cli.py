@@ -12,8 +12,17 @@ from knitframe import run
 def test_fit_cli_writes_params_and_plot(cli, tmp_path, singal_file):
     """`knitframe fit X Y --model hgo --fitter lbfgs --out DIR` writes every parameter, theta_deg and nrmse."""
     out = tmp_path / "fit"
-    r = cli("fit", str(singal_file("cotton-stockinette-x.csv")), str(singal_file("cotton-stockinette-y.csv")),
-            "--model", "hgo", "--fitter", "lbfgs", "--out", str(out))
+    r = cli(
+        "fit",
+        str(singal_file("cotton-stockinette-x.csv")),
+        str(singal_file("cotton-stockinette-y.csv")),
+        "--model",
+        "hgo",
+        "--fitter",
+        "lbfgs",
+        "--out",
+        str(out),
+    )
     assert r.returncode == 0, r.stderr
     data = json.loads((out / "params.json").read_text())
     assert {"a", "b", "theta_deg", "nrmse"} <= set(data) and 0 < data["theta_deg"] < 90
@@ -32,7 +41,18 @@ def test_fit_cli_mads_and_generic_reader(cli, tmp_path):
             rows.append(f"1,{d},{e},{-nu * e / (1 + e):.6f},{k * e + 2 * k * e**3:.6f}")
     data = tmp_path / "test.csv"
     data.write_text("\n".join(rows) + "\n")
-    r = cli("fit", str(data), "--model", "hgo", "--fitter", "mads", "--reader", "generic", "--out", str(tmp_path / "m"))
+    r = cli(
+        "fit",
+        str(data),
+        "--model",
+        "hgo",
+        "--fitter",
+        "mads",
+        "--reader",
+        "generic",
+        "--out",
+        str(tmp_path / "m"),
+    )
     assert r.returncode == 0, r.stderr
     assert json.loads((tmp_path / "m" / "params.json").read_text())["fitter"] == "mads"
     r = cli("fit", str(data), "--model", "hgo2m", "--reader", "generic", "--out", str(tmp_path / "l"))
@@ -45,7 +65,9 @@ def test_fit_cli_mads_and_generic_reader(cli, tmp_path):
 def test_fit_cli_bad_data_is_one_line(cli, tmp_path):
     """A malformed data file stops the command with one line naming the file, line and column."""
     bad = tmp_path / "bad-x.csv"
-    bad.write_text("# source\n# uniaxial\nvideo,frame,strain_axial,strain_transverse,tension_N_per_mm\nv1,1,0.1,nan,0.2\n")
+    bad.write_text(
+        "# source\n# uniaxial\nvideo,frame,strain_axial,strain_transverse,tension_N_per_mm\nv1,1,0.1,nan,0.2\n"
+    )
     r = cli("fit", str(bad), "--out", str(tmp_path / "o"))
     assert r.returncode == 2
     assert r.stderr.count("\n") == 1 and "bad-x.csv, line 4, column 'strain_transverse'" in r.stderr
@@ -54,7 +76,9 @@ def test_fit_cli_bad_data_is_one_line(cli, tmp_path):
 
 def test_fit_cli_unknown_model(cli, tmp_path, singal_file):
     """An unknown model name lists the available ones."""
-    r = cli("fit", str(singal_file("cotton-stockinette-x.csv")), "--model", "nope", "--out", str(tmp_path / "o"))
+    r = cli(
+        "fit", str(singal_file("cotton-stockinette-x.csv")), "--model", "nope", "--out", str(tmp_path / "o")
+    )
     assert r.returncode == 2 and "available: hgo, hgo2m" in r.stderr
 
 

@@ -56,8 +56,10 @@ def test_objective_gradient_solved_free_side():
     """For hgo2m the implicit derivative of the solved free side gives the exact objective gradient."""
     m = model("hgo2m")
     truth = np.array([0.03, 0.01, 0.04, 0.02, 2.0, 0.05, 1.0])
-    data = [uniaxial_data(m, truth, "course", np.linspace(1, 1.6, 25)),
-            uniaxial_data(m, truth, "wale", np.linspace(1, 1.3, 25))]
+    data = [
+        uniaxial_data(m, truth, "course", np.linspace(1, 1.6, 25)),
+        uniaxial_data(m, truth, "wale", np.linspace(1, 1.3, 25)),
+    ]
     prob = FitProblem(m, data)
     p = np.array([0.02, 0.02, 0.03, 0.03, 1.0, 0.04, 2.0])
     f, g = prob.objective(p, grad=True)
@@ -113,7 +115,11 @@ def test_equal_uniaxial_data_both_ways_gives_symmetric_hgo2m():
     res = fitter("lbfgs").fit(m, [c, w])
     assert res.nrmse["overall"] < 1e-4 and res.nrmse_transverse["overall"] < 1e-4
     mu1, mu2, K, a1, b1, a2, b2 = res.params
-    assert mu1 == pytest.approx(mu2, rel=1e-2) and a1 == pytest.approx(a2, rel=1e-2) and b1 == pytest.approx(b2, rel=1e-2)
+    assert (
+        mu1 == pytest.approx(mu2, rel=1e-2)
+        and a1 == pytest.approx(a2, rel=1e-2)
+        and b1 == pytest.approx(b2, rel=1e-2)
+    )
 
 
 @pytest.mark.parametrize("name", ["lbfgs", "mads"])
@@ -139,8 +145,10 @@ def test_hgo2m_recovers_its_own_uniaxial_tests_with_mads():
     """MADS fits hgo2m's own course and wale free-sides tests: tension and transverse strain to < 1 %."""
     m = model("hgo2m")
     truth = np.array([0.03, 0.01, 0.04, 0.02, 2.0, 0.05, 1.0])
-    data = [uniaxial_data(m, truth, "course", np.linspace(1, 1.6, 20)),
-            uniaxial_data(m, truth, "wale", np.linspace(1, 1.3, 20))]
+    data = [
+        uniaxial_data(m, truth, "course", np.linspace(1, 1.6, 20)),
+        uniaxial_data(m, truth, "wale", np.linspace(1, 1.3, 20)),
+    ]
     res = fitter("mads", max_evals=800).fit(m, data)
     assert res.nrmse["overall"] < 0.01 and res.nrmse_transverse["overall"] < 0.01
     assert res.n_evals >= 100 and res.fitter == "mads"
@@ -180,7 +188,11 @@ def test_mads_without_pynomad_says_what_to_install(monkeypatch):
 def test_paper_model_on_real_uniaxial_data(singal_file):
     """On Singal's cotton jersey hgo fits the tension (measured λ2) but implies a large free-side tension."""
     reader = get_registry()["reader"]["singal2024"]()
-    data = [r for f in ("cotton-stockinette-x.csv", "cotton-stockinette-y.csv") for r in reader.read(singal_file(f))]
+    data = [
+        r
+        for f in ("cotton-stockinette-x.csv", "cotton-stockinette-y.csv")
+        for r in reader.read(singal_file(f))
+    ]
     res = fitter("lbfgs").fit(model("hgo"), data)
     assert res.nrmse["overall"] < 0.05
     assert res.diagnostics["free_side_tension"] > 0.2  # the model cannot leave the free side unloaded

@@ -180,7 +180,9 @@ def test_clearance_finds_self_contact_and_ignores_neighbours():
         return np.stack([1 - b * np.cos(t), b * np.sin(t), h * np.cos(t)], axis=-1)
 
     line = Centerline("loop", pos, der, -np.pi, np.pi, (2 * np.pi, 0, 0))
-    cell = UnitCell("trochoid", (line,), (2 * np.pi, 0, 0), (0, 20.0, 0), 0.15, ((0, 0),), (("k",),), 1.0, np.pi, 10.0)
+    cell = UnitCell(
+        "trochoid", (line,), (2 * np.pi, 0, 0), (0, 20.0, 0), 0.15, ((0, 0),), (("k",),), 1.0, np.pi, 10.0
+    )
     clr = clearance(cell)
     assert clr.closest.yarns == (0, 0) and clr.closest.image == (0, 0)
     ts = np.linspace(1.6, 2.2, 1201)
@@ -266,7 +268,9 @@ def helix_cell() -> UnitCell:
 
     y0 = Centerline("a", pos, der, 0.0, np.pi, (0.5, 0, 0))
     y1 = Centerline("b", lambda t: pos(t, 0.5), der, np.pi, 2 * np.pi, (0.5, 0, 0))
-    return UnitCell("helix", (y0, y1), (0.5, 0, 0), (0, 10.0, 0), 0.15, ((0, 1), (1, 0)), (("k",), ("k",)), 1.0, 0.25, 5.0)
+    return UnitCell(
+        "helix", (y0, y1), (0.5, 0, 0), (0, 10.0, 0), 0.15, ((0, 1), (1, 0)), (("k",), ("k",)), 1.0, 0.25, 5.0
+    )
 
 
 def test_two_yarn_strand_frames_and_clearance():
@@ -306,4 +310,6 @@ def test_bad_pattern_option_names_its_config_path():
     from knitframe.geometry import unit_cell
 
     with pytest.raises(ConfigError, match=r"^fabric.pattern_options.loops: unknown key"):
-        unit_cell(Fabric("jersey", get_registry()["yarn"]["cotton"], stitch_length=11, pattern_options={"loops": 3}))
+        unit_cell(
+            Fabric("jersey", get_registry()["yarn"]["cotton"], stitch_length=11, pattern_options={"loops": 3})
+        )

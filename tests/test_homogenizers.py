@@ -81,7 +81,9 @@ def test_hgo_small_b_limit(b):
     dP1 = m.stress_grad(p, l1, l2)[2]
     assert np.all(np.isfinite(dP1))
     # ∂P/∂b at b = 0 is 2a(I4 − 1)³ ∂I4/∂λ1
-    np.testing.assert_allclose(dP1[:, 1], 2 * a * (i4 - 1) ** 3 * 2 * l1 * math.cos(th) ** 2, rtol=1e-5, atol=1e-12)
+    np.testing.assert_allclose(
+        dP1[:, 1], 2 * a * (i4 - 1) ** 3 * 2 * l1 * math.cos(th) ** 2, rtol=1e-5, atol=1e-12
+    )
 
 
 def test_hgo_b_1e3_at_100_percent_stretch_is_finite_and_monotone():
@@ -128,7 +130,9 @@ def test_hgo_uniaxial_limitation():
     lam = np.array([1.1, 1.2, 1.4, 1.5, 1.8])
     lf, P = hgo().solve_uniaxial(p, lam, "course")
     below = lam < 1 / math.cos(th)
-    np.testing.assert_allclose(lf[below], np.sqrt((1 - lam[below] ** 2 * math.cos(th) ** 2) / math.sin(th) ** 2), rtol=1e-10)
+    np.testing.assert_allclose(
+        lf[below], np.sqrt((1 - lam[below] ** 2 * math.cos(th) ** 2) / math.sin(th) ** 2), rtol=1e-10
+    )
     np.testing.assert_allclose(P[below], 0.0, atol=1e-12)
     assert np.all(lf[~below] == FREE_MIN) and np.all(P[~below] > 0)
 
@@ -158,5 +162,7 @@ def test_hgo2m_free_side_root_is_unique_and_solved(direction):
     # uniqueness: P_free is strictly increasing in the free stretch along the whole bracket
     grid = np.linspace(FREE_MIN, 3.0, 400)
     for ll in lam[::7]:
-        g = m.stress(p, *((np.full_like(grid, ll), grid) if d == 0 else (grid, np.full_like(grid, ll))))[1 - d]
+        g = m.stress(p, *((np.full_like(grid, ll), grid) if d == 0 else (grid, np.full_like(grid, ll))))[
+            1 - d
+        ]
         assert np.all(np.diff(g) > 0)

@@ -4,18 +4,16 @@ from __future__ import annotations
 
 import ast
 import inspect
-import re
 import types
 
 import attrs
 import pytest
+from conftest import ROOT
 
 import knitframe
 from knitframe import hookspecs
 from knitframe.plugins import KINDS
 from knitframe.testing import check_entry
-
-from conftest import ROOT
 
 HOOKS = {name: fn for name, fn in vars(hookspecs).items() if name.startswith("register_") and callable(fn)}
 

@@ -14,15 +14,33 @@ from typing import ClassVar
 
 import attrs
 import pytest
-
-import knitframe
-from knitframe.garment.knitout import (DEFAULT_STITCH_NUMBERS, Band, KnitMap, MachineSpec, interpreter_text,
-                                       knitout_lines, missing, plan)
-
 from hostile.conftest import assert_refused, knit_here, snapshot  # noqa: F401 (knit_here is a fixture)
 
-COLUMNS = ["row", "column", "course_start", "course_end", "wale_start", "wale_end", "position_mm", "fabric",
-           "pattern", "yarn", "stitch_length"]
+import knitframe
+from knitframe.garment.knitout import (
+    DEFAULT_STITCH_NUMBERS,
+    Band,
+    KnitMap,
+    MachineSpec,
+    interpreter_text,
+    knitout_lines,
+    missing,
+    plan,
+)
+
+COLUMNS = [
+    "row",
+    "column",
+    "course_start",
+    "course_end",
+    "wale_start",
+    "wale_end",
+    "position_mm",
+    "fabric",
+    "pattern",
+    "yarn",
+    "stitch_length",
+]
 
 
 def write_design(folder: Path, needles: int | None, bands: list[tuple], mode: str = "knitting") -> Path:
@@ -32,7 +50,9 @@ def write_design(folder: Path, needles: int | None, bands: list[tuple], mode: st
     """
     folder.mkdir(parents=True, exist_ok=True)
     total = sum(b[0] for b in bands)
-    (folder / "design.json").write_text(json.dumps({"tube": {"mode": mode, "needles": needles, "courses": total}}))
+    (folder / "design.json").write_text(
+        json.dumps({"tube": {"mode": mode, "needles": needles, "courses": total}})
+    )
     with open(folder / "knit-map.csv", "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(COLUMNS)
@@ -76,7 +96,9 @@ def run_program(lines: list[str]):
     return machine, graph
 
 
-def check_knitted(lines: list[str], needles: int, bands: list[tuple[int, int, str, str]], carriers: dict[str, int]):
+def check_knitted(
+    lines: list[str], needles: int, bands: list[tuple[int, int, str, str]], carriers: dict[str, int]
+):
     """Cast-on, then each course of the map with one loop per needle, each band in its yarn's carrier; no loop left."""
     machine, graph = run_program(lines)
     courses = graph.get_courses()
@@ -84,10 +106,10 @@ def check_knitted(lines: list[str], needles: int, bands: list[tuple[int, int, st
     assert [len(c) for c in courses[: total + 1]] == [needles] * (total + 1)
     assert len(courses) > total + 1  # the bind-off follows
     for start, end, _, yarn in bands:
-        made = {loop.yarn.carrier.carrier_id for c in courses[1 + start: 1 + end] for loop in c}
+        made = {loop.yarn.carrier.carrier_id for c in courses[1 + start : 1 + end] for loop in c}
         assert made == {carriers[yarn]}, (start, end, yarn, made)
     assert not [n for bed in (machine.front_bed, machine.back_bed) for n in bed if n.has_loops]
-    return courses[1: total + 1]
+    return courses[1 : total + 1]
 
 
 def reverse_stitches(course, needles: int) -> list[bool]:
@@ -106,8 +128,9 @@ def test_example_design_runs_clean_in_the_interpreter_and_matches_its_knit_map(t
     """The built-in example's knitout runs with no error, warning or violation: N loops in each of its courses
     after the cast-on, each band in its yarn's carrier, and the stitch number of the table before it."""
     assert knit_here("design", "--example", "--out", "sleeve", cwd=tmp_path).returncode == 0
-    proc = knit_here("knitout", "sleeve", "--out", "machine", "--stitch-numbers", "default=7", "--no-check",
-                     cwd=tmp_path)
+    proc = knit_here(
+        "knitout", "sleeve", "--out", "machine", "--stitch-numbers", "default=7", "--no-check", cwd=tmp_path
+    )
     assert proc.returncode == 0, proc.stderr
     out = tmp_path / "machine"
     summary = json.loads((out / "summary.json").read_text())
@@ -115,8 +138,14 @@ def test_example_design_runs_clean_in_the_interpreter_and_matches_its_knit_map(t
     needles = json.loads((tmp_path / "sleeve" / "design.json").read_text())["tube"]["needles"]
     bands = bands_of(tmp_path / "sleeve")
     lines = (out / "sleeve.k").read_text().splitlines()
-    assert lines[:6] == [";!knitout-2", ";;Machine: SWG091N2", ";;Gauge: 15", ";;Width: 540",
-                         ";;Carriers: 1 2 3 4 5 6 7 8 9 10", ";;Position: Center"]
+    assert lines[:6] == [
+        ";!knitout-2",
+        ";;Machine: SWG091N2",
+        ";;Gauge: 15",
+        ";;Width: 540",
+        ";;Carriers: 1 2 3 4 5 6 7 8 9 10",
+        ";;Position: Center",
+    ]
     assert [s for s in lines if s.startswith("x-")] == ["x-stitch-number 7"]
     knitted = check_knitted(lines, needles, bands, summary["carriers"])
     assert len(knitted) == bands[-1][1] == 199
@@ -128,8 +157,15 @@ def test_patterns_knit_their_stitches_and_each_band_its_stitch_number():
     """In a tube, jersey has no purl, rib alternates around and not up, garter up and not around, seed both;
     stitch lengths 10, 11 and 12 get x-stitch-number 4, 5 and 6 from the default table before their band."""
     N = 10
-    km = KnitMap(N, [Band(0, 3, "j", "jersey", "a", 11), Band(3, 7, "r", "rib", "a", 12),
-                     Band(7, 11, "g", "garter", "a", 10), Band(11, 15, "s", "seed", "a", 11)])
+    km = KnitMap(
+        N,
+        [
+            Band(0, 3, "j", "jersey", "a", 11),
+            Band(3, 7, "r", "rib", "a", 12),
+            Band(7, 11, "g", "garter", "a", 10),
+            Band(11, 15, "s", "seed", "a", 11),
+        ],
+    )
     p = plan(km, MachineSpec())
     lines = knitout_lines(p)
     courses = check_knitted(lines, N, [(b.start, b.end, b.pattern, b.yarn) for b in km.bands], p.carriers)
@@ -138,7 +174,9 @@ def test_patterns_knit_their_stitches_and_each_band_its_stitch_number():
     assert not any(any(r) for r in rev[0:3])
     assert all(around(r) for r in rev[3:7]) and rev[3] == rev[4] == rev[5] == rev[6]
     assert [sum(r) for r in rev[7:11]] == [0, N, 0, N]
-    assert all(around(r) for r in rev[11:15]) and all(a == [not x for x in b] for a, b in zip(rev[12:15], rev[11:14]))
+    assert all(around(r) for r in rev[11:15]) and all(
+        a == [not x for x in b] for a, b in zip(rev[12:15], rev[11:14])
+    )
     numbers = [int(s.split()[1]) for s in lines if s.startswith("x-stitch-number")]
     assert numbers == [DEFAULT_STITCH_NUMBERS[k] for k in ("11", "12", "10", "11")] == [5, 6, 4, 5]
 
@@ -150,11 +188,19 @@ def test_jersey_only_tube_from_a_config_is_checked_and_written(tmp_path):
 
     lib = builtin_library()
     FabricLibrary("jersey-only", [lib["cotton-jersey"]], "test").save(tmp_path / "lib.json")
-    config = {"pipeline": {"name": "design"}, "design": {
-        "limb": {"positions_mm": [0, 30], "circumferences_mm": [40, 44]}, "library": str(tmp_path / "lib.json"),
-        "objective": "stress_variance", "stations": 4, "around": 8, "min_courses": 1,
-        "tube": {"mode": "knitting", "needles": 12},
-        "machine": {"gauge": 14, "carriers": {"pearl-cotton": 4}}}}
+    config = {
+        "pipeline": {"name": "design"},
+        "design": {
+            "limb": {"positions_mm": [0, 30], "circumferences_mm": [40, 44]},
+            "library": str(tmp_path / "lib.json"),
+            "objective": "stress_variance",
+            "stations": 4,
+            "around": 8,
+            "min_courses": 1,
+            "tube": {"mode": "knitting", "needles": 12},
+            "machine": {"gauge": 14, "carriers": {"pearl-cotton": 4}},
+        },
+    }
     result = knitframe.run(config, out=tmp_path / "out", quiet=True)
     out = tmp_path / "out"
     assert {"sleeve.k", "sleeve-chart.png", "design.json"} <= set(result.summary["outputs"])
@@ -171,12 +217,21 @@ def test_two_yarn_stripes_change_carrier_between_courses(tmp_path, knit_here):
     """Stripes of two yarns: each stripe is knitted by its yarn's carrier (one given, one assigned); a yarn is
     carried up inside the tube over a short stripe and cut and brought in again over a long one; a stitch-number
     table file is read."""
-    design = write_design(tmp_path / "d", 10, [(2, "a-j", "jersey", "a", None), (2, "b-j", "jersey", "b", None),
-                                               (2, "a-j", "jersey", "a", None), (9, "b-j", "jersey", "b", None),
-                                               (2, "a-j", "jersey", "a", None)])
+    design = write_design(
+        tmp_path / "d",
+        10,
+        [
+            (2, "a-j", "jersey", "a", None),
+            (2, "b-j", "jersey", "b", None),
+            (2, "a-j", "jersey", "a", None),
+            (9, "b-j", "jersey", "b", None),
+            (2, "a-j", "jersey", "a", None),
+        ],
+    )
     (tmp_path / "sn.toml").write_text("[stitch_numbers]\ndefault = 9\n")
-    proc = knit_here("knitout", design, "--out", "out", "--carriers", "b=5", "--stitch-numbers", "sn.toml",
-                     cwd=tmp_path)
+    proc = knit_here(
+        "knitout", design, "--out", "out", "--carriers", "b=5", "--stitch-numbers", "sn.toml", cwd=tmp_path
+    )
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["carriers"] == {"a": 1, "b": 5} and summary["check"]["loops"] > 17 * 10
@@ -191,19 +246,28 @@ def test_the_check_refuses_a_program_that_does_not_knit_the_design():
     """verify() fails a program whose stripe is knitted by the wrong carrier, or that knits on an empty needle."""
     from knitframe.garment.knitout import MachineOutputError, verify
 
-    km = KnitMap(8, [Band(0, 2, "a-j", "jersey", "a"), Band(2, 4, "b-j", "jersey", "b"),
-                     Band(4, 6, "a-j", "jersey", "a")])
+    km = KnitMap(
+        8,
+        [
+            Band(0, 2, "a-j", "jersey", "a"),
+            Band(2, 4, "b-j", "jersey", "b"),
+            Band(4, 6, "a-j", "jersey", "a"),
+        ],
+    )
     p = plan(km, MachineSpec())
     lines = knitout_lines(p)
     assert verify(p, lines)["loops"] > 6 * 8
     first_b = lines.index("; band 1: b-j, carrier 2")
-    swapped = lines[:first_b] + [s.replace(" 2", " 1") if s.startswith("knit") else s
-                                 for s in lines[first_b:first_b + 20]] + lines[first_b + 20:]
+    swapped = (
+        lines[:first_b]
+        + [s.replace(" 2", " 1") if s.startswith("knit") else s for s in lines[first_b : first_b + 20]]
+        + lines[first_b + 20 :]
+    )
     with pytest.raises(MachineOutputError, match="band 1 .* knitted by carriers"):
         verify(p, swapped)
     knit = next(i for i, s in enumerate(lines) if s.startswith("knit - f"))
     with pytest.raises(MachineOutputError, match="knitout-interpreter"):
-        verify(p, lines[:knit] + [lines[knit].replace("knit - f", "knit - b")] + lines[knit + 1:])
+        verify(p, lines[:knit] + [lines[knit].replace("knit - f", "knit - b")] + lines[knit + 1 :])
 
 
 def test_dat_file_carries_the_stitch_numbers_or_is_refused_in_one_line(tmp_path, knit_here):
@@ -220,17 +284,20 @@ def test_dat_file_carries_the_stitch_numbers_or_is_refused_in_one_line(tmp_path,
     x0, y0, x1, y1 = struct.unpack("<HHHH", data[:8])
     width = x1 - x0 + 1
     pixels = [c for i in range(0x600, len(data) - 1, 2) for c in [data[i]] * data[i + 1]]
-    rows = [pixels[r * width:(r + 1) * width] for r in range(y1 - y0 + 1)]
-    stitch = [row[width - 10 - 40 + 11] for row in rows]  # right option line 6 (after 10 blank pixels, 20 lines)
+    rows = [pixels[r * width : (r + 1) * width] for r in range(y1 - y0 + 1)]
+    stitch = [
+        row[width - 10 - 40 + 11] for row in rows
+    ]  # right option line 6 (after 10 blank pixels, 20 lines)
     assert {5, 6} <= set(stitch) <= {0, 5, 6}
 
 
 def test_unknit_patterns_are_left_out_of_the_library_when_machine_output_is_asked(tmp_path):
     """A library fabric whose pattern the machine output cannot knit is kept out of the design, with a warning."""
+    from knitframe_patterns.jersey import Jersey
+
     from knitframe.errors import KnitframeWarning
     from knitframe.garment.library import FabricLibrary, builtin_library
     from knitframe.plugins import load_registry, reset_registry
-    from knitframe_patterns.jersey import Jersey
 
     @attrs.frozen
     class Ladder(Jersey):
@@ -248,11 +315,20 @@ def test_unknit_patterns_are_left_out_of_the_library_when_machine_output_is_aske
     lib = builtin_library()
     ladder = attrs.evolve(lib["cotton-jersey"], name="cotton-ladder", pattern="ladder", max_tension=10.0)
     FabricLibrary("with-ladder", [ladder, lib["cotton-jersey"]], "test").save(tmp_path / "lib.json")
-    config = {"pipeline": {"name": "design"}, "design": {
-        "limb": {"positions_mm": [0, 30], "circumferences_mm": [40, 44]}, "library": str(tmp_path / "lib.json"),
-        "objective": "stress_variance", "stations": 4, "around": 8, "min_courses": 1, "base": "cotton-jersey",
-        "tube": {"needles": 12},
-        "machine": {"check": False}}}
+    config = {
+        "pipeline": {"name": "design"},
+        "design": {
+            "limb": {"positions_mm": [0, 30], "circumferences_mm": [40, 44]},
+            "library": str(tmp_path / "lib.json"),
+            "objective": "stress_variance",
+            "stations": 4,
+            "around": 8,
+            "min_courses": 1,
+            "base": "cotton-jersey",
+            "tube": {"needles": 12},
+            "machine": {"check": False},
+        },
+    }
     with pytest.warns(KnitframeWarning, match="cotton-ladder are left out of the library"):
         knitframe.run(config, out=tmp_path / "out", quiet=True)
     design = json.loads((tmp_path / "out" / "design.json").read_text())
@@ -265,16 +341,36 @@ TEN = [(3, "a-j", "jersey", "a", None)]
 REFUSED = [
     ("paper-mode-design", TEN, None, "paper", [], "design.json"),
     ("too-narrow-machine", TEN, 10, "knitting", ["--width", "8"], "--width"),
-    ("too-many-yarns", [(1, f"y{i}-j", "jersey", f"y{i}", None) for i in range(11)], 10, "knitting", [], "--carriers"),
+    (
+        "too-many-yarns",
+        [(1, f"y{i}-j", "jersey", f"y{i}", None) for i in range(11)],
+        10,
+        "knitting",
+        [],
+        "--carriers",
+    ),
     ("unknown-pattern", [(3, "a-t", "tuck", "a", None)], 10, "knitting", [], "DESIGN_DIR"),
     ("intarsia-row", [(3, "a-j", "jersey", "a", None, "b-j")], 10, "knitting", [], "DESIGN_DIR"),
     ("stitch-length-not-in-table", [(3, "a-j", "jersey", "a", 13)], 10, "knitting", [], "--stitch-numbers"),
     ("stitch-number-out-of-range", TEN, 10, "knitting", ["--stitch-numbers", "11=0"], "--stitch-numbers"),
     ("stitch-number-bad-key", TEN, 10, "knitting", ["--stitch-numbers", "tight=3"], "--stitch-numbers"),
     ("stitch-number-not-integer", TEN, 10, "knitting", ["--stitch-numbers", "11=4.5"], "--stitch-numbers"),
-    ("stitch-number-file-missing", TEN, 10, "knitting", ["--stitch-numbers", "nope.toml"], "--stitch-numbers"),
-    ("carrier-twice", TEN + [(2, "b-j", "jersey", "b", None)], 10, "knitting", ["--carriers", "a=2,b=2"],
-     "--carriers"),
+    (
+        "stitch-number-file-missing",
+        TEN,
+        10,
+        "knitting",
+        ["--stitch-numbers", "nope.toml"],
+        "--stitch-numbers",
+    ),
+    (
+        "carrier-twice",
+        TEN + [(2, "b-j", "jersey", "b", None)],
+        10,
+        "knitting",
+        ["--carriers", "a=2,b=2"],
+        "--carriers",
+    ),
     ("carrier-unknown-yarn", TEN, 10, "knitting", ["--carriers", "wool=2"], "--carriers"),
     ("carrier-out-of-range", TEN, 10, "knitting", ["--carriers", "a=11"], "--carriers"),
     ("unknown-machine", TEN, 10, "knitting", ["--machine", "SWG061N2"], "--machine"),
@@ -283,8 +379,9 @@ REFUSED = [
 
 
 @pytest.mark.parametrize("case, bands, needles, mode, args, field", REFUSED, ids=[c[0] for c in REFUSED])
-def test_what_the_machine_cannot_knit_is_refused_in_one_line(tmp_path, knit_here, case, bands, needles, mode,
-                                                            args, field):
+def test_what_the_machine_cannot_knit_is_refused_in_one_line(
+    tmp_path, knit_here, case, bands, needles, mode, args, field
+):
     """A paper-mode design, a tube wider than the machine, more yarns than carriers, a pattern or intarsia it
     cannot knit, a bad stitch-number or carrier table, or no design files: one line, exit 2, nothing written."""
     if bands is None:
@@ -302,7 +399,11 @@ STAGE = {"limb": "example", "tube": {"mode": "knitting", "needles": 60}}
 STAGE_REFUSED = [
     ("paper-mode-tube", {"tube": {"mode": "paper"}, "machine": {}}, "design.tube.mode"),
     ("needles-wider-than-machine", {"machine": {"width": 50}}, "design.machine.width"),
-    ("stitch-number-out-of-range", {"machine": {"stitch_numbers": {"11": 200}}}, "design.machine.stitch_numbers.11"),
+    (
+        "stitch-number-out-of-range",
+        {"machine": {"stitch_numbers": {"11": 200}}},
+        "design.machine.stitch_numbers.11",
+    ),
     ("stitch-number-key", {"machine": {"stitch_numbers": {"loose": 7}}}, "design.machine.stitch_numbers"),
     ("carrier-for-no-yarn", {"machine": {"carriers": {"wool": 3}}}, "design.machine.carriers.wool"),
     ("unknown-machine", {"machine": {"machine": "SWG061N2"}}, "design.machine.machine"),

@@ -25,8 +25,10 @@ FAST_ROD = {"rod": {"prestress_steps": 4}}
 def singal_config(tmp_path: Path, **ladder) -> dict:
     """The example's fabric and data (Singal cotton stockinette, pulled along the course, free sides)."""
     return {
-        "data": {"reader": "singal2024", "files": [str(DATA / "cotton-stockinette-x.csv"),
-                                                   str(DATA / "cotton-stockinette-y.csv")]},
+        "data": {
+            "reader": "singal2024",
+            "files": [str(DATA / "cotton-stockinette-x.csv"), str(DATA / "cotton-stockinette-y.csv")],
+        },
         "fabric": {"pattern": "jersey", "arc_length": 11.28, "yarn": "pearl-cotton"},
         "scene": {"effects": ["large_deformation", "bending", "contact", "prestress"], "load": SHORT},
         "ladder": {"cache_dir": str(tmp_path / "cache"), "solver_options": FAST_ROD, **ladder},
@@ -47,7 +49,9 @@ def write_toml(path: Path, config: dict) -> Path:
 
 def test_ladder_writes_every_output_with_the_measured_data(tmp_path):
     """A small ladder writes the CSV, table, Pareto plot and curves, with errors against the best rung and the measurement."""
-    result = knitframe.ladder(singal_config(tmp_path), out=tmp_path / "out", rungs=["reduced", "rod:8", "rod:16"])
+    result = knitframe.ladder(
+        singal_config(tmp_path), out=tmp_path / "out", rungs=["reduced", "rod:8", "rod:16"]
+    )
     out = tmp_path / "out"
     for name in ("ladder.csv", "ladder.md", "ladder.png", "curves.png", "ladder-curves.csv"):
         assert (out / name).stat().st_size > 500, name
@@ -101,16 +105,28 @@ def test_tension_errors_are_nrmse_between_with_both_sides_loaded_and_the_loaded_
 
 def test_cost_estimate_is_within_2x_of_the_measured_time_on_a_second_fabric(tmp_path):
     """Rod rungs of jersey SL11 cotton fit the cost model; it estimates a rod rung of garter SL12 within 2x."""
-    scene = {"effects": ["large_deformation", "bending", "contact", "prestress"],
-             "load": {"kind": "equibiaxial", "max_strain": 0.2, "steps": 2}}
-    first = {"fabric": {"pattern": "jersey", "stitch_length": 11, "yarn": "cotton"}, "scene": scene,
-             "ladder": {"cache": False, "shipped_timings": False, "solver_options": FAST_ROD}}
+    scene = {
+        "effects": ["large_deformation", "bending", "contact", "prestress"],
+        "load": {"kind": "equibiaxial", "max_strain": 0.2, "steps": 2},
+    }
+    first = {
+        "fabric": {"pattern": "jersey", "stitch_length": 11, "yarn": "cotton"},
+        "scene": scene,
+        "ladder": {"cache": False, "shipped_timings": False, "solver_options": FAST_ROD},
+    }
     knitframe.ladder(first, out=tmp_path / "jersey", rungs=["rod:8", "rod:16"])
     timings = read_timings(tmp_path / "jersey" / "ladder.csv")
     assert sorted(p.rung for p in timings) == ["rod:16", "rod:8"]
-    second = {"fabric": {"pattern": "garter", "stitch_length": 12, "yarn": "cotton"}, "scene": scene,
-              "ladder": {"cache": False, "shipped_timings": False, "solver_options": FAST_ROD,
-                         "timings": [str(tmp_path / "jersey" / "ladder.csv")]}}
+    second = {
+        "fabric": {"pattern": "garter", "stitch_length": 12, "yarn": "cotton"},
+        "scene": scene,
+        "ladder": {
+            "cache": False,
+            "shipped_timings": False,
+            "solver_options": FAST_ROD,
+            "timings": [str(tmp_path / "jersey" / "ladder.csv")],
+        },
+    }
     result = knitframe.ladder(second, out=tmp_path / "garter", rungs=["rod:16"])
     row = result.row("rod:16")
     assert row["status"] == "ok" and "from the timings files" in row["estimate_basis"]
@@ -122,7 +138,10 @@ def test_cost_model_takes_the_scale_from_this_run_and_the_slope_from_the_shipped
     """One rung of this run sets the scale; the shipped timings' two sizes set the exponent."""
     from knitframe.ladder import TimingPoint
 
-    shipped = [TimingPoint("f", 100, 1, 1.0, 100.0, "shipped"), TimingPoint("f", 400, 1, 4.0, 200.0, "shipped")]
+    shipped = [
+        TimingPoint("f", 100, 1, 1.0, 100.0, "shipped"),
+        TimingPoint("f", 400, 1, 4.0, 200.0, "shipped"),
+    ]
     model = CostModel(shipped)
     assert model.estimate("f", 800, 2).seconds == pytest.approx(16.0)
     assert model.estimate("other", 800, 2) is None
@@ -136,9 +155,13 @@ def test_cost_model_scales_a_family_without_rungs_in_this_run_by_its_sibling():
     """A P2 estimate from shipped timings (one size: P1's exponent) is scaled as this run's P1 rung compares with its own."""
     from knitframe.ladder import TimingPoint
 
-    model = CostModel([TimingPoint("volumetric:p1", 1000, 10, 10.0, None, "shipped"),
-                       TimingPoint("volumetric:p1", 4000, 10, 40.0, None, "shipped"),
-                       TimingPoint("volumetric:p2", 2000, 10, 50.0, None, "shipped")])
+    model = CostModel(
+        [
+            TimingPoint("volumetric:p1", 1000, 10, 10.0, None, "shipped"),
+            TimingPoint("volumetric:p1", 4000, 10, 40.0, None, "shipped"),
+            TimingPoint("volumetric:p2", 2000, 10, 50.0, None, "shipped"),
+        ]
+    )
     assert model.estimate("volumetric:p2", 8000, 10).seconds == pytest.approx(200.0)  # P1's exponent, 1
     model.add(TimingPoint("volumetric:p1", 1000, 5, 15.0, None, "run"))  # 3 s per increment here, 1 s shipped
     e = model.estimate("volumetric:p2", 8000, 10)
@@ -149,26 +172,45 @@ def test_max_time_skips_an_expensive_rung_and_says_so(tmp_path, capsys):
     """--max-time skips the rung whose estimate (from the shipped timings) is over it, with a one-line notice."""
     assert any(p.family == "volumetric:p1" for p in read_timings(shipped_timings_path(), "shipped"))
     cfg = write_toml(tmp_path / "small.toml", singal_config(tmp_path))
-    code = main(["ladder", str(cfg), "--out", str(tmp_path / "out"), "--rungs", "rod:8,volumetric:p1:r/3",
-                 "--max-time", "120"])
+    code = main(
+        [
+            "ladder",
+            str(cfg),
+            "--out",
+            str(tmp_path / "out"),
+            "--rungs",
+            "rod:8,volumetric:p1:r/3",
+            "--max-time",
+            "120",
+        ]
+    )
     assert code == 0
     err = capsys.readouterr().err
     notice = [ln for ln in err.splitlines() if "skipping volumetric:p1:r/3" in ln]
     assert len(notice) == 1 and "over max_time 2 min" in notice[0] and "estimated" in notice[0]
     rows = read_csv(tmp_path / "out" / "ladder.csv")
     assert rows["volumetric:p1:r/3"]["status"].startswith("skipped: estimated")
-    assert rows["volumetric:p1:r/3"]["wall_time_s"] == "" and float(rows["volumetric:p1:r/3"]["estimated_time_s"]) > 120
+    assert (
+        rows["volumetric:p1:r/3"]["wall_time_s"] == ""
+        and float(rows["volumetric:p1:r/3"]["estimated_time_s"]) > 120
+    )
     assert rows["rod:8"]["status"] == "ok" and rows["rod:8"]["reference"] == "true"
 
 
-@pytest.mark.parametrize("rungs, problem", [
-    ("rod:8,rod:7x", "--rungs: unknown rung 'rod:7x'; the rungs are reduced, rod:8"),
-    ("rod:8,rod:2", "--rungs: rung 'rod:2': segments per stitch must be 4..256"),
-    ("rod:8,volumetric:p2:r/12", "--rungs: rung 'volumetric:p2:r/12': the mesh divisor X of r/X must be 0.5..8"),
-    ("rod:8,rod:8", "--rungs: rung 'rod:8' is named twice"),
-    ("reduced", "--rungs: 'reduced' is fitted to the best simulated rung"),
-    ("rod:8,,rod:16", "--rungs: expected comma-separated rung names"),
-])
+@pytest.mark.parametrize(
+    "rungs, problem",
+    [
+        ("rod:8,rod:7x", "--rungs: unknown rung 'rod:7x'; the rungs are reduced, rod:8"),
+        ("rod:8,rod:2", "--rungs: rung 'rod:2': segments per stitch must be 4..256"),
+        (
+            "rod:8,volumetric:p2:r/12",
+            "--rungs: rung 'volumetric:p2:r/12': the mesh divisor X of r/X must be 0.5..8",
+        ),
+        ("rod:8,rod:8", "--rungs: rung 'rod:8' is named twice"),
+        ("reduced", "--rungs: 'reduced' is fitted to the best simulated rung"),
+        ("rod:8,,rod:16", "--rungs: expected comma-separated rung names"),
+    ],
+)
 def test_rung_names_are_checked_before_any_work(tmp_path, capsys, rungs, problem):
     """A bad rung name is one line and exit code 2, before anything runs or any folder is made."""
     cfg = write_toml(tmp_path / "small.toml", singal_config(tmp_path))
@@ -214,7 +256,9 @@ def test_a_configs_executor_table_runs_the_rungs_of_a_wave_side_by_side(tmp_path
     assert a["started_unix"] < b["finished_unix"] and b["started_unix"] < a["finished_unix"]  # overlapping
     assert list((tmp_path / "jobs").glob("*.pkl")) and not (tmp_path / "cache").exists()
     config["ladder"]["executor"] = "local"
-    with pytest.raises(knitframe.ConfigError, match=r"ladder\.executor: the config has an \[executor\] table"):
+    with pytest.raises(
+        knitframe.ConfigError, match=r"ladder\.executor: the config has an \[executor\] table"
+    ):
         knitframe.ladder(config)
 
 
@@ -238,11 +282,24 @@ def test_any_resolution_can_be_named_and_is_ordered_by_fidelity():
     assert r.options == {"order": 2, "seed": pytest.approx(1 / 2.25)} and r.family == "volumetric:p2"
     assert rung("rod:24").options == {"segments_per_stitch": 24} and rung("rod:24").family == "rod"
     assert rung("volumetric:p1:r/3") is RUNGS["volumetric:p1:r/3"]
-    names = ["volumetric:p2:r/3", "reduced", "volumetric:p1:r/3", "volumetric:p2:r/1.5", "rod:24", "rod:8",
-             "volumetric:p2:r/2.25"]
+    names = [
+        "volumetric:p2:r/3",
+        "reduced",
+        "volumetric:p1:r/3",
+        "volumetric:p2:r/1.5",
+        "rod:24",
+        "rod:8",
+        "volumetric:p2:r/2.25",
+    ]
     assert sorted(names, key=lambda n: rung(n).fidelity) == [
-        "reduced", "rod:8", "rod:24", "volumetric:p1:r/3", "volumetric:p2:r/1.5", "volumetric:p2:r/2.25",
-        "volumetric:p2:r/3"]
+        "reduced",
+        "rod:8",
+        "rod:24",
+        "volumetric:p1:r/3",
+        "volumetric:p2:r/1.5",
+        "volumetric:p2:r/2.25",
+        "volumetric:p2:r/3",
+    ]
 
 
 @pytest.mark.slow
@@ -250,8 +307,9 @@ def test_rungs_of_a_wave_run_in_parallel_on_dask_and_a_volumetric_rung_is_the_be
     """On a Dask LocalCluster the two rod rungs of one wave run at the same time; the coarse P1 rung is the reference."""
     config = singal_config(tmp_path, executor={"kind": "dask", "workers": 2})
     config["scene"]["load"] = {"kind": "uniaxial", "direction": "course", "max_strain": 0.1, "steps": 1}
-    result = knitframe.ladder(config, out=tmp_path / "out",
-                              rungs=["rod:8", "rod:16", "volumetric:p1:coarse", "reduced"])
+    result = knitframe.ladder(
+        config, out=tmp_path / "out", rungs=["rod:8", "rod:16", "volumetric:p1:coarse", "reduced"]
+    )
     a, b = result.row("rod:8"), result.row("rod:16")
     assert a["started_unix"] < b["finished_unix"] and b["started_unix"] < a["finished_unix"]  # overlapping
     vol = result.row("volumetric:p1:coarse")
@@ -270,7 +328,11 @@ def test_three_seeds_of_one_order_give_a_mesh_convergence_table(tmp_path):
     knitframe.ladder(config, out=tmp_path / "out", rungs=rungs)
     with open(tmp_path / "out" / "convergence.csv", encoding="utf-8") as fh:
         rows = list(csv.DictReader(fh))
-    assert len(rows) == 1 and rows[0]["direction"] == "course" and float(rows[0]["strain"]) == pytest.approx(0.05)
+    assert (
+        len(rows) == 1
+        and rows[0]["direction"] == "course"
+        and float(rows[0]["strain"]) == pytest.approx(0.05)
+    )
     assert rows[0]["rungs"].split() == rungs[::-1]
     assert rows[0]["behaviour"] in {"converging", "oscillating", "diverging"}
     if rows[0]["behaviour"] == "converging":

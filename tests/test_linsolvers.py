@@ -34,8 +34,9 @@ def _elasticity():
 
 def test_amg_with_rigid_body_modes_matches_direct():
     """AMG (θ = 0.05, rigid-body near-null space, CG) solves clamped elasticity like the direct solver."""
-    from knitframe import get_registry
     from knitframe_linsolvers.amg import rigid_body_modes
+
+    from knitframe import get_registry
 
     A, b, I, pts = _elasticity()
     B = rigid_body_modes(pts)[I]
@@ -74,7 +75,6 @@ def test_contact_law_check_catches_an_attractive_law():
 def test_symmetry_probe():
     """is_symmetric accepts A = Aᵀ (also with round-off) and rejects a skew part above its tolerance."""
     import scipy.sparse as sp
-
     from knitframe_linsolvers.direct import is_symmetric
 
     rng = np.random.default_rng(0)
@@ -86,12 +86,13 @@ def test_symmetry_probe():
     assert not is_symmetric(sp.csr_matrix(rng.normal(size=(3, 4))))
 
 
-@pytest.mark.skipif(not __import__("knitframe_linsolvers.direct", fromlist=["available"]).available("pardiso"),
-                    reason="pypardiso is not installed")
+@pytest.mark.skipif(
+    not __import__("knitframe_linsolvers.direct", fromlist=["available"]).available("pardiso"),
+    reason="pypardiso is not installed",
+)
 def test_pardiso_symmetric_indefinite_and_unsymmetric():
     """PARDISO solves a symmetric indefinite system (LDLᵀ of the upper triangle) and an unsymmetric one (LU)."""
     import scipy.sparse as sp
-
     from knitframe_linsolvers.direct import direct
 
     n = 6000
@@ -122,9 +123,9 @@ def test_pardiso_symmetric_indefinite_and_unsymmetric():
 def test_failed_pardiso_falls_back_to_lu_then_superlu_only_for_small_systems(monkeypatch):
     """When the refined LDLᵀ misses the tolerance the LU is tried; when that fails too, SuperLU takes small
     systems and a large one raises a NumericalError (SuperLU's fill-in on a P2 cell exhausts memory)."""
+    import knitframe_linsolvers.direct as d
     import scipy.sparse as sp
 
-    import knitframe_linsolvers.direct as d
     from knitframe.errors import NumericalError
 
     tried = []
@@ -145,7 +146,6 @@ def test_kept_factorisation_solves_several_right_hand_sides(backend):
     """``solve.factorize(A)`` keeps the factors: each right-hand side gets the answer of a fresh solve, to
     the refinement tolerance, for a symmetric indefinite matrix (LDLᵀ with PARDISO) and an unsymmetric one."""
     import scipy.sparse as sp
-
     from knitframe_linsolvers.direct import available, direct
 
     if backend == "pardiso" and not available("pardiso"):
@@ -170,17 +170,20 @@ def test_refinement_takes_a_backward_stable_solution_whose_residual_is_at_the_co
     """A soft chain tied by stiff springs (like yarns pressed together by a barrier deep inside d̂): no float64
     solve gets |b − A x| ≤ 1e-10 |b|, but the factorised solve is backward stable (componentwise backward error
     of a few ε), so the refinement takes it; a solution that is not (here x = 0) is still refused."""
+    import knitframe_linsolvers.direct as d
     import scipy.sparse as sp
     import scipy.sparse.linalg as sla
-
-    import knitframe_linsolvers.direct as d
 
     n = 2000
     lap = sp.diags([2.0 * np.ones(n), -np.ones(n - 1), -np.ones(n - 1)], [0, 1, -1])
     pairs = np.arange(0, n - 1, 2)
-    C = sp.csr_matrix((np.r_[np.ones(len(pairs)), -np.ones(len(pairs))],
-                       (np.r_[np.arange(len(pairs)), np.arange(len(pairs))], np.r_[pairs, pairs + 1])),
-                      shape=(len(pairs), n))
+    C = sp.csr_matrix(
+        (
+            np.r_[np.ones(len(pairs)), -np.ones(len(pairs))],
+            (np.r_[np.arange(len(pairs)), np.arange(len(pairs))], np.r_[pairs, pairs + 1]),
+        ),
+        shape=(len(pairs), n),
+    )
     A = (1e-3 * lap + 1e-3 * sp.identity(n) + 1e10 * (C.T @ C)).tocsc()
     b = np.random.default_rng(0).normal(size=n)
     lu = sla.splu(A)
@@ -199,7 +202,7 @@ def test_upper_triangle_is_scipys_triu():
     A = sp.random(300, 300, density=0.05, random_state=5, format="csr")
     A = A + A.T + sp.diags(rng.uniform(1, 2, 300))
     A = sp.csr_matrix(A)
-    A.data[A.indptr[7]:A.indptr[8]] = 0.0  # an empty row
+    A.data[A.indptr[7] : A.indptr[8]] = 0.0  # an empty row
     A.eliminate_zeros()
     assert A.indptr[8] == A.indptr[7]
     shuffled = A.copy()

@@ -21,7 +21,9 @@ def helix_cell(R: float = 2.0, c: float = 1.0, r: float = 0.3) -> UnitCell:
         2 * np.pi,
         np.array([0.0, 0.0, 2 * np.pi * c]),
     )
-    return UnitCell("helix", (heli,), heli.period, np.array([3 * R + 4 * r, 0, 0]), r, ((0, 0),), (("k",),), 1.0, 1.0, 1.0)
+    return UnitCell(
+        "helix", (heli,), heli.period, np.array([3 * R + 4 * r, 0, 0]), r, ((0, 0),), (("k",),), 1.0, 1.0, 1.0
+    )
 
 
 @pytest.fixture(scope="module", params=[1, 2])
@@ -31,7 +33,7 @@ def helix_mesh(request):
 
 def test_end_faces_match_node_for_node(helix_mesh):
     """The end face of a yarn coincides with its paired start face shifted by L1, node for node, to 1e-12."""
-    (end, start, shift), = helix_mesh.end_pairs
+    ((end, start, shift),) = helix_mesh.end_pairs
     x = helix_mesh.nodes
     dist, idx = cKDTree(x[start] + shift).query(x[end])
     assert dist.max() < 1e-12

@@ -6,10 +6,10 @@ import attrs
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from knitframe_linsolvers.direct import direct
 
 from knitframe.errors import NumericalError
 from knitframe.newton import NewtonOptions, StepCheckpoints, continuation, minimise
-from knitframe_linsolvers.direct import direct
 
 
 def quartic(x, order=2):
@@ -23,14 +23,18 @@ def quartic(x, order=2):
 
 def test_minimise_converges_from_far_away():
     """Newton with line search reaches the minimum of a stiff convex energy."""
-    res = minimise(quartic, np.full(6, 50.0), np.ones(6, bool), solve=direct(), options=NewtonOptions(rtol=0.0))
+    res = minimise(
+        quartic, np.full(6, 50.0), np.ones(6, bool), solve=direct(), options=NewtonOptions(rtol=0.0)
+    )
     assert res.converged and np.allclose(res.x, np.arange(6), atol=1e-8)
 
 
 def test_history_records_the_accepted_step_energy():
     """Each iteration records the energy of its accepted step as the line search saw it; on a plain energy
     that is the next iterate's energy (a problem that changes between evaluations shows up as a difference)."""
-    res = minimise(quartic, np.full(6, 50.0), np.ones(6, bool), solve=direct(), options=NewtonOptions(rtol=0.0))
+    res = minimise(
+        quartic, np.full(6, 50.0), np.ones(6, bool), solve=direct(), options=NewtonOptions(rtol=0.0)
+    )
     steps = [h for h in res.history if "step_energy" in h]
     assert len(steps) == len(res.history) - 1
     assert all(a["step_energy"] == b["energy"] for a, b in zip(res.history[:-1], res.history[1:]))
@@ -43,7 +47,9 @@ def test_history_records_the_accepted_step_energy():
             calls.append(1)
         return E + 1e-3 * len(calls), g, H, info
 
-    res = minimise(drifting, np.full(6, 5.0), np.ones(6, bool), solve=direct(), options=NewtonOptions(rtol=0.0))
+    res = minimise(
+        drifting, np.full(6, 5.0), np.ones(6, bool), solve=direct(), options=NewtonOptions(rtol=0.0)
+    )
     jumps = [b["energy"] - a["step_energy"] for a, b in zip(res.history[:-1], res.history[1:])]
     assert np.allclose(jumps, 1e-3)
 
@@ -65,16 +71,26 @@ def test_singular_hessian_is_shifted_not_nan():
         return E, g, H, {"loose": True}
 
     for stab in (0.0, 1e-3):
-        res = minimise(flat, np.array([5.0, 5.0, 3.0]), np.ones(3, bool), solve=direct(),
-                       options=NewtonOptions(stabilisation=stab), stabilise=lambda info: info["loose"])
+        res = minimise(
+            flat,
+            np.array([5.0, 5.0, 3.0]),
+            np.ones(3, bool),
+            solve=direct(),
+            options=NewtonOptions(stabilisation=stab),
+            stabilise=lambda info: info["loose"],
+        )
         assert res.converged and np.allclose(res.x, [0, 1, 3], atol=1e-8)
 
 
 def test_inadmissible_start_raises_numerical_error():
     """An infinite starting energy stops with a NumericalError, never NaN."""
     with pytest.raises(NumericalError, match="inadmissible"):
-        minimise(lambda x, o=2: (np.inf, np.zeros(1), sp.eye(1).tocsr(), {}), np.zeros(1), np.ones(1, bool),
-                 solve=direct())
+        minimise(
+            lambda x, o=2: (np.inf, np.zeros(1), sp.eye(1).tocsr(), {}),
+            np.zeros(1),
+            np.ones(1, bool),
+            solve=direct(),
+        )
 
 
 def test_unbounded_energy_fails_with_diagnostic():
@@ -104,8 +120,13 @@ def test_flux_test_converges_where_the_residual_has_a_floor():
         minimise(kinked, np.zeros(1), np.ones(1, bool), solve=direct(), options=NewtonOptions(max_iter=30))
     history = failed.value.history  # the whole history travels with the error, for traces
     assert len(history) == 31 and history[0]["it"] == 0 and min(h["residual"] for h in history) >= 1.0 - 1e-9
-    res = minimise(kinked, np.zeros(1), np.ones(1, bool), solve=direct(),
-                   options=NewtonOptions(max_iter=30, flux_rtol=5e-3, correction_rtol=1e-2))
+    res = minimise(
+        kinked,
+        np.zeros(1),
+        np.ones(1, bool),
+        solve=direct(),
+        options=NewtonOptions(max_iter=30, flux_rtol=5e-3, correction_rtol=1e-2),
+    )
     assert res.converged and "flux" in res.history[-1]
     assert abs(res.x[0] - 1.001) <= 1e-2 * 1.001
     assert abs(res.gradient[0]) <= 5e-3 * kinked(res.x, 1)[3]["flux"]
@@ -114,21 +135,40 @@ def test_flux_test_converges_where_the_residual_has_a_floor():
 def test_stalled_iteration_gives_up_early():
     """With stall_iterations = K, an iteration whose residual has not improved in K iterations stops there."""
     with pytest.raises(NumericalError, match="stalled") as failed:
-        minimise(kinked, np.zeros(1), np.ones(1, bool), solve=direct(), options=NewtonOptions(max_iter=30, stall_iterations=5))
+        minimise(
+            kinked,
+            np.zeros(1),
+            np.ones(1, bool),
+            solve=direct(),
+            options=NewtonOptions(max_iter=30, stall_iterations=5),
+        )
     residuals = [h["residual"] for h in failed.value.history]
-    assert len(residuals) == 9 and min(residuals[-5:]) >= min(residuals[:-5])  # the floor 1.0 is first met at iteration 3
+    assert len(residuals) == 9 and min(residuals[-5:]) >= min(
+        residuals[:-5]
+    )  # the floor 1.0 is first met at iteration 3
     # near the tolerance (the floor 1.0 is 5 × atol) it is not given up early: it runs to max_iter
     with pytest.raises(NumericalError, match="no convergence") as near:
-        minimise(kinked, np.zeros(1), np.ones(1, bool), solve=direct(),
-                 options=NewtonOptions(max_iter=30, atol=0.2, stall_iterations=5))
+        minimise(
+            kinked,
+            np.zeros(1),
+            np.ones(1, bool),
+            solve=direct(),
+            options=NewtonOptions(max_iter=30, atol=0.2, stall_iterations=5),
+        )
     assert len(near.value.history) == 31
     # a converging iteration is not stopped
-    assert minimise(kinked, np.zeros(1), np.ones(1, bool), solve=direct(),
-                    options=NewtonOptions(max_iter=30, flux_rtol=5e-3, stall_iterations=5)).converged
+    assert minimise(
+        kinked,
+        np.zeros(1),
+        np.ones(1, bool),
+        solve=direct(),
+        options=NewtonOptions(max_iter=30, flux_rtol=5e-3, stall_iterations=5),
+    ).converged
 
 
 def test_late_flux_ratio_applies_only_after_its_iteration():
     """R_P replaces R_n from iteration I_P on: a residual floor between the two passes late, not early."""
+
     def floor(x, order=2):  # near the kink |g| ≥ 1: above R_n·q̃ = 0.5, below R_P·q̃ = 2
         E, g, H, info = kinked(x, order)
         return E, g, H, {"flux": 1e2}
@@ -136,20 +176,32 @@ def test_late_flux_ratio_applies_only_after_its_iteration():
     strict = NewtonOptions(max_iter=30, flux_rtol=5e-3, correction_rtol=1.0)
     with pytest.raises(NumericalError):
         minimise(floor, np.zeros(1), np.ones(1, bool), solve=direct(), options=strict)
-    res = minimise(floor, np.zeros(1), np.ones(1, bool), solve=direct(),
-                   options=NewtonOptions(max_iter=30, flux_rtol=5e-3, correction_rtol=1.0, late_flux_rtol=2e-2,
-                                         late_iteration=3))
+    res = minimise(
+        floor,
+        np.zeros(1),
+        np.ones(1, bool),
+        solve=direct(),
+        options=NewtonOptions(
+            max_iter=30, flux_rtol=5e-3, correction_rtol=1.0, late_flux_rtol=2e-2, late_iteration=3
+        ),
+    )
     assert res.converged and res.iterations >= 3 and abs(res.gradient[0]) <= 2e-2 * 1e2
 
 
 def test_flux_test_waits_for_the_correction_to_settle():
     """A residual already below R_n·q̃ is not enough while Newton still moves the solution."""
+
     def loud(x, order=2):
         E, g, H, _ = quartic(x, order)
         return E, g, H, {"flux": 1e9}
 
-    res = minimise(loud, np.full(4, 50.0), np.ones(4, bool), solve=direct(),
-                   options=NewtonOptions(rtol=0.0, flux_rtol=5e-3, correction_rtol=1e-3))
+    res = minimise(
+        loud,
+        np.full(4, 50.0),
+        np.ones(4, bool),
+        solve=direct(),
+        options=NewtonOptions(rtol=0.0, flux_rtol=5e-3, correction_rtol=1e-3),
+    )
     moved = np.max(np.abs(res.x - 50.0))
     assert res.converged and res.iterations >= 2  # iteration 1 already has |g| ≤ R_n·q̃
     # accepted once a correction fell below C_n·|Δx|; Newton's next error is smaller still
@@ -184,7 +236,11 @@ def test_continuation_carries_the_increment_into_the_next_target():
 
     continuation(solve_at, np.zeros(1), [1.0, 2.0, 3.0])
     failed = [a for a in attempts if a > 0.3]
-    assert failed[:3] == [1.0, 0.5, 0.5]  # the first target halves its way down (0.25 passes, 0.5 fails again)
+    assert failed[:3] == [
+        1.0,
+        0.5,
+        0.5,
+    ]  # the first target halves its way down (0.25 passes, 0.5 fails again)
     assert attempts.count(1.0) == 1  # later targets never retry the whole span
 
 
@@ -278,8 +334,14 @@ def test_cap_shift_damps_a_floppy_mode_instead_of_shrinking_the_whole_step():
         solve = direct()
         opts = NewtonOptions(atol=1e-9, rtol=0.0, max_iter=1, max_step=0.5, cap_shift=cap_shift)
         with pytest.raises(NumericalError):  # one iteration is not enough to converge
-            minimise(fun, np.zeros(2), np.ones(2, bool), solve=lambda A, b: solves.append(1) or solve(A, b),
-                     options=opts, step_norm=norm)
+            minimise(
+                fun,
+                np.zeros(2),
+                np.ones(2, bool),
+                solve=lambda A, b: solves.append(1) or solve(A, b),
+                options=opts,
+                step_norm=norm,
+            )
         return steps[0], steps[-1], len(solves)  # the raw first step, the accepted one (its correction)
 
     raw, scaled, n_scaled = first_step(0.0)
@@ -319,8 +381,14 @@ def _chain(projection):
     x0 = np.r_[1.0, np.full(7, 0.05)]
     free = np.r_[False, np.ones(7, bool)]
     opts = NewtonOptions(atol=1e-12, rtol=0.0, max_iter=100, projection=projection, max_step=0.5)
-    return minimise(double_well_chain, x0, free, solve=direct(), options=opts,
-                    step_norm=lambda dx: float(np.max(np.abs(dx))))
+    return minimise(
+        double_well_chain,
+        x0,
+        free,
+        solve=direct(),
+        options=opts,
+        step_norm=lambda dx: float(np.max(np.abs(dx))),
+    )
 
 
 @pytest.mark.parametrize("projection", ["adaptive", "always"])
@@ -334,7 +402,7 @@ def test_projected_newton_goes_downhill_to_the_minimum(projection):
         assert all(used)
     else:
         assert used[0] and not used[-1]  # projected where the exact step failed, exact at the end
-        assert not any(used[used.index(False):])
+        assert not any(used[used.index(False) :])
 
 
 def test_exact_newton_stops_at_a_saddle_of_the_concave_band():
@@ -350,12 +418,24 @@ def test_step_tolerance_stops_when_the_exact_step_is_small():
     """With ``step_tol`` an iterate whose exact Newton step moves no DOF more than step_tol is converged, even
     though its residual is above atol; the answer is then within about step_tol of the minimum."""
     opts = NewtonOptions(atol=1e-300, rtol=0.0, max_iter=100, step_tol=1e-3)
-    res = minimise(quartic, np.full(6, 50.0), np.ones(6, bool), solve=direct(), options=opts,
-                   step_norm=lambda dx: float(np.max(np.abs(dx))))
+    res = minimise(
+        quartic,
+        np.full(6, 50.0),
+        np.ones(6, bool),
+        solve=direct(),
+        options=opts,
+        step_norm=lambda dx: float(np.max(np.abs(dx))),
+    )
     assert res.converged and res.history[-1].get("step_converged")
     assert res.history[-1]["residual"] > 1e-300 and np.max(np.abs(res.x - np.arange(6))) < 1e-3
-    full = minimise(quartic, np.full(6, 50.0), np.ones(6, bool), solve=direct(),
-                    options=attrs.evolve(opts, step_tol=0.0), step_norm=lambda dx: float(np.max(np.abs(dx))))
+    full = minimise(
+        quartic,
+        np.full(6, 50.0),
+        np.ones(6, bool),
+        solve=direct(),
+        options=attrs.evolve(opts, step_tol=0.0),
+        step_norm=lambda dx: float(np.max(np.abs(dx))),
+    )
     assert full.iterations > res.iterations and not full.history[-1].get("step_converged")
 
 
@@ -364,9 +444,17 @@ def test_step_tolerance_applies_to_the_projected_step():
     projected steps alone, within about step_tol of the minimum, without the exact tangent's last iterations."""
     x0 = np.r_[1.0, np.full(7, 0.05)]
     free = np.r_[False, np.ones(7, bool)]
-    opts = NewtonOptions(atol=1e-300, rtol=0.0, max_iter=100, projection="always", max_step=0.5, step_tol=1e-4)
-    res = minimise(double_well_chain, x0, free, solve=direct(), options=opts,
-                   step_norm=lambda dx: float(np.max(np.abs(dx))))
+    opts = NewtonOptions(
+        atol=1e-300, rtol=0.0, max_iter=100, projection="always", max_step=0.5, step_tol=1e-4
+    )
+    res = minimise(
+        double_well_chain,
+        x0,
+        free,
+        solve=direct(),
+        options=opts,
+        step_norm=lambda dx: float(np.max(np.abs(dx))),
+    )
     assert res.converged and res.history[-1].get("step_converged") and res.history[-1].get("projected")
     assert np.max(np.abs(res.x - 1.0)) < 1e-3
 
@@ -374,14 +462,26 @@ def test_step_tolerance_applies_to_the_projected_step():
 def test_each_iteration_is_reported_as_it_completes():
     """``on_iteration`` gets every history entry (wall time included) as it is made, also when the solve fails."""
     seen = []
-    res = minimise(quartic, np.full(6, 50.0), np.ones(6, bool), solve=direct(), on_iteration=seen.append,
-                   options=NewtonOptions(atol=1e-10, rtol=0.0, max_iter=100))
+    res = minimise(
+        quartic,
+        np.full(6, 50.0),
+        np.ones(6, bool),
+        solve=direct(),
+        on_iteration=seen.append,
+        options=NewtonOptions(atol=1e-10, rtol=0.0, max_iter=100),
+    )
     assert [h["it"] for h in seen] == [h["it"] for h in res.history]
     assert seen == list(res.history) and all(h["wall_s"] >= 0.0 for h in seen)
     seen.clear()
     with pytest.raises(NumericalError) as err:
-        minimise(quartic, np.full(6, 50.0), np.ones(6, bool), solve=direct(), on_iteration=seen.append,
-                 options=NewtonOptions(atol=1e-300, rtol=0.0, max_iter=3))
+        minimise(
+            quartic,
+            np.full(6, 50.0),
+            np.ones(6, bool),
+            solve=direct(),
+            on_iteration=seen.append,
+            options=NewtonOptions(atol=1e-300, rtol=0.0, max_iter=3),
+        )
     assert [h["it"] for h in seen] == [0, 1, 2, 3] and len(err.value.history) == 4
 
 
@@ -400,9 +500,12 @@ def test_adaptive_newton_can_start_projected():
     runs = {}
     for start in (False, True):
         calls.update({False: 0, True: 0})
-        opts = NewtonOptions(atol=1e-12, rtol=0.0, max_iter=100, projection="adaptive", max_step=0.5,
-                             start_projected=start)
-        res = minimise(counted, x0, free, solve=direct(), options=opts, step_norm=lambda dx: float(np.max(np.abs(dx))))
+        opts = NewtonOptions(
+            atol=1e-12, rtol=0.0, max_iter=100, projection="adaptive", max_step=0.5, start_projected=start
+        )
+        res = minimise(
+            counted, x0, free, solve=direct(), options=opts, step_norm=lambda dx: float(np.max(np.abs(dx)))
+        )
         runs[start] = (res, dict(calls))
     (plain, c_plain), (started, c_started) = runs[False], runs[True]
     assert started.converged and np.allclose(started.x, plain.x, atol=1e-12)
@@ -440,13 +543,21 @@ def test_chord_steps_reuse_the_factorisation_while_steps_are_bounded(step_tol):
     for chord in (False, True):
         calls[chord] = {}
         opts = NewtonOptions(atol=1e-9, rtol=0.0, max_iter=200, chord=chord, max_chord=5, step_tol=step_tol)
-        results[chord] = minimise(_slow_hessian_quartic(calls[chord]), x0, np.ones(n, bool), solve=direct(),
-                                  options=opts, step_limit=_bounded)
+        results[chord] = minimise(
+            _slow_hessian_quartic(calls[chord]),
+            x0,
+            np.ones(n, bool),
+            solve=direct(),
+            options=opts,
+            step_limit=_bounded,
+        )
     plain, chorded = results[False], results[True]
     assert plain.converged and chorded.converged
     assert np.allclose(chorded.x, np.arange(n), atol=1e-6) and np.allclose(plain.x, np.arange(n), atol=1e-6)
     assert not any(h.get("chord") for h in plain.history)
-    assert calls[True][2] * 3 < calls[False][2]  # Hessians: each of the plain run's ~40 bounded steps needs one
+    assert (
+        calls[True][2] * 3 < calls[False][2]
+    )  # Hessians: each of the plain run's ~40 bounded steps needs one
     flags = [bool(h.get("chord")) for h in chorded.history]
     assert sum(flags) > len(flags) / 2
     run = longest = 0
@@ -466,9 +577,14 @@ def test_chord_steps_reuse_the_factorisation_while_steps_are_bounded(step_tol):
 def test_no_chord_steps_without_a_factorising_solver():
     """A linear solver without ``factorize`` (a plain function) gets Newton steps only, chord option or not."""
     calls = {}
-    res = minimise(_slow_hessian_quartic(calls), np.full(4, 20.0), np.ones(4, bool),
-                   solve=lambda A, b: direct()(A, b), options=NewtonOptions(rtol=0.0, max_iter=200, chord=True),
-                   step_limit=_bounded)
+    res = minimise(
+        _slow_hessian_quartic(calls),
+        np.full(4, 20.0),
+        np.ones(4, bool),
+        solve=lambda A, b: direct()(A, b),
+        options=NewtonOptions(rtol=0.0, max_iter=200, chord=True),
+        step_limit=_bounded,
+    )
     assert res.converged and not any(h.get("chord") for h in res.history)
     assert calls[2] == len(res.history)
 
@@ -484,8 +600,15 @@ def test_chord_steps_stop_near_convergence_and_when_the_factor_is_stale():
 
     calls = {}
     opts = NewtonOptions(atol=1e-12, rtol=0.0, max_iter=200, chord=True, step_tol=1e-3)
-    res = minimise(_slow_hessian_quartic(calls), np.full(5, 20.0), np.ones(5, bool), solve=direct(), options=opts,
-                   step_limit=_bounded, step_norm=size)
+    res = minimise(
+        _slow_hessian_quartic(calls),
+        np.full(5, 20.0),
+        np.ones(5, bool),
+        solve=direct(),
+        options=opts,
+        step_limit=_bounded,
+        step_norm=size,
+    )
     assert res.converged and any(h.get("chord") for h in res.history)
     for a, b in zip(res.history[:-1], res.history[1:]):
         if not a.get("chord") and "step" in a and a["step"] <= CHORD_SIZE_FACTOR * 1e-3:
@@ -494,9 +617,16 @@ def test_chord_steps_stop_near_convergence_and_when_the_factor_is_stale():
     E, g, _, _ = quartic(x, 1)
     entry = {}
     # a stale "factorisation" that sends the step 10⁴ times too far
-    assert _chord_step(quartic, x, E, g, lambda b: 1e4 * b, np.ones(3, bool), opts, size, None, entry,
-                       max_size=1.0) is None and not entry
-    step = _chord_step(quartic, x, E, g, lambda b: b / 76.0, np.ones(3, bool), opts, size, None, entry, max_size=10.0)
+    assert (
+        _chord_step(
+            quartic, x, E, g, lambda b: 1e4 * b, np.ones(3, bool), opts, size, None, entry, max_size=1.0
+        )
+        is None
+        and not entry
+    )
+    step = _chord_step(
+        quartic, x, E, g, lambda b: b / 76.0, np.ones(3, bool), opts, size, None, entry, max_size=10.0
+    )
     assert step is not None and entry["chord"] and step[2] < E
 
 
@@ -532,7 +662,9 @@ def test_extrapolation_speeds_up_full_steps_on_a_too_stiff_model():
         runs[extrapolate] = (res, len(calls[2]))
     (plain, h_plain), (fast, h_fast) = runs[1.0], runs[8.0]
     assert plain.converged and fast.converged
-    assert np.allclose(fast.x, 0.0, atol=1e-6) and np.allclose(plain.x, 0.0, atol=1e-6)  # |g| ≤ 1e-8, k = 0.05
+    assert np.allclose(fast.x, 0.0, atol=1e-6) and np.allclose(
+        plain.x, 0.0, atol=1e-6
+    )  # |g| ≤ 1e-8, k = 0.05
     assert not any("extrapolated" in h for h in plain.history)
     # plain full steps: 0.95 per iteration; extrapolated ones also move the stiff, converged DOFs off their
     # minimum, which the next full step restores (a zig-zag, 0.93 per iteration here); 147 against 347 Hessians
@@ -548,14 +680,26 @@ def test_extrapolation_keeps_to_the_step_cap_and_the_collision_bound():
     calls = {}
     norm = lambda dx: float(np.max(np.abs(dx)))  # noqa: E731
     opts = NewtonOptions(atol=1e-8, rtol=0.0, max_iter=2000, extrapolate=8.0, max_step=2.0)
-    res = minimise(_stiff_model(calls), np.array([0.5, 0.0, 0.0, 10.0]), np.ones(4, bool), solve=direct(),
-                   options=opts, step_norm=norm)
+    res = minimise(
+        _stiff_model(calls),
+        np.array([0.5, 0.0, 0.0, 10.0]),
+        np.ones(4, bool),
+        solve=direct(),
+        options=opts,
+        step_norm=norm,
+    )
     assert res.converged and any("extrapolated" in h for h in res.history)
     iterates = calls[2]
     assert max(norm(b - a) for a, b in zip(iterates[:-1], iterates[1:])) <= 2.0 * (1 + 1e-12)
     calls = {}
-    res = minimise(_stiff_model(calls), np.array([0.5, 0.0, 0.0, 10.0]), np.ones(4, bool), solve=direct(),
-                   options=attrs.evolve(opts, max_step=np.inf), step_limit=_bounded)
+    res = minimise(
+        _stiff_model(calls),
+        np.array([0.5, 0.0, 0.0, 10.0]),
+        np.ones(4, bool),
+        solve=direct(),
+        options=attrs.evolve(opts, max_step=np.inf),
+        step_limit=_bounded,
+    )
     assert res.converged and any("extrapolated" in h for h in res.history)
     iterates = calls[2]
     assert max(norm(b - a) for a, b in zip(iterates[:-1], iterates[1:])) <= 0.5 * (1 + 1e-12)
@@ -575,6 +719,7 @@ def test_extrapolation_backs_off_where_the_energy_rises_beyond_the_full_step():
         def fun(y, order=0):
             a = float(y[0])
             return -a + 0.05 * a * a + 100.0 * max(a - wall, 0.0) ** 4, None, None, {}
+
         return fun
 
     fun = walled(3.0)
@@ -620,9 +765,15 @@ def test_refused_chord_steps_back_off():
     minimum is the same."""
     norm = lambda dx: float(np.max(np.abs(dx)))  # noqa: E731
     calls = {}
-    res = minimise(_slow_hessian_quartic(calls), np.full(6, 20.0), np.ones(6, bool), solve=_StaleFactors(),
-                   options=NewtonOptions(atol=1e-9, rtol=0.0, max_iter=200, chord=True, max_step=1e6),
-                   step_limit=_bounded, step_norm=norm)
+    res = minimise(
+        _slow_hessian_quartic(calls),
+        np.full(6, 20.0),
+        np.ones(6, bool),
+        solve=_StaleFactors(),
+        options=NewtonOptions(atol=1e-9, rtol=0.0, max_iter=200, chord=True, max_step=1e6),
+        step_limit=_bounded,
+        step_norm=norm,
+    )
     assert res.converged and np.allclose(res.x, np.arange(6), atol=1e-6)
     assert not any(h.get("chord") for h in res.history)
     shortened = sum(1 for h in res.history if h.get("alpha", 1.0) < 1.0)
@@ -636,7 +787,9 @@ def _kinked_pair(x, order=2, projected=False, k=0.01, eps=1e-3):
     the next one back at +1/k: a 2-cycle that costs no energy, which the Armijo test passes while x₁'s slow
     convergence (Newton on a quartic: ×2/3 per step) lowers E."""
     a = abs(x[0])
-    h, dh, d2h = (a - 0.5 * eps, np.sign(x[0]), 0.0) if a > eps else (x[0] ** 2 / (2 * eps), x[0] / eps, 1.0 / eps)
+    h, dh, d2h = (
+        (a - 0.5 * eps, np.sign(x[0]), 0.0) if a > eps else (x[0] ** 2 / (2 * eps), x[0] / eps, 1.0 / eps)
+    )
     E = h + 0.5 * k * x[0] ** 2 + 0.25 * x[1] ** 4
     if order == 0:
         return E, None, None, {}
@@ -706,11 +859,20 @@ def test_chord_full_steps_go_on_within_twice_the_step_test_under_linear_converge
     norm = lambda dx: float(np.max(np.abs(dx)))  # noqa: E731
     calls = {}
     opts = NewtonOptions(atol=1e-12, rtol=0.0, max_iter=2000, chord=True, chord_full=True, step_tol=1e-3)
-    res = minimise(_stiff_model(calls), np.array([0.5, 0.0, 0.0, 10.0]), np.ones(4, bool), solve=direct(),
-                   options=opts, step_norm=norm)
+    res = minimise(
+        _stiff_model(calls),
+        np.array([0.5, 0.0, 0.0, 10.0]),
+        np.ones(4, bool),
+        solve=direct(),
+        options=opts,
+        step_norm=norm,
+    )
     assert res.converged and res.history[-1].get("step_converged") and not res.history[-1].get("chord")
-    after_near = [b.get("chord", False) for a, b in zip(res.history[:-1], res.history[1:])
-                  if not a.get("chord") and a.get("alpha") == 1.0 and 1e-3 < a.get("step", 0.0) <= 2e-3]
+    after_near = [
+        b.get("chord", False)
+        for a, b in zip(res.history[:-1], res.history[1:])
+        if not a.get("chord") and a.get("alpha") == 1.0 and 1e-3 < a.get("step", 0.0) <= 2e-3
+    ]
     assert any(after_near)
 
 
@@ -721,7 +883,11 @@ def test_checkpoints_after_a_step_are_discarded_for_this_run_only(tmp_path):
         mine.save(i, {"q": np.full(2, float(i))}, {})
     other.save(5, {"q": np.zeros(2)}, {})
     mine.discard_after(1)
-    assert sorted(p.name for p in tmp_path.glob("step-*.npz")) == ["step-0000.npz", "step-0001.npz", "step-0005.npz"]
+    assert sorted(p.name for p in tmp_path.glob("step-*.npz")) == [
+        "step-0000.npz",
+        "step-0001.npz",
+        "step-0005.npz",
+    ]
     index, arrays, _ = mine.latest()
     assert index == 1 and arrays["q"][0] == 1.0
     assert other.latest()[0] == 5

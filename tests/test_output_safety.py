@@ -35,8 +35,14 @@ load = {{ kind = "equibiaxial", max_strain = 0.1, steps = {steps} }}
 
 
 def knit(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "knitframe", *args], capture_output=True, text=True, cwd=cwd,
-                          timeout=600, env={**os.environ, "MPLBACKEND": "Agg"})
+    return subprocess.run(
+        [sys.executable, "-m", "knitframe", *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=600,
+        env={**os.environ, "MPLBACKEND": "Agg"},
+    )
 
 
 def data_config(folder: Path) -> Path:
@@ -84,8 +90,9 @@ def test_out_holding_a_users_file_is_refused_and_the_file_survives(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert sentinel.read_text() == "three years of work"
     summary = json.loads((tmp_path / "results" / "summary.json").read_text())
-    assert "thesis.docx" not in summary["outputs"] and all((tmp_path / "results" / f).exists()
-                                                            for f in summary["outputs"])
+    assert "thesis.docx" not in summary["outputs"] and all(
+        (tmp_path / "results" / f).exists() for f in summary["outputs"]
+    )
 
 
 def test_two_runs_into_one_folder_never_interleave(tmp_path):
@@ -93,9 +100,14 @@ def test_two_runs_into_one_folder_never_interleave(tmp_path):
     (tmp_path / "rod.toml").write_text(ROD.format(steps=12))
     sentinel = tmp_path / "keep.txt"
     sentinel.write_text("keep")
-    first = subprocess.Popen([sys.executable, "-m", "knitframe", "run", "rod.toml", "--out", "out", "--quiet"],
-                             cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                             env={**os.environ, "MPLBACKEND": "Agg"})
+    first = subprocess.Popen(
+        [sys.executable, "-m", "knitframe", "run", "rod.toml", "--out", "out", "--quiet"],
+        cwd=tmp_path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "MPLBACKEND": "Agg"},
+    )
     run_record = tmp_path / "out" / ".knitframe" / "run.json"
     deadline = time.monotonic() + 120
     while not run_record.exists() and first.poll() is None and time.monotonic() < deadline:
@@ -103,8 +115,10 @@ def test_two_runs_into_one_folder_never_interleave(tmp_path):
     assert first.poll() is None, "the first run ended before the second could start"
     second = knit("run", "rod.toml", "--out", "out", cwd=tmp_path)
     assert second.returncode == 2 and "Traceback" not in second.stderr
-    assert second.stderr.strip() == (f"knitframe: error: --out: out: another knitframe run is writing to this "
-                                     f"folder; wait for it or name another folder")
+    assert second.stderr.strip() == (
+        "knitframe: error: --out: out: another knitframe run is writing to this "
+        "folder; wait for it or name another folder"
+    )
     _, err = first.communicate(timeout=600)
     assert first.returncode == 0, err
     listed_files_exist(tmp_path / "out")
@@ -116,8 +130,12 @@ def test_two_runs_started_together_one_wins_and_its_files_are_all_there(tmp_path
     cfg = data_config(tmp_path)
     cmd = [sys.executable, "-m", "knitframe", "run", str(cfg), "--out", "out", "--quiet"]
     env = {**os.environ, "MPLBACKEND": "Agg"}
-    procs = [subprocess.Popen(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
-             for _ in range(2)]
+    procs = [
+        subprocess.Popen(
+            cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
+        )
+        for _ in range(2)
+    ]
     results = [(p.wait(timeout=300), p.stderr.read()) for p in procs]
     codes = sorted(code for code, _ in results)
     assert codes == [0, 2], results
@@ -147,9 +165,12 @@ def test_fit_and_geometry_follow_the_same_rules(tmp_path):
     for args in (["fit", str(DATA / "cotton-rib-x.csv")], ["geometry", "jersey", "--stitch-length", "11"]):
         for out, words in (("a-file", "is a file"), ("busy", "is not empty"), ("..", "current folder")):
             proc = knit(*args, "--out", out, cwd=tmp_path)
-            assert proc.returncode == 2 and words in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+            assert proc.returncode == 2 and words in proc.stderr and "Traceback" not in proc.stderr, (
+                proc.stderr
+            )
     assert (tmp_path / "busy" / "mine.txt").read_text() == "mine" and sorted(
-        p.name for p in tmp_path.iterdir()) == ["a-file", "busy"]
+        p.name for p in tmp_path.iterdir()
+    ) == ["a-file", "busy"]
 
 
 def test_a_run_that_fails_mid_way_keeps_the_earlier_outputs_and_removes_its_own(tmp_path, monkeypatch):
@@ -199,8 +220,9 @@ length = 10.0
 """
 
 
-@pytest.mark.parametrize("stages", ["data", "data+fit", "simulate", "simulate+fit", "data+fit+patchwork",
-                                    "simulate+vtu"])
+@pytest.mark.parametrize(
+    "stages", ["data", "data+fit", "simulate", "simulate+fit", "data+fit+patchwork", "simulate+vtu"]
+)
 def test_every_file_summary_lists_exists(tmp_path, stages):
     """For every stage, summary.json lists exactly the files in the output folder, and each exists."""
     parts = []

@@ -81,7 +81,9 @@ def test_slack_region_takes_up_strain_before_tension():
     eps = np.array([0.0, 0.5 * slack / 20, 0.9 * slack / 20, 1.5 * slack / 20, 0.5])
     res = series([(m, p), linear(1.0)], [10.0, 10.0], eps)
     assert np.all(res.tension[:3] == 0) and np.all(res.tension[3:] > 0)
-    np.testing.assert_allclose(res.stretch[1:3, 0, 0], 1 + eps[1:3] * 20 / 10, rtol=1e-8)  # all strain in the slack region
+    np.testing.assert_allclose(
+        res.stretch[1:3, 0, 0], 1 + eps[1:3] * 20 / 10, rtol=1e-8
+    )  # all strain in the slack region
     u = (res.stretch[:, 0, :] - 1) @ np.array([10.0, 10.0])
     np.testing.assert_allclose(u, eps * 20, rtol=1e-9, atol=1e-12)
 
@@ -106,15 +108,22 @@ def test_model_curve_inverts_its_tension():
         np.testing.assert_allclose(c.stretch(c.tension(lam)), lam, rtol=1e-9)
 
 
-@pytest.mark.parametrize("bad, match", [
-    (dict(lengths=[[10.0, 10.0], [5.0, 5.0]]), "same length"),
-    (dict(strain=np.array([-0.1, 0.2])), ">= 0"),
-    (dict(widths=[1.0, -1.0]), "widths"),
-])
+@pytest.mark.parametrize(
+    "bad, match",
+    [
+        (dict(lengths=[[10.0, 10.0], [5.0, 5.0]]), "same length"),
+        (dict(strain=np.array([-0.1, 0.2])), ">= 0"),
+        (dict(widths=[1.0, -1.0]), "widths"),
+    ],
+)
 def test_grid_input_errors(bad, match):
     """Rows of unequal length, compressive strain and non-positive widths are refused with a clear message."""
-    args = dict(regions=[[linear(1.0), linear(2.0)], [linear(1.0), linear(1.0)]], widths=[1.0, 1.0],
-                lengths=[[10.0, 10.0], [8.0, 12.0]], strain=np.array([0.0, 0.1]))
+    args = dict(
+        regions=[[linear(1.0), linear(2.0)], [linear(1.0), linear(1.0)]],
+        widths=[1.0, 1.0],
+        lengths=[[10.0, 10.0], [8.0, 12.0]],
+        strain=np.array([0.0, 0.1]),
+    )
     args.update(bad)
     with pytest.raises(ValueError, match=match):
         grid(**args)
@@ -123,12 +132,22 @@ def test_grid_input_errors(bad, match):
 def test_patchwork_stage_after_fit(tmp_path, singal_file):
     """A config with [data], [fit] and a series [patchwork] writes the chain's tension and interface displacement."""
     cfg = {
-        "data": {"files": [str(singal_file("cotton-stockinette-x.csv")), str(singal_file("cotton-stockinette-y.csv"))]},
+        "data": {
+            "files": [
+                str(singal_file("cotton-stockinette-x.csv")),
+                str(singal_file("cotton-stockinette-y.csv")),
+            ]
+        },
         "fit": {"model": "hgo2m", "fitter": {"kind": "lbfgs", "starts": 2, "screen": 16}},
-        "patchwork": {"mode": "series", "max_strain": 0.3, "steps": 6, "regions": [
-            {"name": "fitted", "source": "fit", "length": 20.0},
-            {"name": "measured", "source": "response:cotton-stockinette-x", "length": 10.0},
-        ]},
+        "patchwork": {
+            "mode": "series",
+            "max_strain": 0.3,
+            "steps": 6,
+            "regions": [
+                {"name": "fitted", "source": "fit", "length": 20.0},
+                {"name": "measured", "source": "response:cotton-stockinette-x", "length": 10.0},
+            ],
+        },
     }
     res = run(cfg, tmp_path / "out")
     rows = list(csv.DictReader(open(tmp_path / "out" / "patchwork.csv")))
@@ -145,5 +164,14 @@ def test_patchwork_stage_config_errors(tmp_path):
     with pytest.raises(ConfigError, match=r"patchwork.regions\[0\].source"):
         run({"patchwork": {"regions": [{"name": "a", "source": "bogus"}]}}, None)
     with pytest.raises(ConfigError, match=r"patchwork.layout\[0\]"):
-        run({"patchwork": {"mode": "grid", "layout": [["a", "b"]], "row_widths": [1.0],
-                           "regions": [{"name": "a", "source": "file:p.json"}]}}, None)
+        run(
+            {
+                "patchwork": {
+                    "mode": "grid",
+                    "layout": [["a", "b"]],
+                    "row_widths": [1.0],
+                    "regions": [{"name": "a", "source": "file:p.json"}],
+                }
+            },
+            None,
+        )

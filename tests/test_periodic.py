@@ -46,7 +46,7 @@ def test_pointmap_gradient_and_hessian_are_the_chain_rule():
     pm = PointMap(n, nodes, images, LAT)
 
     def energy(q):
-        p = pm.points(X + q[: 3 * n].reshape(-1, 3), q[3 * n:])
+        p = pm.points(X + q[: 3 * n].reshape(-1, 3), q[3 * n :])
         e = p[:, 1] - p[:, 0]
         l2 = np.einsum("mi,mi->m", e, e)
         g = np.stack([-2 * e, 2 * e], axis=1) * l2[:, None, None] * 2
@@ -71,7 +71,9 @@ def test_periodic_transform_ties_slaves_to_masters_including_corners():
     """u(X + L) − u(X) = (F̄ − I)·L for every slave, also for a corner reached through two pairs."""
     # nodes: 0 master, 1 = 0 + L1, 2 = 0 + L2, 3 = 1 + L2 (corner), 4 interior
     X = np.array([[0, 0, 0], LAT.L1, LAT.L2, LAT.L1 + LAT.L2, [0.5, 0.5, 0.1]])
-    T, ind = periodic_transform(5, slave=[1, 2, 3], master=[0, 0, 1], images=[[1, 0], [0, 1], [0, 1]], lattice=LAT)
+    T, ind = periodic_transform(
+        5, slave=[1, 2, 3], master=[0, 0, 1], images=[[1, 0], [0, 1], [0, 1]], lattice=LAT
+    )
     assert list(ind) == [0, 4]
     rng = np.random.default_rng(0)
     qt = rng.standard_normal(T.shape[1])

@@ -31,7 +31,8 @@ def test_example_imports_real_data_and_writes_csv_plot_summary(example_run):
     assert summary["plugins"]["reader:singal2024"]["package"] == "knitframe"
     assert "responses.csv" in summary["outputs"]
     assert not (out / ".knitframe").exists() and sorted(p.name for p in out.iterdir()) == sorted(
-        summary["outputs"] + ["summary.json"])
+        summary["outputs"] + ["summary.json"]
+    )
 
 
 def test_reader_averages_repeats_with_spread(singal_file):
@@ -126,7 +127,9 @@ def test_repeated_tables_name_the_failing_entry(tmp_path, singal_file):
     data = {"files": [str(singal_file("cotton-rib-x.csv"))]}
     with pytest.raises(ConfigError, match=r"^fit\[1\]\.fitter: unknown fitter 'nope'"):
         knitframe.run({"data": data, "fit": [{"name": "a"}, {"name": "b", "fitter": "nope"}]})
-    with pytest.raises(ConfigError, match=r"^fit\[1\]\.name: repeated \[\[fit\]\] tables need distinct names"):
+    with pytest.raises(
+        ConfigError, match=r"^fit\[1\]\.name: repeated \[\[fit\]\] tables need distinct names"
+    ):
         knitframe.run({"data": data, "fit": [{"name": "a"}, {"name": "a"}]})
     with pytest.raises(ConfigError, match=r"^data: expected a table"):
         knitframe.run({"data": [data]})

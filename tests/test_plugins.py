@@ -57,7 +57,9 @@ def test_misspelled_hook_fails_loudly():
 def test_broken_third_party_plugin_warns_and_program_keeps_working(tmp_path, monkeypatch):
     """A third-party plugin that raises on import gives a warning naming it; built-ins still load."""
     _fake_dist(tmp_path, monkeypatch, "broken", "raise ImportError('needs libfoo')\n", entry="broken_plugin")
-    with pytest.warns(PluginWarning, match=r"'broken_plugin' \(kf_test_broken\) failed to load: ImportError: needs libfoo"):
+    with pytest.warns(
+        PluginWarning, match=r"'broken_plugin' \(kf_test_broken\) failed to load: ImportError: needs libfoo"
+    ):
         reg = load_registry(external=True)
     assert "local" in reg["executor"]
     assert ("broken_plugin", "ImportError: needs libfoo") in reg.failed
@@ -80,7 +82,9 @@ def test_plugin_that_fails_while_registering_warns(tmp_path, monkeypatch):
 
 def test_environment_variable_blocks_external_plugins(tmp_path, monkeypatch):
     """With the blocking variable set, external entry points are not even imported."""
-    _fake_dist(tmp_path, monkeypatch, "blocked", "raise ImportError('should not be imported')\n", entry="blocked")
+    _fake_dist(
+        tmp_path, monkeypatch, "blocked", "raise ImportError('should not be imported')\n", entry="blocked"
+    )
     monkeypatch.setenv(DISABLE_EXTERNAL_ENV, "1")
     with warnings.catch_warnings():
         warnings.simplefilter("error")

@@ -13,18 +13,32 @@ COTTON = Yarn("cotton", d0=0.445, dk=0.444, E_axial=1200.0, E_transverse=0.12, s
 
 def _response() -> Response:
     lam = np.linspace(1.0, 1.3, 7)
-    return Response(lam, 1 - 0.3 * (lam - 1), 0.1 * (lam - 1), np.zeros(7), load="uniaxial-course", label="r",
-                    n_samples=3, T1_sd=np.full(7, 0.01), lambda2_sd=np.full(7, 0.002),
-                    provenance=Provenance(kind="simulation", solver="rod", wall_time=1.5, extra={"a": 1}))
+    return Response(
+        lam,
+        1 - 0.3 * (lam - 1),
+        0.1 * (lam - 1),
+        np.zeros(7),
+        load="uniaxial-course",
+        label="r",
+        n_samples=3,
+        T1_sd=np.full(7, 0.01),
+        lambda2_sd=np.full(7, 0.002),
+        provenance=Provenance(kind="simulation", solver="rod", wall_time=1.5, extra={"a": 1}),
+    )
 
 
-@pytest.mark.parametrize("record", [
-    COTTON,
-    Fabric("jersey", COTTON, stitch_length=11.0),
-    Scene(LoadPath("uniaxial", max_strain=0.5, steps=5, direction="wale"), effects={"contact", "friction"}),
-    Scene(LoadPath("general", lambda1=(1.0, 1.1), lambda2=(1.0, 0.95))),
-    _response(),
-])
+@pytest.mark.parametrize(
+    "record",
+    [
+        COTTON,
+        Fabric("jersey", COTTON, stitch_length=11.0),
+        Scene(
+            LoadPath("uniaxial", max_strain=0.5, steps=5, direction="wale"), effects={"contact", "friction"}
+        ),
+        Scene(LoadPath("general", lambda1=(1.0, 1.1), lambda2=(1.0, 0.95))),
+        _response(),
+    ],
+)
 def test_round_trip_dict_and_toml(record):
     """Every record comes back equal from to_dict/from_dict and from to_toml/from_toml."""
     cls = type(record)
@@ -46,11 +60,14 @@ def test_response_arrays_are_float64_and_read_only():
         r.T1[0] = 1.0
 
 
-@pytest.mark.parametrize("bad, field", [
-    (dict(T1=[0.0, np.nan]), "T1"),
-    (dict(lambda1=[1.0, -0.1]), "lambda1"),
-    (dict(T2=[0.0]), "T2"),
-])
+@pytest.mark.parametrize(
+    "bad, field",
+    [
+        (dict(T1=[0.0, np.nan]), "T1"),
+        (dict(lambda1=[1.0, -0.1]), "lambda1"),
+        (dict(T2=[0.0]), "T2"),
+    ],
+)
 def test_response_rejects_nan_negative_stretch_and_ragged(bad, field):
     """NaN, non-positive stretch and arrays of unequal length are refused, naming the field."""
     kw = dict(lambda1=[1.0, 1.1], lambda2=[1.0, 1.0], T1=[0.0, 0.1], T2=[0.0, 0.0])

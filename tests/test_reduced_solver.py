@@ -37,8 +37,9 @@ def test_equibiaxial_matches_closed_form():
 def test_uniaxial_free_side_with_hgo2m():
     """A uniaxial wale load solves the free course side to P1 = 0 and reports T1 = 0."""
     p = {"mu1": 0.02, "mu2": 0.01, "K": 0.03, "a1": 0.05, "b1": 2.0, "a2": 0.08, "b2": 1.0}
-    r = solver(model="hgo2m", params=p).simulate(None, Scene(load=LoadPath("uniaxial", 0.5, 5, direction="wale"),
-                                                            effects=EFFECTS))
+    r = solver(model="hgo2m", params=p).simulate(
+        None, Scene(load=LoadPath("uniaxial", 0.5, 5, direction="wale"), effects=EFFECTS)
+    )
     m = get_registry()["homogenizer"]["hgo2m"]()
     params = np.array(list(p.values()))
     assert r.load == "uniaxial-wale" and np.all(r.T1 == 0) and np.all(np.diff(r.lambda1) < 0)
@@ -66,7 +67,9 @@ def test_general_path():
 
 def test_unsupported_effect_is_refused():
     """A scene asking for contact names the effect and the solvers that model it."""
-    with pytest.raises(UnsupportedEffectError, match="does not support effect 'contact'; solvers that do: .*rod"):
+    with pytest.raises(
+        UnsupportedEffectError, match="does not support effect 'contact'; solvers that do: .*rod"
+    ):
         solver().simulate(None, Scene(load=LoadPath("equibiaxial", 0.1, 2), effects=EFFECTS | {"contact"}))
 
 
@@ -96,11 +99,19 @@ def test_simulate_then_fit_recovers_the_parameters(tmp_path):
     cfg = {
         "solver": {"kind": "reduced", "model": "hgo", "params": {"a": 0.03, "b": 4.0, "theta_deg": 65.0}},
         "fabric": {"pattern": "jersey", "stitch_length": 10, "yarn": "cotton"},
-        "scene": {"effects": ["large_deformation", "anisotropy"],
-                  "load": {"kind": "general", "lambda1": [1.05, 1.1, 1.15, 1.2, 1.25], "lambda2": [1.02, 1.04, 1.05, 1.08, 1.1]}},
+        "scene": {
+            "effects": ["large_deformation", "anisotropy"],
+            "load": {
+                "kind": "general",
+                "lambda1": [1.05, 1.1, 1.15, 1.2, 1.25],
+                "lambda2": [1.02, 1.04, 1.05, 1.08, 1.1],
+            },
+        },
         "fit": {"model": "hgo", "fitter": "lbfgs"},
     }
     res = run(cfg, tmp_path / "out")
     fit = res.models[0]
     np.testing.assert_allclose(fit.params, [0.03, 4.0, math.radians(65)], rtol=1e-5)
-    assert json.loads((tmp_path / "out" / "params.json").read_text())["theta_deg"] == pytest.approx(65.0, abs=1e-3)
+    assert json.loads((tmp_path / "out" / "params.json").read_text())["theta_deg"] == pytest.approx(
+        65.0, abs=1e-3
+    )

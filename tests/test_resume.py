@@ -48,7 +48,9 @@ def pvd_files(out: Path) -> list[str]:
 def curve(path: Path) -> np.ndarray:
     with open(path, newline="") as fh:
         rows = list(csv.DictReader(fh))
-    return np.array([[float(r[k]) for k in ("lambda1", "lambda2", "T1_N_per_mm", "T2_N_per_mm")] for r in rows])
+    return np.array(
+        [[float(r[k]) for k in ("lambda1", "lambda2", "T1_N_per_mm", "T2_N_per_mm")] for r in rows]
+    )
 
 
 def assert_same_run(out: Path, ref: Path) -> None:
@@ -59,8 +61,12 @@ def assert_same_run(out: Path, ref: Path) -> None:
     assert names == sorted(p.name for p in (ref / "vtu").glob("*.vtu"))
     assert pvd_files(out) == pvd_files(ref) == names
     for name in (names[0], names[len(names) // 2], names[-1]):
-        assert np.allclose(meshio.read(out / "vtu" / name).points, meshio.read(ref / "vtu" / name).points,
-                           rtol=1e-9, atol=1e-9)
+        assert np.allclose(
+            meshio.read(out / "vtu" / name).points,
+            meshio.read(ref / "vtu" / name).points,
+            rtol=1e-9,
+            atol=1e-9,
+        )
 
 
 @pytest.fixture(scope="module")
@@ -123,8 +129,9 @@ def test_sigkilled_cli_run_resumes_with_its_files_and_says_so(tmp_path, referenc
     (tmp_path / "rod.toml").write_text(CONFIG.format(steps=6))
     env = {**os.environ, "MPLBACKEND": "Agg"}
     cmd = [sys.executable, "-m", "knitframe", "run", "rod.toml", "--out", "out"]
-    proc = subprocess.Popen(cmd + ["--quiet"], cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            env=env)
+    proc = subprocess.Popen(
+        cmd + ["--quiet"], cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env
+    )
     ckpt = tmp_path / "out" / ".knitframe" / "checkpoints" / "simulate"
     deadline = time.monotonic() + 300
     while not (ckpt / "step-0011.npz").exists() and proc.poll() is None and time.monotonic() < deadline:
@@ -132,20 +139,28 @@ def test_sigkilled_cli_run_resumes_with_its_files_and_says_so(tmp_path, referenc
     proc.send_signal(signal.SIGKILL)
     proc.wait(timeout=60)
     assert proc.returncode == -signal.SIGKILL, "the run ended before it could be killed"
-    done = subprocess.run(cmd + ["--resume"], cwd=tmp_path, capture_output=True, text=True, env=env, timeout=600)
+    done = subprocess.run(
+        cmd + ["--resume"], cwd=tmp_path, capture_output=True, text=True, env=env, timeout=600
+    )
     assert done.returncode == 0, done.stderr
     resumed = [line for line in done.stderr.splitlines() if "resuming" in line]
-    assert len(resumed) == 1 and re.fullmatch(r"knitframe: resuming from step \d+ of 15 \(checkpoint .*step-\d{4}\.npz\)",
-                                              resumed[0]), done.stderr
+    assert len(resumed) == 1 and re.fullmatch(
+        r"knitframe: resuming from step \d+ of 15 \(checkpoint .*step-\d{4}\.npz\)", resumed[0]
+    ), done.stderr
     assert_same_run(tmp_path / "out", reference)
 
 
 def test_ctrl_c_is_one_line_and_exit_130(tmp_path):
     """SIGINT during a run prints one line, exits 130 and leaves no traceback; checkpoints stay for --resume."""
     (tmp_path / "rod.toml").write_text(CONFIG.format(steps=30))
-    proc = subprocess.Popen([sys.executable, "-m", "knitframe", "run", "rod.toml", "--out", "out", "--quiet"],
-                            cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "MPLBACKEND": "Agg"})
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "knitframe", "run", "rod.toml", "--out", "out", "--quiet"],
+        cwd=tmp_path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "MPLBACKEND": "Agg"},
+    )
     ckpt = tmp_path / "out" / ".knitframe" / "checkpoints" / "simulate"
     deadline = time.monotonic() + 300
     while not (ckpt / "step-0010.npz").exists() and proc.poll() is None and time.monotonic() < deadline:
@@ -160,12 +175,18 @@ def test_ctrl_c_is_one_line_and_exit_130(tmp_path):
 def test_progress_lines_on_a_non_terminal(tmp_path):
     """Piped to a log, a run prints a progress line at the set interval with the step, elapsed time and time left."""
     (tmp_path / "rod.toml").write_text(CONFIG.format(steps=6))
-    done = subprocess.run([sys.executable, "-m", "knitframe", "run", "rod.toml", "--out", "out"], cwd=tmp_path,
-                          capture_output=True, text=True, timeout=600,
-                          env={**os.environ, "MPLBACKEND": "Agg", "KNITFRAME_PROGRESS_INTERVAL": "0.2"})
+    done = subprocess.run(
+        [sys.executable, "-m", "knitframe", "run", "rod.toml", "--out", "out"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env={**os.environ, "MPLBACKEND": "Agg", "KNITFRAME_PROGRESS_INTERVAL": "0.2"},
+    )
     assert done.returncode == 0, done.stderr
     lines = [line for line in done.stderr.splitlines() if line.startswith("knitframe: rod jersey: step")]
     assert len(lines) >= 3, done.stderr
-    assert re.fullmatch(r"knitframe: rod jersey: step 15/15 \(load step 6/6\), \d\d:\d\d elapsed, about 00:00 left",
-                        lines[-1]), lines[-1]
+    assert re.fullmatch(
+        r"knitframe: rod jersey: step 15/15 \(load step 6/6\), \d\d:\d\d elapsed, about 00:00 left", lines[-1]
+    ), lines[-1]
     assert all(re.search(r"\d\d:\d\d elapsed, (about \d\d:\d\d|unknown) left$", line) for line in lines)

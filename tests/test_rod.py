@@ -4,15 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_bvp
-
-from knitframe.geometry import Centerline, UnitCell
-from knitframe.newton import NewtonOptions, continuation, minimise
-from knitframe.periodic import Lattice, macro_index
 from knitframe_contact.rod_penalty import RodPenalty
 from knitframe_linsolvers.direct import direct
 from knitframe_solvers.rod_contact import line_energy
 from knitframe_solvers.rod_model import RodEnergy, from_cell, open_rods
+from scipy.integrate import solve_bvp
+
+from knitframe.geometry import Centerline, UnitCell
+from knitframe.newton import NewtonOptions, continuation, minimise
+from knitframe.periodic import Lattice
 
 EA, EI = 50.0, 0.05
 
@@ -24,19 +24,46 @@ def wavy_cell(amp: float = 0.2, gap: float = 0.5, radius: float = 0.26) -> UnitC
         w = 2 * np.pi / 2.0
         return Centerline(
             name,
-            lambda t: np.stack([t, np.full_like(t, y0) + 0.05 * np.sin(2 * w * t), sign * amp * np.sin(w * t)], 1),
-            lambda t: np.stack([np.ones_like(t), 0.1 * w * np.cos(2 * w * t), sign * amp * w * np.cos(w * t)], 1),
-            0.0, 2.0, [2.0, 0, 0])
+            lambda t: np.stack(
+                [t, np.full_like(t, y0) + 0.05 * np.sin(2 * w * t), sign * amp * np.sin(w * t)], 1
+            ),
+            lambda t: np.stack(
+                [np.ones_like(t), 0.1 * w * np.cos(2 * w * t), sign * amp * w * np.cos(w * t)], 1
+            ),
+            0.0,
+            2.0,
+            [2.0, 0, 0],
+        )
 
-    return UnitCell("wavy", (yarn(0.0, 1, "row0"), yarn(gap, -1, "row1")), [2.0, 0, 0], [0, 2 * gap, 0], radius,
-                    ((0, 0), (1, 1)), (("k", "k"), ("k", "k")), 2.0, 1.0, gap)
+    return UnitCell(
+        "wavy",
+        (yarn(0.0, 1, "row0"), yarn(gap, -1, "row1")),
+        [2.0, 0, 0],
+        [0, 2 * gap, 0],
+        radius,
+        ((0, 0), (1, 1)),
+        (("k", "k"), ("k", "k")),
+        2.0,
+        1.0,
+        gap,
+    )
 
 
 def cell_energy(cell, segments=8, bending=True, friction=False, **kw):
     model = from_cell(cell, segments)
     law = RodPenalty()
-    en = RodEnergy(model, EA, EI, bending=bending, law=law, dk=cell.dk, k_contact=5.0, k_core=50.0,
-                   friction=friction, **kw)
+    en = RodEnergy(
+        model,
+        EA,
+        EI,
+        bending=bending,
+        law=law,
+        dk=cell.dk,
+        k_contact=5.0,
+        k_core=50.0,
+        friction=friction,
+        **kw,
+    )
     return model, en
 
 
@@ -45,28 +72,33 @@ def solve_macro(model, en, F_path, stabilisation=1e-6, q0=None, predictor=True):
     n = model.n_nodes
     free = np.ones(model.n_dof, bool)
     free[:3] = False
-    free[3 * n:] = False
+    free[3 * n :] = False
 
     def solve_at(t, q):
         k = min(int(np.ceil(t - 1e-12)), len(F_path)) - 1
         F0 = np.eye(3) if k == 0 else F_path[k - 1]
         F = F0 + (t - k) * (F_path[k] - F0)
         qs = q.copy()
-        qs[3 * n:] = Lattice.h_from_F(F)
+        qs[3 * n :] = Lattice.h_from_F(F)
         if predictor:  # the cell content follows the change of F̄ affinely (about node 0, which is pinned)
             x = model.positions(q)
-            A = F @ np.linalg.inv(Lattice.F(q[3 * n:]))
+            A = F @ np.linalg.inv(Lattice.F(q[3 * n :]))
             qs[: 3 * n] = (x[0] + (x - x[0]) @ A.T - model.X).reshape(-1)
-        return minimise(en, qs, free, solve=direct(),
-                        options=NewtonOptions(atol=1e-11, rtol=0.0, stabilisation=stabilisation, xtol=1e-13),
-                        stabilise=lambda info: info["strands_in_contact"] < model.n_strands)
+        return minimise(
+            en,
+            qs,
+            free,
+            solve=direct(),
+            options=NewtonOptions(atol=1e-11, rtol=0.0, stabilisation=stabilisation, xtol=1e-13),
+            stabilise=lambda info: info["strands_in_contact"] < model.n_strands,
+        )
 
     q = np.zeros(model.n_dof) if q0 is None else q0
     return continuation(solve_at, q, [float(i + 1) for i in range(len(F_path))])[-1]
 
 
 def stress(model, res):
-    return model.lattice.nominal_stress(res.gradient[3 * model.n_nodes:])
+    return model.lattice.nominal_stress(res.gradient[3 * model.n_nodes :])
 
 
 # ---------------------------------------------------------------------------------------- derivatives
@@ -75,7 +107,7 @@ def test_total_gradient_and_hessian_match_finite_differences():
     model, en = cell_energy(wavy_cell(), segments=5, friction=True)
     rng = np.random.default_rng(0)
     q = np.zeros(model.n_dof)
-    q[3 * model.n_nodes:] = Lattice.h_from_F(np.diag([1.03, 0.93, 1.0]))
+    q[3 * model.n_nodes :] = Lattice.h_from_F(np.diag([1.03, 0.93, 1.0]))
     en.update_lag(q)
     en.kappa0 = 0.5 * model.curvature(q)  # the pre-stress's rest curvature term
     q[: 3 * model.n_nodes] += 0.01 * rng.standard_normal(3 * model.n_nodes)
@@ -90,16 +122,22 @@ def test_total_gradient_and_hessian_match_finite_differences():
         Ep, gp, _, _ = en(q + dq, 1)
         Em, gm, _, _ = en(q - dq, 1)
         assert (Ep - Em) / (2 * eps) == pytest.approx(g[i], rel=1e-5, abs=1e-7), f"gradient DOF {i}"
-        assert np.allclose((gp - gm) / (2 * eps), H[:, i], rtol=1e-4, atol=1e-5 * np.abs(H).max()), f"Hessian column {i}"
+        assert np.allclose((gp - gm) / (2 * eps), H[:, i], rtol=1e-4, atol=1e-5 * np.abs(H).max()), (
+            f"Hessian column {i}"
+        )
 
 
 # ---------------------------------------------------------------------------------------- references
 def test_cantilever_matches_the_elastica():
     """A clamped rod under a large tip load (PL²/EI = 5) ends where the elastica BVP says, to 0.1 % of L."""
     L, EIc, P_ = 10.0, 2.0, 5 * 2.0 / 100.0
-    sol = solve_bvp(lambda s, y: np.vstack([y[1], -(P_ / EIc) * np.cos(y[0]), np.cos(y[0]), np.sin(y[0])]),
-                    lambda a, b: np.array([a[0], b[1], a[2], a[3]]), np.linspace(0, L, 100),
-                    np.vstack([np.zeros((2, 100)), np.linspace(0, L, 100), np.zeros(100)]), tol=1e-10)
+    sol = solve_bvp(
+        lambda s, y: np.vstack([y[1], -(P_ / EIc) * np.cos(y[0]), np.cos(y[0]), np.sin(y[0])]),
+        lambda a, b: np.array([a[0], b[1], a[2], a[3]]),
+        np.linspace(0, L, 100),
+        np.vstack([np.zeros((2, 100)), np.linspace(0, L, 100), np.zeros(100)]),
+        tol=1e-10,
+    )
     tip_ref = np.array([sol.y[2, -1], -sol.y[3, -1]])
     n = 80
     h = L / (n - 0.5)  # the clamped first edge is centred on s = 0
@@ -110,7 +148,7 @@ def test_cantilever_matches_the_elastica():
     en = RodEnergy(model, 1e5, EIc)
     free = np.ones(model.n_dof, bool)
     free[:6] = False
-    free[3 * model.n_nodes:] = False
+    free[3 * model.n_nodes :] = False
 
     def solve_at(t, q):
         en.external = t * f
@@ -142,9 +180,9 @@ def test_crossing_rods_pressed_together_follow_the_contact_law():
     free = np.ones(model.n_dof, bool)
     free[: 3 * n] = False  # rod A fixed
     for e in ends:
-        free[3 * e: 3 * e + 3] = False  # B on supports...
+        free[3 * e : 3 * e + 3] = False  # B on supports...
     free[3 * ends[1] + 1] = True  # ...one of them a roller, so B carries no membrane tension
-    free[3 * model.n_nodes:] = False
+    free[3 * model.n_nodes :] = False
     res = minimise(en, q, free, solve=direct(), options=NewtonOptions(atol=1e-10, rtol=0.0, xtol=1e-13))
     F = -sum(res.gradient[3 * e + 2] for e in ends)  # upward push of the contact on B, N
     d = en.pairs(res.x).distance.min()
@@ -160,11 +198,27 @@ def test_parallel_yarns_carry_the_line_load_of_the_contact_law():
     dk, k, kc, gap = 0.4, 50.0, 800.0, 0.36
 
     def straight(y0, name):
-        return Centerline(name, lambda t: np.stack([t, np.full_like(t, y0), 0 * t], 1),
-                          lambda t: np.stack([1 + 0 * t, 0 * t, 0 * t], 1), 0.0, 2.0, [2.0, 0, 0])
+        return Centerline(
+            name,
+            lambda t: np.stack([t, np.full_like(t, y0), 0 * t], 1),
+            lambda t: np.stack([1 + 0 * t, 0 * t, 0 * t], 1),
+            0.0,
+            2.0,
+            [2.0, 0, 0],
+        )
 
-    cell = UnitCell("parallel", (straight(0.0, "row0"), straight(gap, "row1")), [2.0, 0, 0], [0, 4.0, 0], 0.5 * dk,
-                    ((0, 0), (1, 1)), (("k", "k"), ("k", "k")), 1.0, 1.0, 2.0)
+    cell = UnitCell(
+        "parallel",
+        (straight(0.0, "row0"), straight(gap, "row1")),
+        [2.0, 0, 0],
+        [0, 4.0, 0],
+        0.5 * dk,
+        ((0, 0), (1, 1)),
+        (("k", "k"), ("k", "k")),
+        1.0,
+        1.0,
+        2.0,
+    )
     model = from_cell(cell, 10)
     en = RodEnergy(model, EA, EI, law=law, dk=dk, k_contact=k, k_core=kc)
     E, g, _, _ = en(np.zeros(model.n_dof), 1)
@@ -184,7 +238,7 @@ def test_contact_energy_has_no_jumps_when_a_rod_slides_through_a_bend():
     model = open_rods([kinked, straight])
     en = RodEnergy(model, 1e4, 1.0, bending=False, law=RodPenalty(), dk=0.4, k_contact=50.0, k_core=500.0)
     slide = np.zeros(model.n_dof)
-    slide[3 * len(kinked): 3 * model.n_nodes: 3] = 1.0
+    slide[3 * len(kinked) : 3 * model.n_nodes : 3] = 1.0
     xs = np.linspace(-0.4, 0.4, 2001)
     E, dE = np.array([(e, g @ slide) for e, g, _, _ in (en(x * slide, 1) for x in xs)]).T
     assert E.min() > 0  # in contact all along
@@ -204,14 +258,14 @@ def test_friction_resists_sliding_with_mu_times_normal_force():
     q = np.zeros(model.n_dof)
     en.update_lag(q)
     _, g0, _, _ = en(q, 1)
-    N = -g0[3 * n + 2: 6 * n: 3].sum()  # normal (z) force of the contact on B, N
-    q[3 * n: 6 * n: 3] = 0.05  # slide B along x by 0.05 mm ≫ ε_s = 0.4 µm
+    N = -g0[3 * n + 2 : 6 * n : 3].sum()  # normal (z) force of the contact on B, N
+    q[3 * n : 6 * n : 3] = 0.05  # slide B along x by 0.05 mm ≫ ε_s = 0.4 µm
     _, g, _, _ = en(q, 1)
     en.friction = False
     _, g_normal, _, _ = en(q, 1)
     lag = en.lag
     tangential = np.sqrt(1.0 - lag.normal[:, 0] ** 2)  # |(I − n nᵀ) e_x| of each point pair
-    F = (g - g_normal)[3 * n: 6 * n: 3].sum()
+    F = (g - g_normal)[3 * n : 6 * n : 3].sum()
     assert N > 1e-3 and F == pytest.approx(0.3 * np.sum(lag.lam * tangential), rel=1e-6)
     assert F == pytest.approx(0.3 * N, rel=0.05)  # the patch is nearly flat: μ times the total normal force
     assert en.calls["friction"] == 2
@@ -219,8 +273,14 @@ def test_friction_resists_sliding_with_mu_times_normal_force():
 
 def test_straight_periodic_yarn_tension_is_EA_strain_per_width():
     """A straight yarn along the course stretched by 10 % carries T1 = EA·0.1/|L2| (reaction → tension)."""
-    c = Centerline("row0", lambda t: np.stack([t, 0 * t, 0 * t], 1), lambda t: np.stack([1 + 0 * t, 0 * t, 0 * t], 1),
-                   0.0, 2.0, [2.0, 0, 0])
+    c = Centerline(
+        "row0",
+        lambda t: np.stack([t, 0 * t, 0 * t], 1),
+        lambda t: np.stack([1 + 0 * t, 0 * t, 0 * t], 1),
+        0.0,
+        2.0,
+        [2.0, 0, 0],
+    )
     cell = UnitCell("straight", (c,), [2.0, 0, 0], [0, 1.5, 0], 0.2, ((0, 0),), (("k",),), 1.0, 1.0, 1.5)
     model, en = cell_energy(cell, segments=4)
     res = solve_macro(model, en, [np.diag([1.1, 1.0, 1.0])])
@@ -230,12 +290,20 @@ def test_straight_periodic_yarn_tension_is_EA_strain_per_width():
 
 def test_rigid_rotation_inside_F_gives_zero_stress():
     """F̄ = R(30°) applied to a stress-free cell leaves energy and stress at zero."""
-    c = Centerline("row0", lambda t: np.stack([t, 0 * t, 0 * t], 1), lambda t: np.stack([1 + 0 * t, 0 * t, 0 * t], 1),
-                   0.0, 2.0, [2.0, 0, 0])
+    c = Centerline(
+        "row0",
+        lambda t: np.stack([t, 0 * t, 0 * t], 1),
+        lambda t: np.stack([1 + 0 * t, 0 * t, 0 * t], 1),
+        0.0,
+        2.0,
+        [2.0, 0, 0],
+    )
     cell = UnitCell("straight", (c,), [2.0, 0, 0], [0, 1.5, 0], 0.2, ((0, 0),), (("k",),), 1.0, 1.0, 1.5)
     model, en = cell_energy(cell, segments=4)
-    path = [np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
-            for a in np.radians([10, 20, 30])]
+    path = [
+        np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+        for a in np.radians([10, 20, 30])
+    ]
     res = solve_macro(model, en, path)
     assert res.energy < 1e-16 and np.abs(stress(model, res)).max() < 1e-8
 
@@ -247,7 +315,10 @@ def test_frame_indifference_of_a_loaded_cell():
     a = np.radians(25)
     R = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
     r1 = solve_macro(model, en, [F])
-    rotations = [np.array([[np.cos(b), -np.sin(b), 0], [np.sin(b), np.cos(b), 0], [0, 0, 1]]) for b in np.linspace(0, a, 6)]
+    rotations = [
+        np.array([[np.cos(b), -np.sin(b), 0], [np.sin(b), np.cos(b), 0], [0, 0, 1]])
+        for b in np.linspace(0, a, 6)
+    ]
     r2 = solve_macro(model, en, [Rb @ F for Rb in rotations])  # stretch, then rotate in 5° steps
     P1, P2 = stress(model, r1), stress(model, r2)
     assert np.abs(P1).max() > 1e-3  # contact is loaded
@@ -260,7 +331,7 @@ def test_energy_is_invariant_under_periodic_translation():
     cell = wavy_cell()
     model, en = cell_energy(cell)
     q = np.zeros(model.n_dof)
-    q[3 * model.n_nodes:] = Lattice.h_from_F(np.diag([1.02, 0.95, 1.0]))
+    q[3 * model.n_nodes :] = Lattice.h_from_F(np.diag([1.02, 0.95, 1.0]))
     E0 = en(q, 0)[0]
     assert E0 > 0
     shift = np.tile([0.37, -0.21, 0.05], model.n_nodes)
@@ -269,13 +340,16 @@ def test_energy_is_invariant_under_periodic_translation():
     assert en(q1, 0)[0] == pytest.approx(E0, rel=1e-12)
     # the whole content moved by a lattice vector under the current F̄
     q2 = q.copy()
-    q2[: 3 * model.n_nodes] += np.tile(model.lattice.shift(np.array([1, -1]), q[3 * model.n_nodes:]), model.n_nodes)
+    q2[: 3 * model.n_nodes] += np.tile(
+        model.lattice.shift(np.array([1, -1]), q[3 * model.n_nodes :]), model.n_nodes
+    )
     assert en(q2, 0)[0] == pytest.approx(E0, rel=1e-10)
 
 
 def test_stabilisation_does_not_change_the_converged_answer(monkeypatch):
     """The rigid-mode Hessian shift (on while a strand has no contact) changes the iterations, not the curve."""
     import knitframe_solvers.rod as rod
+
     from knitframe import get_registry
     from knitframe.records import Fabric, LoadPath, Scene
 
@@ -290,8 +364,10 @@ def test_stabilisation_does_not_change_the_converged_answer(monkeypatch):
     monkeypatch.setattr(rod, "minimise", spy)
     reg = get_registry()
     fabric = Fabric(pattern="jersey", yarn=reg["yarn"]["cotton"], stitch_length=12)
-    scene = Scene(load=LoadPath(kind="equibiaxial", max_strain=0.2, steps=4),
-                  effects=("large_deformation", "bending", "contact", "prestress"))
+    scene = Scene(
+        load=LoadPath(kind="equibiaxial", max_strain=0.2, steps=4),
+        effects=("large_deformation", "bending", "contact", "prestress"),
+    )
     curves = []
     for stab in (0.0, 1e-6, 1e-4):
         shifted.clear()
@@ -341,7 +417,7 @@ def test_terms_not_asked_for_are_never_evaluated(monkeypatch):
     assert calls["n"] == 0 and bare.calls["contact"] == 0 and bare.calls["bending"] == 0
     model, en = cell_energy(wavy_cell())
     q = np.zeros(model.n_dof)
-    q[3 * model.n_nodes:] = Lattice.h_from_F(np.diag([1.02, 0.95, 1.0]))
+    q[3 * model.n_nodes :] = Lattice.h_from_F(np.diag([1.02, 0.95, 1.0]))
     E, g, H, info = en(q)
     assert info["active_contacts"] > 0 and calls["n"] == 1
     assert en.lag is None and en.calls["friction"] == 0

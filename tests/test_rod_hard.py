@@ -24,9 +24,11 @@ def outcome(pattern, sl, yarn, load, **options):
         return None
     for arr in (r.lambda1, r.lambda2, r.T1, r.T2):
         assert np.all(np.isfinite(arr))
-    print(f"{pattern} SL{sl} {yarn} {load.kind} {load.direction if load.kind == 'uniaxial' else ''}: {len(r)} steps, λ = ({r.lambda1[-1]:.3f}, "
-          f"{r.lambda2[-1]:.3f}), T = ({r.T1[-1]:.4g}, {r.T2[-1]:.4g}) N/mm, {r.provenance.extra['prestress_start']} "
-          f"pre-stress start, {r.provenance.wall_time:.1f} s")
+    print(
+        f"{pattern} SL{sl} {yarn} {load.kind} {load.direction if load.kind == 'uniaxial' else ''}: {len(r)} steps, λ = ({r.lambda1[-1]:.3f}, "
+        f"{r.lambda2[-1]:.3f}), T = ({r.T1[-1]:.4g}, {r.T2[-1]:.4g}) N/mm, {r.provenance.extra['prestress_start']} "
+        f"pre-stress start, {r.provenance.wall_time:.1f} s"
+    )
     return r
 
 
@@ -56,7 +58,9 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize("case", CASES, ids=["SL10-tight", "100-percent", "stiff-PET", "rib-curling", "garter-curling"])
+@pytest.mark.parametrize(
+    "case", CASES, ids=["SL10-tight", "100-percent", "stiff-PET", "rib-curling", "garter-curling"]
+)
 def test_hard_case_converges_or_stops_with_a_diagnostic(case):
     """SL10 interference, 100 % stretch, stiff PET and curling rib/garter end converged (and physical) or with a NumericalError."""
     r = outcome(*case)
@@ -71,11 +75,22 @@ def test_a_run_that_cannot_converge_stops_with_a_diagnostic_or_returns_its_conve
     with pytest.raises(NumericalError, match=r"rod solver \(jersey, cotton\): .*Newton"):
         get_registry()["solver"]["rod"](max_iterations=3, min_step_fraction=0.5).simulate(
             Fabric(pattern="jersey", yarn=get_registry()["yarn"]["cotton"], stitch_length=12),
-            Scene(load=load, effects=EFFECTS))
+            Scene(load=load, effects=EFFECTS),
+        )
     # a fabric squeezed to 40 % of its relaxed size has no room for its yarns: the path stops there
-    r = outcome("jersey", 12, "cotton", LoadPath(kind="general", lambda1=(1.1, 0.4), lambda2=(1.1, 0.4)),
-                on_failure="truncate", min_step_fraction=0.25)
-    assert r is not None and not r.provenance.converged and "stopped after 1 of 2 load steps" in r.provenance.notes
+    r = outcome(
+        "jersey",
+        12,
+        "cotton",
+        LoadPath(kind="general", lambda1=(1.1, 0.4), lambda2=(1.1, 0.4)),
+        on_failure="truncate",
+        min_step_fraction=0.25,
+    )
+    assert (
+        r is not None
+        and not r.provenance.converged
+        and "stopped after 1 of 2 load steps" in r.provenance.notes
+    )
     assert len(r) == 1 and r.T1[0] > 0
 
 
@@ -87,8 +102,11 @@ def test_auto_prestress_tries_the_knitted_start_after_the_straight_one_fails():
     hurried = {"prestress_steps": 2, "min_step_fraction": 0.25}  # too few steps for this tight cell
     with pytest.raises(NumericalError, match=r"rod solver \(jersey, cotton\): pre-stress \(contact distance"):
         reg["solver"]["rod"](prestress_start="straight", **hurried).simulate(fabric, scene)
-    with pytest.raises(NumericalError, match=r"rod solver \(jersey, cotton\): pre-stress \(straight start\).*; "
-                                             r"after that pre-stress \(knitted start\)"):
+    with pytest.raises(
+        NumericalError,
+        match=r"rod solver \(jersey, cotton\): pre-stress \(straight start\).*; "
+        r"after that pre-stress \(knitted start\)",
+    ):
         reg["solver"]["rod"](prestress_start="auto", **hurried).simulate(fabric, scene)
 
 
@@ -101,9 +119,11 @@ def test_every_pattern_stitch_length_and_yarn_ends_converged_or_with_a_diagnosti
 
     Loops of stiff yarns can snap through, so the tension need not grow at every step.
     """
-    for load in (LoadPath(kind="equibiaxial", max_strain=0.3, steps=10),
-                 LoadPath(kind="uniaxial", direction="course", max_strain=0.5, steps=10),
-                 LoadPath(kind="uniaxial", direction="wale", max_strain=0.5, steps=10)):
+    for load in (
+        LoadPath(kind="equibiaxial", max_strain=0.3, steps=10),
+        LoadPath(kind="uniaxial", direction="course", max_strain=0.5, steps=10),
+        LoadPath(kind="uniaxial", direction="wale", max_strain=0.5, steps=10),
+    ):
         r = outcome(pattern, sl, yarn, load)
         if r is not None:
             check_physical(r, load, monotonic=False)

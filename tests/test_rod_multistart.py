@@ -16,12 +16,12 @@ import warnings
 import meshio
 import numpy as np
 import pytest
+from knitframe_solvers.rod import START_SET, RodSolver, fallback_order, is_jump, locate_jumps, next_start
 
 from knitframe import get_registry
 from knitframe.errors import ConfigError, KnitframeWarning, NumericalError
 from knitframe.records import Fabric, LoadPath, Scene
 from knitframe.schema import build
-from knitframe_solvers.rod import START_SET, RodSolver, fallback_order, is_jump, locate_jumps, next_start
 
 EFFECTS = ("large_deformation", "bending", "contact", "prestress")
 
@@ -56,11 +56,16 @@ def test_starts_are_recorded_and_the_lowest_energy_one_is_returned(jersey_two_st
     lowest = int(np.argmin(energies))
     assert multi.provenance.extra["start_chosen"] == starts[lowest]["name"]
     assert multi.provenance.extra["relaxed_energy_Nmm"] == pytest.approx(energies[lowest], rel=1e-12)
-    assert multi.provenance.extra["relaxed_stretch"] == pytest.approx(starts[lowest]["relaxed_stretch"], rel=1e-12)
+    assert multi.provenance.extra["relaxed_stretch"] == pytest.approx(
+        starts[lowest]["relaxed_stretch"], rel=1e-12
+    )
     # the two starts reach different states, so returning the wrong one would show
     assert max(energies) > 1.2 * min(energies)
     # with one start the nominal state is returned, and its energy is the nominal entry's
-    assert single.provenance.extra["starts"][0]["name"] == "nominal" and len(single.provenance.extra["starts"]) == 1
+    assert (
+        single.provenance.extra["starts"][0]["name"] == "nominal"
+        and len(single.provenance.extra["starts"]) == 1
+    )
     assert single.provenance.extra["relaxed_energy_Nmm"] == pytest.approx(energies[0], rel=1e-9)
     assert multi.provenance.extra["relaxed_energy_Nmm"] <= single.provenance.extra["relaxed_energy_Nmm"]
 
@@ -81,7 +86,9 @@ def test_auto_and_counts_are_accepted():
 
 def test_a_snap_inside_a_step_is_located():
     """A jump kept at the smallest increment is attached to the load step that holds its loaded stretch."""
-    rows = np.column_stack([1.0 + 0.03 * np.arange(1, 6), [0.99, 0.98, 0.90, 0.89, 0.88], np.ones(5), np.zeros(5)])
+    rows = np.column_stack(
+        [1.0 + 0.03 * np.arange(1, 6), [0.99, 0.98, 0.90, 0.89, 0.88], np.ones(5), np.zeros(5)]
+    )
     snap = {"loaded": [1.0840, 1.0845], "free": [0.975, 0.905], "how": "smallest increment"}
     load = LoadPath(kind="uniaxial", direction="course")
     (jump,) = locate_jumps([], [snap], rows, load)
@@ -95,8 +102,15 @@ GARTER = dict(pattern="garter", arc_length=11.28)
 def garter_runs(**options):
     """Garter, pearl cotton, free-sides pull along the course to 30 %, in 10 and in 20 steps."""
     fab = Fabric(yarn=get_registry()["yarn"]["pearl-cotton"], **GARTER)
-    return [simulate(fab, LoadPath(kind="uniaxial", direction="course", max_strain=0.3, steps=steps), starts=1,
-                     **options) for steps in (10, 20)]
+    return [
+        simulate(
+            fab,
+            LoadPath(kind="uniaxial", direction="course", max_strain=0.3, steps=steps),
+            starts=1,
+            **options,
+        )
+        for steps in (10, 20)
+    ]
 
 
 def test_two_step_counts_end_on_one_branch_or_say_where_they_switched():
@@ -108,7 +122,7 @@ def test_two_step_counts_end_on_one_branch_or_say_where_they_switched():
     """
     runs = garter_runs(follow_branch=False)
     (a, b) = runs
-    same = (abs(a.T1[-1] - b.T1[-1]) <= 0.01 * abs(b.T1[-1]) and abs(a.lambda2[-1] - b.lambda2[-1]) <= 0.01)
+    same = abs(a.T1[-1] - b.T1[-1]) <= 0.01 * abs(b.T1[-1]) and abs(a.lambda2[-1] - b.lambda2[-1]) <= 0.01
     flagged = [r.provenance.extra["branch_jumps"] for r in runs]
     assert same or any(flagged)
     for r, jumps in zip(runs, flagged):
@@ -124,7 +138,9 @@ def test_following_the_branch_gives_one_path_and_one_snap_for_two_step_counts():
     increment, 0.03 / 64; the final tension agrees to 1 %. (77 s on a busy 2-core machine.)
     """
     a, b = garter_runs()
-    assert a.T1[-1] == pytest.approx(b.T1[-1], rel=0.01) and a.lambda2[-1] == pytest.approx(b.lambda2[-1], abs=0.01)
+    assert a.T1[-1] == pytest.approx(b.T1[-1], rel=0.01) and a.lambda2[-1] == pytest.approx(
+        b.lambda2[-1], abs=0.01
+    )
     ja, jb = ([j for j in r.provenance.extra["branch_jumps"] if "at_loaded_stretch" in j] for r in (a, b))
     assert len(ja) == len(jb) >= 1
     for x, y in zip(ja, jb):
@@ -134,21 +150,27 @@ def test_following_the_branch_gives_one_path_and_one_snap_for_two_step_counts():
 # ---------------------------------------------------------------------------------------------------------------
 # Fallback: a start whose load path fails gives way to the next converged start in order of relaxed energy.
 
+
 def test_the_fallback_order_begins_with_the_chosen_start_and_skips_a_failed_state():
     """The chosen start comes first (a lower energy by 1e-4 relative or less does not displace an earlier start), the
     rest follow by energy; a start within 1e-4 of a failed one is the same state and is passed over, and says so."""
-    starts = [{"name": "a", "converged": True, "energy_Nmm": 1.0},
-              {"name": "b", "converged": True, "energy_Nmm": 1.0 - 1e-6},
-              {"name": "c", "converged": False, "energy_Nmm": None},
-              {"name": "d", "converged": True, "energy_Nmm": 0.5},
-              {"name": "e", "converged": True, "energy_Nmm": 2.0}]
+    starts = [
+        {"name": "a", "converged": True, "energy_Nmm": 1.0},
+        {"name": "b", "converged": True, "energy_Nmm": 1.0 - 1e-6},
+        {"name": "c", "converged": False, "energy_Nmm": None},
+        {"name": "d", "converged": True, "energy_Nmm": 0.5},
+        {"name": "e", "converged": True, "energy_Nmm": 2.0},
+    ]
     assert fallback_order(starts[:2]) == [0, 1]
     order = fallback_order(starts)
     assert order == [3, 1, 0, 4]
     starts[3]["load_error"] = "after 0 of 1 load steps: forced"
     assert next_start(starts, order) == 1
     starts[1]["load_error"] = "after 0 of 1 load steps: forced"
-    assert next_start(starts, order) == 4 and starts[0]["load_error"] == "not tried: the same relaxed state as 'b'"
+    assert (
+        next_start(starts, order) == 4
+        and starts[0]["load_error"] == "not tried: the same relaxed state as 'b'"
+    )
     starts[4]["load_error"] = "after 0 of 1 load steps: forced"
     assert next_start(starts, order) is None
 
@@ -195,7 +217,9 @@ def run_recording_warnings(fabric, load, outputs=(), **kwargs):
     options = {k: kwargs.pop(k) for k in list(kwargs) if k not in ("output_dir", "checkpoint_dir")}
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        r = RodSolver(**options).simulate(fabric, Scene(load=load, effects=EFFECTS, outputs=tuple(outputs)), **kwargs)
+        r = RodSolver(**options).simulate(
+            fabric, Scene(load=load, effects=EFFECTS, outputs=tuple(outputs)), **kwargs
+        )
     return r, [str(w.message) for w in caught if issubclass(w.category, KnitframeWarning)]
 
 
@@ -221,27 +245,42 @@ def test_a_failed_load_path_falls_back_to_the_next_start(monkeypatch, tmp_path, 
     """
     single, single_out = nominal_alone
     failing_load_path(monkeypatch, lambda path, tau: path == 0)
-    r, warned = run_recording_warnings(jersey_cotton(), TWO_STEPS, outputs=("vtu",), starts=2,
-                                       output_dir=tmp_path / "vtu", checkpoint_dir=tmp_path / "ckpt")
+    r, warned = run_recording_warnings(
+        jersey_cotton(),
+        TWO_STEPS,
+        outputs=("vtu",),
+        starts=2,
+        output_dir=tmp_path / "vtu",
+        checkpoint_dir=tmp_path / "ckpt",
+    )
     extra = r.provenance.extra
     starts = extra["starts"]
     lowest = min(range(2), key=lambda k: starts[k]["energy_Nmm"])
     other = 1 - lowest
     assert starts[lowest]["name"] == "other rest shape" and starts[other]["name"] == "nominal"
     assert extra["start_chosen"] == "nominal" and r.provenance.converged and len(r) == 2
-    assert "forced failure of load path 0" in starts[lowest]["load_error"] and starts[lowest]["load_steps"] == 0
+    assert (
+        "forced failure of load path 0" in starts[lowest]["load_error"] and starts[lowest]["load_steps"] == 0
+    )
     assert "\n" not in starts[lowest]["load_error"] and "load_error" not in starts[other]
     assert extra["relaxed_energy_Nmm"] == pytest.approx(starts[other]["energy_Nmm"], rel=1e-12)
     assert extra["relaxed_stretch"] == pytest.approx(starts[other]["relaxed_stretch"], rel=1e-12)
     # the curve is the nominal start's own
-    for got, want in ((r.lambda1, single.lambda1), (r.lambda2, single.lambda2), (r.T1, single.T1), (r.T2, single.T2)):
+    for got, want in (
+        (r.lambda1, single.lambda1),
+        (r.lambda2, single.lambda2),
+        (r.T1, single.T1),
+        (r.T2, single.T2),
+    ):
         assert np.allclose(got, want, rtol=1e-8, atol=1e-12)
     # one warning line naming both starts and the energy difference, also in the notes
     fallback = [w for w in warned if "could not follow the load path" in w]
     assert len(fallback) == 1 and "\n" not in fallback[0]
     dE = starts[other]["energy_Nmm"] - starts[lowest]["energy_Nmm"]
-    assert fallback[0].startswith("rod solver (jersey, cotton): the lowest-energy start 'other rest shape' could not "
-                                  "follow the load path (after 0 of 2 load steps: load step cut back")
+    assert fallback[0].startswith(
+        "rod solver (jersey, cotton): the lowest-energy start 'other rest shape' could not "
+        "follow the load path (after 0 of 2 load steps: load step cut back"
+    )
     assert "forced failure of load path 0" in fallback[0]
     assert fallback[0].endswith(f"continued from 'nominal' (energy {dE:.4g} N·mm higher)")
     assert fallback[0] in r.provenance.notes
@@ -249,23 +288,33 @@ def test_a_failed_load_path_falls_back_to_the_next_start(monkeypatch, tmp_path, 
     names = sorted(p.name for p in (tmp_path / "vtu").glob("*.vtu"))
     assert names == sorted(p.name for p in single_out.glob("*.vtu")) == pvd_names(tmp_path / "vtu")
     for name in names[-3:]:
-        assert np.allclose(meshio.read(tmp_path / "vtu" / name).points, meshio.read(single_out / name).points,
-                           rtol=1e-9, atol=1e-9)
+        assert np.allclose(
+            meshio.read(tmp_path / "vtu" / name).points,
+            meshio.read(single_out / name).points,
+            rtol=1e-9,
+            atol=1e-9,
+        )
     # the last checkpoint is the nominal path's last step and records the failed start
     saved = sorted((tmp_path / "ckpt").glob("step-*.npz"))
     assert [p.stem for p in saved] == [f"step-{k:04d}" for k in range(len(names))]
     with np.load(saved[-1]) as data:
         meta = json.loads(str(data["__meta__"]))
         assert meta["start_chosen"] == "nominal" and "load_error" in meta["starts"][lowest]
-        assert data["starts_q"].shape[0] == 2 and np.allclose(data["rows"], np.column_stack(
-            [single.lambda1, single.lambda2, single.T1, single.T2]), rtol=1e-8, atol=1e-12)
+        assert data["starts_q"].shape[0] == 2 and np.allclose(
+            data["rows"],
+            np.column_stack([single.lambda1, single.lambda2, single.T1, single.T2]),
+            rtol=1e-8,
+            atol=1e-12,
+        )
 
 
 class Killed(BaseException):
     """Stands for the process dying."""
 
 
-def test_a_run_killed_after_the_fallback_resumes_from_the_start_it_fell_back_to(monkeypatch, tmp_path, nominal_alone):
+def test_a_run_killed_after_the_fallback_resumes_from_the_start_it_fell_back_to(
+    monkeypatch, tmp_path, nominal_alone
+):
     """Killed after the first load step of the fallback path, the resumed run (nothing forced any more) continues
     from the start in the checkpoint, not from the lowest one, and ends as the uninterrupted fallback would."""
     import knitframe_solvers.rod as rod
@@ -282,18 +331,32 @@ def test_a_run_killed_after_the_fallback_resumes_from_the_start_it_fell_back_to(
 
     monkeypatch.setattr(rod.StepCheckpoints, "save", save)
     with pytest.raises(Killed):
-        run_recording_warnings(jersey_cotton(), TWO_STEPS, outputs=("vtu",), starts=2, output_dir=tmp_path / "vtu",
-                               checkpoint_dir=tmp_path / "ckpt")
+        run_recording_warnings(
+            jersey_cotton(),
+            TWO_STEPS,
+            outputs=("vtu",),
+            starts=2,
+            output_dir=tmp_path / "vtu",
+            checkpoint_dir=tmp_path / "ckpt",
+        )
     monkeypatch.undo()
-    r, warned = run_recording_warnings(jersey_cotton(), TWO_STEPS, outputs=("vtu",), starts=2,
-                                       output_dir=tmp_path / "vtu", checkpoint_dir=tmp_path / "ckpt")
+    r, warned = run_recording_warnings(
+        jersey_cotton(),
+        TWO_STEPS,
+        outputs=("vtu",),
+        starts=2,
+        output_dir=tmp_path / "vtu",
+        checkpoint_dir=tmp_path / "ckpt",
+    )
     extra = r.provenance.extra
     assert extra["start_chosen"] == "nominal" and len(r) == 2
     assert any("forced failure" in s.get("load_error", "") for s in extra["starts"])
     assert np.allclose(r.T1, single.T1, rtol=1e-8) and np.allclose(r.lambda2, single.lambda2, rtol=1e-8)
     assert sum("could not follow the load path" in w for w in warned) == 1
     names = sorted(p.name for p in (tmp_path / "vtu").glob("*.vtu"))
-    assert names == pvd_names(tmp_path / "vtu") and len(names) == len(list((tmp_path / "ckpt").glob("step-*.npz")))
+    assert names == pvd_names(tmp_path / "vtu") and len(names) == len(
+        list((tmp_path / "ckpt").glob("step-*.npz"))
+    )
 
 
 def test_when_every_start_fails_the_run_fails_or_keeps_the_furthest(monkeypatch):
@@ -303,8 +366,10 @@ def test_when_every_start_fails_the_run_fails_or_keeps_the_furthest(monkeypatch)
     with pytest.raises(NumericalError) as err:
         run_recording_warnings(jersey_cotton(), TWO_STEPS, starts=2)
     text = str(err.value)
-    assert "\n" not in text and text.startswith("rod solver (jersey, cotton): no start could follow the load path: "
-                                                "'other rest shape' after 0 of 2 load steps: load step cut back")
+    assert "\n" not in text and text.startswith(
+        "rod solver (jersey, cotton): no start could follow the load path: "
+        "'other rest shape' after 0 of 2 load steps: load step cut back"
+    )
     assert "forced failure of load path 0" in text
     assert "'nominal' after 1 of 2 load steps: load step cut back" in text
 
@@ -320,7 +385,9 @@ def test_when_every_start_fails_the_run_fails_or_keeps_the_furthest(monkeypatch)
     # the kept row is the lowest start's own first step
     monkeypatch.undo()
     lowest, _ = run_recording_warnings(jersey_cotton(), TWO_STEPS, starts=2)
-    assert r.T1[0] == pytest.approx(lowest.T1[0], rel=1e-8) and r.lambda2[0] == pytest.approx(lowest.lambda2[0], rel=1e-8)
+    assert r.T1[0] == pytest.approx(lowest.T1[0], rel=1e-8) and r.lambda2[0] == pytest.approx(
+        lowest.lambda2[0], rel=1e-8
+    )
 
 
 @pytest.mark.slow
@@ -331,8 +398,9 @@ def test_garter_pearl_cotton_finishes_from_the_next_start():
     from the next start, finishes, and says which start failed and why.
     """
     fab = Fabric(yarn=get_registry()["yarn"]["pearl-cotton"], **GARTER)
-    r, warned = run_recording_warnings(fab, LoadPath(kind="uniaxial", direction="course", max_strain=0.58317,
-                                                     steps=12))
+    r, warned = run_recording_warnings(
+        fab, LoadPath(kind="uniaxial", direction="course", max_strain=0.58317, steps=12)
+    )
     extra = r.provenance.extra
     starts = extra["starts"]
     lowest = min((k for k, s in enumerate(starts) if s["converged"]), key=lambda k: starts[k]["energy_Nmm"])

@@ -51,12 +51,20 @@ def write_config(tmp_path: Path, steps: int = 6, extra: str = "") -> Path:
 def read_curve(path: Path) -> np.ndarray:
     with open(path, newline="") as fh:
         rows = list(csv.DictReader(fh))
-    return np.array([[float(r[k]) for k in ("lambda1", "lambda2", "T1_N_per_mm", "T2_N_per_mm")] for r in rows])
+    return np.array(
+        [[float(r[k]) for k in ("lambda1", "lambda2", "T1_N_per_mm", "T2_N_per_mm")] for r in rows]
+    )
 
 
 def knitframe_cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "knitframe", *args], capture_output=True, text=True, cwd=cwd,
-                          timeout=600, env={**os.environ, "MPLBACKEND": "Agg"})
+    return subprocess.run(
+        [sys.executable, "-m", "knitframe", *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=600,
+        env={**os.environ, "MPLBACKEND": "Agg"},
+    )
 
 
 class Killed(BaseException):
@@ -85,8 +93,10 @@ def test_interrupted_run_resumes_to_the_same_curve(tmp_path, monkeypatch, kill_a
         run(config, tmp_path / "out")
     monkeypatch.undo()
     partial = tmp_path / "out" / ".knitframe"
-    assert sorted(p.name for p in (partial / "checkpoints" / "simulate").glob("step-*.npz"))[-1] == \
-        f"step-{kill_after - 1:04d}.npz"
+    assert (
+        sorted(p.name for p in (partial / "checkpoints" / "simulate").glob("step-*.npz"))[-1]
+        == f"step-{kill_after - 1:04d}.npz"
+    )
     assert [p.name for p in (tmp_path / "out").iterdir()] == [".knitframe"]
 
     done = knitframe_cli("run", str(config), "--out", "out", "--resume", "--quiet", cwd=tmp_path)
@@ -100,9 +110,13 @@ def test_interrupted_run_resumes_to_the_same_curve(tmp_path, monkeypatch, kill_a
 def test_sigkilled_cli_run_resumes_from_its_checkpoints(tmp_path):
     """`knitframe run` killed with SIGKILL once its first load step is checkpointed resumes to the uninterrupted curve."""
     config = write_config(tmp_path, steps=30)
-    proc = subprocess.Popen([sys.executable, "-m", "knitframe", "run", str(config), "--out", "out", "--quiet"],
-                            cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            env={**os.environ, "MPLBACKEND": "Agg"})
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "knitframe", "run", str(config), "--out", "out", "--quiet"],
+        cwd=tmp_path,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        env={**os.environ, "MPLBACKEND": "Agg"},
+    )
     # after 8 pre-stress steps and the relaxed lattice
     first_load_step = tmp_path / "out" / ".knitframe" / "checkpoints" / "simulate" / "step-0009.npz"
     deadline = time.monotonic() + 300
@@ -110,15 +124,21 @@ def test_sigkilled_cli_run_resumes_from_its_checkpoints(tmp_path):
         time.sleep(0.005)
     proc.send_signal(signal.SIGKILL)
     proc.wait(timeout=60)
-    assert proc.returncode == -signal.SIGKILL, f"the run ended before it could be killed: {proc.stderr.read()!r}"
+    assert proc.returncode == -signal.SIGKILL, (
+        f"the run ended before it could be killed: {proc.stderr.read()!r}"
+    )
     left = sorted((tmp_path / "out" / ".knitframe" / "checkpoints" / "simulate").glob("step-*.npz"))
     assert left and left[-1].name >= first_load_step.name
 
     done = knitframe_cli("run", str(config), "--out", "out", "--resume", "--quiet", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     full = run(config, tmp_path / "full")
-    assert np.allclose(read_curve(tmp_path / "out" / "simulated.csv"), read_curve(full.out / "simulated.csv"),
-                       rtol=1e-10, atol=1e-12)
+    assert np.allclose(
+        read_curve(tmp_path / "out" / "simulated.csv"),
+        read_curve(full.out / "simulated.csv"),
+        rtol=1e-10,
+        atol=1e-12,
+    )
 
 
 def test_rod_run_shows_a_progress_bar_and_ends_with_a_fitted_model(tmp_path):

@@ -13,11 +13,10 @@ import sys
 
 import numpy as np
 import pytest
+import test_volumetric_solver as cells
 
 from knitframe.plugins import load_registry, reset_registry
 from knitframe.records import LoadPath, Scene
-
-import test_volumetric_solver as cells
 
 
 @pytest.fixture(autouse=True)
@@ -31,8 +30,10 @@ def test_rod_and_volumetric_agree_on_the_axial_path_of_one_yarn_record():
     from knitframe_solvers.rod import RodSolver
     from knitframe_solvers.volumetric import VolumetricSolver
 
-    scene = Scene(load=LoadPath(kind="uniaxial", direction="course", max_strain=0.002, steps=2),
-                  effects={"large_deformation"})
+    scene = Scene(
+        load=LoadPath(kind="uniaxial", direction="course", max_strain=0.002, steps=2),
+        effects={"large_deformation"},
+    )
     rod = RodSolver().simulate(cells.FABRIC, scene)
     solid = VolumetricSolver(order=2, seed=0.75).simulate(cells.FABRIC, scene)
     yarn = cells.FABRIC.yarn

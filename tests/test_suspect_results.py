@@ -27,7 +27,9 @@ def linear_test_file(tmp_path):
     """A generic course and wale test whose tension softens: hgo can only follow it with b at its lower bound."""
     rows = ["direction,strain,transverse_strain,tension_N_per_mm"]
     for d, k in (("course", 0.2), ("wale", 0.5)):
-        rows += [f"{d},{0.03 * i:.3f},{-0.009 * i:.4f},{k * 0.03 * i * (1 - 0.03 * i):.5f}" for i in range(11)]
+        rows += [
+            f"{d},{0.03 * i:.3f},{-0.009 * i:.4f},{k * 0.03 * i * (1 - 0.03 * i):.5f}" for i in range(11)
+        ]
     p = tmp_path / "soft.csv"
     p.write_text("\n".join(rows) + "\n")
     return p
@@ -35,8 +37,10 @@ def linear_test_file(tmp_path):
 
 def strict(path):
     """A JSON file parsed with NaN and Infinity refused."""
+
     def refuse(name):
         raise AssertionError(f"{path.name} holds {name}")
+
     return json.loads(path.read_text(), parse_constant=refuse)
 
 
@@ -59,7 +63,11 @@ def test_fit_at_a_bound_is_printed_recorded_and_plotted(cli, tmp_path):
 def test_fit_inside_the_box_has_no_bound_warning(singal_file, recwarn):
     """A fit of real jersey tests ends inside the box: at_bound and warnings stay empty and nothing is warned."""
     reader = get_registry()["reader"]["singal2024"]()
-    data = [r for f in ("cotton-stockinette-x.csv", "cotton-stockinette-y.csv") for r in reader.read(singal_file(f))]
+    data = [
+        r
+        for f in ("cotton-stockinette-x.csv", "cotton-stockinette-y.csv")
+        for r in reader.read(singal_file(f))
+    ]
     res = get_registry()["fitter"]["lbfgs"](starts=2, screen=16).fit(model("hgo"), data)
     assert res.at_bound == () and res.warnings == ()
     assert not [w for w in recwarn if issubclass(w.category, KnitframeWarning)]
@@ -70,7 +78,9 @@ def test_at_bound_names_both_ends_but_not_symmetry_planes():
     """at_bound lists parameters at either end of the box in params.json names, but not hgo's θ at 0 or 90°."""
     m = model("hgo")
     names, msg = at_bound(m, np.array([100.0, 1e-4, math.radians(90)]))
-    assert names == ("a", "b") and "a = 100 (its upper bound is 100)" in msg and "b = 0.0001 (its lower" in msg
+    assert (
+        names == ("a", "b") and "a = 100 (its upper bound is 100)" in msg and "b = 0.0001 (its lower" in msg
+    )
     assert "\n" not in msg
     assert at_bound(m, np.array([0.1, 2.0, 0.0])) == ((), "")
     m2 = model("hgo2m")
@@ -85,8 +95,14 @@ def test_fit_png_shows_the_warnings(tmp_path):
     m = model("hgo")
     lam = np.linspace(1, 1.3, 12)
     r = Response(lam, 1 - 0.2 * (lam - 1), 0.2 * (lam - 1), 0 * lam, load="uniaxial-course")
-    flagged = FitResult(m, [0.05, 1e-4, 0.3], {"course": 0.1, "overall": 0.1}, fitter="lbfgs", at_bound=("b",),
-                        warnings=("hgo fit: b = 0.0001 (its lower bound is 0.0001)",))
+    flagged = FitResult(
+        m,
+        [0.05, 1e-4, 0.3],
+        {"course": 0.1, "overall": 0.1},
+        fitter="lbfgs",
+        at_bound=("b",),
+        warnings=("hgo fit: b = 0.0001 (its lower bound is 0.0001)",),
+    )
     plot_fit(tmp_path / "flagged.png", flagged, [r])
     plot_fit(tmp_path / "clean.png", attrs.evolve(flagged, at_bound=(), warnings=()), [r])
 
@@ -104,8 +120,14 @@ def test_non_finite_metrics_are_written_as_null_with_a_flag(tmp_path):
     m = model("hgo")
     lam = np.linspace(1, 1.3, 5)
     r = Response(lam, lam, 0.2 * (lam - 1), 0.1 * (lam - 1), load="equibiaxial")
-    res = FitResult(m, [0.05, 2.0, 0.3], {"course": float("nan"), "overall": float("inf")}, fitter="lbfgs",
-                    objective=float("nan"), diagnostics={"worst": [1.0, float("-inf")]})
+    res = FitResult(
+        m,
+        [0.05, 2.0, 0.3],
+        {"course": float("nan"), "overall": float("inf")},
+        fitter="lbfgs",
+        objective=float("nan"),
+        diagnostics={"worst": [1.0, float("-inf")]},
+    )
     with pytest.warns(KnitframeWarning, match="non-finite values written as null") as rec:
         write_fit_outputs(res, [r], tmp_path / "params.json", tmp_path / "fit.png")
     assert len(rec) == 1 and "\n" not in str(rec[0].message)
@@ -122,14 +144,18 @@ def test_non_finite_parameters_are_refused():
     r = Response(lam, lam, 0.3 * (lam - 1), 0.1 * (lam - 1), load="equibiaxial")
     problem = FitProblem(model("hgo"), [r])
     with pytest.raises(NumericalError, match="non-finite parameters"):
-        finish(problem, np.array([0.1, float("nan"), 0.3]), fitter="probe", t0=0.0, converged=True, message="")
+        finish(
+            problem, np.array([0.1, float("nan"), 0.3]), fitter="probe", t0=0.0, converged=True, message=""
+        )
 
 
 def test_reader_conversions_are_recorded_with_the_fit(tmp_path, singal_file):
     """Strains converted from percent while reading are listed in the fit's warnings (and so in params.json)."""
     src = singal_file("cotton-stockinette-y.csv").read_text().splitlines()
-    rows = [",".join(c[:2] + [f"{float(c[2]) * 100:.3f}", f"{float(c[3]) * 100:.3f}", c[4]])
-            for c in (ln.split(",") for ln in src[3:])]
+    rows = [
+        ",".join(c[:2] + [f"{float(c[2]) * 100:.3f}", f"{float(c[3]) * 100:.3f}", c[4]])
+        for c in (ln.split(",") for ln in src[3:])
+    ]
     p = tmp_path / "pct-y.csv"
     p.write_text("\n".join(src[:3] + rows) + "\n")
     with pytest.warns(KnitframeWarning, match="reads as percent"):
@@ -157,10 +183,16 @@ def test_hgo_free_side_zero_curve_warns_once():
 
 def test_replayed_uniaxial_test_with_hgo_warns():
     """The reduced solver replaying a 30 % uniaxial test with hgo (θ = 45°) warns that its curve is zero."""
-    s = build(get_registry()["solver"]["reduced"], {"model": "hgo", "params": {"a": 0.1, "b": 2.0, "theta_deg": 45.0}},
-              "solver")
+    s = build(
+        get_registry()["solver"]["reduced"],
+        {"model": "hgo", "params": {"a": 0.1, "b": 2.0, "theta_deg": 45.0}},
+        "solver",
+    )
     with pytest.warns(KnitframeWarning, match="'hgo' with a free side gives zero tension"):
-        r = s.simulate(None, Scene(load=LoadPath("uniaxial", 0.3, 6), effects=frozenset({"large_deformation", "anisotropy"})))
+        r = s.simulate(
+            None,
+            Scene(load=LoadPath("uniaxial", 0.3, 6), effects=frozenset({"large_deformation", "anisotropy"})),
+        )
     assert np.all(np.abs(r.T1) < 1e-12)
 
 
@@ -188,8 +220,13 @@ def test_default_patchwork_refuses_hgo_with_a_free_side(tmp_path, singal_file):
     with pytest.raises(ConfigError) as e:
         run(cfg, tmp_path / "out")
     msg = str(e.value)
-    assert msg.startswith("patchwork.lateral: 'free' needs models that predict their free side") and "\n" not in msg
-    assert "'jersey' uses 'hgo' (the [fit] default)" in msg and "fit 'hgo2m' or set lateral = \"fixed\"" in msg
+    assert (
+        msg.startswith("patchwork.lateral: 'free' needs models that predict their free side")
+        and "\n" not in msg
+    )
+    assert (
+        "'jersey' uses 'hgo' (the [fit] default)" in msg and "fit 'hgo2m' or set lateral = \"fixed\"" in msg
+    )
     assert not (tmp_path / "out").exists()
 
 
@@ -197,9 +234,21 @@ def test_patchwork_with_hgo2m_or_a_fixed_side_runs(tmp_path, singal_file):
     """hgo with a fixed lateral side, and hgo2m with a free one, give a patchwork that carries tension."""
     data = {"files": [str(singal_file("cotton-stockinette-x.csv"))]}
     fitter = {"kind": "lbfgs", "starts": 1, "screen": 8}
-    for name, fit, lateral in (("fixed", {"model": "hgo", "fitter": fitter}, "fixed"),
-                               ("free", {"model": "hgo2m", "fitter": fitter}, "free")):
-        res = run({"data": data, "fit": fit, "patchwork": {"lateral": lateral, "max_strain": 0.3, "steps": 3,
-                                                           "regions": [{"name": "j", "source": "fit"}]}},
-                  tmp_path / name)
+    for name, fit, lateral in (
+        ("fixed", {"model": "hgo", "fitter": fitter}, "fixed"),
+        ("free", {"model": "hgo2m", "fitter": fitter}, "free"),
+    ):
+        res = run(
+            {
+                "data": data,
+                "fit": fit,
+                "patchwork": {
+                    "lateral": lateral,
+                    "max_strain": 0.3,
+                    "steps": 3,
+                    "regions": [{"name": "j", "source": "fit"}],
+                },
+            },
+            tmp_path / name,
+        )
         assert res.results["patchwork"]["max_tension_N_per_mm"] > 0

@@ -38,8 +38,12 @@ POINTS3 = """points = [
 ]"""
 
 
-def write_config(folder: Path, points: str, executor: str, *, name: str = "test-sweep", extra: str = "") -> Path:
-    text = f'[sweep]\nname = "{name}"\n{points}\n\n{ROD}\n[executor]\n{executor}\ncache_dir = "cache"\n{extra}'
+def write_config(
+    folder: Path, points: str, executor: str, *, name: str = "test-sweep", extra: str = ""
+) -> Path:
+    text = (
+        f'[sweep]\nname = "{name}"\n{points}\n\n{ROD}\n[executor]\n{executor}\ncache_dir = "cache"\n{extra}'
+    )
     path = folder / "sweep.toml"
     path.write_text(text)
     return path
@@ -71,21 +75,43 @@ def square_or_fail(job):
 def test_dask_sweep_of_4_fabrics_equals_the_local_sweep_bit_for_bit(tmp_path):
     """A 4-fabric rod sweep on a 2-worker LocalCluster gives the same fitted parameters, bit for bit, as in this process."""
     runs = {}
-    for kind, executor in (("local", 'kind = "local"'), ("dask", 'kind = "dask"\nworkers = 2\ndashboard_address = ":0"')):
+    for kind, executor in (
+        ("local", 'kind = "local"'),
+        ("dask", 'kind = "dask"\nworkers = 2\ndashboard_address = ":0"'),
+    ):
         folder = tmp_path / kind
         folder.mkdir()
         cfg = write_config(folder, GRID4, executor)
         res = run(cfg, folder / "out", no_cache=True)
         assert res.results["sweep"]["done"] == 4 and res.results["sweep"]["executor"] == kind
-        runs[kind] = (read_rows(folder / "out" / "sweep.csv"),
-                      json.loads((folder / "out" / "library.json").read_text())["entries"])
+        runs[kind] = (
+            read_rows(folder / "out" / "sweep.csv"),
+            json.loads((folder / "out" / "library.json").read_text())["entries"],
+        )
     (local_rows, local_lib), (dask_rows, dask_lib) = runs["local"], runs["dask"]
-    assert [r["name"] for r in local_rows] == ["jersey-sl11-cotton", "jersey-sl11-nylon", "jersey-sl12-cotton",
-                                               "jersey-sl12-nylon"]
+    assert [r["name"] for r in local_rows] == [
+        "jersey-sl11-cotton",
+        "jersey-sl11-nylon",
+        "jersey-sl12-cotton",
+        "jersey-sl12-nylon",
+    ]
     for a, b in zip(local_rows, dask_rows):
         assert a["status"] == b["status"] == "done"
-        for key in ("a", "b", "theta_deg", "nrmse", "course_pitch_mm", "wale_pitch_mm", "max_tension_N_per_mm"):
-            assert float(a[key]) == float(b[key]), (a["name"], key, a[key], b[key])  # repr of floats: every bit
+        for key in (
+            "a",
+            "b",
+            "theta_deg",
+            "nrmse",
+            "course_pitch_mm",
+            "wale_pitch_mm",
+            "max_tension_N_per_mm",
+        ):
+            assert float(a[key]) == float(b[key]), (
+                a["name"],
+                key,
+                a[key],
+                b[key],
+            )  # repr of floats: every bit
     assert [e["params"] for e in local_lib] == [e["params"] for e in dask_lib]
     # the runs really took place in different processes: the Dask run is not a copy of the local one
     assert all(r["cached"] == "no" for r in local_rows + dask_rows)
@@ -95,7 +121,9 @@ def test_dask_sweep_of_4_fabrics_equals_the_local_sweep_bit_for_bit(tmp_path):
 def _write_module(folder: Path, name: str, body: str) -> None:
     path = folder / f"{name}.py"
     path.write_text(textwrap.dedent(body))
-    stamp = time.time() + 10 * len(body)  # a new mtime: the import system must not reuse a stale bytecode file
+    stamp = time.time() + 10 * len(
+        body
+    )  # a new mtime: the import system must not reuse a stale bytecode file
     os.utime(path, (stamp, stamp))
 
 
@@ -107,12 +135,16 @@ def test_cache_key_changes_when_the_job_function_or_a_module_it_imports_changes(
     pkg.mkdir()
     (pkg / "__init__.py").write_text("")
     _write_module(pkg, "helper", "FACTOR = 2\n")
-    _write_module(pkg, "jobs", """\
+    _write_module(
+        pkg,
+        "jobs",
+        """\
         from . import helper
 
         def job(d):
             return d["x"] * helper.FACTOR
-        """)
+        """,
+    )
     monkeypatch.syspath_prepend(str(tmp_path))
     jobs_mod = importlib.import_module("sweepjobs_pkg.jobs")
     ex = LocalExecutor(cache_dir=str(tmp_path / "cache"))
@@ -124,12 +156,16 @@ def test_cache_key_changes_when_the_job_function_or_a_module_it_imports_changes(
     assert ex.map(jobs_mod.job, [{"x": 5}]) == ["from the cache"]
 
     # the function's code changes: the key changes, and the stale result is not returned
-    _write_module(pkg, "jobs", """\
+    _write_module(
+        pkg,
+        "jobs",
+        """\
         from . import helper
 
         def job(d):
             return d["x"] * helper.FACTOR + 1000
-        """)
+        """,
+    )
     importlib.invalidate_caches()
     jobs_mod = importlib.reload(jobs_mod)
     key1 = job_key(jobs_mod.job, {"x": 5})
@@ -151,8 +187,11 @@ def test_cache_key_changes_with_a_solver_option_and_covers_the_solver_code(tmp_p
     from knitframe_stages.sweep import point_modules, run_point
 
     def keys(segments: int) -> list[str]:
-        cfg = write_config(tmp_path, GRID4, 'kind = "local"').read_text().replace(
-            "segments_per_stitch = 10", f"segments_per_stitch = {segments}")
+        cfg = (
+            write_config(tmp_path, GRID4, 'kind = "local"')
+            .read_text()
+            .replace("segments_per_stitch = 10", f"segments_per_stitch = {segments}")
+        )
         (tmp_path / "s.toml").write_text(cfg)
         from knitframe.config import load_toml
 
@@ -164,29 +203,45 @@ def test_cache_key_changes_with_a_solver_option_and_covers_the_solver_code(tmp_p
     k12, _ = keys(12)
     assert len(set(k10)) == 4 and not set(k10) & set(k12)
     sources = module_sources(["knitframe_stages.sweep", *point_modules(jobs[0])])
-    for mod in ("knitframe_solvers.rod", "knitframe_solvers.rod_model", "knitframe_solvers.rod_contact",
-                "knitframe_contact.rod_penalty", "knitframe_linsolvers.direct", "knitframe_patterns.jersey",
-                "knitframe_homogenizers.hgo", "knitframe_fitters.lbfgs", "knitframe.newton", "knitframe.geometry"):
+    for mod in (
+        "knitframe_solvers.rod",
+        "knitframe_solvers.rod_model",
+        "knitframe_solvers.rod_contact",
+        "knitframe_contact.rod_penalty",
+        "knitframe_linsolvers.direct",
+        "knitframe_patterns.jersey",
+        "knitframe_homogenizers.hgo",
+        "knitframe_fitters.lbfgs",
+        "knitframe.newton",
+        "knitframe.geometry",
+    ):
         assert mod in sources, mod
     # the code hash is of exactly these sources: a different set gives a different hash
     assert code_hash(run_point, point_modules(jobs[0])) != code_hash(run_point, [])
 
 
 # --------------------------------------------------------------------------- failures, cache, outputs
-def test_a_failed_point_is_recorded_the_rest_finish_and_the_cache_serves_a_rerun(tmp_path, monkeypatch, capsys):
+def test_a_failed_point_is_recorded_the_rest_finish_and_the_cache_serves_a_rerun(
+    tmp_path, monkeypatch, capsys
+):
     """A point that raises is 'failed' with a one-line reason, the others finish and are cached; a rerun reuses them, --no-cache does not."""
     monkeypatch.setenv("KNITFRAME_PROGRESS_INTERVAL", "0.05")
     cfg = write_config(tmp_path, POINTS3, 'kind = "local"')
     res = run(cfg, tmp_path / "out1", quiet=False)
     rows = read_rows(tmp_path / "out1" / "sweep.csv")
     assert [r["status"] for r in rows] == ["done", "failed", "done"]
-    assert rows[1]["name"] == "starved" and rows[1]["reason"].startswith("NumericalError: rod solver (jersey, cotton)")
+    assert rows[1]["name"] == "starved" and rows[1]["reason"].startswith(
+        "NumericalError: rod solver (jersey, cotton)"
+    )
     assert "\n" not in rows[1]["reason"] and rows[1]["a"] == ""
     assert res.results["sweep"] == {**res.results["sweep"], "points": 3, "done": 2, "failed": 1, "cached": 0}
     assert any("sweep point 1 (starved) failed: NumericalError" in w for w in res.summary["warnings"])
     err = capsys.readouterr().err
-    assert re.search(r"knitframe: sweep test-sweep \(3 fabrics, local, 1 worker\): \d/3 finished "
-                     r"\(\d done, \d failed, \d running\), \d\d:\d\d elapsed, (about \d\d:\d\d|unknown) left", err)
+    assert re.search(
+        r"knitframe: sweep test-sweep \(3 fabrics, local, 1 worker\): \d/3 finished "
+        r"\(\d done, \d failed, \d running\), \d\d:\d\d elapsed, (about \d\d:\d\d|unknown) left",
+        err,
+    )
     assert len(cache_files(tmp_path / "cache")) == 2  # the two results; a failure is never cached
 
     res2 = run(cfg, tmp_path / "out2")
@@ -209,8 +264,24 @@ def test_outputs_are_written_and_library_json_drives_design(tmp_path):
     out = tmp_path / "out"
     assert sorted(res.summary["outputs"]) == ["library.json", "params.png", "sweep.csv"]
     rows = read_rows(out / "sweep.csv")
-    for key in ("pattern", "yarn", "stitch_length", "load", "max_strain", "solver_options", "a", "b", "theta_deg",
-                "nrmse", "wall_time_s", "status", "reason", "cached", "course_pitch_mm", "max_tension_N_per_mm"):
+    for key in (
+        "pattern",
+        "yarn",
+        "stitch_length",
+        "load",
+        "max_strain",
+        "solver_options",
+        "a",
+        "b",
+        "theta_deg",
+        "nrmse",
+        "wall_time_s",
+        "status",
+        "reason",
+        "cached",
+        "course_pitch_mm",
+        "max_tension_N_per_mm",
+    ):
         assert key in rows[0], key
     assert json.loads(rows[1]["solver_options"]) == {"segments_per_stitch": 10, "max_iterations": 2}
     lib = FabricLibrary.load(out / "library.json")
@@ -218,7 +289,9 @@ def test_outputs_are_written_and_library_json_drives_design(tmp_path):
     done = [r for r in rows if r["status"] == "done"]
     for entry, row in zip(lib, done):
         assert entry.params["a"] == float(row["a"]) and entry.model == "hgo"
-        assert entry.course_pitch == float(row["course_pitch_mm"]) and entry.max_tension == float(row["max_tension_N_per_mm"])
+        assert entry.course_pitch == float(row["course_pitch_mm"]) and entry.max_tension == float(
+            row["max_tension_N_per_mm"]
+        )
         assert entry.max_stretch == pytest.approx(1.2) and "largest simulated course tension" in entry.source
         assert entry.pitch_source.startswith("relaxed rod cell")
     assert (out / "params.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -235,10 +308,14 @@ def test_a_point_with_an_array_of_loads_is_fitted_to_all_its_curves(tmp_path):
   { kind = "uniaxial", direction = "course", max_strain = 0.2, steps = 3 },
   { kind = "uniaxial", direction = "wale", max_strain = 0.2, steps = 3 }] }]"""
     cfg = write_config(tmp_path, points, 'kind = "local"', extra="")
-    cfg.write_text(cfg.read_text().replace('[sweep.solver]', '[sweep.fit]\nmodel = "hgo2m"\n\n[sweep.solver]'))
+    cfg.write_text(
+        cfg.read_text().replace("[sweep.solver]", '[sweep.fit]\nmodel = "hgo2m"\n\n[sweep.solver]')
+    )
     run(cfg, tmp_path / "out")
     (row,) = read_rows(tmp_path / "out" / "sweep.csv")
-    assert row["status"] == "done" and row["load"] == "uniaxial-course+uniaxial-wale" and row["steps"] == "3/3"
+    assert (
+        row["status"] == "done" and row["load"] == "uniaxial-course+uniaxial-wale" and row["steps"] == "3/3"
+    )
     assert row["model"] == "hgo2m" and float(row["nrmse_course"]) >= 0 and float(row["nrmse_wale"]) >= 0
     lib = json.loads((tmp_path / "out" / "library.json").read_text())
     assert "uniaxial course (free side) 0-20 % in 3 steps and uniaxial wale" in lib["entries"][0]["source"]
@@ -251,8 +328,11 @@ def test_executors_keep_failures_and_report_progress(kind, tmp_path):
     from knitframe_executors.dask import DaskExecutor
     from knitframe_executors.local import LocalExecutor
 
-    ex = {"local": LocalExecutor(cache_dir=str(tmp_path)), "local-pool": LocalExecutor(workers=2, cache_dir=str(tmp_path)),
-          "dask": DaskExecutor(workers=1, dashboard_address=":0", cache_dir=str(tmp_path))}[kind]
+    ex = {
+        "local": LocalExecutor(cache_dir=str(tmp_path)),
+        "local-pool": LocalExecutor(workers=2, cache_dir=str(tmp_path)),
+        "dask": DaskExecutor(workers=1, dashboard_address=":0", cache_dir=str(tmp_path)),
+    }[kind]
     seen = []
     jobs = [{"x": i} for i in range(4)]
     out = ex.map(square_or_fail, jobs, failures="keep", progress=lambda d, t, m: seen.append((d, t, m)))
@@ -279,19 +359,51 @@ def _malloc_trim_job(job):
 
 # --------------------------------------------------------------------------- config errors
 BAD = [
-    ("points-stitch-length", POINTS3.replace("stitch_length = 11, yarn = \"nylon\"", "stitch_length = -1, yarn = \"nylon\""),
-     'kind = "local"', "sweep.points[2].stitch_length: "),
-    ("grid-yarn", GRID4.replace('"nylon"', '"wool"'), 'kind = "local"', "sweep.grid.yarn[1]: unknown yarn 'wool'"),
-    ("grid-solver-option", GRID4.replace("}", ", segments_per_stitch = [10, 2] }"), 'kind = "local"',
-     "sweep.grid.segments_per_stitch[1]: "),
-    ("grid-unknown-key", GRID4.replace("}", ", colour = [1] }"), 'kind = "local"', "sweep.grid.colour: unknown key"),
+    (
+        "points-stitch-length",
+        POINTS3.replace('stitch_length = 11, yarn = "nylon"', 'stitch_length = -1, yarn = "nylon"'),
+        'kind = "local"',
+        "sweep.points[2].stitch_length: ",
+    ),
+    (
+        "grid-yarn",
+        GRID4.replace('"nylon"', '"wool"'),
+        'kind = "local"',
+        "sweep.grid.yarn[1]: unknown yarn 'wool'",
+    ),
+    (
+        "grid-solver-option",
+        GRID4.replace("}", ", segments_per_stitch = [10, 2] }"),
+        'kind = "local"',
+        "sweep.grid.segments_per_stitch[1]: ",
+    ),
+    (
+        "grid-unknown-key",
+        GRID4.replace("}", ", colour = [1] }"),
+        'kind = "local"',
+        "sweep.grid.colour: unknown key",
+    ),
     ("grid-and-points", GRID4 + "\n" + POINTS3, 'kind = "local"', "sweep: give the points as a grid"),
-    ("point-load", POINTS3.replace('yarn = "nylon" }', 'yarn = "nylon", load = { max_strain = -0.1 } }'),
-     'kind = "local"', "sweep.points[2].load.max_strain: "),
+    (
+        "point-load",
+        POINTS3.replace('yarn = "nylon" }', 'yarn = "nylon", load = { max_strain = -0.1 } }'),
+        'kind = "local"',
+        "sweep.points[2].load.max_strain: ",
+    ),
     ("executor-workers", GRID4, 'kind = "dask"\nworkers = 0', "executor.workers: "),
     ("executor-kind", GRID4, 'kind = "slurm"', "executor.kind: unknown executor 'slurm'"),
-    ("executor-memory", GRID4, 'kind = "dask"\nmemory_limit = "lots"', "executor.memory_limit: expected a size"),
-    ("fit-model", GRID4 + '\nfit = { model = "nope" }', 'kind = "local"', "sweep.fit.model: unknown homogenizer 'nope'"),
+    (
+        "executor-memory",
+        GRID4,
+        'kind = "dask"\nmemory_limit = "lots"',
+        "executor.memory_limit: expected a size",
+    ),
+    (
+        "fit-model",
+        GRID4 + '\nfit = { model = "nope" }',
+        'kind = "local"',
+        "sweep.fit.model: unknown homogenizer 'nope'",
+    ),
 ]
 
 
@@ -334,6 +446,8 @@ def test_default_cache_folder_follows_the_environment(tmp_path, monkeypatch):
     assert default_cache_dir() == tmp_path / "xdg" / "knitframe" / "jobs"
     monkeypatch.setenv("KNITFRAME_CACHE_DIR", str(tmp_path / "mine"))
     assert default_cache_dir() == tmp_path / "mine"
-    stage = Pipeline({"sweep": {"points": [{"pattern": "jersey", "stitch_length": 11, "yarn": "cotton"}]}},
-                     base_dir=tmp_path).stages[0]
+    stage = Pipeline(
+        {"sweep": {"points": [{"pattern": "jersey", "stitch_length": 11, "yarn": "cotton"}]}},
+        base_dir=tmp_path,
+    ).stages[0]
     assert stage.executor_name == "local" and stage.executor.cache_dir == str(tmp_path / "mine")

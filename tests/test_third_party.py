@@ -7,7 +7,6 @@ import sys
 
 import numpy as np
 import pytest
-
 from conftest import DIST, DIST_VERSION, EXTERNAL
 
 
@@ -48,7 +47,13 @@ def test_installed_plugin_runs_from_a_config(installed_plugin, cli, tmp_path):
 
 def test_installed_plugin_passes_the_conformance_kit(installed_plugin):
     """The conformance kit accepts the third-party reader."""
-    code = "from knitframe.testing import check_plugin; check_plugin('reader', 'force-extension'); print('ok')"
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          env={**__import__('os').environ, **EXTERNAL})
+    code = (
+        "from knitframe.testing import check_plugin; check_plugin('reader', 'force-extension'); print('ok')"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        env={**__import__("os").environ, **EXTERNAL},
+    )
     assert proc.stdout.strip() == "ok", proc.stderr

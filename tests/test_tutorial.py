@@ -10,7 +10,6 @@ import subprocess
 import sys
 
 import pytest
-
 from conftest import DIST, DIST_VERSION, EXTERNAL, PLUGIN_DIR, ROOT
 
 from knitframe import Fabric, GeometryError, get_registry
@@ -38,7 +37,9 @@ def test_tuck_is_listed_with_its_package(installed_plugin, cli):
 def test_tuck_passes_the_conformance_kit(installed_plugin):
     """check_plugin("pattern", "tuck") accepts the installed pattern, as the tutorial runs it."""
     code = "from knitframe.testing import check_plugin; check_plugin('pattern', 'tuck'); print('ok')"
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env={**os.environ, **EXTERNAL})
+    proc = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env={**os.environ, **EXTERNAL}
+    )
     assert proc.stdout.strip() == "ok", proc.stderr
 
 
@@ -116,4 +117,6 @@ def test_tutorial_code_is_the_shipped_code():
         blocks[path] = blocks.get(path, "") + body
     assert sorted(blocks) == ["examples/rod-tuck.toml", "knitframe_example/tuck.py", "pyproject.toml"]
     for path, text in blocks.items():
-        assert _code_lines(text) == _code_lines((PLUGIN_DIR / path).read_text(encoding="utf-8")), f"tutorial differs from {path}"
+        assert _code_lines(text) == _code_lines((PLUGIN_DIR / path).read_text(encoding="utf-8")), (
+            f"tutorial differs from {path}"
+        )

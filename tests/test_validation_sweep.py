@@ -63,7 +63,9 @@ def uniaxial(load: str, strain, lateral, tension) -> Response:
     from knitframe.curves import uniaxial_response
 
     strain, lateral, tension = (np.asarray(x, dtype=float) for x in (strain, lateral, tension))
-    return uniaxial_response(load, strain, lateral, tension, None, None, 1, load, Provenance(kind="experiment"))
+    return uniaxial_response(
+        load, strain, lateral, tension, None, None, 1, load, Provenance(kind="experiment")
+    )
 
 
 def test_validate_uniaxial_on_curves_with_known_answers():
@@ -73,10 +75,19 @@ def test_validate_uniaxial_on_curves_with_known_answers():
     s = e[5::5]  # 5 % to 40 %: the simulated path starts from the relaxed cell, zero tension at zero strain
     sim = uniaxial("uniaxial-wale", s, -0.5 * s, s)
     m = validate_uniaxial(sim, mea)
-    assert (m["ratio_10"], m["ratio_20"], m["ratio_30"]) == (pytest.approx(2.0), pytest.approx(2.0), pytest.approx(2.0))
-    assert m["nrmse"] == pytest.approx(0.5 * math.sqrt(np.mean(e**2)) / 0.2)  # |T_sim - T_meas| = e/2, max T_meas = 0.2
-    assert (m["lateral_at"], m["simulated_to"], m["measured_to"]) == (pytest.approx(0.2), pytest.approx(0.4),
-                                                                      pytest.approx(0.4))
+    assert (m["ratio_10"], m["ratio_20"], m["ratio_30"]) == (
+        pytest.approx(2.0),
+        pytest.approx(2.0),
+        pytest.approx(2.0),
+    )
+    assert m["nrmse"] == pytest.approx(
+        0.5 * math.sqrt(np.mean(e**2)) / 0.2
+    )  # |T_sim - T_meas| = e/2, max T_meas = 0.2
+    assert (m["lateral_at"], m["simulated_to"], m["measured_to"]) == (
+        pytest.approx(0.2),
+        pytest.approx(0.4),
+        pytest.approx(0.4),
+    )
     assert m["lateral_simulated"] == pytest.approx(-0.1) and m["lateral_measured"] == pytest.approx(-0.06)
     short = uniaxial("uniaxial-wale", e[:13], -0.3 * e[:13], 0.5 * e[:13])  # the test ends at 12 %
     m = validate_uniaxial(sim, short)
@@ -90,10 +101,12 @@ def test_two_measured_curves_and_a_failed_point_give_the_columns_and_the_figure(
     """Cotton jersey, course and wale to 12 %: the per-curve columns, validation.csv/.png and the Python
     result agree; a point that fails is recorded in every output and the other finishes."""
     files = [singal_file(f) for f in JERSEY]
-    points = (f"points = [\n  {{ name = \"jersey\", pattern = \"jersey\", yarn = \"pearl-cotton\", "
-              f"{measured(files, max_strain=0.12)} }},\n"
-              f"  {{ name = \"starved\", pattern = \"jersey\", yarn = \"pearl-cotton\", solver = {{ max_iterations = 2 }}, "
-              f"{measured(files[:1], max_strain=0.12)} }},\n]")
+    points = (
+        f'points = [\n  {{ name = "jersey", pattern = "jersey", yarn = "pearl-cotton", '
+        f"{measured(files, max_strain=0.12)} }},\n"
+        f'  {{ name = "starved", pattern = "jersey", yarn = "pearl-cotton", solver = {{ max_iterations = 2 }}, '
+        f"{measured(files[:1], max_strain=0.12)} }},\n]"
+    )
     cfg = sweep_config(tmp_path, points)
     with pytest.warns(knitframe.errors.KnitframeWarning, match="starved"):
         res = knitframe.run(cfg, tmp_path / "out", quiet=True)
@@ -103,7 +116,9 @@ def test_two_measured_curves_and_a_failed_point_give_the_columns_and_the_figure(
     good, bad = rows
     assert good["load"] == "uniaxial-course+uniaxial-wale" and good["max_strain"] == "0.12/0.12"
     for d in ("course", "wale"):
-        assert good[f"measured_status_{d}"] == "done" and good[f"measured_{d}"].endswith(f"-{'x' if d == 'course' else 'y'}.csv")
+        assert good[f"measured_status_{d}"] == "done" and good[f"measured_{d}"].endswith(
+            f"-{'x' if d == 'course' else 'y'}.csv"
+        )
         assert float(good[f"simulated_to_{d}"]) == pytest.approx(0.12)
         assert 0.0 < float(good[f"nrmse_measured_{d}"]) < 10.0
         assert 0.0 < float(good[f"ratio_10_{d}"]) < 100.0
@@ -114,10 +129,16 @@ def test_two_measured_curves_and_a_failed_point_give_the_columns_and_the_figure(
     assert bad["reason"] and bad["ratio_10_course"] == ""
     curves = read_rows(out / "validation.csv")
     assert [(c["name"], c["direction"], c["measured_status"]) for c in curves] == [
-        ("jersey", "course", "done"), ("jersey", "wale", "done"), ("starved", "course", "failed")]
+        ("jersey", "course", "done"),
+        ("jersey", "wale", "done"),
+        ("starved", "course", "failed"),
+    ]
     assert curves[2]["reason"] == bad["reason"]
     in_python = res.results["sweep"]["validation"]
-    assert [c["ratio_10"] for c in in_python[:2]] == [float(good["ratio_10_course"]), float(good["ratio_10_wale"])]
+    assert [c["ratio_10"] for c in in_python[:2]] == [
+        float(good["ratio_10_course"]),
+        float(good["ratio_10_wale"]),
+    ]
     assert "2 of 3 measured tests simulated" in res.results["sweep"]["headline"]
     assert (out / "validation.png").read_bytes()[:4] == b"\x89PNG"
 
@@ -125,8 +146,9 @@ def test_two_measured_curves_and_a_failed_point_give_the_columns_and_the_figure(
 def test_a_failed_load_keeps_the_other_curve_and_is_not_cached(tmp_path, singal_file, monkeypatch):
     """The wale test fails (the solver raises for it): the course curve is still compared and fitted, the
     wale curve is recorded as failed with its reason, and the partial result is not kept in the cache."""
-    from knitframe.errors import NumericalError
     from knitframe_solvers.rod import RodSolver
+
+    from knitframe.errors import NumericalError
 
     real = RodSolver.simulate
 
@@ -137,12 +159,21 @@ def test_a_failed_load_keeps_the_other_curve_and_is_not_cached(tmp_path, singal_
 
     monkeypatch.setattr(RodSolver, "simulate", wale_fails)  # the local executor runs in this process
     files = [singal_file(f) for f in JERSEY]
-    cfg = sweep_config(tmp_path, f'points = [{{ pattern = "jersey", yarn = "pearl-cotton", {measured(files, max_strain=0.12)} }}]')
+    cfg = sweep_config(
+        tmp_path,
+        f'points = [{{ pattern = "jersey", yarn = "pearl-cotton", {measured(files, max_strain=0.12)} }}]',
+    )
     res = knitframe.run(cfg, tmp_path / "out", quiet=True)
     (row,) = read_rows(tmp_path / "out" / "sweep.csv")
-    assert row["status"] == "done" and row["measured_status_course"] == "done" and float(row["ratio_10_course"]) > 0
+    assert (
+        row["status"] == "done"
+        and row["measured_status_course"] == "done"
+        and float(row["ratio_10_course"]) > 0
+    )
     assert row["measured_status_wale"] == "failed" and row["ratio_10_wale"] == ""
-    assert row["reason"] == "uniaxial-wale failed: NumericalError: no convergence (made to fail for this test)"
+    assert (
+        row["reason"] == "uniaxial-wale failed: NumericalError: no convergence (made to fail for this test)"
+    )
     assert row["load"] == "uniaxial-course+uniaxial-wale" and row["nrmse"] != ""  # fitted to the course curve
     wale = [c for c in res.results["sweep"]["validation"] if c["direction"] == "wale"]
     assert wale[0]["reason"] == "NumericalError: no convergence (made to fail for this test)"
@@ -154,31 +185,52 @@ def test_params_png_leaves_out_a_done_point_without_a_fit(tmp_path):
     from knitframe_stages.sweep import plot_params
 
     model = knitframe.get_registry()["homogenizer"]["hgo"]()
-    base = {"status": "done", "stitch_length": "", "arc_length_mm": 11.28, "pattern": "jersey", "yarn": "acrylic",
-            "load": "uniaxial-course", "max_strain": "0.3", "steps": "6", "effects": "bending", "solver": "rod",
-            "solver_options": "{}", "at_bound": ""}
-    rows = [{**base, "a": 0.5, "b": 1.0, "theta_deg": 40.0},
-            {**base, "arc_length_mm": 12.0, "a": 0.4, "b": 2.0, "theta_deg": 45.0},
-            {**base, "arc_length_mm": 13.0, "a": "", "b": "", "theta_deg": ""}]
+    base = {
+        "status": "done",
+        "stitch_length": "",
+        "arc_length_mm": 11.28,
+        "pattern": "jersey",
+        "yarn": "acrylic",
+        "load": "uniaxial-course",
+        "max_strain": "0.3",
+        "steps": "6",
+        "effects": "bending",
+        "solver": "rod",
+        "solver_options": "{}",
+        "at_bound": "",
+    }
+    rows = [
+        {**base, "a": 0.5, "b": 1.0, "theta_deg": 40.0},
+        {**base, "arc_length_mm": 12.0, "a": 0.4, "b": 2.0, "theta_deg": 45.0},
+        {**base, "arc_length_mm": 13.0, "a": "", "b": "", "theta_deg": ""},
+    ]
     plot_params(tmp_path / "params.png", rows, model)
     assert (tmp_path / "params.png").read_bytes()[:4] == b"\x89PNG"
 
 
 # ------------------------------------------------------------------------------------ bad input
-@pytest.mark.parametrize("case, field", [
-    ("missing", "sweep.points[0].measured.files[1]"),
-    ("max_strain", "sweep.points[0].measured.max_strain"),
-    ("both", "sweep.points[0].load"),
-    ("twice", "sweep.points[0].measured"),
-    ("key", "sweep.points[0].measured.file"),
-    ("not a table", "sweep.points[0].measured"),
-])
+@pytest.mark.parametrize(
+    "case, field",
+    [
+        ("missing", "sweep.points[0].measured.files[1]"),
+        ("max_strain", "sweep.points[0].measured.max_strain"),
+        ("both", "sweep.points[0].load"),
+        ("twice", "sweep.points[0].measured"),
+        ("key", "sweep.points[0].measured.file"),
+        ("not a table", "sweep.points[0].measured"),
+    ],
+)
 def test_bad_measured_tests_are_one_line_exit_2_and_no_output(tmp_path, singal_file, capsys, case, field):
     """A bad measured table is refused before any work: one line naming the field, exit code 2, nothing written."""
     x, y = (singal_file(f) for f in JERSEY)
-    value = {"missing": measured([x, tmp_path / "nope.csv"]), "max_strain": measured([x], max_strain=-0.1),
-             "both": 'load = { kind = "uniaxial" }, ' + measured([x]), "twice": measured([x, x]),
-             "key": f'measured = {{ file = ["{x.as_posix()}"] }}', "not a table": f'measured = "{x.as_posix()}"'}[case]
+    value = {
+        "missing": measured([x, tmp_path / "nope.csv"]),
+        "max_strain": measured([x], max_strain=-0.1),
+        "both": 'load = { kind = "uniaxial" }, ' + measured([x]),
+        "twice": measured([x, x]),
+        "key": f'measured = {{ file = ["{x.as_posix()}"] }}',
+        "not a table": f'measured = "{x.as_posix()}"',
+    }[case]
     cfg = sweep_config(tmp_path, f'points = [{{ pattern = "jersey", yarn = "pearl-cotton", {value} }}]')
     before = sorted(tmp_path.rglob("*"))
     code = main(["run", str(cfg), "--out", str(tmp_path / "out"), "--quiet"])
@@ -197,8 +249,11 @@ def test_the_16_singal_curves_with_the_rod_solver(tmp_path):
     curves = read_rows(tmp_path / "out" / "validation.csv")
     assert len(curves) == 16
     assert {(c["yarn"], c["pattern"], c["direction"]) for c in curves} == {
-        (y, p, d) for y in ("pearl-cotton", "acrylic") for p in ("jersey", "garter", "rib", "seed")
-        for d in ("course", "wale")}
+        (y, p, d)
+        for y in ("pearl-cotton", "acrylic")
+        for p in ("jersey", "garter", "rib", "seed")
+        for d in ("course", "wale")
+    }
     for c in curves:
         assert c["measured_status"] == "failed" or float(c["ratio_10"]) > 0.0, c
     assert res.results["sweep"]["points"] == 8

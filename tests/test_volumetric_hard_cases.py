@@ -5,16 +5,18 @@ from __future__ import annotations
 import attrs
 import numpy as np
 import pytest
+from knitframe_solvers.volumetric import VolumetricSolver
 
 from knitframe.errors import GeometryError, NumericalError
 from knitframe.plugins import get_registry
 from knitframe.records import Fabric, LoadPath, Scene
-from knitframe_solvers.volumetric import VolumetricSolver
 
 pytestmark = pytest.mark.slow
 
-SCENE = Scene(load=LoadPath(kind="equibiaxial", max_strain=0.1, steps=2),
-              effects={"large_deformation", "bending", "contact", "self_contact", "prestress", "anisotropy"})
+SCENE = Scene(
+    load=LoadPath(kind="equibiaxial", max_strain=0.1, steps=2),
+    effects={"large_deformation", "bending", "contact", "self_contact", "prestress", "anisotropy"},
+)
 
 
 def cases():
@@ -46,6 +48,8 @@ def test_hard_case_converges_or_stops_cleanly(name):
         return
     assert np.all(np.isfinite(r.T1)) and np.all(np.isfinite(r.T2))
     assert r.provenance.converged or "stopped after" in r.provenance.notes
-    print(f"\n{name}: converged={r.provenance.converged} lambda1={np.round(r.lambda1, 4).tolist()} "
-          f"T1={np.round(r.T1, 5).tolist()} T2={np.round(r.T2, 5).tolist()} N/mm, {r.provenance.wall_time:.0f} s "
-          f"{r.provenance.notes}")
+    print(
+        f"\n{name}: converged={r.provenance.converged} lambda1={np.round(r.lambda1, 4).tolist()} "
+        f"T1={np.round(r.T1, 5).tolist()} T2={np.round(r.T2, 5).tolist()} N/mm, {r.provenance.wall_time:.0f} s "
+        f"{r.provenance.notes}"
+    )

@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
 import skfem
-from skfem.helpers import dot
-
-from knitframe.errors import NumericalError
 from knitframe_solvers.volumetric_material import SolidForms, YarnLaw, psd_project, psd_project_elements
 from knitframe_yarns.isotropic import Isotropic
 from knitframe_yarns.law import linear_stiffness
 from knitframe_yarns.transverse_isotropic import TransverseIsotropic
+from skfem.helpers import dot
+
+from knitframe.errors import NumericalError
 
 
 def ti(E_axial: float, E_transverse: float, nu: float = 0.3) -> YarnLaw:
@@ -32,8 +32,15 @@ def nodes_of(mesh) -> np.ndarray:
     return (mesh.doflocs if isinstance(mesh, skfem.MeshTet2) else mesh.p).T
 
 
-def newton(forms: SolidForms, u: np.ndarray, free: np.ndarray, f_ext: np.ndarray | None = None, s: float = 1.0,
-           tol: float = 1e-10, maxit: int = 25) -> np.ndarray:
+def newton(
+    forms: SolidForms,
+    u: np.ndarray,
+    free: np.ndarray,
+    f_ext: np.ndarray | None = None,
+    s: float = 1.0,
+    tol: float = 1e-10,
+    maxit: int = 25,
+) -> np.ndarray:
     """Plain Newton on the free DOFs, started from the linear lift of the prescribed values (test helper)."""
     f_ext = np.zeros_like(u) if f_ext is None else f_ext
     fixed = np.setdiff1d(np.arange(u.size), free)
@@ -57,8 +64,12 @@ def test_tangent_matches_finite_differences(order, s):
     rng = np.random.default_rng(0)
     n = nodes_of(mesh).shape[0]
     fibre = rng.normal(size=(n, 3))
-    forms = SolidForms(mesh, ti(500.0, 2.0), fibre / np.linalg.norm(fibre, axis=1)[:, None],
-                       node_offset=0.3 * nodes_of(mesh) + 0.02 * rng.normal(size=(n, 3)))
+    forms = SolidForms(
+        mesh,
+        ti(500.0, 2.0),
+        fibre / np.linalg.norm(fibre, axis=1)[:, None],
+        node_offset=0.3 * nodes_of(mesh) + 0.02 * rng.normal(size=(n, 3)),
+    )
     u = 0.01 * rng.normal(size=forms.ndof)
     du = rng.normal(size=forms.ndof)
     eps = 1e-6
@@ -95,7 +106,7 @@ def test_model_without_order_keyword_still_works():
     new, old = YarnLaw(inner), YarnLaw(Legacy(inner))
     assert new.takes_order and not old.takes_order
     rng = np.random.default_rng(3)
-    F = (np.eye(3)[:, :, None, None] + 0.1 * rng.normal(size=(3, 3, 4, 2)))
+    F = np.eye(3)[:, :, None, None] + 0.1 * rng.normal(size=(3, 3, 4, 2))
     a = np.broadcast_to(np.array([0.0, 0.6, 0.8])[:, None, None], (3, 4, 2))
     for k in range(3):
         assert np.allclose(new.evaluate(F, a, 2)[k], old.evaluate(F, a, 2)[k], rtol=1e-14, atol=0)
@@ -112,8 +123,11 @@ def test_patch_test_large_strain(order):
     law = ti(200.0, 5.0)
     forms = SolidForms(mesh, law, fibre)
     exact = (X @ H.T).ravel()
-    bnodes = np.unique(mesh.facets[:, mesh.boundary_facets()]) if order == 1 else np.unique(
-        skfem.Basis(mesh, skfem.ElementTetP2()).get_dofs().flatten())
+    bnodes = (
+        np.unique(mesh.facets[:, mesh.boundary_facets()])
+        if order == 1
+        else np.unique(skfem.Basis(mesh, skfem.ElementTetP2()).get_dofs().flatten())
+    )
     fixed = (3 * bnodes[:, None] + np.arange(3)).ravel()
     free = np.setdiff1d(np.arange(forms.ndof), fixed)
     u = np.zeros(forms.ndof)
@@ -124,10 +138,19 @@ def test_patch_test_large_strain(order):
     R = forms.residual(u).reshape(-1, 3)
     assert np.allclose(R[np.setdiff1d(np.arange(X.shape[0]), bnodes)], 0.0, atol=1e-9)
     # the reactions on the face z = 2, away from its edges, are the consistent nodal forces of P·N
-    face = skfem.FacetBasis(mesh, skfem.ElementVector(forms.basis.elem), facets=mesh.facets_satisfying(
-        lambda x: np.isclose(x[2], 2.0)))
+    face = skfem.FacetBasis(
+        mesh,
+        skfem.ElementVector(forms.basis.elem),
+        facets=mesh.facets_satisfying(lambda x: np.isclose(x[2], 2.0)),
+    )
     trac = skfem.LinearForm(lambda v, w: dot(np.einsum("ij,j...->i...", P, w.n), v)).assemble(face)
-    inner = np.isclose(X[:, 2], 2.0) & (X[:, 0] > 1e-9) & (X[:, 0] < 1 - 1e-9) & (X[:, 1] > 1e-9) & (X[:, 1] < 1 - 1e-9)
+    inner = (
+        np.isclose(X[:, 2], 2.0)
+        & (X[:, 0] > 1e-9)
+        & (X[:, 0] < 1 - 1e-9)
+        & (X[:, 1] > 1e-9)
+        & (X[:, 1] < 1 - 1e-9)
+    )
     assert inner.any()
     assert np.abs(R[inner] - trac.reshape(-1, 3)[inner]).max() < 1e-8 * np.abs(trac).max()
 
@@ -135,7 +158,9 @@ def test_patch_test_large_strain(order):
 def annulus(order: int, a: float = 1.0, b: float = 2.0, h: float = 0.25):
     """Quarter annulus a ≤ r ≤ b, 0 ≤ θ ≤ π/2, 0 ≤ z ≤ h, isoparametric for P2 (P1 twice as fine)."""
     n = 4 if order == 2 else 8
-    ref = skfem.MeshTet1.init_tensor(np.linspace(a, b, n + 1), np.linspace(0, np.pi / 2, 2 * n + 1), np.linspace(0, h, 2))
+    ref = skfem.MeshTet1.init_tensor(
+        np.linspace(a, b, n + 1), np.linspace(0, np.pi / 2, 2 * n + 1), np.linspace(0, h, 2)
+    )
 
     def polar(p):
         return np.stack([p[0] * np.cos(p[1]), p[0] * np.sin(p[1]), p[2]])
@@ -153,12 +178,20 @@ def test_lame_thick_cylinder(order):
     mesh = annulus(order, a, b)
     forms = SolidForms(mesh, iso(E, nu), None)
     X = nodes_of(mesh)
-    fixed = np.concatenate([3 * np.flatnonzero(np.isclose(X[:, 0], 0.0, atol=1e-12)),
-                            3 * np.flatnonzero(np.isclose(X[:, 1], 0.0, atol=1e-12)) + 1,
-                            3 * np.arange(X.shape[0]) + 2])
+    fixed = np.concatenate(
+        [
+            3 * np.flatnonzero(np.isclose(X[:, 0], 0.0, atol=1e-12)),
+            3 * np.flatnonzero(np.isclose(X[:, 1], 0.0, atol=1e-12)) + 1,
+            3 * np.arange(X.shape[0]) + 2,
+        ]
+    )
     free = np.setdiff1d(np.arange(forms.ndof), fixed)
-    inner = skfem.FacetBasis(mesh, skfem.ElementVector(forms.basis.elem), intorder=4,
-                             facets=mesh.facets_satisfying(lambda x: np.isclose(np.hypot(x[0], x[1]), a, atol=0.02)))
+    inner = skfem.FacetBasis(
+        mesh,
+        skfem.ElementVector(forms.basis.elem),
+        intorder=4,
+        facets=mesh.facets_satisfying(lambda x: np.isclose(np.hypot(x[0], x[1]), a, atol=0.02)),
+    )
     f_ext = skfem.LinearForm(lambda v, w: -p * dot(w.n, v)).assemble(inner)
     u = newton(forms, np.zeros(forms.ndof), free, f_ext)
     r = np.hypot(X[:, 0], X[:, 1])
@@ -201,8 +234,9 @@ def test_inverted_element_raises():
 @pytest.mark.parametrize("order", [1, 2])
 def test_undersized_curved_tube_is_stress_free(order):
     """A curved tube shrunk across its fibre to s·r is stress-free under the pre-stress eigenstrain at s."""
-    from knitframe.mesh import cell_mesh
     from test_mesh import helix_cell
+
+    from knitframe.mesh import cell_mesh
 
     cm = cell_mesh(helix_cell(R=0.8, c=0.5, r=0.3), seed=0.5, order=order)
     forms = SolidForms(cm.mesh, ti(1000.0, 0.1), cm.node_tangent, node_offset=cm.node_offset)
@@ -225,7 +259,9 @@ def test_force_flux_does_not_cancel_at_equilibrium():
         fluxes.append(forms.flux.copy())
     inner = (X[:, 2] > 1e-9) & (X[:, 2] < 2 - 1e-9)
     z = 3 * np.flatnonzero(inner) + 2
-    assert np.abs(R[z]).max() < 1e-10 * fluxes[1][z].min()  # interior axial forces cancel, their flux does not
+    assert (
+        np.abs(R[z]).max() < 1e-10 * fluxes[1][z].min()
+    )  # interior axial forces cancel, their flux does not
     assert np.allclose(fluxes[1], 2.0 * fluxes[0], rtol=1e-3)
     # the flux into the loaded face equals the axial force P_zz·A it carries
     top = 3 * np.flatnonzero(np.isclose(X[:, 2], 2.0)) + 2
@@ -251,7 +287,7 @@ def test_psd_projection_of_the_tangent():
 
 
 def test_absolute_value_and_element_eigenvalue_filters():
-    """"abs" maps each 9x9 tangent's eigenvalues to their absolute values (same eigenvectors); the element
+    """ "abs" maps each 9x9 tangent's eigenvalues to their absolute values (same eigenvectors); the element
     filter clamps each element matrix's eigenvalues at zero. Both leave a PSD matrix unchanged; an unknown
     method is a ValueError."""
     rng = np.random.default_rng(4)
@@ -284,7 +320,9 @@ def test_projected_tangent_is_psd_where_the_exact_one_is_not(order, filt):
     mesh = block(order)
     X = nodes_of(mesh)
     n = X.shape[0]
-    forms = SolidForms(mesh, ti(500.0, 0.5), np.tile([0.0, 0.0, 1.0], (n, 1)), node_offset=X - [0.5, 0.5, 0.0])
+    forms = SolidForms(
+        mesh, ti(500.0, 0.5), np.tile([0.0, 0.0, 1.0], (n, 1)), node_offset=X - [0.5, 0.5, 0.0]
+    )
     u = np.zeros((n, 3))
     u[:, 2] = -0.02 * X[:, 2]
     u = u.ravel()
@@ -303,8 +341,9 @@ def test_threaded_chunks_give_the_serial_result(order):
     """The element chunks on several threads give bit for bit the serial energy, residual, flux and tangent
     (chunks are summed in their order), under the pre-stress eigenstrain and with the projected tangent; an
     inverted element raises the same error."""
-    from knitframe.mesh import cell_mesh
     from test_mesh import helix_cell
+
+    from knitframe.mesh import cell_mesh
 
     cm = cell_mesh(helix_cell(R=0.8, c=0.5, r=0.3), seed=0.5, order=order)
     law = ti(1000.0, 0.1)

@@ -8,20 +8,26 @@ from typing import ClassVar
 import attrs
 import numpy as np
 import pytest
+from knitframe_solvers.volumetric import VolumetricSolver
 
 from knitframe import hookimpl
 from knitframe.errors import GeometryError, NumericalError
 from knitframe.geometry import Centerline, UnitCell
 from knitframe.plugins import get_registry, load_registry, reset_registry
 from knitframe.records import Fabric, LoadPath, Scene, Yarn
-from knitframe_solvers.volumetric import VolumetricSolver
 
 L1, L2, R = 1.2, 1.0, 0.1
 
 
 def _row(name: str, y: float) -> Centerline:
-    return Centerline(name, lambda t: np.stack([t, y + 0 * t, 0 * t], 1), lambda t: np.stack([1 + 0 * t, 0 * t, 0 * t], 1),
-                      0.0, L1, [L1, 0, 0])
+    return Centerline(
+        name,
+        lambda t: np.stack([t, y + 0 * t, 0 * t], 1),
+        lambda t: np.stack([1 + 0 * t, 0 * t, 0 * t], 1),
+        0.0,
+        L1,
+        [L1, 0, 0],
+    )
 
 
 @attrs.frozen
@@ -32,8 +38,18 @@ class StraightRows:
     description: ClassVar[str] = "two straight rows (tests)"
 
     def cell(self, fabric: Fabric) -> UnitCell:
-        return UnitCell("straight-rows", (_row("row0", 0.25 * L2), _row("row1", 0.75 * L2)), [L1, 0, 0], [0, L2, 0],
-                        0.5 * fabric.yarn.dk, ((0, 0), (1, 1)), (("k",), ("k",)), L1, L1, 0.5 * L2)
+        return UnitCell(
+            "straight-rows",
+            (_row("row0", 0.25 * L2), _row("row1", 0.75 * L2)),
+            [L1, 0, 0],
+            [0, L2, 0],
+            0.5 * fabric.yarn.dk,
+            ((0, 0), (1, 1)),
+            (("k",), ("k",)),
+            L1,
+            L1,
+            0.5 * L2,
+        )
 
 
 @hookimpl
@@ -51,8 +67,10 @@ def registry_with_straight_rows():
 
 YARN = Yarn(name="test", d0=2 * R, dk=2 * R, E_axial=1000.0, E_transverse=10.0, nu=0.3)
 FABRIC = Fabric(pattern="straight-rows", yarn=YARN, arc_length=L1)
-STRETCH = Scene(load=LoadPath(kind="uniaxial", direction="course", max_strain=0.002, steps=2),
-                effects={"large_deformation", "anisotropy"})
+STRETCH = Scene(
+    load=LoadPath(kind="uniaxial", direction="course", max_strain=0.002, steps=2),
+    effects={"large_deformation", "anisotropy"},
+)
 
 
 def test_solver_is_registered_with_its_effects():
@@ -72,7 +90,9 @@ def test_course_tension_of_straight_yarns(order):
     r = VolumetricSolver(order=order, seed=0.75).simulate(FABRIC, STRETCH)
     eps = r.lambda1 - 1.0
     # the meshed section: a polygon for P1, curved for P2
-    section = mesh_quality(cell_mesh(StraightRows().cell(FABRIC), seed=0.75, order=order))["volume"] / (2 * L1)
+    section = mesh_quality(cell_mesh(StraightRows().cell(FABRIC), seed=0.75, order=order))["volume"] / (
+        2 * L1
+    )
     expected = 2 * YARN.E_axial * eps * section / L2
     assert np.allclose(r.T1, expected, rtol=0.01)
     assert np.allclose(r.T2, 0.0, atol=1e-6 * r.T1.max())  # free side
@@ -110,7 +130,9 @@ def test_killed_run_resumes_to_the_same_result(tmp_path):
         solver.simulate(FABRIC, STRETCH, checkpoint_dir=tmp_path, progress=killer)
     assert list(tmp_path.glob("step-*.npz"))
     seen = []
-    resumed = solver.simulate(FABRIC, STRETCH, checkpoint_dir=tmp_path, progress=lambda d, t, m: seen.append(m))
+    resumed = solver.simulate(
+        FABRIC, STRETCH, checkpoint_dir=tmp_path, progress=lambda d, t, m: seen.append(m)
+    )
     assert seen == ["load step 2/2"]  # only the missing step was computed
     assert np.allclose(resumed.T1, full.T1, rtol=1e-9) and np.allclose(resumed.lambda1, full.lambda1)
     # a contact law with other options (here its default master surface) is another run: not resumed
@@ -152,9 +174,12 @@ def test_held_contact_search_needs_steps_below_half_the_reach():
 
     scene = attrs.evolve(STRETCH, effects=frozenset({"large_deformation", "anisotropy", "contact"}))
     with pytest.raises(ConfigError, match="max_step"):
-        VolumetricSolver(order=1, seed=0.75, contact_law="mortar", max_step=0.3, reach=0.5).simulate(FABRIC, scene)
-    r = VolumetricSolver(order=1, seed=0.75, contact_law="mortar", max_step=0.3, reach=0.5,
-                         contact_search="evaluation").simulate(FABRIC, scene)
+        VolumetricSolver(order=1, seed=0.75, contact_law="mortar", max_step=0.3, reach=0.5).simulate(
+            FABRIC, scene
+        )
+    r = VolumetricSolver(
+        order=1, seed=0.75, contact_law="mortar", max_step=0.3, reach=0.5, contact_search="evaluation"
+    ).simulate(FABRIC, scene)
     assert r.provenance.converged
 
 
@@ -168,11 +193,14 @@ def test_trace_summary_of_the_benchmark(tmp_path):
     from bench_volumetric import bench_trace
 
     path = tmp_path / "trace.jsonl"
-    scene = Scene(load=LoadPath(kind="uniaxial", direction="course", max_strain=0.2, steps=2),
-                  effects={"large_deformation", "anisotropy", "contact"})
+    scene = Scene(
+        load=LoadPath(kind="uniaxial", direction="course", max_strain=0.2, steps=2),
+        effects={"large_deformation", "anisotropy", "contact"},
+    )
     with open(path, "w") as fh:
         VolumetricSolver(order=1, seed=0.75, contact_law="mortar").simulate(
-            FABRIC, scene, trace=lambda r: fh.write(json.dumps(r, default=float) + "\n"))
+            FABRIC, scene, trace=lambda r: fh.write(json.dumps(r, default=float) + "\n")
+        )
     rows = bench_trace(type("Args", (), {"trace": str(path)})())
     assert [r["t"] for r in rows] == [1.0, 2.0] and all(r["converged"] for r in rows)
     assert all(r["iterations"] > 0 and float(r["largest pairing jump N·mm"]) == 0.0 for r in rows)
@@ -196,10 +224,15 @@ def test_pipeline_resume_after_a_kill(tmp_path, monkeypatch):
 
     config = {
         "solver": {"kind": "volumetric", "order": 1, "seed": 0.75},
-        "fabric": {"pattern": "straight-rows", "arc_length": L1,
-                   "yarn": {"name": "test", "d0": 2 * R, "dk": 2 * R, "E_axial": 1000.0, "E_transverse": 10.0}},
-        "scene": {"effects": ["large_deformation", "anisotropy"],
-                  "load": {"kind": "uniaxial", "direction": "course", "max_strain": 0.002, "steps": 2}},
+        "fabric": {
+            "pattern": "straight-rows",
+            "arc_length": L1,
+            "yarn": {"name": "test", "d0": 2 * R, "dk": 2 * R, "E_axial": 1000.0, "E_transverse": 10.0},
+        },
+        "scene": {
+            "effects": ["large_deformation", "anisotropy"],
+            "load": {"kind": "uniaxial", "direction": "course", "max_strain": 0.002, "steps": 2},
+        },
     }
     reference = knitframe.run(config, tmp_path / "ref").responses[0]
     save = StepCheckpoints.save
@@ -214,7 +247,9 @@ def test_pipeline_resume_after_a_kill(tmp_path, monkeypatch):
     assert list((tmp_path / "out" / ".knitframe" / "checkpoints").rglob("step-*.npz"))
     monkeypatch.setattr(StepCheckpoints, "save", save)
     resumed = knitframe.run(config, tmp_path / "out", resume=True).responses[0]
-    assert np.allclose(resumed.T1, reference.T1, rtol=1e-9) and np.allclose(resumed.lambda1, reference.lambda1)
+    assert np.allclose(resumed.T1, reference.T1, rtol=1e-9) and np.allclose(
+        resumed.lambda1, reference.lambda1
+    )
 
 
 def count_calls(monkeypatch, cls, name: str) -> list:
@@ -261,9 +296,13 @@ def test_contact_search_once_per_newton_iteration(monkeypatch, search):
 
     calls = count_calls(monkeypatch, SolidSurface, "candidates")
     # a stretch large enough for the Poisson contraction to need Newton iterations with line searches
-    scene = Scene(load=LoadPath(kind="uniaxial", direction="course", max_strain=0.2, steps=2),
-                  effects={"large_deformation", "anisotropy", "contact"})
-    r = VolumetricSolver(order=1, seed=0.75, contact_law="mortar", contact_search=search).simulate(FABRIC, scene)
+    scene = Scene(
+        load=LoadPath(kind="uniaxial", direction="course", max_strain=0.2, steps=2),
+        effects={"large_deformation", "anisotropy", "contact"},
+    )
+    r = VolumetricSolver(order=1, seed=0.75, contact_law="mortar", contact_search=search).simulate(
+        FABRIC, scene
+    )
     ev = r.provenance.extra["newton_evaluations"]
     assert r.provenance.converged and ev["energy"] > 0
     expected = ev["hessian"] if search == "iteration" else ev["energy"] + ev["gradient"] + ev["hessian"]
@@ -280,13 +319,24 @@ def test_barrier_contact_resolves_the_interference_of_the_prestress():
     same values); with chord steps after full steps as well, to λ2 = 1.000036 at the same tension."""
     fat = attrs.evolve(YARN, d0=0.52, dk=0.52)
     fabric = attrs.evolve(FABRIC, yarn=fat)
-    scene = attrs.evolve(STRETCH, effects=frozenset({"large_deformation", "anisotropy", "contact", "prestress"}))
-    tight = dict(order=1, seed=0.75, contact_law="ipc", prestress_steps=2, tolerance=1e-8, step_tolerance=1e-6,
-                 flux_tolerance=0.0, late_flux_tolerance=0.0)
+    scene = attrs.evolve(
+        STRETCH, effects=frozenset({"large_deformation", "anisotropy", "contact", "prestress"})
+    )
+    tight = dict(
+        order=1,
+        seed=0.75,
+        contact_law="ipc",
+        prestress_steps=2,
+        tolerance=1e-8,
+        step_tolerance=1e-6,
+        flux_tolerance=0.0,
+        late_flux_tolerance=0.0,
+    )
     # plain projected Newton, and with chord steps and extrapolated steps (which shortens steps, so chords follow)
     plain = VolumetricSolver(**tight, chord=False).simulate(fabric, scene, trace=(plain_records := []).append)
     r = VolumetricSolver(**tight, chord=True, extrapolation=8.0, chord_after_full_steps=False).simulate(
-        fabric, scene, trace=(records := []).append)
+        fabric, scene, trace=(records := []).append
+    )
     assert r.provenance.converged and np.all(np.isfinite(r.T1))
     assert r.provenance.extra["prestress_start_radius_over_r"] < 1.0
     assert r.provenance.extra["max_penetration_over_r"] == 0.0
@@ -296,7 +346,9 @@ def test_barrier_contact_resolves_the_interference_of_the_prestress():
     assert not any("extrapolated" in x for x in plain_records if x["record"] == "iteration")
     # without contact nothing acts across the rows and the free wale side stays where it was; with it, the
     # flattened rows carry the course stretch's contraction across
-    bare = VolumetricSolver(**tight).simulate(fabric, attrs.evolve(scene, effects=scene.effects - {"contact"}))
+    bare = VolumetricSolver(**tight).simulate(
+        fabric, attrs.evolve(scene, effects=scene.effects - {"contact"})
+    )
     assert bare.lambda2[-1] == pytest.approx(1.0, abs=1e-9) and r.lambda2[-1] - 1.0 > 5e-5
     assert np.allclose(r.lambda2, plain.lambda2, atol=3e-5)
     # chord steps after full steps too (the default) reach the residual test on a chord iterate: the same
@@ -311,18 +363,33 @@ def test_intermediate_prestress_states_take_the_loose_tolerances():
     """The intermediate pre-stress states take path_tolerance_factor × the residual, flux and step tolerances; in a
     run where the residual and flux tests are out of reach, every solve that iterates ends by the step test within
     its own bound (the history's step is the Newton step over the cap)."""
-    solver = VolumetricSolver(order=1, seed=0.75, contact_law="ipc", prestress_steps=2, tolerance=1e-12,
-                              flux_tolerance=0.0, late_flux_tolerance=0.0)
+    solver = VolumetricSolver(
+        order=1,
+        seed=0.75,
+        contact_law="ipc",
+        prestress_steps=2,
+        tolerance=1e-12,
+        flux_tolerance=0.0,
+        late_flux_tolerance=0.0,
+    )
     opts, loose = solver.newton_options(FABRIC, 0.2, True)
     f = solver.path_tolerance_factor
-    assert opts.step_tol == solver.step_tolerance and opts.atol == pytest.approx(1e-12 * YARN.E_transverse * 0.04)
+    assert opts.step_tol == solver.step_tolerance and opts.atol == pytest.approx(
+        1e-12 * YARN.E_transverse * 0.04
+    )
     assert (loose.step_tol, loose.atol) == pytest.approx((f * opts.step_tol, f * opts.atol))
-    assert attrs.evolve(loose, atol=opts.atol, step_tol=opts.step_tol) == opts  # nothing else differs (flux ratios are 0)
+    assert (
+        attrs.evolve(loose, atol=opts.atol, step_tol=opts.step_tol) == opts
+    )  # nothing else differs (flux ratios are 0)
     fabric = attrs.evolve(FABRIC, yarn=attrs.evolve(YARN, d0=0.52, dk=0.52))
-    scene = attrs.evolve(STRETCH, effects=frozenset({"large_deformation", "anisotropy", "contact", "prestress"}))
+    scene = attrs.evolve(
+        STRETCH, effects=frozenset({"large_deformation", "anisotropy", "contact", "prestress"})
+    )
     records = []
     assert solver.simulate(fabric, scene, trace=records.append).provenance.converged
-    solves = [x for x in records if x["record"] == "solve" and len(x["history"]) > 1]  # not the stress-free start
+    solves = [
+        x for x in records if x["record"] == "solve" and len(x["history"]) > 1
+    ]  # not the stress-free start
     assert solves
     for rec in solves:
         last = rec["history"][-1]
@@ -335,15 +402,19 @@ def test_secant_predictor_starts_the_next_increment_near_its_solution():
     (the fluctuation and the free side's contraction extrapolated from the last two converged increments) starts
     the second and third increments far closer to their solution than the affine map alone; both end at the same
     tensions."""
-    scene = attrs.evolve(STRETCH, load=LoadPath(kind="uniaxial", direction="course", max_strain=0.03, steps=3))
+    scene = attrs.evolve(
+        STRETCH, load=LoadPath(kind="uniaxial", direction="course", max_strain=0.03, steps=3)
+    )
     first = {}
     out = {}
     for predictor in ("affine", "secant"):
         records = []
         out[predictor] = VolumetricSolver(order=1, seed=0.75, predictor=predictor, tolerance=1e-7).simulate(
-            FABRIC, scene, trace=records.append)
-        first[predictor] = [x["history"][0]["residual"] for x in records if x["record"] == "solve"
-                            and x["phase"] == "load"]
+            FABRIC, scene, trace=records.append
+        )
+        first[predictor] = [
+            x["history"][0]["residual"] for x in records if x["record"] == "solve" and x["phase"] == "load"
+        ]
     assert first["secant"][0] == pytest.approx(first["affine"][0], rel=1e-9)  # no history yet: the same start
     assert first["secant"][1] < 0.1 * first["affine"][1] and first["secant"][2] < 0.1 * first["affine"][2]
     assert np.allclose(out["secant"].T1, out["affine"].T1, rtol=1e-4, atol=1e-9)
@@ -373,7 +444,9 @@ def test_pull_back_of_the_tangent_is_the_triple_product(order):
 
     solver = VolumetricSolver(order=order, seed=0.75, stabilisation=1e-2)
     model = solver.setup(FABRIC, STRETCH)
-    assert model.damping > 0 and model.T.shape[0] > model.T.shape[1]  # the end nodes are slaves of the start nodes
+    assert (
+        model.damping > 0 and model.T.shape[0] > model.T.shape[1]
+    )  # the end nodes are slaves of the start nodes
     rng = np.random.default_rng(2)
     u = 1e-3 * rng.normal(size=model.forms.ndof)
     _, _, K = model.forms.evaluate(u, 1.0, 2)
@@ -386,7 +459,9 @@ def test_pull_back_of_the_tangent_is_the_triple_product(order):
     _, _, K1 = model.forms.evaluate(2.0 * u, 1.0, 2)  # a new tangent on the same pattern keeps the map
     ref1 = (model.T.T @ (K1 + c * sp.identity(K1.shape[0])) @ model.T).tocsr()
     assert abs(model.pull_back(K1) - ref1).max() <= 1e-13 * abs(ref1).max() and model._pull_back is kept
-    K2 = sp.csr_matrix(K.toarray() + np.diag(rng.normal(size=K.shape[0])))  # another matrix on another pattern
+    K2 = sp.csr_matrix(
+        K.toarray() + np.diag(rng.normal(size=K.shape[0]))
+    )  # another matrix on another pattern
     K2 = K2 + sp.csr_matrix(([1.0], ([0], [K.shape[0] - 1])), shape=K.shape)
     ref2 = (model.T.T @ (K2 + c * sp.identity(K.shape[0])) @ model.T).tocsr()
     assert abs(model.pull_back(K2) - ref2).max() <= 1e-13 * abs(ref2).max()
@@ -413,9 +488,14 @@ def test_signed_gap_laws_are_refused_past_the_strain_they_finish_before_any_work
     from knitframe.errors import ConfigError
 
     solver = VolumetricSolver(order=1, seed=0.75, contact_law=law)
-    far = Scene(load=LoadPath(kind="equibiaxial", max_strain=0.3, steps=6), effects={"large_deformation", "contact"})
-    with pytest.raises(ConfigError, match=rf"solver\.contact_law: '{law}' does not finish knitted cells past 10 % "
-                                          r"strain \(the load reaches 30 %\)"):
+    far = Scene(
+        load=LoadPath(kind="equibiaxial", max_strain=0.3, steps=6), effects={"large_deformation", "contact"}
+    )
+    with pytest.raises(
+        ConfigError,
+        match=rf"solver\.contact_law: '{law}' does not finish knitted cells past 10 % "
+        r"strain \(the load reaches 30 %\)",
+    ):
         solver.validate(FABRIC, far)
     solver.validate(FABRIC, attrs.evolve(far, load=LoadPath(kind="equibiaxial", max_strain=0.1, steps=2)))
     solver.validate(FABRIC, attrs.evolve(far, effects={"large_deformation"}))  # no contact asked for

@@ -7,12 +7,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from knitframe_yarns.law import linear_stiffness
+from knitframe_yarns.library import resolve_yarn
 
 from knitframe import ConfigError, DataError, NumericalError, Yarn, get_registry
 from knitframe.testing.patterns import derivative_errors
-from knitframe.yarnfit import fit_compression, fit_tension, fit_yarn, line_contact_approach, line_contact_load, pretension
-from knitframe_yarns.law import linear_stiffness
-from knitframe_yarns.library import resolve_yarn
+from knitframe.yarnfit import (
+    fit_compression,
+    fit_tension,
+    fit_yarn,
+    line_contact_approach,
+    line_contact_load,
+    pretension,
+)
 
 DATA = Path(__file__).parent / "data" / "yarn"
 _spec = importlib.util.spec_from_file_location("yarn_make", DATA / "make.py")
@@ -76,7 +83,9 @@ def test_stress_and_tangent_match_finite_differences(yarn):
 
 def test_transverse_isotropic_linearises_to_the_engineering_constants():
     """At F = I the tangent equals the linear transversely isotropic stiffness from E_A, E_T, G_A, ν."""
-    model = get_registry()["yarn_model"]["transverse_isotropic"](E_axial=50.0, E_transverse=3.0, G_axial=1.2, nu=0.3, radius=0.2)
+    model = get_registry()["yarn_model"]["transverse_isotropic"](
+        E_axial=50.0, E_transverse=3.0, G_axial=1.2, nu=0.3, radius=0.2
+    )
     _, _, A = model.evaluate(np.eye(3), np.array([1.0, 0.0, 0.0]))
     C = linear_stiffness(50.0, 3.0, 1.2, 0.3)
     voigt = [(0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)]
@@ -90,7 +99,9 @@ def test_transverse_isotropic_linearises_to_the_engineering_constants():
 
 def test_fibre_direction_follows_the_yarn_tangent():
     """Stretching along the fibre costs E_A, across it E_T-level energy (transverse isotropy)."""
-    model = get_registry()["yarn_model"]["transverse_isotropic"](E_axial=100.0, E_transverse=1.0, nu=0.3, radius=0.2)
+    model = get_registry()["yarn_model"]["transverse_isotropic"](
+        E_axial=100.0, E_transverse=1.0, nu=0.3, radius=0.2
+    )
     F = np.diag([1.001, 1.0, 1.0])
     along = model.energy(F, np.array([1.0, 0, 0]))
     across = model.energy(F, np.array([0, 1.0, 0]))
@@ -148,7 +159,11 @@ def test_fits_recover_known_parameters_from_noisy_synthetic_tests(name, tmp_path
     assert c.precompression == pytest.approx(p["precompression"], rel=0.05)
     assert c.pressure == pytest.approx(c.precompression / p["dk"])
     y = fit_yarn(
-        name, d0=p["d0"], dk=p["dk"], tension=tmp_path / f"{name}_tension.csv", compression=tmp_path / f"{name}_compression.csv"
+        name,
+        d0=p["d0"],
+        dk=p["dk"],
+        tension=tmp_path / f"{name}_tension.csv",
+        compression=tmp_path / f"{name}_compression.csv",
     )
     assert isinstance(y, Yarn) and y.model == "transverse_isotropic" and "fitted" in y.source
 
@@ -169,11 +184,23 @@ def _write(tmp_path, text: str) -> Path:
     "text, message",
     [
         ("# test: tension\n# gauge_length_mm: 50\ndisplacement_mm,load\n0,0\n", "missing column 'force_N'"),
-        ("# gauge_length_mm: 50\ndisplacement_mm,force_N\n0,0\n1,1\n2,x\n3,3\n4,4\n", "line 5, column 'force_N': expected a number"),
+        (
+            "# gauge_length_mm: 50\ndisplacement_mm,force_N\n0,0\n1,1\n2,x\n3,3\n4,4\n",
+            "line 5, column 'force_N': expected a number",
+        ),
         ("displacement_mm,force_N\n0,0\n1,1\n2,2\n3,3\n4,4\n", "missing header line '# gauge_length_mm"),
-        ("# gauge_length_mm: -5\ndisplacement_mm,force_N\n0,0\n1,1\n2,2\n3,3\n4,4\n", "'gauge_length_mm' must be > 0"),
-        ("# test: compression\n# gauge_length_mm: 5\ndisplacement_mm,force_N\n0,0\n1,1\n2,2\n3,3\n4,4\n", "expected a tension test"),
-        ("# gauge_length_mm: 5\ndisplacement_mm,force_N\n0,0\n1,-1\n2,-2\n3,-3\n4,-4\n", "force never becomes positive"),
+        (
+            "# gauge_length_mm: -5\ndisplacement_mm,force_N\n0,0\n1,1\n2,2\n3,3\n4,4\n",
+            "'gauge_length_mm' must be > 0",
+        ),
+        (
+            "# test: compression\n# gauge_length_mm: 5\ndisplacement_mm,force_N\n0,0\n1,1\n2,2\n3,3\n4,4\n",
+            "expected a tension test",
+        ),
+        (
+            "# gauge_length_mm: 5\ndisplacement_mm,force_N\n0,0\n1,-1\n2,-2\n3,-3\n4,-4\n",
+            "force never becomes positive",
+        ),
         ("# gauge_length_mm: 5\ndisplacement_mm,force_N\n0,0\n1,1\n", "at least 5 data rows"),
     ],
 )
@@ -186,6 +213,8 @@ def test_bad_tension_files_give_one_line_data_errors(tmp_path, text, message):
 
 def test_compression_that_never_reaches_dk_is_a_data_error(tmp_path):
     """A compression test whose plate stops before the yarn reaches dk is rejected with a clear message."""
-    text = "# yarns: 10\n# plate_length_mm: 25\ndisplacement_mm,force_N\n" + "".join(f"{u / 100},{u}\n" for u in range(10))
+    text = "# yarns: 10\n# plate_length_mm: 25\ndisplacement_mm,force_N\n" + "".join(
+        f"{u / 100},{u}\n" for u in range(10)
+    )
     with pytest.raises(DataError, match="never compressing d0 = 0.951 to dk = 0.334"):
         fit_compression(_write(tmp_path, text), d0=0.951, dk=0.334)

@@ -16,10 +16,14 @@ def add_parser(sub) -> None:
     p = sub.add_parser("cache", help="clear or show the executors' result cache", description=__doc__)
     actions = p.add_subparsers(dest="cache_command", metavar="ACTION", parser_class=type(p))
     actions.required = True
-    for name, text in (("clear", "delete the cached results (nothing else in the folder)"),
-                       ("info", "the folder, the number of cached results and their size")):
+    for name, text in (
+        ("clear", "delete the cached results (nothing else in the folder)"),
+        ("info", "the folder, the number of cached results and their size"),
+    ):
         a = actions.add_parser(name, help=text, description=text)
-        a.add_argument("--dir", type=Path, default=None, help="cache folder (default: knitframe's user cache folder)")
+        a.add_argument(
+            "--dir", type=Path, default=None, help="cache folder (default: knitframe's user cache folder)"
+        )
         a.set_defaults(func=main)
 
 

@@ -17,28 +17,68 @@ def add_parser(sub) -> None:
     p = sub.add_parser("design", help="design a compression sleeve for a limb", description=__doc__)
     p.add_argument("limb", nargs="?", help="limb scan (STL, OBJ, PLY)")
     p.add_argument("--example", action="store_true", help="use the built-in example arm")
-    p.add_argument("--circumferences", default=None, metavar="MM,MM,...",
-                   help="measured circumferences (mm) instead of a scan, with --positions")
-    p.add_argument("--positions", default=None, metavar="MM,MM,...",
-                   help="distances (mm) of the measured circumferences from the wrist or ankle")
+    p.add_argument(
+        "--circumferences",
+        default=None,
+        metavar="MM,MM,...",
+        help="measured circumferences (mm) instead of a scan, with --positions",
+    )
+    p.add_argument(
+        "--positions",
+        default=None,
+        metavar="MM,MM,...",
+        help="distances (mm) of the measured circumferences from the wrist or ankle",
+    )
     p.add_argument("--library", default="builtin", help="fabric library: 'builtin' or a library.json")
-    p.add_argument("--objective", default="pressure_profile",
-                   help="design objective plugin: pressure_profile, pressure_uniformity or stress_variance")
-    p.add_argument("--target-mmHg", type=float, default=None, dest="target_mmHg",
-                   help="target pressure (at the distal end for pressure_profile), mmHg")
-    p.add_argument("--ratios", default=None, metavar="R,R,...",
-                   help="pressure_profile: target ratios from the distal end to the top (default 1,0.6)")
-    p.add_argument("--mode", choices=("knitting", "paper"), default="knitting",
-                   help="knitting: needles × courses (default); paper: a wrist cylinder mapped element for element")
-    p.add_argument("--method", choices=("optimal", "paper"), default="optimal",
-                   help="optimal: exact course bands (default); paper: the paper's per-element procedure")
-    p.add_argument("--needles", type=int, default=None, help="knitting mode: stitches per course (default: searched)")
-    p.add_argument("--min-courses", type=float, default=10.0, dest="min_courses",
-                   help="least courses in each region (default 10)")
-    p.add_argument("--max-fabrics", type=int, default=None, dest="max_fabrics",
-                   help="at most this many distinct fabrics")
-    p.add_argument("--pressure", choices=("equivalent", "local"), default="equivalent",
-                   help="the Laplace radius the objective uses (both are reported)")
+    p.add_argument(
+        "--objective",
+        default="pressure_profile",
+        help="design objective plugin: pressure_profile, pressure_uniformity or stress_variance",
+    )
+    p.add_argument(
+        "--target-mmHg",
+        type=float,
+        default=None,
+        dest="target_mmHg",
+        help="target pressure (at the distal end for pressure_profile), mmHg",
+    )
+    p.add_argument(
+        "--ratios",
+        default=None,
+        metavar="R,R,...",
+        help="pressure_profile: target ratios from the distal end to the top (default 1,0.6)",
+    )
+    p.add_argument(
+        "--mode",
+        choices=("knitting", "paper"),
+        default="knitting",
+        help="knitting: needles × courses (default); paper: a wrist cylinder mapped element for element",
+    )
+    p.add_argument(
+        "--method",
+        choices=("optimal", "paper"),
+        default="optimal",
+        help="optimal: exact course bands (default); paper: the paper's per-element procedure",
+    )
+    p.add_argument(
+        "--needles", type=int, default=None, help="knitting mode: stitches per course (default: searched)"
+    )
+    p.add_argument(
+        "--min-courses",
+        type=float,
+        default=10.0,
+        dest="min_courses",
+        help="least courses in each region (default 10)",
+    )
+    p.add_argument(
+        "--max-fabrics", type=int, default=None, dest="max_fabrics", help="at most this many distinct fabrics"
+    )
+    p.add_argument(
+        "--pressure",
+        choices=("equivalent", "local"),
+        default="equivalent",
+        help="the Laplace radius the objective uses (both are reported)",
+    )
     p.add_argument("--out", default=None, help="output folder, new or empty (default: design-out)")
     add_overwrite_argument(p)
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
@@ -62,12 +102,16 @@ def config_from_args(args) -> dict:
 
     given = [bool(args.limb), bool(args.example), args.circumferences is not None]
     if sum(given) != 1:
-        raise ConfigError("LIMB", "give a limb scan, --example, or --circumferences with --positions (one of them)")
+        raise ConfigError(
+            "LIMB", "give a limb scan, --example, or --circumferences with --positions (one of them)"
+        )
     if args.circumferences is not None:
         if args.positions is None:
             raise ConfigError("--positions", "required with --circumferences")
-        limb = {"circumferences_mm": _numbers(args.circumferences, "--circumferences"),
-                "positions_mm": _numbers(args.positions, "--positions")}
+        limb = {
+            "circumferences_mm": _numbers(args.circumferences, "--circumferences"),
+            "positions_mm": _numbers(args.positions, "--positions"),
+        }
     else:
         limb = "example" if args.example else str(Path(args.limb).resolve())
     objective: dict = {"kind": args.objective}
@@ -76,10 +120,19 @@ def config_from_args(args) -> dict:
     if args.ratios is not None:
         ratios = _numbers(args.ratios, "--ratios")
         objective["ratios"] = ratios
-        objective["at"] = [k / max(len(ratios) - 1, 1) for k in range(len(ratios))] if len(ratios) > 1 else [0.0]
+        objective["at"] = (
+            [k / max(len(ratios) - 1, 1) for k in range(len(ratios))] if len(ratios) > 1 else [0.0]
+        )
     library = args.library if args.library == "builtin" else str(Path(args.library).resolve())
-    table = {"limb": limb, "library": library, "objective": objective, "method": args.method,
-             "pressure": args.pressure, "min_courses": args.min_courses, "tube": {"mode": args.mode}}
+    table = {
+        "limb": limb,
+        "library": library,
+        "objective": objective,
+        "method": args.method,
+        "pressure": args.pressure,
+        "min_courses": args.min_courses,
+        "tube": {"mode": args.mode},
+    }
     if args.needles is not None:
         table["tube"]["needles"] = args.needles
     if args.max_fabrics is not None:
@@ -87,28 +140,43 @@ def config_from_args(args) -> dict:
     return {"pipeline": {"name": "design"}, "design": table}
 
 
-_OPTION = {"design.limb": "LIMB", "design.library": "--library", "design.objective": "--objective",
-           "design.objective.kind": "--objective", "design.objective.target_mmHg": "--target-mmHg",
-           "design.objective.ratios": "--ratios", "design.tube.needles": "--needles",
-           "design.min_courses": "--min-courses", "design.max_fabrics": "--max-fabrics"}
+_OPTION = {
+    "design.limb": "LIMB",
+    "design.library": "--library",
+    "design.objective": "--objective",
+    "design.objective.kind": "--objective",
+    "design.objective.target_mmHg": "--target-mmHg",
+    "design.objective.ratios": "--ratios",
+    "design.tube.needles": "--needles",
+    "design.min_courses": "--min-courses",
+    "design.max_fabrics": "--max-fabrics",
+}
 
 
 def main(args) -> int:
+    from pathlib import Path
+
     from knitframe.errors import ConfigError
     from knitframe.pipeline import Pipeline
-    from pathlib import Path
 
     config = config_from_args(args)
     try:
         pipeline = Pipeline(config, base_dir=Path.cwd())
     except ConfigError as e:  # name the command-line option rather than the config key it became
-        option = next((_OPTION[k] for k in sorted(_OPTION, key=len, reverse=True)
-                       if e.path == k or e.path.startswith(k + ".")), None)
+        option = next(
+            (
+                _OPTION[k]
+                for k in sorted(_OPTION, key=len, reverse=True)
+                if e.path == k or e.path.startswith(k + ".")
+            ),
+            None,
+        )
         if option is None:
             raise
         raise ConfigError(option, e.problem) from None
-    result = pipeline.run(args.out if args.out is not None else "design-out", overwrite=args.overwrite,
-                          quiet=args.quiet)
+    result = pipeline.run(
+        args.out if args.out is not None else "design-out", overwrite=args.overwrite, quiet=args.quiet
+    )
     if not args.quiet:
         print(result.results["design"]["headline"])
         print(f"wrote {', '.join(result.summary['outputs'])} and summary.json to {result.out}")

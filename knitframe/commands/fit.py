@@ -17,8 +17,12 @@ def add_parser(sub) -> None:
     p.add_argument("data", nargs="+", type=Path, help="data files (CSV)")
     p.add_argument("--model", default="hgo", help="homogenizer plugin (default: hgo)")
     p.add_argument("--fitter", default="lbfgs", help="fitter plugin: lbfgs or mads (default: lbfgs)")
-    p.add_argument("--reader", default="auto", help="reader plugin for the data files (default: auto, chosen from "
-                   "each file's header: singal2024 or generic)")
+    p.add_argument(
+        "--reader",
+        default="auto",
+        help="reader plugin for the data files (default: auto, chosen from "
+        "each file's header: singal2024 or generic)",
+    )
     p.add_argument("--out", required=True, help="output folder (new, or empty; see --overwrite)")
     add_overwrite_argument(p)
     p.add_argument("--quiet", action="store_true", help="print nothing on success")
@@ -31,9 +35,19 @@ def main(args) -> int:
     from knitframe.fitting import write_fit_outputs
     from knitframe.plugins import get_registry
 
-    od = OutputDir(args.out, command="fit", overwrite=args.overwrite, fingerprint=fingerprint(
-        {"data": [str(p.resolve()) for p in args.data], "model": args.model, "fitter": args.fitter,
-         "reader": args.reader}))
+    od = OutputDir(
+        args.out,
+        command="fit",
+        overwrite=args.overwrite,
+        fingerprint=fingerprint(
+            {
+                "data": [str(p.resolve()) for p in args.data],
+                "model": args.model,
+                "fitter": args.fitter,
+                "reader": args.reader,
+            }
+        ),
+    )
     od.check()  # before any work
     reg = get_registry()
     reader = instantiate(reg, "reader", args.reader, "--reader")
@@ -43,8 +57,15 @@ def main(args) -> int:
     result = fitter.fit(model, responses)
     with od:
         write_fit_outputs(result, responses, od.staging / "params.json", od.staging / "fit.png")
-        od.commit({"knitframe": __version__, "command": "fit", "data": [str(p) for p in args.data],
-                   "model": args.model, "fitter": args.fitter})
+        od.commit(
+            {
+                "knitframe": __version__,
+                "command": "fit",
+                "data": [str(p) for p in args.data],
+                "model": args.model,
+                "fitter": args.fitter,
+            }
+        )
     if not args.quiet:
         print(result.headline())
         print(f"wrote {od.out / 'params.json'} and {od.out / 'fit.png'}")

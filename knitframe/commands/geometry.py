@@ -9,10 +9,8 @@ from __future__ import annotations
 
 import json
 import re
-from pathlib import Path
 
 from knitframe.outdir import OutputDir, add_overwrite_argument, fingerprint
-
 
 #: most polyline segments per yarn in the VTU files (each tube has 16 sides per segment)
 MAX_SEGMENTS = 100_000
@@ -27,10 +25,14 @@ def _option(path: str) -> str:
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("geometry", help="build and export a pattern's unit-cell geometry", description=__doc__)
+    p = sub.add_parser(
+        "geometry", help="build and export a pattern's unit-cell geometry", description=__doc__
+    )
     p.add_argument("pattern", help="pattern name (see `knitframe plugins`)")
     p.add_argument("--stitch-length", type=float, default=None, help="machine setting, e.g. 10, 11, 12")
-    p.add_argument("--arc-length", type=float, default=None, help="yarn length per stitch, mm (overrides the setting)")
+    p.add_argument(
+        "--arc-length", type=float, default=None, help="yarn length per stitch, mm (overrides the setting)"
+    )
     p.add_argument("--yarn", default="cotton", help="yarn name from the library (default cotton)")
     p.add_argument("--course-pitch", type=float, default=None, help="stitch width, mm (default: Munden)")
     p.add_argument("--wale-pitch", type=float, default=None, help="stitch height, mm (default: Munden)")
@@ -61,7 +63,9 @@ def main(args) -> int:
     try:
         cell = checked_cell(Fabric.from_dict(table, "fabric"), reg)  # every refusal before any output
     except ConfigError as e:
-        raise ConfigError(_option(e.path), _FABRIC_KEY.sub(lambda m: _option(m.group(0)), e.problem)) from None
+        raise ConfigError(
+            _option(e.path), _FABRIC_KEY.sub(lambda m: _option(m.group(0)), e.problem)
+        ) from None
     clr = clearance(cell)
     with od:
         _write(od, cell, clr, args, yarn)

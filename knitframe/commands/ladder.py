@@ -18,16 +18,29 @@ from knitframe.outdir import add_overwrite_argument
 def add_parser(sub) -> None:
     from knitframe.ladder import DEFAULT_RUNGS, RUNGS
 
-    p = sub.add_parser("ladder", help="run one fabric and scene through rungs of fidelity: time, memory, error",
-                       description=__doc__)
+    p = sub.add_parser(
+        "ladder",
+        help="run one fabric and scene through rungs of fidelity: time, memory, error",
+        description=__doc__,
+    )
     p.add_argument("config", help="TOML config with [fabric] and [scene] (and [data] for measured curves)")
     p.add_argument("--out", default=None, help="output folder, new or empty (default: <config name>-ladder)")
-    p.add_argument("--rungs", default=None, metavar="NAMES",
-                   help=f"comma-separated rungs of {', '.join(RUNGS)}, or rod:N, volumetric:p1:r/X, volumetric:p2:r/X at "
-                        f"any resolution; three seeds of one order add a mesh-convergence table "
-                        f"(default: {','.join(DEFAULT_RUNGS)})")
-    p.add_argument("--max-time", type=float, default=None, dest="max_time", metavar="SECONDS",
-                   help="skip the rungs whose estimated wall time is over this many seconds")
+    p.add_argument(
+        "--rungs",
+        default=None,
+        metavar="NAMES",
+        help=f"comma-separated rungs of {', '.join(RUNGS)}, or rod:N, volumetric:p1:r/X, volumetric:p2:r/X at "
+        f"any resolution; three seeds of one order add a mesh-convergence table "
+        f"(default: {','.join(DEFAULT_RUNGS)})",
+    )
+    p.add_argument(
+        "--max-time",
+        type=float,
+        default=None,
+        dest="max_time",
+        metavar="SECONDS",
+        help="skip the rungs whose estimated wall time is over this many seconds",
+    )
     add_overwrite_argument(p)
     p.add_argument("--quiet", action="store_true", help="print only the table")
     p.set_defaults(func=main)
@@ -61,9 +74,15 @@ def main(args) -> int:
     try:
         pipeline = Pipeline(config, base_dir=base, source=source)
     except ConfigError as e:  # name the command-line option rather than the config key it became
-        option = next((o for k, o in _OPTION.items() if (e.path == k or e.path.startswith(k + "["))
-                       and ((o == "--rungs" and rungs is not None) or (o == "--max-time" and max_time is not None))),
-                      None)
+        option = next(
+            (
+                o
+                for k, o in _OPTION.items()
+                if (e.path == k or e.path.startswith(k + "["))
+                and ((o == "--rungs" and rungs is not None) or (o == "--max-time" and max_time is not None))
+            ),
+            None,
+        )
         if option is None:
             raise
         raise ConfigError(option, e.problem) from None

@@ -27,11 +27,29 @@ from knitframe.outdir import OutputDir, add_overwrite_argument, fingerprint
 
 #: per-file options of ``library build``: (flag, keyword of FabricLibrary.from_fits, type, metavar, help)
 _PER_FILE = (
-    ("--course-pitch", "course_pitch", float, "MM", "relaxed stitch width along the course, mm per wale column"),
+    (
+        "--course-pitch",
+        "course_pitch",
+        float,
+        "MM",
+        "relaxed stitch width along the course, mm per wale column",
+    ),
     ("--wale-pitch", "wale_pitch", float, "MM", "relaxed stitch height along the wale, mm per course"),
-    ("--max-tension", "max_tension", float, "N_PER_MM", "largest course tension the fabric may carry, N/mm (required)"),
+    (
+        "--max-tension",
+        "max_tension",
+        float,
+        "N_PER_MM",
+        "largest course tension the fabric may carry, N/mm (required)",
+    ),
     ("--max-stretch", "max_stretch", float, "L", "largest course stretch it may take (optional)"),
-    ("--pattern", "pattern", str, "P", "stitch pattern (jersey, garter, rib, seed, ...) if not in the params file"),
+    (
+        "--pattern",
+        "pattern",
+        str,
+        "P",
+        "stitch pattern (jersey, garter, rib, seed, ...) if not in the params file",
+    ),
     ("--yarn", "yarn", str, "Y", "yarn name if not in the params file"),
     ("--stitch-length", "stitch_length", float, "S", "machine stitch-length setting, if known"),
     ("--arc-length", "arc_length", float, "MM", "mm of yarn per stitch, if known"),
@@ -40,27 +58,45 @@ _PER_FILE = (
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("library", help="build and show fabric libraries for garment design", description=__doc__)
+    p = sub.add_parser(
+        "library", help="build and show fabric libraries for garment design", description=__doc__
+    )
     actions = p.add_subparsers(dest="library_command", metavar="ACTION", parser_class=type(p))
     actions.required = True
 
-    b = actions.add_parser("build", help="a library.json from fitted params.json files",
-                           description="Write DIR/library.json with one entry per params.json of a fit.")
+    b = actions.add_parser(
+        "build",
+        help="a library.json from fitted params.json files",
+        description="Write DIR/library.json with one entry per params.json of a fit.",
+    )
     b.add_argument("params", nargs="+", type=Path, help="params.json files written by 'knitframe fit'")
     b.add_argument("--name", default=None, help="library name (default: the output folder's name)")
     for flag, key, typ, metavar, text in _PER_FILE:
-        b.add_argument(flag, nargs="+", type=typ, metavar=metavar, default=None, dest=key,
-                       help=f"{text}; one per params file or one for all")
+        b.add_argument(
+            flag,
+            nargs="+",
+            type=typ,
+            metavar=metavar,
+            default=None,
+            dest=key,
+            help=f"{text}; one per params file or one for all",
+        )
     _output_arguments(b, main_build)
 
-    s = actions.add_parser("show", help="print a library as a table",
-                           description="Print a library.json (or the built-in library) as a table.")
+    s = actions.add_parser(
+        "show",
+        help="print a library as a table",
+        description="Print a library.json (or the built-in library) as a table.",
+    )
     s.add_argument("library", nargs="?", default="builtin", help="library.json, or 'builtin' (default)")
     s.set_defaults(func=main_show)
 
-    r = actions.add_parser("build-builtin", help="refit the built-in library from the shipped Singal et al. 2024 data",
-                           description="Refit the built-in library: DIR/library.json and DIR/fits/<name>-params.json, "
-                                       "<name>-fit.png. About 40 s on one core.")
+    r = actions.add_parser(
+        "build-builtin",
+        help="refit the built-in library from the shipped Singal et al. 2024 data",
+        description="Refit the built-in library: DIR/library.json and DIR/fits/<name>-params.json, "
+        "<name>-fit.png. About 40 s on one core.",
+    )
     _output_arguments(r, main_build_builtin)
 
 
@@ -81,16 +117,26 @@ def main_build(args) -> int:
     for flag, key, _, _, _ in _PER_FILE:
         values = getattr(args, key)
         if values is not None and len(values) not in (1, n):
-            raise ConfigError(flag, f"got {len(values)} values for {n} params files; give one per file or one for all")
+            raise ConfigError(
+                flag, f"got {len(values)} values for {n} params files; give one per file or one for all"
+            )
         if values is not None:
             for v in values:
                 if isinstance(v, float) and not math.isfinite(v):
                     raise ConfigError(flag, f"must be finite, got {v!r}")
         kwargs[key] = values
     if kwargs["max_tension"] is None:
-        raise ConfigError("--max-tension", "required: the largest course tension (N/mm) each fabric may carry")
-    od = OutputDir(args.out, command="library build", overwrite=args.overwrite, fingerprint=fingerprint(
-        {"params": [str(p.resolve()) for p in args.params], "name": args.name, **kwargs}))
+        raise ConfigError(
+            "--max-tension", "required: the largest course tension (N/mm) each fabric may carry"
+        )
+    od = OutputDir(
+        args.out,
+        command="library build",
+        overwrite=args.overwrite,
+        fingerprint=fingerprint(
+            {"params": [str(p.resolve()) for p in args.params], "name": args.name, **kwargs}
+        ),
+    )
     od.check()  # before any work
     name = args.name if args.name is not None else od.out.name
     flags = {key: flag for flag, key, *_ in _PER_FILE}
@@ -101,8 +147,15 @@ def main_build(args) -> int:
         raise ConfigError(path, e.problem, source=e.source) from None
     with od:
         library.save(od.staging / "library.json")
-        od.commit({"knitframe": __version__, "command": "library build", "params": [str(p) for p in args.params],
-                   "name": name, "entries": library.names})
+        od.commit(
+            {
+                "knitframe": __version__,
+                "command": "library build",
+                "params": [str(p) for p in args.params],
+                "name": name,
+                "entries": library.names,
+            }
+        )
     if not args.quiet:
         print(f"library '{library.name}': {len(library)} fabrics ({', '.join(library.names)})")
         print(f"wrote {od.out / 'library.json'}")
@@ -113,8 +166,12 @@ def main_build_builtin(args) -> int:
     from knitframe import __version__
     from knitframe.garment.library import BUILTIN_FITTER, BUILTIN_MODEL, build_builtin
 
-    od = OutputDir(args.out, command="library build-builtin", overwrite=args.overwrite,
-                   fingerprint=fingerprint({"builtin": BUILTIN_MODEL, "fitter": BUILTIN_FITTER}))
+    od = OutputDir(
+        args.out,
+        command="library build-builtin",
+        overwrite=args.overwrite,
+        fingerprint=fingerprint({"builtin": BUILTIN_MODEL, "fitter": BUILTIN_FITTER}),
+    )
     od.check()
 
     def progress(name, result):
@@ -124,8 +181,15 @@ def main_build_builtin(args) -> int:
     with od:
         library = build_builtin(od.staging, progress=progress)
         library.save(od.staging / "library.json")
-        od.commit({"knitframe": __version__, "command": "library build-builtin", "model": BUILTIN_MODEL,
-                   "fitter": BUILTIN_FITTER, "entries": library.names})
+        od.commit(
+            {
+                "knitframe": __version__,
+                "command": "library build-builtin",
+                "model": BUILTIN_MODEL,
+                "fitter": BUILTIN_FITTER,
+                "entries": library.names,
+            }
+        )
     if not args.quiet:
         print(f"wrote {od.out / 'library.json'} and {od.out / 'fits'}/")
     return 0
@@ -143,8 +207,12 @@ def _columns(entry) -> tuple[str, str, str, str]:
     t = [k for k in params if k.startswith("theta")]
     other = [k for k in params if k not in a + b + t]
     theta = "/".join(_g(params[k], 3) for k in t) if t else _FIXED.get(entry.model, "-")
-    return ("/".join(_g(params[k], 3) for k in a) or "-", "/".join(_g(params[k], 3) for k in b) or "-", theta,
-            " ".join(f"{k}={_g(params[k], 3)}" for k in other))
+    return (
+        "/".join(_g(params[k], 3) for k in a) or "-",
+        "/".join(_g(params[k], 3) for k in b) or "-",
+        theta,
+        " ".join(f"{k}={_g(params[k], 3)}" for k in other),
+    )
 
 
 _FIXED = {"hgo2m": "0/90"}
@@ -152,21 +220,55 @@ _FIXED = {"hgo2m": "0/90"}
 
 def format_table(library) -> str:
     """The library as a text table, then each entry's full source and pitch source."""
-    head = ("name", "pattern", "yarn", "model", "a N/mm", "b", "theta deg", "pitch c/w mm", "max T N/mm", "max l1",
-            "NRMSE %", "other params", "source")
+    head = (
+        "name",
+        "pattern",
+        "yarn",
+        "model",
+        "a N/mm",
+        "b",
+        "theta deg",
+        "pitch c/w mm",
+        "max T N/mm",
+        "max l1",
+        "NRMSE %",
+        "other params",
+        "source",
+    )
     rows = []
     for e in library:
         a, b, t, other = _columns(e)
         nrmse = e.fit.get("nrmse", {}).get("overall") if isinstance(e.fit.get("nrmse"), dict) else None
         short = re.split(r" \(|[:;]", e.source, maxsplit=1)[0]  # the full text is listed below the table
-        rows.append((e.name, e.pattern, e.yarn, e.model, a, b, t, f"{e.course_pitch:.3g}/{e.wale_pitch:.3g}",
-                     _g(e.max_tension), _g(e.max_stretch), "-" if nrmse is None else f"{100 * nrmse:.2f}", other,
-                     short[:60] + ("..." if len(short) > 60 else "")))
+        rows.append(
+            (
+                e.name,
+                e.pattern,
+                e.yarn,
+                e.model,
+                a,
+                b,
+                t,
+                f"{e.course_pitch:.3g}/{e.wale_pitch:.3g}",
+                _g(e.max_tension),
+                _g(e.max_stretch),
+                "-" if nrmse is None else f"{100 * nrmse:.2f}",
+                other,
+                short[:60] + ("..." if len(short) > 60 else ""),
+            )
+        )
     widths = [max(len(str(r[i])) for r in [head, *rows]) for i in range(len(head))]
     line = lambda r: "  ".join(str(c).ljust(w) for c, w in zip(r, widths)).rstrip()  # noqa: E731
-    out = [f"library '{library.name}': {len(library)} fabrics", *([library.source] if library.source else []), "",
-           line(head),
-           line(tuple("-" * w for w in widths)), *(line(r) for r in rows), "", "sources:"]
+    out = [
+        f"library '{library.name}': {len(library)} fabrics",
+        *([library.source] if library.source else []),
+        "",
+        line(head),
+        line(tuple("-" * w for w in widths)),
+        *(line(r) for r in rows),
+        "",
+        "sources:",
+    ]
     for e in library:
         out.append(f"  {e.name}: {e.source}")
         out.append(f"  {' ' * len(e.name)}  pitches: {e.pitch_source}")

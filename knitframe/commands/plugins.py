@@ -17,7 +17,13 @@ def main(args) -> int:
     reg = get_registry()
     if args.json:
         rows = [
-            {"kind": e.kind, "name": e.name, "description": e.description, "package": e.package, "version": e.version}
+            {
+                "kind": e.kind,
+                "name": e.name,
+                "description": e.description,
+                "package": e.package,
+                "version": e.version,
+            }
             for e in reg.entries()
         ]
         print(json.dumps(rows, indent=2))

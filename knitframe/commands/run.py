@@ -19,11 +19,16 @@ def add_parser(sub) -> None:
     p.add_argument("--example", action="store_true", help="run the built-in example config")
     p.add_argument("--out", default=None, help="output directory (default: <config name>-out)")
     mode = p.add_mutually_exclusive_group()
-    mode.add_argument("--resume", action="store_true", help="continue the same config's killed run from its checkpoints")
+    mode.add_argument(
+        "--resume", action="store_true", help="continue the same config's killed run from its checkpoints"
+    )
     add_overwrite_argument(mode)
     p.add_argument("--quiet", action="store_true", help="no progress output")
-    p.add_argument("--no-cache", action="store_true",
-                   help="compute every executor job afresh (a sweep's points): cached results are neither read nor kept")
+    p.add_argument(
+        "--no-cache",
+        action="store_true",
+        help="compute every executor job afresh (a sweep's points): cached results are neither read nor kept",
+    )
     p.set_defaults(func=main)
 
 
@@ -35,7 +40,9 @@ def main(args) -> int:
         raise ConfigError("", "give a CONFIG file or --example (not both)")
     config = example_config() if args.example else Path(args.config)
     out = args.out if args.out is not None else f"{Path(config).stem}-out"
-    result = run(config, out, resume=args.resume, overwrite=args.overwrite, quiet=args.quiet, no_cache=args.no_cache)
+    result = run(
+        config, out, resume=args.resume, overwrite=args.overwrite, quiet=args.quiet, no_cache=args.no_cache
+    )
     if not args.quiet:
         for stage in result.summary["stages"]:
             print(f"  {stage['stage']:<12s} {stage['seconds']:9.3f} s")

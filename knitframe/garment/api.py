@@ -8,8 +8,15 @@ from typing import Any
 __all__ = ["design"]
 
 
-def design(limb: Any = "example", library: Any = "builtin", objective: Any = "pressure_profile", *,
-           out: str | Path | None = None, overwrite: bool = False, **options: Any):
+def design(
+    limb: Any = "example",
+    library: Any = "builtin",
+    objective: Any = "pressure_profile",
+    *,
+    out: str | Path | None = None,
+    overwrite: bool = False,
+    **options: Any,
+):
     """Design a compression sleeve; returns the :class:`~knitframe.garment.core.Design`.
 
     Runs the same ``[design]`` stage as a config, so the checks, the outputs and the result are

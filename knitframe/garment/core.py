@@ -23,9 +23,9 @@ import attrs
 import numpy as np
 from scipy import ndimage
 
+from knitframe.errors import ConfigError, KnitframeWarning
 from knitframe.garment.optimise import BandSolution, NoAssignment, check_options, solve_bands, solve_levels
 from knitframe.garment.tube import MMHG_PER_MPA, ElementGeometry, Tube, element_geometry
-from knitframe.errors import ConfigError, KnitframeWarning
 
 __all__ = ["Design", "design", "compression_class", "CLASSES"]
 
@@ -104,15 +104,24 @@ class Design:
             f = int(self.fabric[rows[0], cols[0]])
             entry = self.library.entries[f]
             r0, r1 = int(rows.min()), int(rows.max()) + 1
-            out.append({
-                "fabric": entry.name, "pattern": entry.pattern, "yarn": entry.yarn,
-                "stitch_length": entry.stitch_length,
-                "rows": [r0, r1], "columns": sorted({int(c) for c in cols}) if len(set(cols)) < self.fabric.shape[1]
-                else "all", "elements": int(len(rows)),
-                "courses": [round(float(first_course[r0]), 3), round(float(first_course[r1]), 3)],
-                "position_mm": [float(self.geometry.z[r0] - 0.5 * self.geometry.row_length[r0]),
-                                float(self.geometry.z[r1 - 1] + 0.5 * self.geometry.row_length[r1 - 1])],
-            })
+            out.append(
+                {
+                    "fabric": entry.name,
+                    "pattern": entry.pattern,
+                    "yarn": entry.yarn,
+                    "stitch_length": entry.stitch_length,
+                    "rows": [r0, r1],
+                    "columns": sorted({int(c) for c in cols})
+                    if len(set(cols)) < self.fabric.shape[1]
+                    else "all",
+                    "elements": int(len(rows)),
+                    "courses": [round(float(first_course[r0]), 3), round(float(first_course[r1]), 3)],
+                    "position_mm": [
+                        float(self.geometry.z[r0] - 0.5 * self.geometry.row_length[r0]),
+                        float(self.geometry.z[r1 - 1] + 0.5 * self.geometry.row_length[r1 - 1]),
+                    ],
+                }
+            )
         return out
 
     def stations(self) -> list[dict[str, Any]]:
@@ -122,16 +131,25 @@ class Design:
         rows = []
         for i in range(g.shape[0]):
             p = float(pe[i].mean())
-            rows.append({
-                "row": i, "position_mm": float(g.z[i]), "position": float(g.position[i]),
-                "circumference_mm": float(g.circumference[i]),
-                "fabric": self.library.entries[int(np.bincount(self.fabric[i]).argmax())].name,
-                "lambda1": float(self.lam1[i].mean()), "lambda2": float(self.lam2[i].mean()),
-                "tension_N_per_mm": float(self.T1[i].mean()),
-                "pressure_mmHg": {"equivalent": p, "local_mean": float(pl[i].mean()),
-                                  "local_min": float(pl[i].min()), "local_max": float(pl[i].max())},
-                "class": compression_class(p),
-            })
+            rows.append(
+                {
+                    "row": i,
+                    "position_mm": float(g.z[i]),
+                    "position": float(g.position[i]),
+                    "circumference_mm": float(g.circumference[i]),
+                    "fabric": self.library.entries[int(np.bincount(self.fabric[i]).argmax())].name,
+                    "lambda1": float(self.lam1[i].mean()),
+                    "lambda2": float(self.lam2[i].mean()),
+                    "tension_N_per_mm": float(self.T1[i].mean()),
+                    "pressure_mmHg": {
+                        "equivalent": p,
+                        "local_mean": float(pl[i].mean()),
+                        "local_min": float(pl[i].min()),
+                        "local_max": float(pl[i].max()),
+                    },
+                    "class": compression_class(p),
+                }
+            )
         return rows
 
     def standard_positions(self) -> dict[str, dict[str, float]]:
@@ -139,11 +157,17 @@ class Design:
         g = self.geometry
         where = {"distal": 0, "largest": int(np.argmax(g.circumference)), "top": g.shape[0] - 1}
         pe, pl = self.pressure_equivalent, self.pressure_local
-        return {k: {"position_mm": float(g.z[i]), "circumference_mm": float(g.circumference[i]),
-                    "pressure_equivalent_mmHg": float(pe[i].mean()),
-                    "pressure_local_mean_mmHg": float(pl[i].mean()),
-                    "pressure_local_max_mmHg": float(pl[i].max()), "class": compression_class(float(pe[i].mean()))}
-                for k, i in where.items()}
+        return {
+            k: {
+                "position_mm": float(g.z[i]),
+                "circumference_mm": float(g.circumference[i]),
+                "pressure_equivalent_mmHg": float(pe[i].mean()),
+                "pressure_local_mean_mmHg": float(pl[i].mean()),
+                "pressure_local_max_mmHg": float(pl[i].max()),
+                "class": compression_class(float(pe[i].mean())),
+            }
+            for k, i in where.items()
+        }
 
     def stress_cv(self) -> float:
         return _cv(self.T1, self.geometry.area)
@@ -152,18 +176,36 @@ class Design:
         """The content of ``design.json``."""
         t = self.tube
         return {
-            "objective": {"name": self.objective.name, "options": attrs.asdict(self.objective)
-                          if attrs.has(type(self.objective)) else {}, "value": self.value,
-                          "quantity": self.objective.quantity, "pressure_basis": self.pressure_basis},
-            "method": self.method, "guarantee": self.guarantee,
-            "tube": {"mode": t.mode, "circumference_mm": t.circumference, "length_mm": t.length,
-                     "needles": t.needles, "axial_stretch": t.axial_stretch,
-                     "courses": int(self.courses.sum())},
-            "limb": {"name": self.limb.name, "source": self.limb.source, "stations": len(self.limb.positions),
-                     "around": int(self.fabric.shape[1]), "length_mm": float(self.limb.positions[-1]),
-                     "notes": list(self.limb.notes)},
-            "library": {"name": self.library.name, "source": self.library.source,
-                        "fabrics": [e.name for e in self.library.entries]},
+            "objective": {
+                "name": self.objective.name,
+                "options": attrs.asdict(self.objective) if attrs.has(type(self.objective)) else {},
+                "value": self.value,
+                "quantity": self.objective.quantity,
+                "pressure_basis": self.pressure_basis,
+            },
+            "method": self.method,
+            "guarantee": self.guarantee,
+            "tube": {
+                "mode": t.mode,
+                "circumference_mm": t.circumference,
+                "length_mm": t.length,
+                "needles": t.needles,
+                "axial_stretch": t.axial_stretch,
+                "courses": int(self.courses.sum()),
+            },
+            "limb": {
+                "name": self.limb.name,
+                "source": self.limb.source,
+                "stations": len(self.limb.positions),
+                "around": int(self.fabric.shape[1]),
+                "length_mm": float(self.limb.positions[-1]),
+                "notes": list(self.limb.notes),
+            },
+            "library": {
+                "name": self.library.name,
+                "source": self.library.source,
+                "fabrics": [e.name for e in self.library.entries],
+            },
             "regions": self.regions(),
             "stations": self.stations(),
             "standard_positions": self.standard_positions(),
@@ -198,7 +240,7 @@ def _periodic_labels(fabric: np.ndarray) -> tuple[np.ndarray, int]:
             a = parent[a]
         return a
 
-    seam = (fabric[:, 0] == fabric[:, -1])
+    seam = fabric[:, 0] == fabric[:, -1]
     for a, b in zip(labels[seam, 0], labels[seam, -1]):
         ra, rb = root(int(a)), root(int(b))
         if ra != rb:
@@ -234,8 +276,15 @@ def _fabric_fields(library, tube: Tube, geo: ElementGeometry, distal: float, nee
     return np.asarray(lam1), np.asarray(lam2), T1, T2, courses, feasible
 
 
-def _solve_bands(objective, V: np.ndarray, feasible: np.ndarray, geo: ElementGeometry, courses: np.ndarray,
-                 min_courses: float, max_fabrics: int | None) -> BandSolution:
+def _solve_bands(
+    objective,
+    V: np.ndarray,
+    feasible: np.ndarray,
+    geo: ElementGeometry,
+    courses: np.ndarray,
+    min_courses: float,
+    max_fabrics: int | None,
+) -> BandSolution:
     """Exact course-band assignment for the objective's per-element field V (F, R, A)."""
     area = geo.area[None]
     pos = np.broadcast_to(geo.position[:, None], geo.shape)[None]
@@ -263,21 +312,32 @@ def _no_fit_message(library, feasible: np.ndarray, lam1: np.ndarray, geo: Elemen
     if rows_ok.all():
         return "no assignment meets the limits with regions of at least design.min_courses courses"
     i = int(np.flatnonzero(~rows_ok)[0])
-    return (f"no fabric in library '{library.name}' can be worn at {geo.z[i]:.0f} mm along the limb "
-            f"(circumference {geo.circumference[i]:.0f} mm, course stretch {lam1[:, i].min():.2f} to "
-            f"{lam1[:, i].max():.2f}): every one is over its limit; add a more compliant fabric or use more needles")
+    return (
+        f"no fabric in library '{library.name}' can be worn at {geo.z[i]:.0f} mm along the limb "
+        f"(circumference {geo.circumference[i]:.0f} mm, course stretch {lam1[:, i].min():.2f} to "
+        f"{lam1[:, i].max():.2f}): every one is over its limit; add a more compliant fabric or use more needles"
+    )
 
 
-def _paper_method(objective, library, T1: np.ndarray, feasible: np.ndarray, geo: ElementGeometry, base: int,
-                  min_elements: int) -> tuple[np.ndarray, list[str]]:
+def _paper_method(
+    objective,
+    library,
+    T1: np.ndarray,
+    feasible: np.ndarray,
+    geo: ElementGeometry,
+    base: int,
+    min_elements: int,
+) -> tuple[np.ndarray, list[str]]:
     """The paper's per-element procedure (steps 5–7); returns the (R, A) assignment and notes."""
     F = T1.shape[0]
     fab = np.full(geo.shape, base)
     over = ~feasible[base]
     compliant = np.argmin(np.where(feasible, T1, np.inf), axis=0)  # the least tension that fits
     fab[over] = compliant[over]
-    notes = [f"{int(over.sum())} of {over.size} elements over the limit of "
-             f"{library.entries[base].name}: switched to the most compliant fabric that fits"]
+    notes = [
+        f"{int(over.sum())} of {over.size} elements over the limit of "
+        f"{library.entries[base].name}: switched to the most compliant fabric that fits"
+    ]
     for it in range(50):  # choose each element's fabric for the most uniform tension, to a fixed point
         current = np.take_along_axis(T1, fab[None], 0)[0]
         tau = float(np.sum(geo.area * current) / np.sum(geo.area))
@@ -296,8 +356,12 @@ def _paper_method(objective, library, T1: np.ndarray, feasible: np.ndarray, geo:
             break
         k = min(small, key=lambda k: sizes[k])
         mask = labels == k
-        ring = (np.roll(mask, 1, 1) | np.roll(mask, -1, 1) | np.vstack([mask[1:], mask[-1:] & False])
-                | np.vstack([mask[:1] & False, mask[:-1]])) & ~mask
+        ring = (
+            np.roll(mask, 1, 1)
+            | np.roll(mask, -1, 1)
+            | np.vstack([mask[1:], mask[-1:] & False])
+            | np.vstack([mask[:1] & False, mask[:-1]])
+        ) & ~mask
         neighbours = fab[ring]
         if not len(neighbours):
             break
@@ -307,9 +371,18 @@ def _paper_method(objective, library, T1: np.ndarray, feasible: np.ndarray, geo:
     return fab, notes
 
 
-def design(limb, library, objective, *, tube: Tube | None = None, method: str = "optimal",
-           pressure: str = "equivalent", min_courses: float = 10.0, max_fabrics: int | None = None,
-           base: str | None = None) -> Design:
+def design(
+    limb,
+    library,
+    objective,
+    *,
+    tube: Tube | None = None,
+    method: str = "optimal",
+    pressure: str = "equivalent",
+    min_courses: float = 10.0,
+    max_fabrics: int | None = None,
+    base: str | None = None,
+) -> Design:
     """Design a sleeve: the fabric of every element, its stretches, tensions and pressures.
 
     Parameters
@@ -342,15 +415,20 @@ def design(limb, library, objective, *, tube: Tube | None = None, method: str = 
     if pressure not in ("equivalent", "local"):
         raise ConfigError("design.pressure", f"must be 'equivalent' or 'local', got {pressure!r}")
     if method == "paper" and tube.mode != "paper":
-        raise ConfigError("design.method", "the paper's per-element method needs tube.mode = 'paper' (its "
-                                           "2-D map needs intarsia; the knitting mode designs course bands)")
+        raise ConfigError(
+            "design.method",
+            "the paper's per-element method needs tube.mode = 'paper' (its "
+            "2-D map needs intarsia; the knitting mode designs course bands)",
+        )
     names = [e.name for e in library.entries]
     if base is None:
         base_i = next((i for i, e in enumerate(library.entries) if "cotton" in e.yarn.lower()), 0)
     elif base in names:
         base_i = names.index(base)
     else:
-        raise ConfigError("design.base", f"no fabric '{base}' in library '{library.name}'; it has {', '.join(names)}")
+        raise ConfigError(
+            "design.base", f"no fabric '{base}' in library '{library.name}'; it has {', '.join(names)}"
+        )
     geo = element_geometry(limb)
     distal = float(limb.circumference[0])
     notes: list[str] = list(limb.notes)
@@ -382,12 +460,20 @@ def design(limb, library, objective, *, tube: Tube | None = None, method: str = 
             except NoAssignment:
                 lam1, _, _, _, _, feasible = _fabric_fields(library, tube, geo, distal, None)
                 raise ConfigError("design", _no_fit_message(library, feasible, lam1, geo)) from None
-            made = tube if tube.mode == "knitting" else attrs.evolve(
-                tube, circumference=tube.circumference or distal, length=tube.length or float(geo.row_length.sum()))
+            made = (
+                tube
+                if tube.mode == "knitting"
+                else attrs.evolve(
+                    tube,
+                    circumference=tube.circumference or distal,
+                    length=tube.length or float(geo.row_length.sum()),
+                )
+            )
         lam1, lam2, T1, T2, courses, feasible, _ = fields
         fab = np.repeat(sol.rows[:, None], geo.shape[1], axis=1)
-        guarantee = sol.guarantee + (f"; level τ = {sol.level:.4g} searched on a grid and refined"
-                                     if sol.level is not None else "")
+        guarantee = sol.guarantee + (
+            f"; level τ = {sol.level:.4g} searched on a grid and refined" if sol.level is not None else ""
+        )
     if made.mode == "paper" and made.circumference is None:
         made = attrs.evolve(made, circumference=distal, length=float(geo.row_length.sum()))
     R, A = geo.shape
@@ -397,17 +483,40 @@ def design(limb, library, objective, *, tube: Tube | None = None, method: str = 
     value = objective.evaluate(_evaluate(objective, T1d, geo, pressure), geo.area, where)
     rows_courses = courses[np.arange(R), fab[:, 0]]  # the course count of the row's first element
     T1b = T1[base_i]
-    baseline = {"fabric": names[base_i], "stress_cv": _cv(T1b, geo.area),
-                "elements_over_limit": int((~feasible[base_i]).sum()),
-                "max_tension_N_per_mm": float(T1b.max()), "limit_N_per_mm": library.entries[base_i].max_tension}
+    baseline = {
+        "fabric": names[base_i],
+        "stress_cv": _cv(T1b, geo.area),
+        "elements_over_limit": int((~feasible[base_i]).sum()),
+        "max_tension_N_per_mm": float(T1b.max()),
+        "limit_N_per_mm": library.entries[base_i].max_tension,
+    }
     try:
-        baseline["objective"] = float(objective.evaluate(_evaluate(objective, T1b, geo, pressure), geo.area, where))
+        baseline["objective"] = float(
+            objective.evaluate(_evaluate(objective, T1b, geo, pressure), geo.area, where)
+        )
     except Exception as e:  # a uniform-stress objective is undefined for a slack garment
         baseline["objective"] = None
         baseline["objective_note"] = str(e)
-    d = Design(limb, library, objective, made, method, geo, fab, pick(lam1), pick(lam2), T1d, pick(T2),
-               rows_courses.astype(float), float(value), guarantee, baseline, pressure,
-               time.perf_counter() - t0, tuple(notes))
+    d = Design(
+        limb,
+        library,
+        objective,
+        made,
+        method,
+        geo,
+        fab,
+        pick(lam1),
+        pick(lam2),
+        T1d,
+        pick(T2),
+        rows_courses.astype(float),
+        float(value),
+        guarantee,
+        baseline,
+        pressure,
+        time.perf_counter() - t0,
+        tuple(notes),
+    )
     for message in _suspect(d):
         warnings.warn(message, KnitframeWarning, stacklevel=2)
     return attrs.evolve(d, notes=d.notes + tuple(_suspect(d)))
@@ -420,13 +529,17 @@ def _suspect(d: Design) -> list[str]:
     level = getattr(d.objective, "target_mmHg", None)
     if d.objective.quantity == "pressure" and (callable(target) or level):
         want = target(d.geometry.position)[:, None] if callable(target) else np.full((1, 1), level)
-        err = float(np.sqrt(np.sum(d.geometry.area * ((d.pressure - want) / want) ** 2) / d.geometry.area.sum()))
+        err = float(
+            np.sqrt(np.sum(d.geometry.area * ((d.pressure - want) / want) ** 2) / d.geometry.area.sum())
+        )
         if err > 0.25:
             worst = int(np.argmax(np.abs(d.pressure.mean(axis=1) - want[:, 0])))
-            out.append(f"the design misses the pressure target by {100 * err:.0f} % (RMS; worst at "
-                       f"{d.geometry.z[worst]:.0f} mm: {d.pressure[worst].mean():.1f} mmHg against "
-                       f"{want[min(worst, len(want) - 1), 0]:.1f}): library '{d.library.name}' cannot do better on "
-                       "this limb; add fabrics of other stitch lengths or patterns, or change the tube")
+            out.append(
+                f"the design misses the pressure target by {100 * err:.0f} % (RMS; worst at "
+                f"{d.geometry.z[worst]:.0f} mm: {d.pressure[worst].mean():.1f} mmHg against "
+                f"{want[min(worst, len(want) - 1), 0]:.1f}): library '{d.library.name}' cannot do better on "
+                "this limb; add fabrics of other stitch lengths or patterns, or change the tube"
+            )
     if d.T1.max() == 0:
         out.append("every element is slack: the tube is wider than the limb everywhere")
     return out
@@ -465,11 +578,18 @@ def _search_needles(solve, library, geo: ElementGeometry, distal: float):
             step //= 2
         best = new
     if not np.isfinite(tried[best][0]):
-        raise ConfigError("design", f"no needle count from {lo} to {hi} gives a garment within the fabrics' "
-                                    "limits; give design.tube.needles or a more compliant library")
+        raise ConfigError(
+            "design",
+            f"no needle count from {lo} to {hi} gives a garment within the fabrics' "
+            "limits; give design.tube.needles or a more compliant library",
+        )
     sol, fields = tried[best][1]
     if best in (lo, hi):
-        warnings.warn(f"the best needle count, {best}, is at the end of the range searched ({lo}–{hi}: the "
-                      "distal section stretched 80 % to 0 % in the median fabric); give design.tube.needles to go "
-                      "beyond it", KnitframeWarning, stacklevel=3)
+        warnings.warn(
+            f"the best needle count, {best}, is at the end of the range searched ({lo}–{hi}: the "
+            "distal section stretched 80 % to 0 % in the median fabric); give design.tube.needles to go "
+            "beyond it",
+            KnitframeWarning,
+            stacklevel=3,
+        )
     return sol, fields, best

@@ -190,7 +190,7 @@ class KnitMap:
         return list(dict.fromkeys(b.yarn for b in self.bands))
 
     @classmethod
-    def from_design(cls, d: Any) -> "KnitMap":
+    def from_design(cls, d: Any) -> KnitMap:
         """The knit map of a :class:`~knitframe.garment.core.Design` (the rows of ``knit-map.csv``)."""
         if d.tube.mode != "knitting" or not d.tube.needles:
             raise FieldError("tube", PAPER_MODE)
@@ -198,12 +198,18 @@ class KnitMap:
         rows = []
         for i in range(d.fabric.shape[0]):
             used = [d.library.entries[int(f)] for f in dict.fromkeys(d.fabric[i].tolist())]
-            rows.append((i, int(first[i]), int(first[i + 1]), [(e.name, e.pattern, e.yarn, e.stitch_length)
-                                                               for e in used]))
+            rows.append(
+                (
+                    i,
+                    int(first[i]),
+                    int(first[i + 1]),
+                    [(e.name, e.pattern, e.yarn, e.stitch_length) for e in used],
+                )
+            )
         return cls(int(d.tube.needles), _bands(rows, "design"), "design")
 
     @classmethod
-    def read(cls, folder: str | Path, option: str = "DESIGN_DIR") -> "KnitMap":
+    def read(cls, folder: str | Path, option: str = "DESIGN_DIR") -> KnitMap:
         """The knit map of a design folder: ``design.json`` (the tube) and ``knit-map.csv`` (the rows)."""
         folder = Path(folder)
         if not folder.is_dir():
@@ -211,7 +217,9 @@ class KnitMap:
         dj, km = folder / "design.json", folder / "knit-map.csv"
         for p in (dj, km):
             if not p.is_file():
-                raise ConfigError(option, f"{folder}: no {p.name}; give the output folder of knitframe design")
+                raise ConfigError(
+                    option, f"{folder}: no {p.name}; give the output folder of knitframe design"
+                )
         try:
             data = json.loads(dj.read_text(encoding="utf-8"))
         except (OSError, UnicodeDecodeError, ValueError) as e:
@@ -233,8 +241,10 @@ class KnitMap:
 
 
 #: why a paper-mode design cannot be knitted
-PAPER_MODE = ("machine output needs a knitting-mode tube (design.tube.mode = 'knitting'): a paper-mode tube is a "
-              "cylinder of a given circumference with no needle count or courses to knit")
+PAPER_MODE = (
+    "machine output needs a knitting-mode tube (design.tube.mode = 'knitting'): a paper-mode tube is a "
+    "cylinder of a given circumference with no needle count or courses to knit"
+)
 _COLUMNS = ("row", "course_start", "course_end", "fabric", "pattern", "yarn", "stitch_length")
 
 
@@ -252,10 +262,16 @@ def _read_rows(path: Path) -> list[tuple[int, int, int, list[tuple[str, str, str
                     i, c0, c1 = int(rec["row"]), int(rec["course_start"]), int(rec["course_end"])
                     sl = float(rec["stitch_length"]) if rec["stitch_length"].strip() else None
                 except (TypeError, ValueError):
-                    raise DataError(path, "row, course_start and course_end must be integers and stitch_length "
-                                          "a number or empty", line=line) from None
+                    raise DataError(
+                        path,
+                        "row, course_start and course_end must be integers and stitch_length "
+                        "a number or empty",
+                        line=line,
+                    ) from None
                 if sl is not None and not (math.isfinite(sl) and sl > 0):
-                    raise DataError(path, f"stitch_length must be > 0, got {sl:g}", line=line, column="stitch_length")
+                    raise DataError(
+                        path, f"stitch_length must be > 0, got {sl:g}", line=line, column="stitch_length"
+                    )
                 fabric = (rec["fabric"], rec["pattern"], rec["yarn"], sl)
                 if not all(fabric[:3]):
                     raise DataError(path, "fabric, pattern and yarn must not be empty", line=line)
@@ -281,15 +297,24 @@ def _bands(rows: Sequence[tuple[int, int, int, list]], where: str) -> list[Band]
     expect = 0
     for i, c0, c1, fabrics in rows:
         if c0 != expect or c1 <= c0:
-            raise DataError(where, f"row {i} covers courses {c0}-{c1}; rows must follow one another from course 0, "
-                                   "each at least one course long")
+            raise DataError(
+                where,
+                f"row {i} covers courses {c0}-{c1}; rows must follow one another from course 0, "
+                "each at least one course long",
+            )
         if len(fabrics) > 1:
             names = ", ".join(f[0] for f in fabrics)
-            raise FieldError("pattern", f"row {i} (courses {c0}-{c1}) changes fabric along the course ({names}): "
-                                        "that needs intarsia, which a tube knitted in the round cannot do; the "
-                                        "machine output knits course bands (stripes), as the 'optimal' method designs")
+            raise FieldError(
+                "pattern",
+                f"row {i} (courses {c0}-{c1}) changes fabric along the course ({names}): "
+                "that needs intarsia, which a tube knitted in the round cannot do; the "
+                "machine output knits course bands (stripes), as the 'optimal' method designs",
+            )
         name, pattern, yarn, sl = fabrics[0]
-        if bands and (bands[-1].fabric, bands[-1].pattern, bands[-1].yarn, bands[-1].stitch_length) == fabrics[0]:
+        if (
+            bands
+            and (bands[-1].fabric, bands[-1].pattern, bands[-1].yarn, bands[-1].stitch_length) == fabrics[0]
+        ):
             bands[-1] = attrs.evolve(bands[-1], end=c1)
         else:
             bands.append(Band(c0, c1, name, pattern, yarn, sl))
@@ -307,8 +332,9 @@ def _setting_key(key: str) -> str:
     try:
         value = float(key)
     except ValueError:
-        raise FieldError("stitch_numbers", f"key {key!r} must be a stitch length (machine setting, e.g. \"11\") "
-                                           "or \"default\"") from None
+        raise FieldError(
+            "stitch_numbers", f'key {key!r} must be a stitch length (machine setting, e.g. "11") or "default"'
+        ) from None
     if not (math.isfinite(value) and value > 0):
         raise FieldError("stitch_numbers", f"key {key!r} must be a stitch length > 0")
     return f"{value:g}"
@@ -344,15 +370,22 @@ class MachineSpec:
 
     def __attrs_post_init__(self) -> None:
         if self.machine not in MACHINES:
-            raise FieldError("machine", f"must be one of {', '.join(MACHINES)} (the model knitout-interpreter "
-                                        f"checks), got {self.machine!r}")
+            raise FieldError(
+                "machine",
+                f"must be one of {', '.join(MACHINES)} (the model knitout-interpreter "
+                f"checks), got {self.machine!r}",
+            )
         if isinstance(self.gauge, bool) or not isinstance(self.gauge, int) or not 1 <= self.gauge <= 30:
             raise FieldError("gauge", f"must be an integer in [1, 30] (needles per inch), got {self.gauge!r}")
         bed = MACHINES[self.machine]["width"]
-        if self.width is not None and (isinstance(self.width, bool) or not isinstance(self.width, int)
-                                       or not 4 <= self.width <= bed):
-            raise FieldError("width", f"must be an integer in [4, {bed}] (needles per bed of the {self.machine}), "
-                                      f"got {self.width!r}")
+        if self.width is not None and (
+            isinstance(self.width, bool) or not isinstance(self.width, int) or not 4 <= self.width <= bed
+        ):
+            raise FieldError(
+                "width",
+                f"must be an integer in [4, {bed}] (needles per bed of the {self.machine}), "
+                f"got {self.width!r}",
+            )
         n = self.carrier_count
         seen: dict[int, str] = {}
         for yarn, c in self.carriers.items():
@@ -369,8 +402,11 @@ class MachineSpec:
                 raise FieldError("stitch_numbers", f"keys {keys[k]!r} and {key!r} are the same stitch length")
             keys[k] = str(key)
             if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-                raise FieldError(f"stitch_numbers.{key}", f"must be an integer in [{lo}, {hi}] (an index into the "
-                                                          f"machine's stitch table), got {value!r}")
+                raise FieldError(
+                    f"stitch_numbers.{key}",
+                    f"must be an integer in [{lo}, {hi}] (an index into the "
+                    f"machine's stitch table), got {value!r}",
+                )
 
     @property
     def bed_width(self) -> int:
@@ -391,8 +427,11 @@ class MachineSpec:
         key = "default" if stitch_length is None else f"{float(stitch_length):g}"
         if key not in table:
             what = "has no stitch length" if stitch_length is None else f"has stitch length {key}"
-            raise FieldError("stitch_numbers", f"fabric '{fabric}' {what}, which the stitch-number table does not "
-                                               f"hold (keys {', '.join(table)}); add \"{key}\" = N")
+            raise FieldError(
+                "stitch_numbers",
+                f"fabric '{fabric}' {what}, which the stitch-number table does not "
+                f'hold (keys {", ".join(table)}); add "{key}" = N',
+            )
         return table[key]
 
 
@@ -414,8 +453,11 @@ def check_patterns(patterns: Sequence[str]) -> None:
     """Refuse, in one line, a pattern the writer cannot knit in a tube."""
     bad = [p for p in dict.fromkeys(patterns) if p not in PATTERNS]
     if bad:
-        raise FieldError("pattern", f"pattern '{bad[0]}' cannot be knitted by the machine output (it knits "
-                                    f"{', '.join(PATTERNS)} in a tube at half gauge); leave it out of the library")
+        raise FieldError(
+            "pattern",
+            f"pattern '{bad[0]}' cannot be knitted by the machine output (it knits "
+            f"{', '.join(PATTERNS)} in a tube at half gauge); leave it out of the library",
+        )
 
 
 def plan(kmap: KnitMap, spec: MachineSpec) -> Plan:
@@ -427,17 +469,24 @@ def plan(kmap: KnitMap, spec: MachineSpec) -> Plan:
     """
     check_patterns([b.pattern for b in kmap.bands])
     if kmap.needles > spec.bed_width:
-        raise FieldError("width", f"the tube needs {kmap.needles} needles per bed (half gauge: one per stitch of "
-                                  f"the course) but the machine width is {spec.bed_width}")
+        raise FieldError(
+            "width",
+            f"the tube needs {kmap.needles} needles per bed (half gauge: one per stitch of "
+            f"the course) but the machine width is {spec.bed_width}",
+        )
     yarns = kmap.yarns
     n = spec.carrier_count
     if len(yarns) > n:
-        raise FieldError("carriers", f"the design uses {len(yarns)} yarns ({', '.join(yarns)}) but the "
-                                     f"{spec.machine} has {n} carriers: one carrier per yarn")
+        raise FieldError(
+            "carriers",
+            f"the design uses {len(yarns)} yarns ({', '.join(yarns)}) but the "
+            f"{spec.machine} has {n} carriers: one carrier per yarn",
+        )
     unknown = [y for y in spec.carriers if y not in yarns]
     if unknown:
-        raise FieldError(f"carriers.{unknown[0]}", f"the design has no yarn '{unknown[0]}'; it uses "
-                                                   f"{', '.join(yarns)}")
+        raise FieldError(
+            f"carriers.{unknown[0]}", f"the design has no yarn '{unknown[0]}'; it uses {', '.join(yarns)}"
+        )
     carriers = {y: spec.carriers[y] for y in yarns if y in spec.carriers}
     free = iter(c for c in range(1, n + 1) if c not in carriers.values())
     for y in yarns:
@@ -502,17 +551,25 @@ def knitout_lines(p: Plan) -> list[str]:
     back_order = [int(q) for q in np.flatnonzero(~layer)]  # back layer, rightward from the left edge
     carriers = p.band_carriers
     band_of = np.repeat(np.arange(len(km.bands)), [b.courses for b in km.bands])
-    out = [";!knitout-2", f";;Machine: {spec.machine}", f";;Gauge: {spec.gauge}", f";;Width: {spec.bed_width}",
-           ";;Carriers: " + " ".join(str(c) for c in range(1, spec.carrier_count + 1)), f";;Position: {POSITION}",
-           f"; knitframe sleeve: a tube of {N} stitches per course, {km.courses} courses, {len(km.bands)} bands",
-           f"; half gauge: needle {FIRST_NEEDLE}+p holds stitch p; p = N-1, N-3, ... front layer (home f), the "
-           "others back layer (home b); a course is the front layer leftward then the back layer rightward"]
+    out = [
+        ";!knitout-2",
+        f";;Machine: {spec.machine}",
+        f";;Gauge: {spec.gauge}",
+        f";;Width: {spec.bed_width}",
+        ";;Carriers: " + " ".join(str(c) for c in range(1, spec.carrier_count + 1)),
+        f";;Position: {POSITION}",
+        f"; knitframe sleeve: a tube of {N} stitches per course, {km.courses} courses, {len(km.bands)} bands",
+        f"; half gauge: needle {FIRST_NEEDLE}+p holds stitch p; p = N-1, N-3, ... front layer (home f), the "
+        "others back layer (home b); a course is the front layer leftward then the back layer rightward",
+    ]
     for yarn, c in p.carriers.items():
         out.append(f"; carrier {c}: yarn {yarn}")
     for k, b in enumerate(km.bands):
-        out.append(f"; band {k}: courses {b.start}-{b.end}, {b.fabric} ({b.pattern}, {b.yarn}, stitch length "
-                   f"{'-' if b.stitch_length is None else f'{b.stitch_length:g}'}), carrier {carriers[k]}, "
-                   f"x-stitch-number {p.stitch_numbers[k]}")
+        out.append(
+            f"; band {k}: courses {b.start}-{b.end}, {b.fabric} ({b.pattern}, {b.yarn}, stitch length "
+            f"{'-' if b.stitch_length is None else f'{b.stitch_length:g}'}), carrier {carriers[k]}, "
+            f"x-stitch-number {p.stitch_numbers[k]}"
+        )
     # the next course (from the start) at which each carrier is used, to decide between carrying and cutting
     uses: dict[int, list[int]] = {}
     for k, b in enumerate(km.bands):
@@ -524,7 +581,11 @@ def knitout_lines(p: Plan) -> list[str]:
 
     active: set[int] = set()
     c0 = carriers[0]
-    out += ["; cast-on: alternating tucks around the tube", f"x-stitch-number {p.stitch_numbers[0]}", f"inhook {c0}"]
+    out += [
+        "; cast-on: alternating tucks around the tube",
+        f"x-stitch-number {p.stitch_numbers[0]}",
+        f"inhook {c0}",
+    ]
     for half in (0, 1):
         out += [f"tuck - {_needle(front[0, q], q)} {c0}" for i, q in enumerate(front_order) if i % 2 == half]
         out += [f"tuck + {_needle(front[0, q], q)} {c0}" for i, q in enumerate(back_order) if i % 2 == half]
@@ -578,11 +639,20 @@ def _bind_off(beds: np.ndarray, N: int, c: int, front: list[int], back: list[int
     for (a, fa), (b, fb) in zip(order[:-1], order[1:]):
         d = "-" if fb else "+"
         if fa == fb:  # along a layer: through the empty needle opposite, then racked onto the next stitch
-            out += [f"xfer {_needle(fa, a)} {_needle(not fa, a)}", f"rack {b - a if fa else a - b}",
-                    f"xfer {_needle(not fa, a)} {_needle(fb, b)}", "rack 0", f"knit {d} {_needle(fb, b)} {c}"]
+            out += [
+                f"xfer {_needle(fa, a)} {_needle(not fa, a)}",
+                f"rack {b - a if fa else a - b}",
+                f"xfer {_needle(not fa, a)} {_needle(fb, b)}",
+                "rack 0",
+                f"knit {d} {_needle(fb, b)} {c}",
+            ]
         else:  # from the front layer's left edge to the back layer's, one position across
-            out += [f"rack {a - b}", f"xfer {_needle(True, a)} {_needle(False, b)}", "rack 0",
-                    f"knit {d} {_needle(False, b)} {c}"]
+            out += [
+                f"rack {a - b}",
+                f"xfer {_needle(True, a)} {_needle(False, b)}",
+                "rack 0",
+                f"knit {d} {_needle(False, b)} {c}",
+            ]
     q, fq = order[-1]
     last = _needle(fq, q)
     direction = "-" if fq else "+"
@@ -617,9 +687,11 @@ def missing(check: bool = True, dat: bool = False) -> str | None:
             import knitout_to_dat_python.dat_file_structure.knitout_to_dat_converter  # noqa: F401
         except Exception as e:  # an interpreter too new for it: the names it imports have moved
             why = " ".join(str(e).split(" (")[0].split())  # without the installed file's location
-            return (f"knitout-to-dat-python {_version('knitout-to-dat-python')} does not work with knitout-interpreter "
-                    f"{_version('knitout-interpreter')} ({type(e).__name__}: {why}); it works with knitout-interpreter "
-                    f"0.1.2: {INSTALL_DAT}")
+            return (
+                f"knitout-to-dat-python {_version('knitout-to-dat-python')} does not work with knitout-interpreter "
+                f"{_version('knitout-interpreter')} ({type(e).__name__}: {why}); it works with knitout-interpreter "
+                f"0.1.2: {INSTALL_DAT}"
+            )
     return None
 
 
@@ -650,11 +722,21 @@ def run_interpreter(lines: Sequence[str]) -> tuple[Any, Any, Any, list[str]]:
                 program, machine, graph = run_knitout(str(path))
             except Exception as e:  # the interpreter's parse errors, violations and machine-state errors
                 text = " ".join(str(e).split())
-                raise MachineOutputError(f"the knitout program failed knitout-interpreter: {type(e).__name__}: "
-                                         f"{text}; this is a knitframe bug, please report it") from None
-    ours = ("knitout_interpreter", "virtual_knitting_machine", "knit_graphs")  # not, e.g., a dependency's deprecation
-    return program, machine, graph, [" ".join(str(w.message).split()) for w in caught
-                                     if w.category.__module__.split(".")[0] in ours]
+                raise MachineOutputError(
+                    f"the knitout program failed knitout-interpreter: {type(e).__name__}: "
+                    f"{text}; this is a knitframe bug, please report it"
+                ) from None
+    ours = (
+        "knitout_interpreter",
+        "virtual_knitting_machine",
+        "knit_graphs",
+    )  # not, e.g., a dependency's deprecation
+    return (
+        program,
+        machine,
+        graph,
+        [" ".join(str(w.message).split()) for w in caught if w.category.__module__.split(".")[0] in ours],
+    )
 
 
 def verify(p: Plan, lines: Sequence[str]) -> dict[str, Any]:
@@ -666,21 +748,25 @@ def verify(p: Plan, lines: Sequence[str]) -> dict[str, Any]:
     """
     program, machine, graph, warned = run_interpreter(lines)
     if warned:
-        raise MachineOutputError(f"knitout-interpreter warned: {warned[0]}; this is a knitframe bug, please report it")
+        raise MachineOutputError(
+            f"knitout-interpreter warned: {warned[0]}; this is a knitframe bug, please report it"
+        )
     km = p.kmap
     N = km.needles
     courses = graph.get_courses()
     sizes = [len(c) for c in courses]
-    body = courses[1:1 + km.courses]
+    body = courses[1 : 1 + km.courses]
     problems = []
     if sizes[0] != N:
         problems.append(f"the cast-on made {sizes[0]} loops, not {N}")
     if len(body) != km.courses or any(len(c) != N for c in body):
-        problems.append(f"the knit graph has {len(body)} courses after the cast-on, of {min(sizes[1:] or [0])} to "
-                        f"{max(sizes[1:] or [0])} loops, not {km.courses} of {N}")
+        problems.append(
+            f"the knit graph has {len(body)} courses after the cast-on, of {min(sizes[1:] or [0])} to "
+            f"{max(sizes[1:] or [0])} loops, not {km.courses} of {N}"
+        )
     carriers = p.band_carriers
     for k, b in enumerate(km.bands):
-        got = {loop.yarn.carrier.carrier_id for course in body[b.start:b.end] for loop in course}
+        got = {loop.yarn.carrier.carrier_id for course in body[b.start : b.end] for loop in course}
         if got != {carriers[k]}:
             problems.append(f"band {k} ({b.fabric}) is knitted by carriers {sorted(got)}, not {carriers[k]}")
             break
@@ -688,12 +774,23 @@ def verify(p: Plan, lines: Sequence[str]) -> dict[str, Any]:
     if held:
         problems.append(f"{len(held)} needles still hold loops at the end")
     if problems:
-        raise MachineOutputError("the knitout program does not knit the design: " + "; ".join(problems)
-                                 + "; this is a knitframe bug, please report it")
-    return {"interpreter": f"knitout-interpreter {_version('knitout-interpreter')}", "lines": len(lines),
-            "errors": 0, "warnings": 0, "courses": km.courses, "stitches_per_course": N, "cast_on_loops": sizes[0],
-            "bind_off_courses": len(courses) - 1 - km.courses, "loops": int(sum(sizes)),
-            "band_carriers": carriers}
+        raise MachineOutputError(
+            "the knitout program does not knit the design: "
+            + "; ".join(problems)
+            + "; this is a knitframe bug, please report it"
+        )
+    return {
+        "interpreter": f"knitout-interpreter {_version('knitout-interpreter')}",
+        "lines": len(lines),
+        "errors": 0,
+        "warnings": 0,
+        "courses": km.courses,
+        "stitches_per_course": N,
+        "cast_on_loops": sizes[0],
+        "bind_off_courses": len(courses) - 1 - km.courses,
+        "loops": int(sum(sizes)),
+        "band_carriers": carriers,
+    }
 
 
 def stitch_numbers_by_line(lines: Sequence[str]) -> list[int | None]:
@@ -745,8 +842,9 @@ def write_dat(lines: Sequence[str], path: str | Path) -> list[tuple[int, int]]:
             Converter(interpreter_text(lines), str(path), knitout_in_file=False).process_knitout_to_dat()
         except Exception as e:
             text = " ".join(str(e).split())
-            raise MachineOutputError(f"knitout-to-dat-python could not convert the program: {type(e).__name__}: "
-                                     f"{text}") from None
+            raise MachineOutputError(
+                f"knitout-to-dat-python could not convert the program: {type(e).__name__}: {text}"
+            ) from None
     return applied
 
 
@@ -799,8 +897,9 @@ def plot_chart(p: Plan, path: str | Path) -> None:
     grid = fig.add_gridspec(2, max(len(detail), 1), height_ratios=[3.2, 1])
     ax = fig.add_subplot(grid[0, :])
     needles = np.arange(FIRST_NEEDLE, FIRST_NEEDLE + N + 1) - 0.5
-    ax.pcolormesh(needles, np.arange(C + 1), code, cmap=ListedColormap(palette), vmin=-0.5,
-                  vmax=len(palette) - 0.5)
+    ax.pcolormesh(
+        needles, np.arange(C + 1), code, cmap=ListedColormap(palette), vmin=-0.5, vmax=len(palette) - 0.5
+    )
     xfer = transfers_before(p)
     ax2 = ax.inset_axes((1.01, 0.0, 0.06, 1.0), sharey=ax)
     ax2.barh(np.arange(C) + 0.5, xfer, height=1.0, color="0.35")
@@ -810,36 +909,68 @@ def plot_chart(p: Plan, path: str | Path) -> None:
     for k, b in enumerate(km.bands):  # labels spread evenly on the right, each pointing at its band
         ax.axhline(b.start, color="k", lw=0.8)
         sl = "no stitch length (default)" if b.stitch_length is None else f"stitch length {b.stitch_length:g}"
-        ax.annotate(f"courses {b.start}–{b.end}: {b.fabric}\n{b.pattern}, {b.yarn}, carrier {p.band_carriers[k]}\n"
-                    f"{sl} → x-stitch-number {p.stitch_numbers[k]}",
-                    xy=(1.07, (b.start + b.end) / 2 / C), xycoords="axes fraction",
-                    xytext=(1.12, (k + 0.5) / nb), textcoords="axes fraction", va="center", fontsize=7.5,
-                    arrowprops={"arrowstyle": "-", "lw": 0.6, "color": "0.4"})
+        ax.annotate(
+            f"courses {b.start}–{b.end}: {b.fabric}\n{b.pattern}, {b.yarn}, carrier {p.band_carriers[k]}\n"
+            f"{sl} → x-stitch-number {p.stitch_numbers[k]}",
+            xy=(1.07, (b.start + b.end) / 2 / C),
+            xycoords="axes fraction",
+            xytext=(1.12, (k + 0.5) / nb),
+            textcoords="axes fraction",
+            va="center",
+            fontsize=7.5,
+            arrowprops={"arrowstyle": "-", "lw": 0.6, "color": "0.4"},
+        )
     ax.set_xlim(needles[0], needles[-1])
     ax.set_ylim(0, C)
-    ax.set_xlabel(f"needle (front layer on {FIRST_NEEDLE + N - 1}, {FIRST_NEEDLE + N - 3}, …; back layer on the "
-                  "others)")
+    ax.set_xlabel(
+        f"needle (front layer on {FIRST_NEEDLE + N - 1}, {FIRST_NEEDLE + N - 3}, …; back layer on the others)"
+    )
     ax.set_ylabel("course, up from the cast-on (wrist)")
-    fig.suptitle(f"{p.spec.machine}, gauge {p.spec.gauge} (knitted at half gauge), width {p.spec.bed_width}: a tube "
-                 f"of {N} stitches × {C} courses; cast-on below course 0, bind-off above course {C - 1}", fontsize=10)
-    ax.legend(handles=[h for c in carriers for h in (
-        Patch(color=palette[2 * carriers.index(c)], label=f"carrier {c} ({_yarn_of(p, c)}): plain"),
-        Patch(color=palette[2 * carriers.index(c) + 1], label=f"carrier {c}: reverse (purl)"))],
-        loc="upper center", bbox_to_anchor=(0.5, -0.06), ncol=min(4, 2 * len(carriers)), fontsize=8)
+    fig.suptitle(
+        f"{p.spec.machine}, gauge {p.spec.gauge} (knitted at half gauge), width {p.spec.bed_width}: a tube "
+        f"of {N} stitches × {C} courses; cast-on below course 0, bind-off above course {C - 1}",
+        fontsize=10,
+    )
+    ax.legend(
+        handles=[
+            h
+            for c in carriers
+            for h in (
+                Patch(color=palette[2 * carriers.index(c)], label=f"carrier {c} ({_yarn_of(p, c)}): plain"),
+                Patch(color=palette[2 * carriers.index(c) + 1], label=f"carrier {c}: reverse (purl)"),
+            )
+        ],
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.06),
+        ncol=min(4, 2 * len(carriers)),
+        fontsize=8,
+    )
     rows, cols = 4, min(N, 12)
     for i, k in enumerate(detail):
         b = km.bands[k]
         axd = fig.add_subplot(grid[1, i])
-        sub = front[b.start:b.start + min(rows, b.courses), N - cols:]
-        img = reverse[b.start:b.start + len(sub), N - cols:].astype(float)
+        sub = front[b.start : b.start + min(rows, b.courses), N - cols :]
+        img = reverse[b.start : b.start + len(sub), N - cols :].astype(float)
         rgb = np.array(colours[p.band_carriers[k]])
-        axd.imshow(img, cmap=ListedColormap([tuple(0.45 * rgb + 0.55), tuple(0.75 * rgb)]), vmin=0, vmax=1,
-                   origin="lower", aspect="auto",
-                   extent=(FIRST_NEEDLE + N - cols - 0.5, FIRST_NEEDLE + N - 0.5, b.start, b.start + len(sub)))
+        axd.imshow(
+            img,
+            cmap=ListedColormap([tuple(0.45 * rgb + 0.55), tuple(0.75 * rgb)]),
+            vmin=0,
+            vmax=1,
+            origin="lower",
+            aspect="auto",
+            extent=(FIRST_NEEDLE + N - cols - 0.5, FIRST_NEEDLE + N - 0.5, b.start, b.start + len(sub)),
+        )
         for r in range(len(sub)):
             for j in range(cols):
-                axd.text(FIRST_NEEDLE + N - cols + j, b.start + r + 0.5, "F" if sub[r, j] else "B",
-                         ha="center", va="center", fontsize=7)
+                axd.text(
+                    FIRST_NEEDLE + N - cols + j,
+                    b.start + r + 0.5,
+                    "F" if sub[r, j] else "B",
+                    ha="center",
+                    va="center",
+                    fontsize=7,
+                )
         axd.set_title(f"{b.pattern} ({b.yarn})", fontsize=8)
         axd.set_yticks(b.start + np.arange(len(sub)) + 0.5, [str(b.start + r) for r in range(len(sub))])
         axd.set_xlabel("needle; F/B: the bed that knits", fontsize=7)
@@ -860,8 +991,9 @@ def program(p: Plan, *, check: bool = True) -> tuple[list[str], dict[str, Any] |
     return lines, (verify(p, lines) if check else None)
 
 
-def write_machine_outputs(p: Plan, lines: Sequence[str], folder: str | Path, *, dat: bool = False
-                          ) -> tuple[list[str], dict[str, Any]]:
+def write_machine_outputs(
+    p: Plan, lines: Sequence[str], folder: str | Path, *, dat: bool = False
+) -> tuple[list[str], dict[str, Any]]:
     """Write ``sleeve.k``, ``sleeve-chart.png`` and, with ``dat``, ``sleeve.dat`` into ``folder``.
 
     Returns the file names and a summary: machine, needles, courses, bands with their carrier and
@@ -872,12 +1004,25 @@ def write_machine_outputs(p: Plan, lines: Sequence[str], folder: str | Path, *, 
     plot_chart(p, folder / FILES["chart"])
     names = [FILES["knitout"], FILES["chart"]]
     info: dict[str, Any] = {
-        "machine": p.spec.machine, "gauge": p.spec.gauge, "width": p.spec.bed_width, "half_gauge": True,
-        "needles": p.kmap.needles, "courses": p.kmap.courses, "carriers": dict(p.carriers),
+        "machine": p.spec.machine,
+        "gauge": p.spec.gauge,
+        "width": p.spec.bed_width,
+        "half_gauge": True,
+        "needles": p.kmap.needles,
+        "courses": p.kmap.courses,
+        "carriers": dict(p.carriers),
         "stitch_numbers": p.spec.stitch_table,
-        "bands": [{"courses": [b.start, b.end], "fabric": b.fabric, "pattern": b.pattern, "yarn": b.yarn,
-                   "carrier": c, "stitch_number": n}
-                  for b, c, n in zip(p.kmap.bands, p.band_carriers, p.stitch_numbers)],
+        "bands": [
+            {
+                "courses": [b.start, b.end],
+                "fabric": b.fabric,
+                "pattern": b.pattern,
+                "yarn": b.yarn,
+                "carrier": c,
+                "stitch_number": n,
+            }
+            for b, c, n in zip(p.kmap.bands, p.band_carriers, p.stitch_numbers)
+        ],
     }
     if dat:
         applied = write_dat(lines, folder / FILES["dat"])

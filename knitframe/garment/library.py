@@ -133,12 +133,18 @@ BUILTIN_FITTER = {"kind": "lbfgs", "starts": 16, "screen": 256}
 BUILTIN_LOOP_LENGTH = 11.28
 #: yarn in the file names -> (yarn name in the library, description, how the loop length was estimated)
 BUILTIN_YARNS = {
-    "cotton": ("pearl-cotton", "pearl cotton 3/2",
-               "the project's estimate for this yarn (knitframe/examples/example.toml), taken from Singal et al.'s "
-               "simulation of their acrylic stockinette; not measured"),
-    "acrylic": ("acrylic", "acrylic worsted (Brava, 100% acrylic)",
-                "stitch length of Singal et al.'s own simulation of this acrylic in stockinette (sabetta/stitch-by-stitch, "
-                "stockinetteconfig.dat); not measured"),
+    "cotton": (
+        "pearl-cotton",
+        "pearl cotton 3/2",
+        "the project's estimate for this yarn (knitframe/examples/example.toml), taken from Singal et al.'s "
+        "simulation of their acrylic stockinette; not measured",
+    ),
+    "acrylic": (
+        "acrylic",
+        "acrylic worsted (Brava, 100% acrylic)",
+        "stitch length of Singal et al.'s own simulation of this acrylic in stockinette (sabetta/stitch-by-stitch, "
+        "stockinetteconfig.dat); not measured",
+    ),
 }
 #: pattern in the file names -> knitframe pattern
 BUILTIN_PATTERNS = {"stockinette": "jersey", "garter": "garter", "rib": "rib", "seed": "seed"}
@@ -171,12 +177,16 @@ def _is_number(value: Any) -> bool:
     return not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating))
 
 
-def _number(value: Any, path: str, *, above: float = 0.0, optional: bool = False, source: str | None = None) -> float | None:
+def _number(
+    value: Any, path: str, *, above: float = 0.0, optional: bool = False, source: str | None = None
+) -> float | None:
     """A finite number > ``above`` (None allowed if ``optional``), else a one-line ConfigError at ``path``."""
     if value is None and optional:
         return None
     if not _is_number(value):
-        raise ConfigError(path, f"expected a number{' or null' if optional else ''}, got {_shown(value)}", source=source)
+        raise ConfigError(
+            path, f"expected a number{' or null' if optional else ''}, got {_shown(value)}", source=source
+        )
     v = float(value)
     if not math.isfinite(v):
         raise ConfigError(path, f"must be finite, got {_shown(value)}", source=source)
@@ -213,10 +223,16 @@ def _homogenizer(model: Any, options: Any, path: str, source: str | None = None)
     except UnknownPluginError as e:
         raise ConfigError(_at(path, "model"), str(e), source=source) from None
     if not isinstance(options, Mapping):
-        raise ConfigError(_at(path, "model_options"), f"expected a table of options, got {_shown(options)}", source=source)
+        raise ConfigError(
+            _at(path, "model_options"), f"expected a table of options, got {_shown(options)}", source=source
+        )
     if "kind" in options:
-        raise ConfigError(_at(path, "model_options.kind"), "not an option; the model is named by 'model'", source=source)
-    return instantiate(_registry(), "homogenizer", {"kind": name, **options}, _at(path, "model_options"), source=source)
+        raise ConfigError(
+            _at(path, "model_options.kind"), "not an option; the model is named by 'model'", source=source
+        )
+    return instantiate(
+        _registry(), "homogenizer", {"kind": name, **options}, _at(path, "model_options"), source=source
+    )
 
 
 def _check_pattern(pattern: Any, path: str, source: str | None = None) -> str:
@@ -239,7 +255,9 @@ def _params(model: Any, params: Any, path: str, source: str | None = None) -> np
     names = tuple(model.param_names)
     for key, v in params.items():  # a non-number anywhere is named before a missing key
         if not _is_number(v) or not math.isfinite(float(v)):
-            raise ConfigError(_at(path, str(key)), f"expected a finite number, got {_shown(v)}", source=source)
+            raise ConfigError(
+                _at(path, str(key)), f"expected a finite number, got {_shown(v)}", source=source
+            )
     try:
         arr = params_from_json(names, dict(params), path)
     except ConfigError as e:
@@ -251,8 +269,12 @@ def _params(model: Any, params: Any, path: str, source: str | None = None) -> np
         shown, low, high = (params_to_json(names, x) for x in (arr, lo, hi))
         for i, key in enumerate(shown):
             if not lo[i] - slack[i] <= arr[i] <= hi[i] + slack[i]:
-                raise ConfigError(_at(path, key), f"must be in [{_fmt(low[key])}, {_fmt(high[key])}] (the bounds of "
-                                                  f"model '{model.name}'), got {_fmt(shown[key])}", source=source)
+                raise ConfigError(
+                    _at(path, key),
+                    f"must be in [{_fmt(low[key])}, {_fmt(high[key])}] (the bounds of "
+                    f"model '{model.name}'), got {_fmt(shown[key])}",
+                    source=source,
+                )
     return arr
 
 
@@ -307,18 +329,34 @@ class FabricEntry:
     name: str  #: unique in its library, e.g. "cotton-rib"
     pattern: str  #: jersey | garter | rib | seed | a plugin pattern
     yarn: str  #: yarn name
-    stitch_length: float | None = attrs.field(converter=_float_or_keep)  #: machine setting (e.g. 10, 11, 12), if known
+    stitch_length: float | None = attrs.field(
+        converter=_float_or_keep
+    )  #: machine setting (e.g. 10, 11, 12), if known
     arc_length: float | None = attrs.field(converter=_float_or_keep)  #: mm of yarn per stitch, if known
     model: str  #: homogenizer plugin name ("hgo", "hgo2m")
-    params: dict[str, float] = attrs.field(converter=_float_dict)  #: as in a params.json: angles as "<name>_deg"
-    course_pitch: float = attrs.field(converter=_float_or_keep)  #: relaxed stitch width along the course, mm per wale column
-    wale_pitch: float = attrs.field(converter=_float_or_keep)  #: relaxed stitch height along the wale, mm per course
-    max_tension: float = attrs.field(converter=_float_or_keep)  #: N/mm: the largest course tension the fabric may carry
-    max_stretch: float | None = attrs.field(default=None, converter=_float_or_keep)  #: largest course stretch λ1, if known
+    params: dict[str, float] = attrs.field(
+        converter=_float_dict
+    )  #: as in a params.json: angles as "<name>_deg"
+    course_pitch: float = attrs.field(
+        converter=_float_or_keep
+    )  #: relaxed stitch width along the course, mm per wale column
+    wale_pitch: float = attrs.field(
+        converter=_float_or_keep
+    )  #: relaxed stitch height along the wale, mm per course
+    max_tension: float = attrs.field(
+        converter=_float_or_keep
+    )  #: N/mm: the largest course tension the fabric may carry
+    max_stretch: float | None = attrs.field(
+        default=None, converter=_float_or_keep
+    )  #: largest course stretch λ1, if known
     source: str = ""  #: where the model and the limits came from
     pitch_source: str = ""  #: where the pitches came from
-    model_options: dict[str, Any] = attrs.field(factory=dict, converter=_plain_dict)  #: the homogenizer's options
-    fit: dict[str, Any] = attrs.field(factory=dict, converter=_plain_dict)  #: how it was fitted (nrmse, fitter, ...)
+    model_options: dict[str, Any] = attrs.field(
+        factory=dict, converter=_plain_dict
+    )  #: the homogenizer's options
+    fit: dict[str, Any] = attrs.field(
+        factory=dict, converter=_plain_dict
+    )  #: how it was fitted (nrmse, fitter, ...)
     _homogenizer: Any = attrs.field(init=False, default=None, eq=False, repr=False)
     _params_array: Any = attrs.field(init=False, default=None, eq=False, repr=False)
 
@@ -330,7 +368,17 @@ class FabricEntry:
         object.__setattr__(self, "_params_array", arr)
 
     def __hash__(self) -> int:  # equal entries have equal names and numbers; the dicts are left out
-        return hash((self.name, self.pattern, self.yarn, self.model, self.course_pitch, self.wale_pitch, self.max_tension))
+        return hash(
+            (
+                self.name,
+                self.pattern,
+                self.yarn,
+                self.model,
+                self.course_pitch,
+                self.wale_pitch,
+                self.max_tension,
+            )
+        )
 
     @property
     def homogenizer(self) -> Any:
@@ -349,7 +397,9 @@ class FabricEntry:
 
     def uniaxial(self, lam, direction: str = "course") -> tuple[np.ndarray, np.ndarray]:
         """Free-sides uniaxial pull (as the tests): ``(lam_free, T_loaded)`` at loaded stretches ``lam``."""
-        return self._homogenizer.solve_uniaxial(self._params_array, np.asarray(lam, dtype=np.float64), direction)
+        return self._homogenizer.solve_uniaxial(
+            self._params_array, np.asarray(lam, dtype=np.float64), direction
+        )
 
     def within_limits(self, lam1, T1) -> np.ndarray:
         """True where the course tension T1 <= max_tension and (if known) λ1 <= max_stretch; broadcast arrays."""
@@ -362,16 +412,25 @@ class FabricEntry:
     def to_json(self) -> dict[str, Any]:
         """The entry as in library.json (every field, in a fixed order)."""
         return {
-            "name": self.name, "pattern": self.pattern, "yarn": self.yarn,
-            "stitch_length": self.stitch_length, "arc_length": self.arc_length,
-            "model": self.model, "model_options": dict(self.model_options), "params": dict(self.params),
-            "course_pitch": self.course_pitch, "wale_pitch": self.wale_pitch,
-            "max_tension": self.max_tension, "max_stretch": self.max_stretch,
-            "source": self.source, "pitch_source": self.pitch_source, "fit": dict(self.fit),
+            "name": self.name,
+            "pattern": self.pattern,
+            "yarn": self.yarn,
+            "stitch_length": self.stitch_length,
+            "arc_length": self.arc_length,
+            "model": self.model,
+            "model_options": dict(self.model_options),
+            "params": dict(self.params),
+            "course_pitch": self.course_pitch,
+            "wale_pitch": self.wale_pitch,
+            "max_tension": self.max_tension,
+            "max_stretch": self.max_stretch,
+            "source": self.source,
+            "pitch_source": self.pitch_source,
+            "fit": dict(self.fit),
         }
 
     @classmethod
-    def from_json(cls, data: Any, path: str = "entry", *, source: str | None = None) -> "FabricEntry":
+    def from_json(cls, data: Any, path: str = "entry", *, source: str | None = None) -> FabricEntry:
         """Check an entry as written in library.json (errors name ``path``) and build it."""
         if not isinstance(data, Mapping):
             raise ConfigError(path, f"expected a table (JSON object), got {_shown(data)}", source=source)
@@ -380,8 +439,11 @@ class FabricEntry:
                 raise ConfigError(_at(path, key), "required key is missing", source=source)
         unknown = sorted(set(data) - set(_REQUIRED) - set(_OPTIONAL))
         if unknown:
-            raise ConfigError(_at(path, str(unknown[0])), f"unknown key; an entry has {', '.join(_REQUIRED + _OPTIONAL)}",
-                              source=source)
+            raise ConfigError(
+                _at(path, str(unknown[0])),
+                f"unknown key; an entry has {', '.join(_REQUIRED + _OPTIONAL)}",
+                source=source,
+            )
         _check_entry(data, path, source)
         values = {k: data.get(k) for k in _REQUIRED + _OPTIONAL if k in data}
         return cls(**values)
@@ -399,7 +461,9 @@ def _per_file(value: Any, n: int, option: str) -> list[Any]:
             return list(value) * n
         if len(value) == n:
             return list(value)
-        raise ConfigError(option, f"got {len(value)} values for {n} params files; give one per file or one for all")
+        raise ConfigError(
+            option, f"got {len(value)} values for {n} params files; give one per file or one for all"
+        )
     raise ConfigError(option, f"expected a value or a list of values, got {_shown(value)}")
 
 
@@ -415,7 +479,9 @@ def _read_json(path: Path, what: str) -> Any:
     try:
         return json.loads(text)
     except json.JSONDecodeError as e:
-        raise ConfigError("", f"not valid JSON: {e.msg} (line {e.lineno}, column {e.colno})", source=str(path)) from None
+        raise ConfigError(
+            "", f"not valid JSON: {e.msg} (line {e.lineno}, column {e.colno})", source=str(path)
+        ) from None
     except RecursionError:
         raise ConfigError("", "not valid JSON: nested too deeply", source=str(path)) from None
 
@@ -435,7 +501,9 @@ def _default_name(path: Path) -> str:
     return stem[: -len("-params")] if stem.endswith("-params") and len(stem) > 7 else stem
 
 
-def _loop_length(pattern: str, stitch_length: float | None, arc_length: float | None) -> tuple[float | None, str]:
+def _loop_length(
+    pattern: str, stitch_length: float | None, arc_length: float | None
+) -> tuple[float | None, str]:
     """Loop length (mm) for Munden's relations: the arc length, else the pattern's stitch-length table."""
     if arc_length is not None:
         return arc_length, f"loop length {arc_length:g} mm (arc_length)"
@@ -444,10 +512,15 @@ def _loop_length(pattern: str, stitch_length: float | None, arc_length: float | 
     from knitframe.config import instantiate
     from knitframe.geometry import STITCH_LENGTHS
 
-    table = getattr(instantiate(_registry(), "pattern", pattern, "pattern"), "stitch_lengths", None) or STITCH_LENGTHS
+    table = (
+        getattr(instantiate(_registry(), "pattern", pattern, "pattern"), "stitch_lengths", None)
+        or STITCH_LENGTHS
+    )
     for key, mm in table.items():
         if float(key) == float(stitch_length):
-            return float(mm), f"loop length {float(mm):g} mm (stitch length {stitch_length:g} in the pattern's table)"
+            return float(
+                mm
+            ), f"loop length {float(mm):g} mm (stitch length {stitch_length:g} in the pattern's table)"
     return None, ""
 
 
@@ -469,7 +542,9 @@ class FabricLibrary:
             if not isinstance(e, FabricEntry):
                 raise ConfigError(f"library.entries[{i}]", f"expected a FabricEntry, got {_shown(e)}")
             if e.name in seen:
-                raise ConfigError(f"library.entries[{i}].name", f"duplicate name '{e.name}' (also entries[{seen[e.name]}])")
+                raise ConfigError(
+                    f"library.entries[{i}].name", f"duplicate name '{e.name}' (also entries[{seen[e.name]}])"
+                )
             seen[e.name] = i
 
     def __len__(self) -> int:
@@ -494,25 +569,37 @@ class FabricLibrary:
 
     def to_json(self) -> dict[str, Any]:
         """Plain data as in library.json."""
-        return {"knitframe_library": LIBRARY_FORMAT, "name": self.name, "source": self.source,
-                "entries": [e.to_json() for e in self.entries]}
+        return {
+            "knitframe_library": LIBRARY_FORMAT,
+            "name": self.name,
+            "source": self.source,
+            "entries": [e.to_json() for e in self.entries],
+        }
 
     @classmethod
-    def from_json(cls, data: Any, path: str = "library", *, source: str | None = None) -> "FabricLibrary":
+    def from_json(cls, data: Any, path: str = "library", *, source: str | None = None) -> FabricLibrary:
         """Check library.json data (one-line ConfigError naming the JSON path of the first bad field) and build it."""
         if not isinstance(data, Mapping):
             raise ConfigError(path, f"expected a JSON object, got {_shown(data)}", source=source)
         if "knitframe_library" not in data:
-            raise ConfigError(_at(path, "knitframe_library"), "required key is missing (not a knitframe library file)",
-                              source=source)
+            raise ConfigError(
+                _at(path, "knitframe_library"),
+                "required key is missing (not a knitframe library file)",
+                source=source,
+            )
         version = data["knitframe_library"]
         if not _is_number(version) or version != LIBRARY_FORMAT:
-            raise ConfigError(_at(path, "knitframe_library"), f"unsupported library format {_shown(version)}; "
-                                                              f"this knitframe reads format {LIBRARY_FORMAT}", source=source)
+            raise ConfigError(
+                _at(path, "knitframe_library"),
+                f"unsupported library format {_shown(version)}; this knitframe reads format {LIBRARY_FORMAT}",
+                source=source,
+            )
         keys = ("knitframe_library", "name", "source", "entries")
         unknown = sorted(set(data) - set(keys))
         if unknown:
-            raise ConfigError(_at(path, str(unknown[0])), f"unknown key; a library has {', '.join(keys)}", source=source)
+            raise ConfigError(
+                _at(path, str(unknown[0])), f"unknown key; a library has {', '.join(keys)}", source=source
+            )
         for key in ("name", "entries"):
             if key not in data:
                 raise ConfigError(_at(path, key), "required key is missing", source=source)
@@ -520,7 +607,9 @@ class FabricLibrary:
         lib_source = _string(data.get("source", ""), _at(path, "source"), empty=True, source=source)
         raw = data["entries"]
         if not isinstance(raw, list):
-            raise ConfigError(_at(path, "entries"), f"expected a list of entries, got {_shown(raw)}", source=source)
+            raise ConfigError(
+                _at(path, "entries"), f"expected a list of entries, got {_shown(raw)}", source=source
+            )
         if not raw:
             raise ConfigError(_at(path, "entries"), "the library has no entries", source=source)
         entries, seen = [], {}
@@ -528,8 +617,11 @@ class FabricLibrary:
             where = f"{_at(path, 'entries')}[{i}]"
             entry = FabricEntry.from_json(item, where, source=source)
             if entry.name in seen:
-                raise ConfigError(_at(where, "name"), f"duplicate name '{entry.name}' (also entries[{seen[entry.name]}])",
-                                  source=source)
+                raise ConfigError(
+                    _at(where, "name"),
+                    f"duplicate name '{entry.name}' (also entries[{seen[entry.name]}])",
+                    source=source,
+                )
             seen[entry.name] = i
             entries.append(entry)
         return cls(name, tuple(entries), lib_source)
@@ -540,16 +632,30 @@ class FabricLibrary:
         Path(path).write_text(text + "\n", encoding="utf-8")
 
     @classmethod
-    def load(cls, path: str | Path) -> "FabricLibrary":
+    def load(cls, path: str | Path) -> FabricLibrary:
         """Read and check a library.json; errors name the file and the JSON path."""
         p = Path(path)
         return cls.from_json(_read_json(p, "library file"), "library", source=str(p))
 
     @classmethod
-    def from_fits(cls, params_files: Sequence[str | Path], *, names: Any = None, course_pitch: Any = None,
-                  wale_pitch: Any = None, max_tension: Any = None, max_stretch: Any = None, pattern: Any = None,
-                  yarn: Any = None, stitch_length: Any = None, arc_length: Any = None, source: Any = None,
-                  pitch_source: Any = None, name: str = "library", library_source: str = "") -> "FabricLibrary":
+    def from_fits(
+        cls,
+        params_files: Sequence[str | Path],
+        *,
+        names: Any = None,
+        course_pitch: Any = None,
+        wale_pitch: Any = None,
+        max_tension: Any = None,
+        max_stretch: Any = None,
+        pattern: Any = None,
+        yarn: Any = None,
+        stitch_length: Any = None,
+        arc_length: Any = None,
+        source: Any = None,
+        pitch_source: Any = None,
+        name: str = "library",
+        library_source: str = "",
+    ) -> FabricLibrary:
         """A library with one entry per fitted model (a ``params.json`` of ``knitframe fit`` or a ``[fit]`` stage).
 
         Every keyword takes one value for all files or a sequence of one value per file.
@@ -569,10 +675,22 @@ class FabricLibrary:
         if not files:
             raise ConfigError("params_files", "no params files given")
         n = len(files)
-        opts = {k: _per_file(v, n, k) for k, v in (
-            ("names", names), ("course_pitch", course_pitch), ("wale_pitch", wale_pitch), ("max_tension", max_tension),
-            ("max_stretch", max_stretch), ("pattern", pattern), ("yarn", yarn), ("stitch_length", stitch_length),
-            ("arc_length", arc_length), ("source", source), ("pitch_source", pitch_source))}
+        opts = {
+            k: _per_file(v, n, k)
+            for k, v in (
+                ("names", names),
+                ("course_pitch", course_pitch),
+                ("wale_pitch", wale_pitch),
+                ("max_tension", max_tension),
+                ("max_stretch", max_stretch),
+                ("pattern", pattern),
+                ("yarn", yarn),
+                ("stitch_length", stitch_length),
+                ("arc_length", arc_length),
+                ("source", source),
+                ("pitch_source", pitch_source),
+            )
+        }
         entries = []
         for i, p in enumerate(files):
             src = str(p)
@@ -583,15 +701,21 @@ class FabricLibrary:
                 raise ConfigError("model", "required key is missing (not a params.json of a fit)", source=src)
             model = _homogenizer(data["model"], data.get("options") or {}, "", src)
             keys = params_to_json(model.param_names, [0.0] * len(model.param_names))
-            values: dict[str, Any] = {"model": data["model"], "model_options": dict(data.get("options") or {}),
-                                      "params": {k: data[k] for k in keys if k in data}}
+            values: dict[str, Any] = {
+                "model": data["model"],
+                "model_options": dict(data.get("options") or {}),
+                "params": {k: data[k] for k in keys if k in data},
+            }
 
             def pick(key: str, meta_key: str | None = None) -> Any:
                 meta = _metadata(data, meta_key or key)
                 given = opts[key][i]
                 if meta is not None and given is not None and meta != given:
-                    raise ConfigError(key, f"the params file says {_shown(meta)}, the option says {_shown(given)}",
-                                      source=src)
+                    raise ConfigError(
+                        key,
+                        f"the params file says {_shown(meta)}, the option says {_shown(given)}",
+                        source=src,
+                    )
                 return meta if meta is not None else given
 
             values["name"] = pick("names", "name")
@@ -611,39 +735,76 @@ class FabricLibrary:
                 loop, how = _loop_length(values["pattern"], values["stitch_length"], values["arc_length"])
                 if loop is None:
                     missing = "course_pitch" if cp is None else "wale_pitch"
-                    raise ConfigError(missing, "not given, and no arc length or known stitch length to estimate it "
-                                               "from by Munden's relations", source=src)
-                which = "course and wale pitch" if cp is None and wp is None else (
-                    "course pitch (wale pitch given)" if cp is None else "wale pitch (course pitch given)")
+                    raise ConfigError(
+                        missing,
+                        "not given, and no arc length or known stitch length to estimate it "
+                        "from by Munden's relations",
+                        source=src,
+                    )
+                which = (
+                    "course and wale pitch"
+                    if cp is None and wp is None
+                    else (
+                        "course pitch (wale pitch given)" if cp is None else "wale pitch (course pitch given)"
+                    )
+                )
                 cp = loop / MUNDEN_KW if cp is None else cp
                 wp = loop / MUNDEN_KC if wp is None else wp
-                basis = (f"{which} from Munden's plain-knit relations (Kc = {MUNDEN_KC:g}, Kw = {MUNDEN_KW:g}; course "
-                         f"pitch = l/Kw, wale pitch = l/Kc), {how} (estimate)")
+                basis = (
+                    f"{which} from Munden's plain-knit relations (Kc = {MUNDEN_KC:g}, Kw = {MUNDEN_KW:g}; course "
+                    f"pitch = l/Kw, wale pitch = l/Kc), {how} (estimate)"
+                )
             values["course_pitch"], values["wale_pitch"] = cp, wp
             if opts["max_tension"][i] is None:
-                raise ConfigError("max_tension", "not given: the largest course tension (N/mm) the fabric may carry",
-                                  source=src)
+                raise ConfigError(
+                    "max_tension",
+                    "not given: the largest course tension (N/mm) the fabric may carry",
+                    source=src,
+                )
             values["max_tension"] = opts["max_tension"][i]
             values["max_stretch"] = opts["max_stretch"][i]
-            fit = {k: data[k] for k in ("fitter", "nrmse", "nrmse_transverse", "objective", "n_evals", "converged",
-                                        "responses", "at_bound", "warnings") if k in data}
+            fit = {
+                k: data[k]
+                for k in (
+                    "fitter",
+                    "nrmse",
+                    "nrmse_transverse",
+                    "objective",
+                    "n_evals",
+                    "converged",
+                    "responses",
+                    "at_bound",
+                    "warnings",
+                )
+                if k in data
+            }
             values["fit"] = fit
             nrmse = fit.get("nrmse", {}).get("overall") if isinstance(fit.get("nrmse"), Mapping) else None
-            default_source = (f"fit of {', '.join(map(str, fit.get('responses', []))) or 'data'}: {data['model']} by "
-                              f"{fit.get('fitter', '?')}"
-                              + (f", NRMSE {100 * nrmse:.2f} %" if _is_number(nrmse) else "") + f" ({p.name})")
+            default_source = (
+                f"fit of {', '.join(map(str, fit.get('responses', []))) or 'data'}: {data['model']} by "
+                f"{fit.get('fitter', '?')}"
+                + (f", NRMSE {100 * nrmse:.2f} %" if _is_number(nrmse) else "")
+                + f" ({p.name})"
+            )
             values["source"] = opts["source"][i] if opts["source"][i] is not None else default_source
             values["pitch_source"] = opts["pitch_source"][i] if opts["pitch_source"][i] is not None else basis
             _check_entry(values, "", src)
             if fit.get("at_bound"):
-                warnings.warn(f"{src}: fitted {', '.join(map(str, fit['at_bound']))} at a bound of the model's box: "
-                              "the data do not determine it", KnitframeWarning, stacklevel=2)
+                warnings.warn(
+                    f"{src}: fitted {', '.join(map(str, fit['at_bound']))} at a bound of the model's box: "
+                    "the data do not determine it",
+                    KnitframeWarning,
+                    stacklevel=2,
+                )
             entries.append(FabricEntry(**values))
         seen: dict[str, int] = {}
         for i, e in enumerate(entries):
             if e.name in seen:
-                raise ConfigError("names", f"'{e.name}' is the name of two params files ({files[seen[e.name]]} and "
-                                           f"{files[i]}); give each an entry name")
+                raise ConfigError(
+                    "names",
+                    f"'{e.name}' is the name of two params files ({files[seen[e.name]]} and "
+                    f"{files[i]}); give each an entry name",
+                )
             seen[e.name] = i
         return cls(name, tuple(entries), library_source)
 
@@ -661,11 +822,16 @@ def course_limits(x_file: Path) -> tuple[float, float, int]:
 
     reader = instantiate(_registry(), "reader", {"kind": "singal2024", "average": False}, "reader")
     repeats = reader.read(x_file)
-    return (max(float(r.T1.max()) for r in repeats), max(float(r.lambda1.max()) for r in repeats), len(repeats))
+    return (
+        max(float(r.T1.max()) for r in repeats),
+        max(float(r.lambda1.max()) for r in repeats),
+        len(repeats),
+    )
 
 
-def build_builtin(folder: str | Path, *, data_dir: str | Path = BUILTIN_DATA, plots: bool = True,
-                  progress=None) -> FabricLibrary:
+def build_builtin(
+    folder: str | Path, *, data_dir: str | Path = BUILTIN_DATA, plots: bool = True, progress=None
+) -> FabricLibrary:
     """Fit the built-in library from the Singal et al. 2024 CSVs; writes ``fits/<name>-params.json`` (and
     ``-fit.png``) into ``folder`` and returns the library (:meth:`FabricLibrary.from_fits` of those files).
 
@@ -683,8 +849,20 @@ def build_builtin(folder: str | Path, *, data_dir: str | Path = BUILTIN_DATA, pl
     model = instantiate(reg, "homogenizer", BUILTIN_MODEL, "model")
     fitter = instantiate(reg, "fitter", BUILTIN_FITTER, "fitter")
     fitter_text = f"{BUILTIN_FITTER['kind']} ({BUILTIN_FITTER['starts']} starts from {BUILTIN_FITTER['screen']} screened)"
-    kw: dict[str, list[Any]] = {k: [] for k in ("names", "pattern", "yarn", "course_pitch", "wale_pitch", "max_tension",
-                                                "max_stretch", "source", "pitch_source")}
+    kw: dict[str, list[Any]] = {
+        k: []
+        for k in (
+            "names",
+            "pattern",
+            "yarn",
+            "course_pitch",
+            "wale_pitch",
+            "max_tension",
+            "max_stretch",
+            "source",
+            "pitch_source",
+        )
+    }
     files = []
     for ykey, (yarn, ydesc, basis) in BUILTIN_YARNS.items():
         for pkey, pattern in BUILTIN_PATTERNS.items():
@@ -718,14 +896,23 @@ def build_builtin(folder: str | Path, *, data_dir: str | Path = BUILTIN_DATA, pl
                 f"{100 * result.nrmse['overall']:.2f} %, transverse strain NRMSE "
                 f"{100 * result.nrmse_transverse.get('overall', float('nan')):.2f} %; limits: max_tension = peak course "
                 f"tension measured ({x.name}, {n_rep} repeats; the tests end at peak force), max_stretch = 1 + largest "
-                "course strain measured there")
+                "course strain measured there"
+            )
             kw["pitch_source"].append(
                 f"Munden's plain-knit relations (Kc = {MUNDEN_KC:g}, Kw = {MUNDEN_KW:g}; course pitch = l/Kw, wale pitch "
                 f"= l/Kc) with loop length l = {loop:g} mm (estimate: {basis})"
-                + ("" if pattern == "jersey" else f"; plain-knit relation applied to {pattern}, whose relaxed pitches "
-                   "differ: measure them"))
+                + (
+                    ""
+                    if pattern == "jersey"
+                    else f"; plain-knit relation applied to {pattern}, whose relaxed pitches "
+                    "differ: measure them"
+                )
+            )
     return FabricLibrary.from_fits(
-        files, **kw, name="singal2024",
+        files,
+        **kw,
+        name="singal2024",
         library_source="Singal et al. 2024, Nat Commun 15:2622, doi:10.1038/s41467-024-46498-z: uniaxial tests of pearl "
-                       "cotton and acrylic in jersey, garter, rib and seed (sabetta/stitch-by-stitch, MIT licence, "
-                       "Copyright (c) 2023 sabetta), fitted by knitframe (knitframe library build-builtin)")
+        "cotton and acrylic in jersey, garter, rib and seed (sabetta/stitch-by-stitch, MIT licence, "
+        "Copyright (c) 2023 sabetta), fitted by knitframe (knitframe library build-builtin)",
+    )

@@ -78,6 +78,7 @@ _UPSAMPLE = 8
 # periodic trigonometric interpolation of loops
 # ----------------------------------------------------------------------------------------------
 
+
 def _wavenumbers(n: int) -> np.ndarray:
     """Integer wavenumbers of an n-point FFT, k = 0, 1, …, -1."""
     return np.rint(np.fft.fftfreq(n) * n).astype(np.int64)
@@ -131,12 +132,12 @@ def _adaptive_cutoff(coeffs: np.ndarray) -> np.ndarray:
     is not taken for shape.
     """
     n = coeffs.shape[-1]
-    half = (n - 1) // 2 if n % 2 else n // 2 - 1          # highest k with both ±k resolved
+    half = (n - 1) // 2 if n % 2 else n // 2 - 1  # highest k with both ±k resolved
     k = np.arange(1, half + 1)
     power = np.abs(coeffs[..., k]) ** 2 + np.abs(coeffs[..., -k]) ** 2
     noise = np.median(power[..., k >= max(n // 4, 1)], axis=-1, keepdims=True)
     padded = np.concatenate((power, np.zeros(power.shape[:-1] + (3,))), axis=-1)
-    envelope = np.max(np.stack([padded[..., i:i + half] for i in range(4)]), axis=0)
+    envelope = np.max(np.stack([padded[..., i : i + half] for i in range(4)]), axis=0)
     below = envelope <= 16.0 * noise
     cut = np.where(below.any(axis=-1), np.argmax(below, axis=-1), half)
     return np.maximum(cut, min(4, n // 4))
@@ -224,6 +225,7 @@ def _ellipse_points(a: float, b: float, n: int) -> np.ndarray:
 # the record
 # ----------------------------------------------------------------------------------------------
 
+
 def _frozen_array(value: Any) -> np.ndarray:
     arr = np.array(value, dtype=np.float64, copy=True)
     arr.setflags(write=False)
@@ -287,23 +289,30 @@ class Limb:
         tilt = np.ptp(height, axis=1)
         if np.any(tilt > 1e-6 * size):
             i = int(np.argmax(tilt))
-            raise GeometryError(f"{where}: loop {i} is not in a plane normal to the axis "
-                                f"(spread {tilt[i]:.3g} mm along it)")
+            raise GeometryError(
+                f"{where}: loop {i} is not in a plane normal to the axis (spread {tilt[i]:.3g} mm along it)"
+            )
         pos = height.mean(axis=1)
         if np.any(np.diff(pos) <= 0.0):
             i = int(np.argmax(np.diff(pos) <= 0.0))
-            raise GeometryError(f"{where}: stations must be strictly increasing along axis_direction "
-                                f"(station {i + 1} is not beyond station {i})")
+            raise GeometryError(
+                f"{where}: stations must be strictly increasing along axis_direction "
+                f"(station {i + 1} is not beyond station {i})"
+            )
         area = self._area_raw()
         if np.any(area <= 0.0):
             i = int(np.argmax(area <= 0.0))
-            raise GeometryError(f"{where}: loop {i} runs clockwise seen from station 0 towards the last; "
-                                "loops must run counter-clockwise")
+            raise GeometryError(
+                f"{where}: loop {i} runs clockwise seen from station 0 towards the last; "
+                "loops must run counter-clockwise"
+            )
 
     def __repr__(self) -> str:
         n, m, _ = self.sections.shape
-        return (f"Limb(name={self.name!r}, {n} stations x {m} around, length "
-                f"{self.positions[-1]:.1f} mm, source={self.source!r})")
+        return (
+            f"Limb(name={self.name!r}, {n} stations x {m} around, length "
+            f"{self.positions[-1]:.1f} mm, source={self.source!r})"
+        )
 
     # -- local coordinates --------------------------------------------------------------------
     @functools.cached_property
@@ -431,8 +440,12 @@ class Limb:
         q = np.stack((i * m + j, (i + 1) * m + j, (i + 1) * m + jn, i * m + jn), axis=-1)
         return q.reshape(-1, 4)
 
-    def to_vtu(self, path: str | Path, cell_data: dict[str, np.ndarray] | None = None,
-               point_data: dict[str, np.ndarray] | None = None) -> None:
+    def to_vtu(
+        self,
+        path: str | Path,
+        cell_data: dict[str, np.ndarray] | None = None,
+        point_data: dict[str, np.ndarray] | None = None,
+    ) -> None:
         """Write the quad surface to a VTU file (meshio): points = sections, cells = :meth:`quads`.
 
         ``cell_data`` maps names to per-quad arrays of first dimension (n_stations-1)·n_around in
@@ -450,7 +463,9 @@ class Limb:
             if arr.ndim == 2 and arr.shape[:2] == (self.n_stations - 1, self.n_around):
                 arr = arr.reshape(len(quads))
             if arr.shape[0] != len(quads):
-                raise ValueError(f"cell_data['{key}']: needs {len(quads)} rows (one per quad), got {arr.shape}")
+                raise ValueError(
+                    f"cell_data['{key}']: needs {len(quads)} rows (one per quad), got {arr.shape}"
+                )
             cd[key] = [arr]
         pd = {}
         for key, value in (point_data or {}).items():
@@ -466,9 +481,16 @@ class Limb:
 
     # -- constructors -------------------------------------------------------------------------
     @classmethod
-    def from_measurements(cls, positions_mm: Sequence[float], circumferences_mm: Sequence[float], *,
-                          ellipticity: float | Sequence[float] = 1.0, n_stations: int = 41,
-                          n_around: int = 64, name: str = "limb") -> Limb:
+    def from_measurements(
+        cls,
+        positions_mm: Sequence[float],
+        circumferences_mm: Sequence[float],
+        *,
+        ellipticity: float | Sequence[float] = 1.0,
+        n_stations: int = 41,
+        n_around: int = 64,
+        name: str = "limb",
+    ) -> Limb:
         """A limb from tape measurements: circumferences (mm) at distances (mm) from the wrist/ankle.
 
         Sections are ellipses with minor/major ratio k (``ellipticity``, in (0, 1], one value or one
@@ -489,57 +511,86 @@ class Limb:
         if pos.size < 2:
             raise ConfigError("positions_mm", f"needs at least 2 measurements, got {pos.size}")
         if circ.size != pos.size:
-            raise ConfigError("circumferences_mm", f"needs one value per position ({pos.size}), got {circ.size}")
+            raise ConfigError(
+                "circumferences_mm", f"needs one value per position ({pos.size}), got {circ.size}"
+            )
         for key, arr in (("positions_mm", pos), ("circumferences_mm", circ)):
             if not np.all(np.isfinite(arr)):
                 raise ConfigError(key, "must be finite numbers")
         if np.any(np.diff(pos) <= 0.0):
             i = int(np.argmax(np.diff(pos) <= 0.0))
-            raise ConfigError("positions_mm", f"must be strictly increasing, got {pos[i]:g} then {pos[i + 1]:g}")
+            raise ConfigError(
+                "positions_mm", f"must be strictly increasing, got {pos[i]:g} then {pos[i + 1]:g}"
+            )
         if np.any(circ <= 0.0):
             i = int(np.argmax(circ <= 0.0))
             raise ConfigError("circumferences_mm", f"must be > 0, got {circ[i]:g} at {pos[i]:g} mm")
         ell = np.asarray(ellipticity, dtype=np.float64).reshape(-1)
         if ell.size not in (1, pos.size):
-            raise ConfigError("ellipticity", f"needs one value or one per position ({pos.size}), got {ell.size}")
+            raise ConfigError(
+                "ellipticity", f"needs one value or one per position ({pos.size}), got {ell.size}"
+            )
         if not np.all(np.isfinite(ell)) or np.any(ell <= 0.0) or np.any(ell > 1.0):
             raise ConfigError("ellipticity", f"minor/major ratio must be in (0, 1], got {ell.tolist()}")
         if n_stations < pos.size:
-            raise ConfigError("n_stations", f"must be at least the number of measurements ({pos.size}), "
-                              f"got {n_stations}")
+            raise ConfigError(
+                "n_stations", f"must be at least the number of measurements ({pos.size}), got {n_stations}"
+            )
 
         grid = np.linspace(pos[0], pos[-1], n_stations)
         spacing = (pos[-1] - pos[0]) / (n_stations - 1)
         idx = np.rint((pos - pos[0]) / spacing).astype(np.int64)
         if np.any(np.diff(idx) == 0):
             i = int(np.argmax(np.diff(idx) == 0))
-            raise ConfigError("positions_mm", f"measurements at {pos[i]:g} and {pos[i + 1]:g} mm are closer than the "
-                              f"station spacing {spacing:.3g} mm; use more stations (n_stations)")
+            raise ConfigError(
+                "positions_mm",
+                f"measurements at {pos[i]:g} and {pos[i + 1]:g} mm are closer than the "
+                f"station spacing {spacing:.3g} mm; use more stations (n_stations)",
+            )
         grid[idx] = pos
         c_st = PchipInterpolator(pos, circ)(grid)
         c_st[idx] = circ
-        k_st = np.full(n_stations, ell[0]) if ell.size == 1 else np.clip(PchipInterpolator(pos, ell)(grid), 1e-6, 1.0)
+        k_st = (
+            np.full(n_stations, ell[0])
+            if ell.size == 1
+            else np.clip(PchipInterpolator(pos, ell)(grid), 1e-6, 1.0)
+        )
         if ell.size > 1:
             k_st[idx] = ell
         a, b = ellipse_semi_axes(c_st, k_st)
         z = grid - pos[0]
         d = np.array([0.0, 0.0, 1.0])
-        f1 = _perpendicular(d)               # +x
-        f2 = np.cross(f1, d)                 # -y: loops counter-clockwise seen along +z
+        f1 = _perpendicular(d)  # +x
+        f2 = np.cross(f1, d)  # -y: loops counter-clockwise seen along +z
         sections = np.empty((n_stations, n_around, 3))
-        for i in range(n_stations):          # one vectorised ellipse per station
+        for i in range(n_stations):  # one vectorised ellipse per station
             xy = _ellipse_points(float(a[i]), float(b[i]), n_around)
             sections[i] = z[i] * d + np.outer(xy[:, 0], f1) + np.outer(xy[:, 1], f2)
         notes = []
         if pos[0] != 0.0:
             notes.append(f"station 0 is the first measurement, {pos[0]:g} mm from the wrist/ankle")
-        return cls(name=name, sections=sections, axis_origin=np.zeros(3), axis_direction=d,
-                   source="measurements", notes=tuple(notes))
+        return cls(
+            name=name,
+            sections=sections,
+            axis_origin=np.zeros(3),
+            axis_direction=d,
+            source="measurements",
+            notes=tuple(notes),
+        )
 
     @classmethod
-    def from_scan(cls, path: str | Path, *, axis: Sequence[float] | None = None, n_stations: int = 41,
-                  n_around: int = 64, trim: float = 0.05, units: str = "auto", name: str | None = None,
-                  reference: Sequence[float] | None = None) -> Limb:
+    def from_scan(
+        cls,
+        path: str | Path,
+        *,
+        axis: Sequence[float] | None = None,
+        n_stations: int = 41,
+        n_around: int = 64,
+        trim: float = 0.05,
+        units: str = "auto",
+        name: str | None = None,
+        reference: Sequence[float] | None = None,
+    ) -> Limb:
         """A limb from a surface scan (STL, OBJ, PLY, or anything trimesh or meshio reads).
 
         1. Read the triangles (``trimesh.load(force="mesh")`` for STL, OBJ, PLY, OFF, glTF, 3MF…,
@@ -578,8 +629,16 @@ class Limb:
            second-moment aspect (√(λmin/λmax)) is under 0.2, or the circumferences vary more than
            5× along the axis.
         """
-        return _scan_to_limb(Path(path), axis=axis, n_stations=n_stations, n_around=n_around, trim=trim,
-                             units=units, name=name, reference=reference)
+        return _scan_to_limb(
+            Path(path),
+            axis=axis,
+            n_stations=n_stations,
+            n_around=n_around,
+            trim=trim,
+            units=units,
+            name=name,
+            reference=reference,
+        )
 
 
 def _check_counts(n_stations: int, n_around: int) -> None:
@@ -595,11 +654,11 @@ def _check_counts(n_stations: int, n_around: int) -> None:
 
 #: (distance from the wrist mm, circumference mm, minor/major ratio) of the built-in arm
 EXAMPLE_ARM_MEASUREMENTS = (
-    (0.0, 160.0, 0.70),     # wrist
-    (90.0, 205.0, 0.78),    # lower forearm
-    (190.0, 250.0, 0.85),   # largest forearm
-    (270.0, 245.0, 0.90),   # elbow
-    (420.0, 315.0, 0.95),   # upper arm
+    (0.0, 160.0, 0.70),  # wrist
+    (90.0, 205.0, 0.78),  # lower forearm
+    (190.0, 250.0, 0.85),  # largest forearm
+    (270.0, 245.0, 0.90),  # elbow
+    (420.0, 315.0, 0.95),  # upper arm
 )
 
 
@@ -625,8 +684,9 @@ def example_arm(n_stations: int = 41, n_around: int = 64) -> Limb:
     PCHIP between the measurements), straight axis along +z.
     """
     pos, circ, ratio = (np.array(col) for col in zip(*EXAMPLE_ARM_MEASUREMENTS))
-    limb = Limb.from_measurements(pos, circ, ellipticity=ratio, n_stations=n_stations, n_around=n_around,
-                                  name="example arm")
+    limb = Limb.from_measurements(
+        pos, circ, ellipticity=ratio, n_stations=n_stations, n_around=n_around, name="example arm"
+    )
     return attrs.evolve(limb, source="example")
 
 
@@ -655,13 +715,15 @@ def load_limb(path_or_spec: Any, **kwargs: Any) -> Limb:
         return Limb.from_measurements(pos, circ, **{**spec, **kwargs})
     if isinstance(path_or_spec, (str, Path)):
         return Limb.from_scan(path_or_spec, **kwargs)
-    raise ConfigError("limb", "expected a scan file, 'example' or a measurement table, "
-                      f"got {type(path_or_spec).__name__}")
+    raise ConfigError(
+        "limb", f"expected a scan file, 'example' or a measurement table, got {type(path_or_spec).__name__}"
+    )
 
 
 # ----------------------------------------------------------------------------------------------
 # scans
 # ----------------------------------------------------------------------------------------------
+
 
 def _one_line(exc: BaseException) -> str:
     text = str(exc).strip().splitlines()
@@ -683,12 +745,14 @@ def _read_triangles(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
     def with_trimesh() -> tuple[np.ndarray, np.ndarray]:
         loaded = trimesh.load(str(path), force="mesh", process=False)
-        return (np.asarray(loaded.vertices, dtype=np.float64).reshape(-1, 3),
-                np.asarray(loaded.faces, dtype=np.int64).reshape(-1, 3))
+        return (
+            np.asarray(loaded.vertices, dtype=np.float64).reshape(-1, 3),
+            np.asarray(loaded.faces, dtype=np.int64).reshape(-1, 3),
+        )
 
     readers = [with_trimesh, lambda: _read_with_meshio(path)]
     if suffix.lstrip(".") not in _TRIMESH_NATIVE:
-        readers.reverse()          # meshio formats: read them with meshio itself
+        readers.reverse()  # meshio formats: read them with meshio itself
     try:
         vertices, faces = readers[0]()
     except Exception as exc:  # any reader failure becomes one line naming the file
@@ -701,15 +765,18 @@ def _read_triangles(path: Path) -> tuple[np.ndarray, np.ndarray]:
     if len(faces) == 0:
         points = _count_points(path)
         if points:
-            raise DataError(label, f"no triangles: {points} points but no faces (a point cloud?); "
-                            "a surface mesh is needed")
+            raise DataError(
+                label,
+                f"no triangles: {points} points but no faces (a point cloud?); a surface mesh is needed",
+            )
         raise DataError(label, f"no mesh data found (unreadable, or not a {suffix} file)")
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise DataError(label, f"face indices out of range (0..{len(vertices) - 1})")
     bad = ~np.all(np.isfinite(vertices), axis=1)
     if bad.any():
-        raise DataError(label, f"{int(bad.sum())} of {len(vertices)} vertices have non-finite "
-                        "coordinates (NaN or inf)")
+        raise DataError(
+            label, f"{int(bad.sum())} of {len(vertices)} vertices have non-finite coordinates (NaN or inf)"
+        )
     return vertices, faces
 
 
@@ -721,7 +788,7 @@ def _read_with_meshio(path: Path) -> tuple[np.ndarray, np.ndarray]:
     import meshio
 
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)      # meshio probing bytes that are not its format
+        warnings.simplefilter("ignore", RuntimeWarning)  # meshio probing bytes that are not its format
         m = meshio.read(str(path))
     pts = np.asarray(m.points, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] not in (2, 3):
@@ -773,7 +840,9 @@ def _surface_moments(vertices: np.ndarray, faces: np.ndarray) -> tuple[float, np
     total = float(area.sum())
     s = tri.sum(axis=1)
     centroid = (area @ s) / (3.0 * total)
-    second = (np.einsum("f,fi,fj->ij", area, s, s) + np.einsum("f,fvi,fvj->ij", area, tri, tri)) / (12.0 * total)
+    second = (np.einsum("f,fi,fj->ij", area, s, s) + np.einsum("f,fvi,fvj->ij", area, tri, tri)) / (
+        12.0 * total
+    )
     cov = second - np.outer(centroid, centroid)
     return total, centroid + shift, cov
 
@@ -786,7 +855,9 @@ def _canonical_sign(v: np.ndarray) -> np.ndarray:
 def _components(faces: np.ndarray, n_vertices: int) -> tuple[int, np.ndarray]:
     """Connected shells: (count, shell label of each face), via the vertex graph of the edges."""
     e = np.concatenate((faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]))
-    g = sparse.coo_matrix((np.ones(len(e), dtype=np.int8), (e[:, 0], e[:, 1])), shape=(n_vertices, n_vertices))
+    g = sparse.coo_matrix(
+        (np.ones(len(e), dtype=np.int8), (e[:, 0], e[:, 1])), shape=(n_vertices, n_vertices)
+    )
     count, labels = csgraph.connected_components(g, directed=False)
     used, face_label = np.unique(labels[faces[:, 0]], return_inverse=True)
     return len(used), face_label.reshape(-1)
@@ -808,7 +879,7 @@ class _Slicer:
         self.mesh = SimpleNamespace(vertices=np.asarray(mesh.vertices), faces=np.asarray(mesh.faces))
         self.origin = origin
         self.d = direction
-        self.h = (np.asarray(mesh.vertices) - origin) @ direction       # vertex heights
+        self.h = (np.asarray(mesh.vertices) - origin) @ direction  # vertex heights
         fh = self.h[np.asarray(mesh.faces)]
         self.fmin, self.fmax = fh.min(axis=1), fh.max(axis=1)
         self.hsorted = np.sort(self.h)
@@ -835,8 +906,13 @@ class _Slicer:
         local = np.flatnonzero((self.fmin < z) & (self.fmax > z))
         if local.size == 0:
             return np.zeros((0, 2, 3))
-        lines = mesh_plane(self.mesh, plane_normal=self.d, plane_origin=self.origin + z * self.d,
-                           local_faces=local, cached_dots=self.h - z)
+        lines = mesh_plane(
+            self.mesh,
+            plane_normal=self.d,
+            plane_origin=self.origin + z * self.d,
+            local_faces=local,
+            cached_dots=self.h - z,
+        )
         return np.asarray(lines, dtype=np.float64).reshape(-1, 2, 3)
 
 
@@ -874,7 +950,9 @@ def _closed_loops(seg: np.ndarray, tol: float) -> tuple[list[np.ndarray], int]:
     if loose.size >= 2:
         pairs = cKDTree(xy[loose]).query_pairs(4.0 * tol, output_type="ndarray")
         if len(pairs):
-            g = sparse.coo_matrix((np.ones(len(pairs)), (loose[pairs[:, 0]], loose[pairs[:, 1]])), shape=(n, n))
+            g = sparse.coo_matrix(
+                (np.ones(len(pairs)), (loose[pairs[:, 0]], loose[pairs[:, 1]])), shape=(n, n)
+            )
             _, merged = csgraph.connected_components(g, directed=False)
             node = merged[node]
             edges = edges_of(node)
@@ -933,7 +1011,7 @@ def _polygon_fourier(loop: np.ndarray, n: int) -> tuple[np.ndarray, float]:
     k = np.arange(1, top + 1)
     # e^{-iω_k s_j} = z_j^k with z_j = e^{-2πi s_j/P}: powers by a running product (k ≤ n/2)
     powers = np.cumprod(np.broadcast_to(np.exp(-2j * np.pi * s_vertex / perimeter), (top, len(w))), axis=0)
-    scale = -perimeter / (2.0 * np.pi * k) ** 2          # -1/(P ω²)
+    scale = -perimeter / (2.0 * np.pi * k) ** 2  # -1/(P ω²)
     coeffs = np.zeros(n, dtype=np.complex128)
     coeffs[k] = scale * np.einsum("kj,j->k", powers, jump)
     coeffs[-k] = scale * np.conj(np.einsum("kj,j->k", powers, np.conj(jump)))
@@ -962,7 +1040,7 @@ def _resample(loop: np.ndarray, n: int) -> tuple[np.ndarray, float]:
     cy = -np.mean(0.5 * w.imag**2 * dw.real) / area
     f = w.imag - cy
     change = np.flatnonzero(np.sign(f) != np.sign(np.roll(f, -1)))
-    if change.size == 0:      # cannot happen for a closed curve around its centroid
+    if change.size == 0:  # cannot happen for a closed curve around its centroid
         raise GeometryError("section loop does not cross its own centroid line")
     frac = f[change] / (f[change] - f[(change + 1) % fine])
     xcross = w.real[change] + frac * (w.real[(change + 1) % fine] - w.real[change])
@@ -985,8 +1063,11 @@ def _choose_shell(vertices: np.ndarray, faces: np.ndarray, label: str) -> tuple[
     if count == 1:
         return faces, []
     tri = vertices[faces]
-    areas = np.bincount(face_label, weights=0.5 * np.linalg.norm(
-        np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1), minlength=count)
+    areas = np.bincount(
+        face_label,
+        weights=0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1),
+        minlength=count,
+    )
     order = np.argsort(-areas)
     main = int(order[0])
     fragments = [int(s) for s in order[1:] if areas[s] < FRAGMENT_AREA_FRACTION * areas[main]]
@@ -1009,14 +1090,21 @@ def _choose_shell(vertices: np.ndarray, faces: np.ndarray, label: str) -> tuple[
             if not all(_inside_section(slicer, f1, f2, p) for p in sample):
                 outside += 1
         if outside:
-            raise DataError(label, f"{len(others) + 1} separate shells side by side ({outside} not inside the "
-                            "largest): ambiguous which is the limb (two limbs?); crop the scan to one limb")
+            raise DataError(
+                label,
+                f"{len(others) + 1} separate shells side by side ({outside} not inside the "
+                "largest): ambiguous which is the limb (two limbs?); crop the scan to one limb",
+            )
         inner = len(others)
-        notes.append(f"outer shell of {inner + 1} chosen; {inner} inner shell{'s' if inner > 1 else ''} ignored")
+        notes.append(
+            f"outer shell of {inner + 1} chosen; {inner} inner shell{'s' if inner > 1 else ''} ignored"
+        )
     if fragments:
         k = len(fragments)
-        notes.append(f"{k} small disconnected fragment{'s' if k > 1 else ''} (each under "
-                     f"{FRAGMENT_AREA_FRACTION:.0%} of the limb's area) ignored")
+        notes.append(
+            f"{k} small disconnected fragment{'s' if k > 1 else ''} (each under "
+            f"{FRAGMENT_AREA_FRACTION:.0%} of the limb's area) ignored"
+        )
     return main_faces, notes
 
 
@@ -1083,7 +1171,7 @@ def _scan_to_limb(path: Path, *, axis, n_stations, n_around, trim, units, name, 
             raise ConfigError("reference", f"must be a finite non-zero 3-vector, got {reference!r}")
         e1 = e1 / np.linalg.norm(e1)
     e1 = e1 - (e1 @ d) * d
-    if np.linalg.norm(e1) < 1e-3:             # within 0.06° of the axis: no azimuth
+    if np.linalg.norm(e1) < 1e-3:  # within 0.06° of the axis: no azimuth
         raise ConfigError("reference", "must not be parallel to the axis")
     e1 = _canonical_sign(e1 / np.linalg.norm(e1))
 
@@ -1094,8 +1182,10 @@ def _scan_to_limb(path: Path, *, axis, n_stations, n_around, trim, units, name, 
         scale = 1.0
         if length < METRES_BELOW:
             scale = 1000.0
-            note = (f"converted from metres: {length:.4g} long along the axis (< {METRES_BELOW:g}), "
-                    "coordinates multiplied by 1000")
+            note = (
+                f"converted from metres: {length:.4g} long along the axis (< {METRES_BELOW:g}), "
+                "coordinates multiplied by 1000"
+            )
             notes.append(note)
             warnings.warn(f"{label}: {note}", KnitframeWarning, stacklevel=3)
     elif scale != 1.0:
@@ -1112,7 +1202,7 @@ def _scan_to_limb(path: Path, *, axis, n_stations, n_around, trim, units, name, 
     f2 = np.cross(f1, d)
     tol = 1e-8 * float(np.ptp(vertices, axis=0).max())
     raw = []
-    for zi in z:                                   # one vectorised cut per station
+    for zi in z:  # one vectorised cut per station
         seg = slicer.segments(float(zi)) - center
         raw.append(np.stack((seg @ f1, seg @ f2), axis=-1))
     sizes = np.array([np.linalg.norm(s[:, 1] - s[:, 0], axis=1).sum() for s in raw])
@@ -1126,14 +1216,17 @@ def _scan_to_limb(path: Path, *, axis, n_stations, n_around, trim, units, name, 
 
     found = [_closed_loops(s, tol) for s in raw]
     if not any(loops for loops, _ in found):
-        raise DataError(label, "not tubular along its axis: no cross-section is a closed loop "
-                        "(an open sheet or plate?)")
+        raise DataError(
+            label, "not tubular along its axis: no cross-section is a closed loop (an open sheet or plate?)"
+        )
     problems = []
     for i, (loops, n_open) in enumerate(found):
         where = f"station {i} at {positions[i]:.1f} mm"
         if n_open:
-            problems.append(f"{where}: section is not closed ({n_open} open piece{'s' if n_open > 1 else ''}: "
-                            "a hole or tear in the scan)")
+            problems.append(
+                f"{where}: section is not closed ({n_open} open piece{'s' if n_open > 1 else ''}: "
+                "a hole or tear in the scan)"
+            )
         elif len(loops) == 0:
             problems.append(f"{where}: section is empty (a gap in the scan)")
         elif len(loops) > 1:
@@ -1149,22 +1242,37 @@ def _scan_to_limb(path: Path, *, axis, n_stations, n_around, trim, units, name, 
 
     diameter = float(np.mean(perimeter)) / np.pi
     if length < MIN_LENGTH_OVER_DIAMETER * diameter:
-        raise DataError(label, f"not tubular along its axis: {length:.1f} mm long, only {length / diameter:.2f} "
-                        f"times its mean diameter {diameter:.1f} mm (needs {MIN_LENGTH_OVER_DIAMETER:g}; "
-                        "a sphere or box?)")
+        raise DataError(
+            label,
+            f"not tubular along its axis: {length:.1f} mm long, only {length / diameter:.2f} "
+            f"times its mean diameter {diameter:.1f} mm (needs {MIN_LENGTH_OVER_DIAMETER:g}; "
+            "a sphere or box?)",
+        )
     centred = xy - xy.mean(axis=1, keepdims=True)
     lam = np.linalg.eigvalsh(np.einsum("sni,snj->sij", centred, centred) / n_around)
     aspect = np.sqrt(np.clip(lam[:, 0], 0.0, None) / lam[:, 1])
     if aspect.min() < MIN_SECTION_ASPECT:
         i = int(np.argmin(aspect))
-        raise DataError(label, f"not tubular along its axis: station {i} at {positions[i]:.1f} mm is flat "
-                        f"(thickness/width {aspect[i]:.2f} < {MIN_SECTION_ASPECT:g}; a plate?)")
+        raise DataError(
+            label,
+            f"not tubular along its axis: station {i} at {positions[i]:.1f} mm is flat "
+            f"(thickness/width {aspect[i]:.2f} < {MIN_SECTION_ASPECT:g}; a plate?)",
+        )
     ratio = perimeter.max() / perimeter.min()
     if ratio > MAX_CIRCUMFERENCE_RATIO:
-        raise DataError(label, f"not tubular along its axis: cross-section length varies {ratio:.1f} times "
-                        f"(over {MAX_CIRCUMFERENCE_RATIO:g}; a cone to a point or a blob?)")
+        raise DataError(
+            label,
+            f"not tubular along its axis: cross-section length varies {ratio:.1f} times "
+            f"(over {MAX_CIRCUMFERENCE_RATIO:g}; a cone to a point or a blob?)",
+        )
 
     plane = center + np.outer(z, d)
     sections = plane[:, None, :] + xy[..., :1] * f1 + xy[..., 1:] * f2
-    return Limb(name=path.stem if name is None else name, sections=sections, axis_origin=plane[0],
-                axis_direction=d, source=f"scan: {path.name}", notes=tuple(notes))
+    return Limb(
+        name=path.stem if name is None else name,
+        sections=sections,
+        axis_origin=plane[0],
+        axis_direction=d,
+        source=f"scan: {path.name}",
+        notes=tuple(notes),
+    )

@@ -31,7 +31,15 @@ import numpy as np
 
 from knitframe.errors import ConfigError
 
-__all__ = ["NoAssignment", "BandSolution", "solve_bands", "solve_bands_dp", "solve_bands_milp", "solve_levels", "runs"]
+__all__ = [
+    "NoAssignment",
+    "BandSolution",
+    "solve_bands",
+    "solve_bands_dp",
+    "solve_bands_milp",
+    "solve_levels",
+    "runs",
+]
 
 
 class NoAssignment(ValueError):
@@ -52,8 +60,11 @@ class BandSolution:
     def guarantee(self) -> str:
         if self.method == "dynamic programming":
             return "global optimum over course bands (dynamic programming, exact)"
-        return ("global optimum over course bands (MILP, HiGHS: proven optimal)" if self.gap <= 1e-9 else
-                f"within a relative gap of {self.gap:.2g} of the optimum over course bands (MILP, HiGHS)")
+        return (
+            "global optimum over course bands (MILP, HiGHS: proven optimal)"
+            if self.gap <= 1e-9
+            else f"within a relative gap of {self.gap:.2g} of the optimum over course bands (MILP, HiGHS)"
+        )
 
 
 def runs(rows: np.ndarray) -> list[tuple[int, int, int]]:
@@ -69,9 +80,15 @@ def _check(cost: np.ndarray, courses: np.ndarray) -> tuple[np.ndarray, np.ndarra
     cost = np.asarray(cost, dtype=np.float64)
     courses = np.asarray(courses, dtype=np.float64)
     if cost.ndim != 2 or cost.shape != courses.shape or cost.size == 0:
-        raise ValueError(f"cost and courses must be (rows, fabrics) arrays of one shape, got {cost.shape}, "
-                         f"{courses.shape}")
-    if np.any(np.isnan(cost)) or np.any(cost == -np.inf) or np.any(~np.isfinite(courses)) or np.any(courses <= 0):
+        raise ValueError(
+            f"cost and courses must be (rows, fabrics) arrays of one shape, got {cost.shape}, {courses.shape}"
+        )
+    if (
+        np.any(np.isnan(cost))
+        or np.any(cost == -np.inf)
+        or np.any(~np.isfinite(courses))
+        or np.any(courses <= 0)
+    ):
         raise ValueError("costs must be finite or +inf, and courses finite and > 0")
     return cost, courses
 
@@ -122,7 +139,7 @@ def solve_bands_dp(cost: np.ndarray, courses: np.ndarray, min_courses: float = 0
     e = R - 1
     while e >= 0:  # back-track the runs
         s = int(start[e, f])
-        rows[s:e + 1] = f
+        rows[s : e + 1] = f
         if s == 0:
             break
         prev = best[s - 1].copy()
@@ -132,8 +149,14 @@ def solve_bands_dp(cost: np.ndarray, courses: np.ndarray, min_courses: float = 0
     return BandSolution(rows, total, "dynamic programming")
 
 
-def solve_bands_milp(cost: np.ndarray, courses: np.ndarray, min_courses: float = 0.0, max_fabrics: int | None = None,
-                     *, time_limit: float = 10.0) -> BandSolution:
+def solve_bands_milp(
+    cost: np.ndarray,
+    courses: np.ndarray,
+    min_courses: float = 0.0,
+    max_fabrics: int | None = None,
+    *,
+    time_limit: float = 10.0,
+) -> BandSolution:
     r"""The same problem with at most ``max_fabrics`` distinct fabrics, as an integer program (HiGHS).
 
     Binary variables: :math:`x_{if}` (row i has fabric f), :math:`s_{if}` (a run of f starts at
@@ -178,7 +201,7 @@ def solve_bands_milp(cost: np.ndarray, courses: np.ndarray, min_courses: float =
             prev = [] if i == 0 else [(X(i - 1, f), 1.0)]
             add([(S(i, f), 1.0), (X(i, f), -1.0)] + prev, 0.0, np.inf)  # s >= x_i - x_{i-1}
             add([(X(i, f), 1.0), (Y(f), -1.0)], -np.inf, 0.0)
-            reach = np.flatnonzero(NN[i + 1:, f] - NN[i, f] >= min_courses - tol)
+            reach = np.flatnonzero(NN[i + 1 :, f] - NN[i, f] >= min_courses - tol)
             if not len(reach):
                 ub[S(i, f)] = 0.0
                 continue
@@ -188,28 +211,43 @@ def solve_bands_milp(cost: np.ndarray, courses: np.ndarray, min_courses: float =
     if max_fabrics is not None:
         add([(Y(f), 1.0) for f in range(F)], 1.0, float(max_fabrics))
     A = sp.csr_matrix((vals, (rows_i, cols_i)), shape=(len(lo), n))
-    res = milp(c, constraints=LinearConstraint(A, lo, hi), integrality=np.ones(n), bounds=Bounds(0, ub),
-               options={"time_limit": time_limit, "disp": False})
+    res = milp(
+        c,
+        constraints=LinearConstraint(A, lo, hi),
+        integrality=np.ones(n),
+        bounds=Bounds(0, ub),
+        options={"time_limit": time_limit, "disp": False},
+    )
     if res.x is None:
-        raise NoAssignment("no assignment meets the limits, the minimum region size and the fabric count "
-                         f"(HiGHS: {res.message})")
+        raise NoAssignment(
+            "no assignment meets the limits, the minimum region size and the fabric count "
+            f"(HiGHS: {res.message})"
+        )
     x = np.round(res.x[:nx]).reshape(R, F)
     rows = np.argmax(x, axis=1)
     gap = float(getattr(res, "mip_gap", 0.0) or 0.0)
     return BandSolution(rows, float(cost[np.arange(R), rows].sum()), "MILP (HiGHS)", gap=max(gap, 0.0))
 
 
-def solve_bands(cost: np.ndarray, courses: np.ndarray, min_courses: float = 0.0,
-                max_fabrics: int | None = None) -> BandSolution:
+def solve_bands(
+    cost: np.ndarray, courses: np.ndarray, min_courses: float = 0.0, max_fabrics: int | None = None
+) -> BandSolution:
     """Dynamic programming, or the integer program when the number of fabrics is limited."""
     if max_fabrics is not None and max_fabrics < np.asarray(cost).shape[1]:
         return solve_bands_milp(cost, courses, min_courses, max_fabrics)
     return solve_bands_dp(cost, courses, min_courses)
 
 
-def solve_levels(row_cost: Callable[[float], np.ndarray], courses: np.ndarray, levels: np.ndarray,
-                 evaluate: Callable[[np.ndarray], float], *, min_courses: float = 0.0,
-                 max_fabrics: int | None = None, refine: int = 12) -> BandSolution:
+def solve_levels(
+    row_cost: Callable[[float], np.ndarray],
+    courses: np.ndarray,
+    levels: np.ndarray,
+    evaluate: Callable[[np.ndarray], float],
+    *,
+    min_courses: float = 0.0,
+    max_fabrics: int | None = None,
+    refine: int = 12,
+) -> BandSolution:
     """Minimise over a free level τ as well: exact assignment for each τ, τ on a grid then refined.
 
     ``row_cost(τ)`` gives the (R, F) costs at level τ; ``evaluate(rows)`` the true objective of an

@@ -27,10 +27,16 @@ def write_design(d: Design, folder: Path) -> list[str]:
 
 
 def _cell_fields(d: Design) -> dict[str, np.ndarray]:
-    return {"fabric": d.fabric.ravel().astype(np.int64), "lambda1": d.lam1.ravel(), "lambda2": d.lam2.ravel(),
-            "T1_N_per_mm": d.T1.ravel(), "T2_N_per_mm": d.T2.ravel(),
-            "pressure_equivalent_mmHg": d.pressure_equivalent.ravel(),
-            "pressure_local_mmHg": d.pressure_local.ravel(), "over_limit": d.over_limit.ravel().astype(np.int64)}
+    return {
+        "fabric": d.fabric.ravel().astype(np.int64),
+        "lambda1": d.lam1.ravel(),
+        "lambda2": d.lam2.ravel(),
+        "T1_N_per_mm": d.T1.ravel(),
+        "T2_N_per_mm": d.T2.ravel(),
+        "pressure_equivalent_mmHg": d.pressure_equivalent.ravel(),
+        "pressure_local_mmHg": d.pressure_local.ravel(),
+        "over_limit": d.over_limit.ravel().astype(np.int64),
+    }
 
 
 def write_knit_map(d: Design, path: Path) -> None:
@@ -41,17 +47,52 @@ def write_knit_map(d: Design, path: Path) -> None:
     pe, pl = d.pressure_equivalent, d.pressure_local
     with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
-        w.writerow(["row", "column", "course_start", "course_end", "wale_start", "wale_end", "position_mm",
-                    "fabric", "pattern", "yarn", "stitch_length", "lambda1", "lambda2", "T1_N_per_mm",
-                    "T2_N_per_mm", "pressure_equivalent_mmHg", "pressure_local_mmHg"])
+        w.writerow(
+            [
+                "row",
+                "column",
+                "course_start",
+                "course_end",
+                "wale_start",
+                "wale_end",
+                "position_mm",
+                "fabric",
+                "pattern",
+                "yarn",
+                "stitch_length",
+                "lambda1",
+                "lambda2",
+                "T1_N_per_mm",
+                "T2_N_per_mm",
+                "pressure_equivalent_mmHg",
+                "pressure_local_mmHg",
+            ]
+        )
         for i in range(R):
             for j in range(A):
                 e = d.library.entries[int(d.fabric[i, j])]
                 w0, w1 = ((j * needles) // A, ((j + 1) * needles) // A) if needles else ("", "")
-                w.writerow([i, j, first[i], first[i + 1], w0, w1, f"{d.geometry.z[i]:.3f}", e.name, e.pattern,
-                            e.yarn, "" if e.stitch_length is None else f"{e.stitch_length:g}",
-                            f"{d.lam1[i, j]:.6g}", f"{d.lam2[i, j]:.6g}", f"{d.T1[i, j]:.6g}", f"{d.T2[i, j]:.6g}",
-                            f"{pe[i, j]:.4f}", f"{pl[i, j]:.4f}"])
+                w.writerow(
+                    [
+                        i,
+                        j,
+                        first[i],
+                        first[i + 1],
+                        w0,
+                        w1,
+                        f"{d.geometry.z[i]:.3f}",
+                        e.name,
+                        e.pattern,
+                        e.yarn,
+                        "" if e.stitch_length is None else f"{e.stitch_length:g}",
+                        f"{d.lam1[i, j]:.6g}",
+                        f"{d.lam2[i, j]:.6g}",
+                        f"{d.T1[i, j]:.6g}",
+                        f"{d.T2[i, j]:.6g}",
+                        f"{pe[i, j]:.4f}",
+                        f"{pl[i, j]:.4f}",
+                    ]
+                )
 
 
 def _colours(n: int):
@@ -74,8 +115,9 @@ def plot_knit_map(d: Design, path: Path) -> None:
     needles = d.tube.needles or A
     x = np.linspace(0, needles, A + 1)
     fig, ax = plt.subplots(figsize=(7.5, 8.5), layout="constrained")
-    ax.pcolormesh(x, y, d.fabric, cmap=ListedColormap(colours), vmin=-0.5, vmax=len(colours) - 0.5,
-                  edgecolors="none")
+    ax.pcolormesh(
+        x, y, d.fabric, cmap=ListedColormap(colours), vmin=-0.5, vmax=len(colours) - 0.5, edgecolors="none"
+    )
     for r in d.regions():
         r0 = y[r["rows"][0]]
         ax.axhline(r0, color="k", lw=0.6)
@@ -88,9 +130,21 @@ def plot_knit_map(d: Design, path: Path) -> None:
         title += f" × {d.tube.needles} needles"
     ax.set_title(title)
     ent = d.library.entries
-    ax.legend(handles=[Patch(color=colours[f], label=f"{ent[f].name} ({ent[f].pattern}, {ent[f].yarn}"
-                             + (f", SL{ent[f].stitch_length:g}" if ent[f].stitch_length else "") + ")")
-                       for f in used], loc="upper center", bbox_to_anchor=(0.5, -0.07), ncol=2, fontsize=8)
+    ax.legend(
+        handles=[
+            Patch(
+                color=colours[f],
+                label=f"{ent[f].name} ({ent[f].pattern}, {ent[f].yarn}"
+                + (f", SL{ent[f].stitch_length:g}" if ent[f].stitch_length else "")
+                + ")",
+            )
+            for f in used
+        ],
+        loc="upper center",
+        bbox_to_anchor=(0.5, -0.07),
+        ncol=2,
+        fontsize=8,
+    )
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -115,8 +169,14 @@ def plot_pressure(d: Design, path: Path) -> None:
     for (name, lo, hi), colour in zip(CLASSES, shades):
         ax2.axvspan(lo, min(hi, top), color=colour, zorder=0)
         ax2.text(0.5 * (lo + min(hi, top)), g.z[-1], f"class {name}", ha="center", va="top", fontsize=8)
-    ax2.fill_betweenx(g.z, pl.min(axis=1), pl.max(axis=1), color="tab:orange", alpha=0.3,
-                      label="local radius: min–max around")
+    ax2.fill_betweenx(
+        g.z,
+        pl.min(axis=1),
+        pl.max(axis=1),
+        color="tab:orange",
+        alpha=0.3,
+        label="local radius: min–max around",
+    )
     ax2.plot(pe.mean(axis=1), g.z, color="tab:blue", lw=2.0, label="equivalent radius C/2π")
     ax2.plot(pl.mean(axis=1), g.z, color="tab:red", lw=1.2, ls=":", label="local radius: mean around")
     target = getattr(d.objective, "target", None)

@@ -74,15 +74,25 @@ def element_geometry(limb) -> ElementGeometry:
     e2 = 0.5 * (along + np.roll(along, -1, axis=1))
     # two triangles per quad: (i,j), (i,j+1), (i+1,j+1) and (i,j), (i+1,j+1), (i+1,j)
     a, b, c, d = P[:-1], Q[:-1], Q[1:], P[1:]
-    area = 0.5 * (np.linalg.norm(np.cross(b - a, c - a), axis=2) + np.linalg.norm(np.cross(c - a, d - a), axis=2))
+    area = 0.5 * (
+        np.linalg.norm(np.cross(b - a, c - a), axis=2) + np.linalg.norm(np.cross(c - a, d - a), axis=2)
+    )
     kappa = 1.0 / np.asarray(limb.curvature_radius, dtype=np.float64)  # (S, A); 1/inf = 0 where straight
     k_pts = 0.5 * (kappa + np.roll(kappa, -1, axis=1))
     curvature = 0.5 * (k_pts[:-1] + k_pts[1:])
     pos = np.asarray(limb.positions, dtype=np.float64)
     z = 0.5 * (pos[:-1] + pos[1:])
     length = pos[-1] - pos[0]
-    return ElementGeometry(e1, e2, area, curvature, 0.25 * (circ[:-1] + circ[1:]) / np.pi,
-                           (z - pos[0]) / length, z, 0.5 * (circ[:-1] + circ[1:]))
+    return ElementGeometry(
+        e1,
+        e2,
+        area,
+        curvature,
+        0.25 * (circ[:-1] + circ[1:]) / np.pi,
+        (z - pos[0]) / length,
+        z,
+        0.5 * (circ[:-1] + circ[1:]),
+    )
 
 
 @attrs.frozen
@@ -108,9 +118,14 @@ class Tube:
     needles: int | None = None
     axial_stretch: float = 1.0
 
-    def stretches(self, geo: ElementGeometry, course_pitch: np.ndarray, wale_pitch: np.ndarray,
-                  limb_distal_circumference: float, needles: int | None = None
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def stretches(
+        self,
+        geo: ElementGeometry,
+        course_pitch: np.ndarray,
+        wale_pitch: np.ndarray,
+        limb_distal_circumference: float,
+        needles: int | None = None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """λ1, λ2 of shape (F, R, A) and the courses per row (R, F) for fabrics of the given pitches."""
         c = np.asarray(course_pitch, dtype=np.float64)
         w = np.asarray(wale_pitch, dtype=np.float64)

@@ -62,7 +62,9 @@ def check_executor(obj: Any) -> None:
         assert ex.map(_square, jobs) == [0.0, 1.0, 4.0, 9.0], "map must return results in job order"
         # plant a sentinel in the cache: a cached job must come back from the cache, not be recomputed
         JobCache(tmp).put(job_key(_square, jobs[2]), "cached")
-        assert ex.map(_square, jobs)[2] == "cached", "a finished job was recomputed instead of read from the cache"
+        assert ex.map(_square, jobs)[2] == "cached", (
+            "a finished job was recomputed instead of read from the cache"
+        )
 
 
 def check_design_objective(obj: Any) -> None:
@@ -75,7 +77,9 @@ def check_design_objective(obj: Any) -> None:
     varied = inst.score(np.array([0.05, 0.07, 0.09, 0.11]), area, radius)
     assert np.isfinite(uniform) and np.isfinite(varied), "scores must be finite"
     assert varied > uniform, f"non-uniform tension must score worse ({varied} <= {uniform})"
-    assert inst.quantity in ("tension", "pressure"), f"quantity must be 'tension' or 'pressure', got {inst.quantity!r}"
+    assert inst.quantity in ("tension", "pressure"), (
+        f"quantity must be 'tension' or 'pressure', got {inst.quantity!r}"
+    )
     position = np.linspace(0.0, 1.0, 4)
     values = np.array([[5.0, 10.0, 15.0, 20.0], [12.0, 12.0, 12.0, 12.0]])
     level = 12.0 if inst.relative else None
@@ -83,7 +87,9 @@ def check_design_objective(obj: Any) -> None:
     assert cost.shape == values.shape, f"element_cost must keep the shape of the values, got {cost.shape}"
     assert np.all(np.isfinite(cost)) and np.all(cost >= 0), "element costs must be finite and >= 0"
     if inst.relative:
-        assert np.allclose(cost[1], 0.0), "a relative objective's cost is zero where every value equals the level"
+        assert np.allclose(cost[1], 0.0), (
+            "a relative objective's cost is zero where every value equals the level"
+        )
     assert np.isfinite(inst.evaluate(values[0], area, position)), "evaluate must be finite"
 
 

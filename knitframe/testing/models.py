@@ -39,7 +39,9 @@ def _close(a, b, rtol: float, what: str, floor: float = 0.0) -> None:
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
     scale = max(float(np.abs(b).max()), float(np.abs(a).max()), 1e-12)
     err = float(np.abs(a - b).max())
-    assert err <= rtol * scale + floor, f"{what}: max difference {err:.3g} exceeds {rtol:g} x {scale:.3g} + {floor:.3g}"
+    assert err <= rtol * scale + floor, (
+        f"{what}: max difference {err:.3g} exceeds {rtol:g} x {scale:.3g} + {floor:.3g}"
+    )
 
 
 def _roundoff(values, step: float) -> float:
@@ -67,31 +69,56 @@ def check_homogenizer(obj: Any) -> None:
     """
     m = _instance(obj)
     names = tuple(m.param_names)
-    assert names and all(isinstance(n, str) for n in names), "param_names must be a non-empty tuple of strings"
+    assert names and all(isinstance(n, str) for n in names), (
+        "param_names must be a non-empty tuple of strings"
+    )
     lo, hi = (np.asarray(b, dtype=np.float64) for b in m.bounds())
     assert lo.shape == hi.shape == (len(names),), f"bounds() must give two arrays of length {len(names)}"
     assert np.all(lo <= hi), "bounds(): lower > upper"
     x0 = np.asarray(m.x0(), dtype=np.float64)
-    assert x0.shape == lo.shape and np.all((x0 >= lo) & (x0 <= hi)), f"x0() {x0.tolist()} lies outside bounds()"
+    assert x0.shape == lo.shape and np.all((x0 >= lo) & (x0 <= hi)), (
+        f"x0() {x0.tolist()} lies outside bounds()"
+    )
     l1, l2 = _stretches()
     h = 1e-6
     for p in _param_sets(m):
         psi = np.asarray(m.energy(p, l1, l2))
         P1, P2 = (np.asarray(a) for a in m.stress(p, l1, l2))
-        assert psi.shape == P1.shape == P2.shape == l1.shape, "energy and stress must keep the shape of the stretches"
-        assert np.all(np.isfinite(psi)) and np.all(np.isfinite(P1)) and np.all(np.isfinite(P2)), "non-finite energy or stress"
+        assert psi.shape == P1.shape == P2.shape == l1.shape, (
+            "energy and stress must keep the shape of the stretches"
+        )
+        assert np.all(np.isfinite(psi)) and np.all(np.isfinite(P1)) and np.all(np.isfinite(P2)), (
+            "non-finite energy or stress"
+        )
         fl = _roundoff(psi, h)
-        _close(P1, (m.energy(p, l1 + h, l2) - m.energy(p, l1 - h, l2)) / (2 * h), 1e-5, f"P1 vs dψ/dλ1 at {p.tolist()}", fl)
-        _close(P2, (m.energy(p, l1, l2 + h) - m.energy(p, l1, l2 - h)) / (2 * h), 1e-5, f"P2 vs dψ/dλ2 at {p.tolist()}", fl)
+        _close(
+            P1,
+            (m.energy(p, l1 + h, l2) - m.energy(p, l1 - h, l2)) / (2 * h),
+            1e-5,
+            f"P1 vs dψ/dλ1 at {p.tolist()}",
+            fl,
+        )
+        _close(
+            P2,
+            (m.energy(p, l1, l2 + h) - m.energy(p, l1, l2 - h)) / (2 * h),
+            1e-5,
+            f"P2 vs dψ/dλ2 at {p.tolist()}",
+            fl,
+        )
         one = np.ones(3)
         r1, r2 = m.stress(p, one, one)
         scale = max(float(np.abs(P1).max()), float(np.abs(P2).max()), 1e-12)
-        assert np.abs(r1).max() <= 1e-12 * scale and np.abs(r2).max() <= 1e-12 * scale, \
+        assert np.abs(r1).max() <= 1e-12 * scale and np.abs(r2).max() <= 1e-12 * scale, (
             f"the reference state (λ1 = λ2 = 1) must be stress-free, got P = ({r1[0]:.3g}, {r2[0]:.3g})"
-        assert abs(float(np.asarray(m.energy(p, one, one))[0])) <= 1e-12 * scale, "energy must vanish at λ = 1"
+        )
+        assert abs(float(np.asarray(m.energy(p, one, one))[0])) <= 1e-12 * scale, (
+            "energy must vanish at λ = 1"
+        )
         if hasattr(m, "stress_grad"):
             G1, G2 = (np.asarray(a) for a in m.stress_grad(p, l1, l2)[2:])
-            assert G1.shape == (len(l1), len(names)), f"stress_grad derivatives must have shape (n, {len(names)})"
+            assert G1.shape == (len(l1), len(names)), (
+                f"stress_grad derivatives must have shape (n, {len(names)})"
+            )
             for k, name in enumerate(names):
                 e = np.zeros_like(p)
                 e[k] = 1e-6 * max(1.0, abs(p[k]))
@@ -113,7 +140,9 @@ def check_homogenizer(obj: Any) -> None:
             _close(K22, (c2 - d2) / (2 * h), 1e-5, "dP2/dλ2", fl)
         if hasattr(m, "stress_tangent"):
             both = m.stress_tangent(p, l1, l2)
-            for got, want, what in zip(both, (P1, P2, *m.tangent(p, l1, l2)), ("P1", "P2", "K11", "K12", "K22")):
+            for got, want, what in zip(
+                both, (P1, P2, *m.tangent(p, l1, l2)), ("P1", "P2", "K11", "K12", "K22")
+            ):
                 _close(got, want, 1e-12, f"stress_tangent {what} vs stress/tangent")
     extreme = np.array([0.05, 0.3, 1.0, 3.0, 20.0])
     e1, e2 = (a.ravel() for a in np.meshgrid(extreme, extreme))
@@ -122,19 +151,32 @@ def check_homogenizer(obj: Any) -> None:
             try:
                 vals = [m.energy(p, e1, e2), *m.stress(p, e1, e2)]
             except FloatingPointError as e:
-                raise AssertionError(f"floating-point trouble at extreme stretch with parameters {p.tolist()}: {e}") from None
-            assert all(np.all(np.isfinite(v)) for v in vals), f"non-finite energy or stress at extreme stretch, parameters {p.tolist()}"
+                raise AssertionError(
+                    f"floating-point trouble at extreme stretch with parameters {p.tolist()}: {e}"
+                ) from None
+            assert all(np.all(np.isfinite(v)) for v in vals), (
+                f"non-finite energy or stress at extreme stretch, parameters {p.tolist()}"
+            )
     if hasattr(m, "solve_uniaxial"):
         lam = np.linspace(0.9, 1.5, 7)
         for d in (0, 1):
             lf, P = m.solve_uniaxial(x0, lam, ("course", "wale")[d])
-            assert np.shape(lf) == np.shape(P) == lam.shape, "solve_uniaxial must return arrays of the input's shape"
-            assert np.all(np.isfinite(lf)) and np.all(lf > 0) and np.all(np.isfinite(P)), "solve_uniaxial gave bad values"
+            assert np.shape(lf) == np.shape(P) == lam.shape, (
+                "solve_uniaxial must return arrays of the input's shape"
+            )
+            assert np.all(np.isfinite(lf)) and np.all(lf > 0) and np.all(np.isfinite(P)), (
+                "solve_uniaxial gave bad values"
+            )
             pair = (lam, lf) if d == 0 else (lf, lam)
             Pf = m.stress(x0, *pair)[1 - d]
             interior = lf > 1e-3 * 1.0001
-            _close(Pf[interior], np.zeros(int(interior.sum())), 0.0, "free-side tension after solve_uniaxial",
-                   1e-8 * float(np.abs(P).max()) + 1e-14)
+            _close(
+                Pf[interior],
+                np.zeros(int(interior.sum())),
+                0.0,
+                "free-side tension after solve_uniaxial",
+                1e-8 * float(np.abs(P).max()) + 1e-14,
+            )
 
 
 def check_fitter(obj: Any) -> None:
@@ -158,9 +200,12 @@ def check_fitter(obj: Any) -> None:
     res = fitter.fit(model, curves)
     p = np.asarray(res.params, dtype=np.float64)
     assert p.shape == (3,), f"fit returned {p.shape} parameters for the 3-parameter hgo model"
-    assert abs(p[0] / true[0] - 1) < 0.01 and abs(p[1] / true[1] - 1) < 0.01, \
+    assert abs(p[0] / true[0] - 1) < 0.01 and abs(p[1] / true[1] - 1) < 0.01, (
         f"a, b not recovered: got {p[0]:.5g}, {p[1]:.5g}, expected 0.05, 3"
-    assert abs(math.degrees(p[2]) - 35.0) < 0.2, f"θ not recovered: got {math.degrees(p[2]):.3f}°, expected 35°"
+    )
+    assert abs(math.degrees(p[2]) - 35.0) < 0.2, (
+        f"θ not recovered: got {math.degrees(p[2]):.3f}°, expected 35°"
+    )
     assert res.nrmse["overall"] < 1e-3, f"NRMSE {res.nrmse['overall']:.3g} on noise-free data"
     assert res.n_evals > 0 and res.wall_time > 0, "fit must report evaluations and wall time"
 
@@ -180,7 +225,9 @@ def check_reader(obj: Any) -> None:
                 assert name in msg, f"DataError for {name} must name the file, got {msg!r}"
                 assert "\n" not in msg, f"DataError must be one line, got {msg!r}"
             else:
-                raise AssertionError(f"reading {'a missing' if text is None else 'an empty'} file must raise DataError")
+                raise AssertionError(
+                    f"reading {'a missing' if text is None else 'an empty'} file must raise DataError"
+                )
 
 
 def check_solver(obj: Any) -> None:
@@ -203,16 +250,26 @@ def check_solver(obj: Any) -> None:
     solver = _instance(obj)
     yarn = Yarn(name="check", d0=0.445, dk=0.444, E_axial=100.0, E_transverse=5.0, source="conformance kit")
     fabric = Fabric(pattern="jersey", yarn=yarn, stitch_length=10.0)
-    paths = {"equibiaxial": LoadPath("equibiaxial", 0.05, 2), "uniaxial-course": LoadPath("uniaxial", 0.05, 2),
-             "uniaxial-wale": LoadPath("uniaxial", 0.05, 2, direction="wale"),
-             "general": LoadPath("general", lambda1=(1.02, 1.05), lambda2=(1.01, 1.0))}
+    paths = {
+        "equibiaxial": LoadPath("equibiaxial", 0.05, 2),
+        "uniaxial-course": LoadPath("uniaxial", 0.05, 2),
+        "uniaxial-wale": LoadPath("uniaxial", 0.05, 2, direction="wale"),
+        "general": LoadPath("general", lambda1=(1.02, 1.05), lambda2=(1.01, 1.0)),
+    }
     for key, load in paths.items():
         if key not in loads and load.kind not in loads:
             continue
         r = solver.simulate(fabric, Scene(load=load, effects=effects))
         assert isinstance(r, Response), f"simulate must return a Response, got {type(r).__name__}"
-        assert len(r) == len(load.stretches()[0]), f"{key}: Response has {len(r)} points, the scene has {len(load.stretches()[0])}"
+        assert len(r) == len(load.stretches()[0]), (
+            f"{key}: Response has {len(r)} points, the scene has {len(load.stretches()[0])}"
+        )
         assert np.all(np.isfinite(r.T1)) and np.all(np.isfinite(r.T2)), f"{key}: non-finite tension"
 
 
-CHECKS = {"homogenizer": check_homogenizer, "fitter": check_fitter, "reader": check_reader, "solver": check_solver}
+CHECKS = {
+    "homogenizer": check_homogenizer,
+    "fitter": check_fitter,
+    "reader": check_reader,
+    "solver": check_solver,
+}

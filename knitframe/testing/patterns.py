@@ -16,12 +16,29 @@ import numpy as np
 from knitframe.geometry import UnitCell, crossings, frames
 from knitframe.records import Fabric, Yarn
 
-__all__ = ["CHECKS", "check_pattern", "check_yarn", "check_yarn_model", "reference_yarn", "knit_topology", "derivative_errors"]
+__all__ = [
+    "CHECKS",
+    "check_pattern",
+    "check_yarn",
+    "check_yarn_model",
+    "reference_yarn",
+    "knit_topology",
+    "derivative_errors",
+]
 
 
 def reference_yarn() -> Yarn:
     """A transversely isotropic test yarn (cotton-sized) that every pattern and yarn model must accept."""
-    return Yarn(name="check", d0=0.445, dk=0.444, E_axial=100.0, E_transverse=5.0, G_axial=2.0, nu=0.3, source="conformance kit")
+    return Yarn(
+        name="check",
+        d0=0.445,
+        dk=0.444,
+        E_axial=100.0,
+        E_transverse=5.0,
+        G_axial=2.0,
+        nu=0.3,
+        source="conformance kit",
+    )
 
 
 def _instance(obj: Any) -> Any:
@@ -34,12 +51,18 @@ def check_periodicity(cell: UnitCell, tol: float = 1e-9) -> None:
     for i, j in cell.end_pairs:
         a, b = cell.yarns[i], cell.yarns[j]
         pa, pb = a.position(np.array([a.t1]))[0], b.position(np.array([b.t0]))[0] + cell.L1
-        assert np.linalg.norm(pa - pb) <= tol * scale, f"yarn {i} end misses yarn {j} start + L1 by {np.linalg.norm(pa - pb):.3g} mm"
+        assert np.linalg.norm(pa - pb) <= tol * scale, (
+            f"yarn {i} end misses yarn {j} start + L1 by {np.linalg.norm(pa - pb):.3g} mm"
+        )
         ta, tb = a.derivative(np.array([a.t1]))[0], b.derivative(np.array([b.t0]))[0]
         ta, tb = ta / np.linalg.norm(ta), tb / np.linalg.norm(tb)
-        assert np.linalg.norm(ta - tb) <= tol, f"tangent jumps by {np.linalg.norm(ta - tb):.3g} between yarn {i} and yarn {j}"
+        assert np.linalg.norm(ta - tb) <= tol, (
+            f"tangent jumps by {np.linalg.norm(ta - tb):.3g} between yarn {i} and yarn {j}"
+        )
         period = a.position(np.array([a.t1]))[0] - a.position(np.array([a.t0]))[0]
-        assert np.allclose(period, a.period, atol=tol * scale), f"yarn {i}: period {a.period} != r(t1) - r(t0) = {period}"
+        assert np.allclose(period, a.period, atol=tol * scale), (
+            f"yarn {i}: period {a.period} != r(t1) - r(t0) = {period}"
+        )
 
 
 def check_tangents(cell: UnitCell, rtol: float = 1e-6) -> None:
@@ -50,7 +73,9 @@ def check_tangents(cell: UnitCell, rtol: float = 1e-6) -> None:
         fd = (c.position(t + h) - c.position(t - h)) / (2 * h)
         d = c.derivative(t)
         err = np.abs(fd - d).max() / np.abs(d).max()
-        assert err < rtol, f"yarn '{c.name}': derivative differs from finite differences of position by {err:.3g}"
+        assert err < rtol, (
+            f"yarn '{c.name}': derivative differs from finite differences of position by {err:.3g}"
+        )
 
 
 def check_pattern(obj: Any) -> None:
@@ -58,15 +83,27 @@ def check_pattern(obj: Any) -> None:
     pattern = _instance(obj)
     target = 4.7
     cell = pattern.cell(Fabric(pattern=pattern.name, yarn=reference_yarn(), arc_length=target))
-    assert isinstance(cell, UnitCell), f"cell() must return knitframe.geometry.UnitCell, got {type(cell).__name__}"
+    assert isinstance(cell, UnitCell), (
+        f"cell() must return knitframe.geometry.UnitCell, got {type(cell).__name__}"
+    )
     assert cell.pattern == pattern.name, f"cell.pattern is '{cell.pattern}', expected '{pattern.name}'"
     assert np.isclose(cell.radius, 0.222), f"cell.radius must be dk/2 = 0.222, got {cell.radius}"
-    assert len(cell.layout) >= 1 and all(s in ("k", "p") for row in cell.layout for s in row), "layout must hold 'k'/'p'"
+    assert len(cell.layout) >= 1 and all(s in ("k", "p") for row in cell.layout for s in row), (
+        "layout must hold 'k'/'p'"
+    )
     got = sum(c.arc_length() for c in cell.yarns) / sum(len(r) for r in cell.layout)
-    assert abs(got - target) <= 1e-6 * target, f"arc length per stitch {got} misses the target {target} by more than 1e-6"
-    assert abs(cell.arc_length_per_stitch - got) <= 1e-6 * target, "arc_length_per_stitch disagrees with the yarn lengths"
-    assert np.allclose(cell.L1, [2 * cell.course_pitch, 0, 0]), f"L1 must be (2 course pitch, 0, 0), got {cell.L1}"
-    assert np.allclose(cell.L2, [0, 2 * cell.wale_pitch, 0]), f"L2 must be (0, 2 wale pitch, 0), got {cell.L2}"
+    assert abs(got - target) <= 1e-6 * target, (
+        f"arc length per stitch {got} misses the target {target} by more than 1e-6"
+    )
+    assert abs(cell.arc_length_per_stitch - got) <= 1e-6 * target, (
+        "arc_length_per_stitch disagrees with the yarn lengths"
+    )
+    assert np.allclose(cell.L1, [2 * cell.course_pitch, 0, 0]), (
+        f"L1 must be (2 course pitch, 0, 0), got {cell.L1}"
+    )
+    assert np.allclose(cell.L2, [0, 2 * cell.wale_pitch, 0]), (
+        f"L2 must be (0, 2 wale pitch, 0), got {cell.L2}"
+    )
     check_periodicity(cell)
     check_tangents(cell)
     for f in frames(cell, 64):
@@ -82,7 +119,9 @@ def check_yarn(obj: Any) -> None:
     assert isinstance(obj, Yarn), f"a registered yarn must be a knitframe.Yarn, got {type(obj).__name__}"
     assert Yarn.from_dict(obj.to_dict()) == obj, "yarn must round-trip through to_dict/from_dict"
     assert obj.source.strip(), f"yarn '{obj.name}' must say where its numbers come from (source)"
-    assert obj.model in get_registry()["yarn_model"], f"yarn '{obj.name}' names unknown yarn model '{obj.model}'"
+    assert obj.model in get_registry()["yarn_model"], (
+        f"yarn '{obj.name}' names unknown yarn model '{obj.model}'"
+    )
     get_registry()["yarn_model"][obj.model].from_yarn(obj)
 
 
@@ -109,9 +148,13 @@ def check_yarn_model(obj: Any) -> None:
     a = rng.standard_normal((4, 3))
     a /= np.linalg.norm(a, axis=1)[:, None]
     W, P, A = model.evaluate(F, a)
-    assert W.shape == (4,) and P.shape == (4, 3, 3) and A.shape == (4, 3, 3, 3, 3), "evaluate must return W (...), P (...,3,3), A (...,3,3,3,3)"
+    assert W.shape == (4,) and P.shape == (4, 3, 3) and A.shape == (4, 3, 3, 3, 3), (
+        "evaluate must return W (...), P (...,3,3), A (...,3,3,3,3)"
+    )
     W0, P0, _ = model.evaluate(np.eye(3)[None], a[:1])
-    assert abs(W0[0]) < 1e-12 and np.abs(P0).max() < 1e-9 * model.E_axial, "the reference state must be stress-free"
+    assert abs(W0[0]) < 1e-12 and np.abs(P0).max() < 1e-9 * model.E_axial, (
+        "the reference state must be stress-free"
+    )
     eP, eA = derivative_errors(model, F, a)
     assert eP < 1e-6, f"P differs from dW/dF by {eP:.3g} (relative, central differences)"
     assert eA < 1e-6, f"A differs from dP/dF by {eA:.3g} (relative, central differences)"
@@ -148,11 +191,15 @@ def knit_topology(cell: UnitCell) -> list[tuple[int, int, str]]:
         edges = np.arange(c.t0, c.t1 + 1e-9, np.pi)
         for h in range(len(edges) - 1):
             inside = [x for x in cr if edges[h] <= x[0] < edges[h + 1]]
-            assert len(inside) == 2, f"row {r}, half-loop {h}: {len(inside)} crossings with the row below, expected 2"
+            assert len(inside) == 2, (
+                f"row {r}, half-loop {h}: {len(inside)} crossings with the row below, expected 2"
+            )
             rising = h % 2 == 0  # from sinker to head
             sinker, leg = (inside[0], inside[1]) if rising else (inside[1], inside[0])
             kind = "k" if leg[2] > 0 else "p"
-            assert (sinker[2] < 0) == (leg[2] > 0), f"row {r}, half-loop {h}: leg and sinker crossings disagree"
+            assert (sinker[2] < 0) == (leg[2] > 0), (
+                f"row {r}, half-loop {h}: leg and sinker crossings disagree"
+            )
             col = int(np.rint(leg[1] / cell.course_pitch)) % len(cell.layout[r])
             found.setdefault((r, col), set()).add(kind)
     out = []

@@ -59,7 +59,9 @@ def check_contact_law(obj: Any) -> None:
         assert a.shape == d.shape, f"{name} has shape {a.shape}, expected {d.shape}"
         assert np.all(np.isfinite(a)), f"{name} is not finite for d in [{d[0]:.3g}, {d[-1]:.3g}] (dk = {dk})"
     out = d >= dk
-    assert np.all(e[out] == 0) and np.all(e1[out] == 0), "energy and force must vanish once the yarns separate (d >= dk)"
+    assert np.all(e[out] == 0) and np.all(e1[out] == 0), (
+        "energy and force must vanish once the yarns separate (d >= dk)"
+    )
     assert np.all(e >= 0), "contact energy must be non-negative"
     force = -e1
     assert np.all(force >= -1e-14), "the contact force must push the yarns apart (de/dd <= 0)"

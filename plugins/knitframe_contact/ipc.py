@@ -56,7 +56,8 @@ import attrs
 import numpy as np
 import scipy.sparse as sp
 
-from knitframe import hookimpl, validators as v
+from knitframe import hookimpl
+from knitframe import validators as v
 from knitframe.errors import NumericalError
 from knitframe.periodic import N_MACRO, macro_index
 
@@ -98,14 +99,19 @@ class PeriodicCollisionMesh:
             L = np.column_stack([lat.L1[:2], lat.L2[:2]])
             k_node = np.rint(np.linalg.solve(L, (X - X[canon])[:, :2].T).T).astype(np.int64)
             if np.abs(lat.reference_shift(k_node) - (X - X[canon])).max() > 1e-6 * (1.0 + np.abs(X).max()):
-                raise NumericalError("ipc: an identified node is not a lattice image of the node it stands for")
+                raise NumericalError(
+                    "ipc: an identified node is not a lattice image of the node it stands for"
+                )
             used = np.unique(canon[tri])
             lo, hi = X[used].min(axis=0), X[used].max(axis=0)
             grow = margin * max(np.linalg.norm(lat.L1), np.linalg.norm(lat.L2))
             r = range(-ring, ring + 1)
             cand = np.array([(a, b) for a in r for b in r], np.int64)
             S = lat.reference_shift(cand)
-            overlap = np.all((lo[None, :2] + S[:, :2] <= hi[:2] + grow) & (hi[None, :2] + S[:, :2] >= lo[:2] - grow), axis=1)
+            overlap = np.all(
+                (lo[None, :2] + S[:, :2] <= hi[:2] + grow) & (hi[None, :2] + S[:, :2] >= lo[:2] - grow),
+                axis=1,
+            )
             images = cand[overlap]
             images = images[np.argsort(np.abs(images).sum(axis=1), kind="stable")]
         # every image's triangles, their corners mapped to (canonical node, image)
@@ -151,8 +157,12 @@ class PeriodicCollisionMesh:
                     r_.append(3 * np.arange(nv) + i)
                     c_.append(np.full(nv, 3 * N + macro_index(i, j)))
                     d_.append(S[:, j])
-            blocks.append(sp.csr_matrix((np.concatenate(d_), (np.concatenate(r_), np.concatenate(c_))),
-                                        shape=(3 * nv, 3 * N + N_MACRO)))
+            blocks.append(
+                sp.csr_matrix(
+                    (np.concatenate(d_), (np.concatenate(r_), np.concatenate(c_))),
+                    shape=(3 * nv, 3 * N + N_MACRO),
+                )
+            )
         self.P = sum(blocks[1:], blocks[0]).tocsr()
         self.PT = self.P.T.tocsr()
         self.lattice = lat
@@ -170,7 +180,9 @@ class PeriodicCollisionMesh:
         first, second = np.where(swap, b, a), np.where(swap, a, b)
         rel = self.image[second] - self.image[first]
         w = 2 * int(np.abs(rel).max(initial=0)) + 1
-        self.edge_class = ((self.node[first] * N + self.node[second]) * w + rel[:, 0] + w // 2) * w + rel[:, 1] + w // 2
+        self.edge_class = (
+            ((self.node[first] * N + self.node[second]) * w + rel[:, 0] + w // 2) * w + rel[:, 1] + w // 2
+        )
         self.edge_image = self.image[first]
         self.edge_owned = np.all(self.image[first] == 0, axis=1)
         #: the last broad-phase search (positions, candidates, d̂, reuse reach) kept by SolidIPC._collisions, and
@@ -259,8 +271,12 @@ class PeriodicCollisionMesh:
             neg = (d[:, 0] < 0) | ((d[:, 0] == 0) & (d[:, 1] < 0))
             keep = np.where(ca < cb, oa, np.where(ca > cb, ob, (oa & pos) | (ob & neg)))
             out.ee_candidates = [ee[i] for i in np.flatnonzero(keep)]
-        if len(cand.ev_candidates) or len(cand.vv_candidates):  # pragma: no cover - only for codimensional meshes
-            raise NumericalError("ipc: edge–vertex and vertex–vertex candidates (codimensional surfaces) are not supported")
+        if len(cand.ev_candidates) or len(
+            cand.vv_candidates
+        ):  # pragma: no cover - only for codimensional meshes
+            raise NumericalError(
+                "ipc: edge–vertex and vertex–vertex candidates (codimensional surfaces) are not supported"
+            )
         return out
 
 
@@ -269,7 +285,9 @@ def _ids(objs: list, *names: str) -> np.ndarray:
     intermediate tuples: about 2.5 times faster than a list comprehension on 10⁵–10⁶ candidates)."""
     get = operator.attrgetter(*names)
     flat = get if len(names) > 1 else (lambda o: (get(o),))
-    return np.fromiter(itertools.chain.from_iterable(map(flat, objs)), np.int64, len(names) * len(objs)).reshape(-1, len(names))
+    return np.fromiter(
+        itertools.chain.from_iterable(map(flat, objs)), np.int64, len(names) * len(objs)
+    ).reshape(-1, len(names))
 
 
 _CACHE: dict[int, tuple[Any, PeriodicCollisionMesh]] = {}
@@ -303,17 +321,33 @@ class SolidIPC:
     """Barrier contact (IPC, through ipctk) for solid meshes: intersection-free, smooth, with CCD."""
 
     name: ClassVar[str] = "ipc"
-    description: ClassVar[str] = "barrier contact (Incremental Potential Contact via ipctk): no interpenetration, CCD line search (solid)"
+    description: ClassVar[str] = (
+        "barrier contact (Incremental Potential Contact via ipctk): no interpenetration, CCD line search (solid)"
+    )
     discretisation: ClassVar[str] = "solid"
 
-    stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: ε, N/mm³; default factor·E/h
-    factor: float = attrs.field(default=10.0, validator=v.positive)  #: ε = factor · E / h when stiffness is not given, -
-    dhat: float = attrs.field(default=0.1, validator=v.in_range(1e-4, 1.0))  #: activation distance d̂ / mean surface edge length, -
-    friction: float = attrs.field(default=0.3, validator=v.in_range(0.0, 10.0))  #: Coulomb coefficient μ (used only with a friction state), -
-    slip: float = attrs.field(default=0.05, validator=v.positive)  #: friction regularisation ε_v / mean surface edge length, -
+    stiffness: float | None = attrs.field(
+        default=None, validator=v.optional(v.positive)
+    )  #: ε, N/mm³; default factor·E/h
+    factor: float = attrs.field(
+        default=10.0, validator=v.positive
+    )  #: ε = factor · E / h when stiffness is not given, -
+    dhat: float = attrs.field(
+        default=0.1, validator=v.in_range(1e-4, 1.0)
+    )  #: activation distance d̂ / mean surface edge length, -
+    friction: float = attrs.field(
+        default=0.3, validator=v.in_range(0.0, 10.0)
+    )  #: Coulomb coefficient μ (used only with a friction state), -
+    slip: float = attrs.field(
+        default=0.05, validator=v.positive
+    )  #: friction regularisation ε_v / mean surface edge length, -
     psd: bool = True  #: project each pair's Hessian to positive semi-definite (IPC's projected Newton)
-    reuse: float = attrs.field(default=0.5, validator=v.in_range(0.0, 10.0))  #: broad-phase candidates are kept while no vertex has moved over reuse·d̂ since the search, which inflates each box by (½ + reuse)·d̂ (exact: a pair now within d̂ was then within d̂ + 2·reuse·d̂); 0 searches at every evaluation, -
-    ccd: str = attrs.field(default="additive", validator=v.one_of(("additive", "tight-inclusion")))  #: narrow-phase CCD of the line search: "additive" (ACCD, Li et al. 2021: iterative, no interval lists; fast when pairs sit far inside d̂) or "tight-inclusion" (Wang et al. 2021: interval subdivision, ipctk's default; on the tight SL10 cell, 5e-8 mm gaps, one check took 60-70 s and 1.7 GB), -
+    reuse: float = attrs.field(
+        default=0.5, validator=v.in_range(0.0, 10.0)
+    )  #: broad-phase candidates are kept while no vertex has moved over reuse·d̂ since the search, which inflates each box by (½ + reuse)·d̂ (exact: a pair now within d̂ was then within d̂ + 2·reuse·d̂); 0 searches at every evaluation, -
+    ccd: str = attrs.field(
+        default="additive", validator=v.one_of(("additive", "tight-inclusion"))
+    )  #: narrow-phase CCD of the line search: "additive" (ACCD, Li et al. 2021: iterative, no interval lists; fast when pairs sit far inside d̂) or "tight-inclusion" (Wang et al. 2021: interval subdivision, ipctk's default; on the tight SL10 cell, 5e-8 mm gaps, one check took 60-70 s and 1.7 GB), -
 
     def penalty(self, modulus: float, size: float) -> float:
         """Penalty stiffness ε (N/mm³): ``stiffness``, else ``factor`` · E / h (converted to κ per surface)."""
@@ -328,8 +362,16 @@ class SolidIPC:
         k1 = _normal_stiffness(dhat)
         return pcm, dhat, ipctk.BarrierPotential(dhat, stiffness * area / k1)
 
-    def step_limit(self, surface, x: np.ndarray, h: np.ndarray | None, dx: np.ndarray, dh: np.ndarray | None,
-                   *, stiffness: float) -> float:
+    def step_limit(
+        self,
+        surface,
+        x: np.ndarray,
+        h: np.ndarray | None,
+        dx: np.ndarray,
+        dh: np.ndarray | None,
+        *,
+        stiffness: float,
+    ) -> float:
         """Largest α ∈ [0, 1] such that the straight path x + t·α·dx (t ∈ [0, 1]) has no crossing (CCD).
 
         The narrow phase is ``ccd``. The IPC Toolkit's CCD can run out of memory on a long step with many near pairs
@@ -345,12 +387,17 @@ class SolidIPC:
         scale = 1.0
         for _ in range(CCD_HALVINGS + 1):
             try:
-                return scale * float(ipctk.compute_collision_free_stepsize(pcm.mesh, V0, np.asfortranarray(V0 + scale * D),
-                                                                           narrow_phase_ccd=self._narrow_phase()))
+                return scale * float(
+                    ipctk.compute_collision_free_stepsize(
+                        pcm.mesh, V0, np.asfortranarray(V0 + scale * D), narrow_phase_ccd=self._narrow_phase()
+                    )
+                )
             except MemoryError:
                 scale *= 0.5
-        raise NumericalError(f"ipc: the collision check of a step ran out of memory even for 1/{2 ** CCD_HALVINGS:d} "
-                             f"of it (largest node move {float(np.max(np.abs(D))):.3g} mm)")
+        raise NumericalError(
+            f"ipc: the collision check of a step ran out of memory even for 1/{2**CCD_HALVINGS:d} "
+            f"of it (largest node move {float(np.max(np.abs(D))):.3g} mm)"
+        )
 
     def _narrow_phase(self):
         """ipctk's narrow-phase CCD of ``ccd``, each with ipctk's defaults (conservative rescaling 0.9 for
@@ -372,8 +419,13 @@ class SolidIPC:
         ipctk = _ipctk()
         held = pcm.held
         reach = self.reuse * dhat
-        if (held is None or held[2] != dhat or held[3] != reach or held[0].shape != V.shape
-                or float(np.max(np.einsum("ij,ij->i", V - held[0], V - held[0]), initial=0.0)) > reach * reach):
+        if (
+            held is None
+            or held[2] != dhat
+            or held[3] != reach
+            or held[0].shape != V.shape
+            or float(np.max(np.einsum("ij,ij->i", V - held[0], V - held[0]), initial=0.0)) > reach * reach
+        ):
             held = (np.array(V, copy=True), pcm.candidates(V, 0.5 * dhat + reach), dhat, reach)
             pcm.held = held
             pcm.searches += 1
@@ -381,8 +433,9 @@ class SolidIPC:
         col.build(held[1], pcm.mesh, V, dhat)
         return col
 
-    def friction_state(self, surface, x: np.ndarray, h: np.ndarray | None, *, stiffness: float, reach: float,
-                       **_: Any) -> IPCFrictionState:
+    def friction_state(
+        self, surface, x: np.ndarray, h: np.ndarray | None, *, stiffness: float, reach: float, **_: Any
+    ) -> IPCFrictionState:
         """Tangential pairs of the converged state x (normal forces and tangent bases lagged from it)."""
         ipctk = _ipctk()
         pcm, dhat, B = self._setup(surface, stiffness)
@@ -392,8 +445,18 @@ class SolidIPC:
         tc.build(pcm.mesh, V0, col, B, self.friction)
         return IPCFrictionState(tc, V0)
 
-    def evaluate(self, surface, x: np.ndarray, h: np.ndarray | None, order: int, *, stiffness: float, reach: float,
-                 friction_state: IPCFrictionState | None = None, **_: Any) -> tuple[float, Any, Any, dict[str, Any]]:
+    def evaluate(
+        self,
+        surface,
+        x: np.ndarray,
+        h: np.ndarray | None,
+        order: int,
+        *,
+        stiffness: float,
+        reach: float,
+        friction_state: IPCFrictionState | None = None,
+        **_: Any,
+    ) -> tuple[float, Any, Any, dict[str, Any]]:
         """Energy W (N·mm), gradient and Hessian in q = [u (3N), h (6)], and diagnostics.
 
         ``info``: ``active`` pairs within d̂, ``min_distance`` (mm), ``max_penetration`` (always 0:
@@ -405,8 +468,11 @@ class SolidIPC:
         V = pcm.positions(x, h)
         col = self._collisions(pcm, V, dhat)
         E = float(B(col, pcm.mesh, V))
-        info: dict[str, Any] = {"active": len(col), "max_penetration": 0.0,
-                                "min_distance": float(np.sqrt(col.compute_minimum_distance(pcm.mesh, V))) if len(col) else dhat}
+        info: dict[str, Any] = {
+            "active": len(col),
+            "max_penetration": 0.0,
+            "min_distance": float(np.sqrt(col.compute_minimum_distance(pcm.mesh, V))) if len(col) else dhat,
+        }
         if not np.isfinite(E):
             return np.inf, None, None, {"diagnostic": "ipc: surfaces touch or cross", **info}
         fr = friction_state is not None and self.friction > 0 and len(friction_state)
@@ -445,7 +511,9 @@ def _normal_stiffness(dhat: float) -> float:
 
     def energy(z: float) -> float:
         V = np.array([[-1.0, -1.0, 0.0], [2.0, -1.0, 0.0], [-1.0, 2.0, 0.0], [0.0, 0.0, z]])
-        m = ipctk.CollisionMesh(V, ipctk.edges(np.array([[0, 1, 2]], np.int32)), np.array([[0, 1, 2]], np.int32))
+        m = ipctk.CollisionMesh(
+            V, ipctk.edges(np.array([[0, 1, 2]], np.int32)), np.array([[0, 1, 2]], np.int32)
+        )
         c = ipctk.NormalCollisions()
         c.build(m, V, dhat)
         return float(B(c, m, V))

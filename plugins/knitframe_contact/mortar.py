@@ -47,11 +47,24 @@ from typing import Any, ClassVar
 import attrs
 import numpy as np
 
-from knitframe import hookimpl, validators as v
+from knitframe import hookimpl
+from knitframe import validators as v
 from knitframe_contact.penalty import SolidContactLaw
 from knitframe_contact.solid_geometry import (
-    Candidates, FrictionState, P2Projection, SolidSurface, assemble, barycentric, combine, facet_size, friction_terms,
-    p2_gap_derivatives, p2_shape, penalty_terms, plane_gap, select_pairs,
+    Candidates,
+    FrictionState,
+    P2Projection,
+    SolidSurface,
+    assemble,
+    barycentric,
+    combine,
+    facet_size,
+    friction_terms,
+    p2_gap_derivatives,
+    p2_shape,
+    penalty_terms,
+    plane_gap,
+    select_pairs,
 )
 
 
@@ -73,12 +86,24 @@ class SolidMortar(SolidContactLaw):
     """Segment-to-segment penalty contact integrated over the slave surface (solid meshes)."""
 
     name: ClassVar[str] = "mortar"
-    description: ClassVar[str] = "segment-to-segment penalty contact integrated over the slave surface (solid)"
+    description: ClassVar[str] = (
+        "segment-to-segment penalty contact integrated over the slave surface (solid)"
+    )
 
-    quadrature: int = attrs.field(default=4, validator=v.in_range(1, 19))  #: polynomial order of the slave-triangle rule, -
+    quadrature: int = attrs.field(
+        default=4, validator=v.in_range(1, 19)
+    )  #: polynomial order of the slave-triangle rule, -
 
-    def _pairs(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, reach: float,
-               order: int, normals: np.ndarray | None = None, held: Candidates | None = None) -> dict[str, Any]:
+    def _pairs(
+        self,
+        surface: SolidSurface,
+        x: np.ndarray,
+        h: np.ndarray | None,
+        reach: float,
+        order: int,
+        normals: np.ndarray | None = None,
+        held: Candidates | None = None,
+    ) -> dict[str, Any]:
         """Active quadrature-point pairs of state x: gaps (and their derivatives up to ``order``);
         with ``held`` the pairs are chosen from those candidates (:meth:`search`)."""
         quadratic = surface.facets.shape[1] == 6
@@ -107,19 +132,40 @@ class SolidMortar(SolidContactLaw):
         elements = surface.facets if quadratic else surface.triangles
         Xm = x[elements[cand.triangle]] + cand.shift[:, None, :]
         Xp = self.patches(surface, x, cand.triangle, cand.shift, normals) if smooth else Xm
-        chosen = select_pairs(xq[cand.point], cand.point, cand.triangle, Xp, ns_q[cand.point], reach,
-                              open_rim=surface.open_rim(cand.triangle, quadratic),
-                              corner_normals=self.corner_normals(surface, cand.triangle, normals))
+        chosen = select_pairs(
+            xq[cand.point],
+            cand.point,
+            cand.triangle,
+            Xp,
+            ns_q[cand.point],
+            reach,
+            open_rim=surface.open_rim(cand.triangle, quadratic),
+            corner_normals=self.corner_normals(surface, cand.triangle, normals),
+        )
         rows, g = chosen.rows, chosen.g
         point, Xm = cand.point[rows], Xm[rows]
         sel = np.flatnonzero((g < 0) & (g > -reach))
         point, Xm, g = point[sel], Xm[sel], g[sel]
         f, q = face[point], qidx[point]
         N = N_q[q]  # (m, k) slave shape functions at the points
-        out = {"quadratic": quadratic, "f": f, "q": q, "N": N, "g": g, "Xm": Xm, "p": xq[point],
-               "master": cand.triangle[rows[sel]], "image": cand.image[rows[sel]],
-               "weight": w[q] * dA[point], "sf": sf, "nq": nq, "dA": dA, "w": w, "qidx": qidx,
-               "candidates": cand}
+        out = {
+            "quadratic": quadratic,
+            "f": f,
+            "q": q,
+            "N": N,
+            "g": g,
+            "Xm": Xm,
+            "p": xq[point],
+            "master": cand.triangle[rows[sel]],
+            "image": cand.image[rows[sel]],
+            "weight": w[q] * dA[point],
+            "sf": sf,
+            "nq": nq,
+            "dA": dA,
+            "w": w,
+            "qidx": qidx,
+            "candidates": cand,
+        }
         if quadratic:
             pr = _take(chosen.projection, sel)
             out["xi"], out["normal"] = pr.xi, pr.n
@@ -129,7 +175,9 @@ class SolidMortar(SolidContactLaw):
             pr = _take(chosen.projection, sel)
             out["xi"], out["normal"] = pr.xi, pr.n
             if order >= 1:
-                out["dg"], out["Hg"] = self.patch_gap_derivatives(surface, Xm, out["master"], pr, N, order, normals)
+                out["dg"], out["Hg"] = self.patch_gap_derivatives(
+                    surface, Xm, out["master"], pr, N, order, normals
+                )
         else:
             A, B, C = Xm[:, 0], Xm[:, 1], Xm[:, 2]
             out["xi"] = barycentric(out["p"], A, B, C)[:, 1:]
@@ -150,8 +198,16 @@ class SolidMortar(SolidContactLaw):
                 out["Hg"] = Hfull
         return out
 
-    def friction_state(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, *, stiffness: float,
-                       reach: float, normals: np.ndarray | None = None) -> FrictionState:
+    def friction_state(
+        self,
+        surface: SolidSurface,
+        x: np.ndarray,
+        h: np.ndarray | None,
+        *,
+        stiffness: float,
+        reach: float,
+        normals: np.ndarray | None = None,
+    ) -> FrictionState:
         """Freeze the active quadrature-point pairs of the converged state x for the next increment's friction.
 
         Each pair keeps its slave facet and quadrature point, master facet (linear triangle on
@@ -170,14 +226,34 @@ class SolidMortar(SolidContactLaw):
         weights = np.column_stack([pr["N"], -Nm])
         c0 = pr["p"] - np.einsum("mk,mki->mi", Nm, pr["Xm"])
         slave = surface.slave[pr["f"]]
-        return FrictionState(slave, pr["q"], pr["master"], pr["image"], pr["xi"],
-                             pr["weight"] * self.normal_pressure(pr["g"], stiffness, reach),
-                             pr["normal"], facet_size(surface)[slave], nodes, images, weights, c0)
+        return FrictionState(
+            slave,
+            pr["q"],
+            pr["master"],
+            pr["image"],
+            pr["xi"],
+            pr["weight"] * self.normal_pressure(pr["g"], stiffness, reach),
+            pr["normal"],
+            facet_size(surface)[slave],
+            nodes,
+            images,
+            weights,
+            c0,
+        )
 
-    def evaluate(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, order: int, *,
-                 stiffness: float, reach: float, friction_state: FrictionState | None = None,
-                 normals: np.ndarray | None = None, candidates: Candidates | None = None
-                 ) -> tuple[float, Any, Any, dict[str, Any]]:
+    def evaluate(
+        self,
+        surface: SolidSurface,
+        x: np.ndarray,
+        h: np.ndarray | None,
+        order: int,
+        *,
+        stiffness: float,
+        reach: float,
+        friction_state: FrictionState | None = None,
+        normals: np.ndarray | None = None,
+        candidates: Candidates | None = None,
+    ) -> tuple[float, Any, Any, dict[str, Any]]:
         """Energy (N·mm), gradient and Hessian in q = [u (3N), h (6)], and diagnostics (see ``penalty``).
 
         ``normals`` (N, 3): the nodal normals that shape the smoothed master surface of linear
@@ -196,7 +272,9 @@ class SolidMortar(SolidContactLaw):
         pr = self._pairs(surface, x, h, reach, order, normals, candidates)
         quadratic = pr["quadratic"]
         g, f, weight, sf = pr["g"], pr["f"], pr["weight"], pr["sf"]
-        E, grad, hess = penalty_terms(g, pr.get("dg"), pr.get("Hg"), weight, stiffness, order, self.band(reach))
+        E, grad, hess = penalty_terms(
+            g, pr.get("dg"), pr.get("Hg"), weight, stiffness, order, self.band(reach)
+        )
         pn = self.normal_pressure(g, stiffness, reach)
         elements = surface.facets if quadratic else surface.triangles
         nodes = np.column_stack([sf[f], elements[pr["master"]]])
@@ -209,12 +287,21 @@ class SolidMortar(SolidContactLaw):
         key = (surface.slave[f] * len(elements) + pr["master"]) * 9 + 3 * (img[:, 0] + 1) + img[:, 1] + 1
         info: dict[str, Any] = {}
         if friction_state is not None and self.friction > 0 and len(friction_state):
-            Ef, gf, Hf, info = friction_terms(friction_state, x, h, surface.lattice, self.friction, self.slip, order)
+            Ef, gf, Hf, info = friction_terms(
+                friction_state, x, h, surface.lattice, self.friction, self.slip, order
+            )
             E += Ef
             info["friction_energy"] = Ef
             fs = friction_state
-            key = np.concatenate([key, (fs.slave * len(elements) + fs.master) * 9 + 3 * (fs.image[:, 0] + 1)
-                                  + fs.image[:, 1] + 1])
+            key = np.concatenate(
+                [
+                    key,
+                    (fs.slave * len(elements) + fs.master) * 9
+                    + 3 * (fs.image[:, 0] + 1)
+                    + fs.image[:, 1]
+                    + 1,
+                ]
+            )
             nodes, images = np.concatenate([nodes, fs.nodes]), np.concatenate([images, fs.images])
             grads, hesses = [grad, gf], [hess, Hf]
         else:
@@ -231,13 +318,15 @@ class SolidMortar(SolidContactLaw):
         np.add.at(den, np.repeat(sf, nq, axis=0).ravel(), np.repeat(wq, k))
         np.add.at(num, sf[f].ravel(), np.repeat(weight * pn, k))
         pressure = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
-        info.update({
-            "active": int(g.size),
-            "max_penetration": float(-g.min()) if g.size else 0.0,
-            "pressure": pressure,
-            "force": float(np.sum(weight * pn)),
-            "candidates": pr["candidates"],
-        })
+        info.update(
+            {
+                "active": int(g.size),
+                "max_penetration": float(-g.min()) if g.size else 0.0,
+                "pressure": pressure,
+                "force": float(np.sum(weight * pn)),
+                "candidates": pr["candidates"],
+            }
+        )
         return E, G, Hm, info
 
 

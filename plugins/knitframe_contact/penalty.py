@@ -39,10 +39,24 @@ from typing import Any, ClassVar
 import attrs
 import numpy as np
 
-from knitframe import hookimpl, validators as v
+from knitframe import hookimpl
+from knitframe import validators as v
 from knitframe_contact.solid_geometry import (
-    Candidates, FrictionState, P2Projection, SolidSurface, assemble, barycentric, chain_facet_derivatives, facet_size,
-    friction_terms, nagata_facets, node_normals, p2_gap_derivatives, penalty_depth, penalty_terms, plane_gap,
+    Candidates,
+    FrictionState,
+    P2Projection,
+    SolidSurface,
+    assemble,
+    barycentric,
+    chain_facet_derivatives,
+    facet_size,
+    friction_terms,
+    nagata_facets,
+    node_normals,
+    p2_gap_derivatives,
+    penalty_depth,
+    penalty_terms,
+    plane_gap,
     select_pairs,
 )
 
@@ -57,12 +71,24 @@ class SolidContactLaw:
     #: asking for more is refused before any work (VolumetricSolver.check_law_reach)
     finishes_strain: ClassVar[float | None] = 0.10
 
-    stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: ε, N/mm³; default factor·E/h
-    factor: float = attrs.field(default=10.0, validator=v.positive)  #: ε = factor · E / h when stiffness is not given, -
-    friction: float = attrs.field(default=0.3, validator=v.in_range(0.0, 10.0))  #: Coulomb coefficient μ (used only with a friction state), -
-    slip: float = attrs.field(default=0.05, validator=v.positive)  #: regularisation slip ε_s / slave facet size (mean corner-edge length), -
-    fade: float = attrs.field(default=0.5, validator=v.in_range(0.0, 1.0, lo_open=True))  #: penetration / reach from which the penalty fades out, reaching zero force at the reach (1: no fade), -
-    smoothing: str = attrs.field(default="nagata", validator=v.one_of(("none", "nagata")))  #: master surface of linear (P1) meshes: "none" (flat facets) or "nagata" (quadratic patches through the nodal normals), -
+    stiffness: float | None = attrs.field(
+        default=None, validator=v.optional(v.positive)
+    )  #: ε, N/mm³; default factor·E/h
+    factor: float = attrs.field(
+        default=10.0, validator=v.positive
+    )  #: ε = factor · E / h when stiffness is not given, -
+    friction: float = attrs.field(
+        default=0.3, validator=v.in_range(0.0, 10.0)
+    )  #: Coulomb coefficient μ (used only with a friction state), -
+    slip: float = attrs.field(
+        default=0.05, validator=v.positive
+    )  #: regularisation slip ε_s / slave facet size (mean corner-edge length), -
+    fade: float = attrs.field(
+        default=0.5, validator=v.in_range(0.0, 1.0, lo_open=True)
+    )  #: penetration / reach from which the penalty fades out, reaching zero force at the reach (1: no fade), -
+    smoothing: str = attrs.field(
+        default="nagata", validator=v.one_of(("none", "nagata"))
+    )  #: master surface of linear (P1) meshes: "none" (flat facets) or "nagata" (quadratic patches through the nodal normals), -
 
     def band(self, reach: float) -> tuple[float, float] | None:
         """The fade band (d1, d2) of the penetration, mm (see :func:`~knitframe_contact.solid_geometry.penalty_depth`).
@@ -89,14 +115,22 @@ class SolidContactLaw:
         start of each increment and passes them to :meth:`evaluate` as ``normals``."""
         if not self.smoothed(surface):
             return None
-        return node_normals(surface.X if x is None else x, surface.triangles[surface.tri_master], surface.identify)
+        return node_normals(
+            surface.X if x is None else x, surface.triangles[surface.tri_master], surface.identify
+        )
 
     def _nodal(self, surface: SolidSurface, normals: np.ndarray | None) -> np.ndarray:
         """The frozen nodal normals of an evaluation, or the reference configuration's."""
         return self.master_normals(surface) if normals is None else normals
 
-    def patches(self, surface: SolidSurface, x: np.ndarray, triangle: np.ndarray, shift: np.ndarray,
-                normals: np.ndarray | None) -> np.ndarray:
+    def patches(
+        self,
+        surface: SolidSurface,
+        x: np.ndarray,
+        triangle: np.ndarray,
+        shift: np.ndarray,
+        normals: np.ndarray | None,
+    ) -> np.ndarray:
         """Nagata patches (m, 6, 3) of master triangles ``triangle`` (m,) moved by ``shift`` (m, 3): each
         distinct triangle is built once (:func:`~knitframe_contact.solid_geometry.nagata_facets`)."""
         nodal = self._nodal(surface, normals)
@@ -104,7 +138,9 @@ class SolidContactLaw:
         tri = surface.triangles[used]
         return nagata_facets(x[tri], nodal[tri], blocks=False)[0][where] + shift[:, None, :]
 
-    def corner_normals(self, surface: SolidSurface, triangle: np.ndarray, normals: np.ndarray | None) -> np.ndarray | None:
+    def corner_normals(
+        self, surface: SolidSurface, triangle: np.ndarray, normals: np.ndarray | None
+    ) -> np.ndarray | None:
         """Nodal normals (m, 3, 3) at the corners of master triangles ``triangle`` (m,) that shape their
         patches (the edge pseudo-normals of :func:`~knitframe_contact.solid_geometry.select_pairs`), or None
         when the surface is not smoothed."""
@@ -113,15 +149,32 @@ class SolidContactLaw:
         nodal = self._nodal(surface, normals)
         return nodal[surface.triangles[triangle]]
 
-    def patch_gap_derivatives(self, surface: SolidSurface, Xt: np.ndarray, triangle: np.ndarray, projection,
-                              weights: np.ndarray | None, order: int, normals: np.ndarray | None):
+    def patch_gap_derivatives(
+        self,
+        surface: SolidSurface,
+        Xt: np.ndarray,
+        triangle: np.ndarray,
+        projection,
+        weights: np.ndarray | None,
+        order: int,
+        normals: np.ndarray | None,
+    ):
         """Gap gradient and Hessian of pairs on patches, in (slave points, the triangles' corners Xt (m, 3, 3))."""
         nodal = self._nodal(surface, normals)
         X6, A6 = nagata_facets(Xt, nodal[surface.triangles[triangle]])
         return chain_facet_derivatives(*p2_gap_derivatives(projection, X6, weights, order), A6)
 
-    def search(self, surface: SolidSurface, points: np.ndarray, point_node: np.ndarray, x: np.ndarray,
-               h: np.ndarray | None, reach: float, held: Candidates | None, **kw) -> Candidates:
+    def search(
+        self,
+        surface: SolidSurface,
+        points: np.ndarray,
+        point_node: np.ndarray,
+        x: np.ndarray,
+        h: np.ndarray | None,
+        reach: float,
+        held: Candidates | None,
+        **kw,
+    ) -> Candidates:
         """Candidate master elements of the query points: the broad-phase search
         (:meth:`SolidSurface.candidates`), or the ``held`` candidates of an earlier evaluation
         (its ``info["candidates"]``), whose image shifts F̄·S_k follow the current macro DOFs h.
@@ -135,8 +188,11 @@ class SolidContactLaw:
         """
         if held is None:
             return surface.candidates(points, point_node, x, h, reach, **kw)
-        shift = np.zeros((len(held.point), 3)) if surface.lattice is None else \
-            surface.lattice.shift(held.image, np.zeros(6) if h is None else h)
+        shift = (
+            np.zeros((len(held.point), 3))
+            if surface.lattice is None
+            else surface.lattice.shift(held.image, np.zeros(6) if h is None else h)
+        )
         return Candidates(held.point, held.triangle, held.image, shift)
 
     def penalty(self, modulus: float, size: float) -> float:
@@ -152,8 +208,15 @@ class SolidPenalty(SolidContactLaw):
     name: ClassVar[str] = "penalty"
     description: ClassVar[str] = "node-to-surface penalty contact between tetrahedral yarn surfaces (solid)"
 
-    def pairs(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, reach: float,
-              normals: np.ndarray | None = None, held: Candidates | None = None) -> dict[str, Any]:
+    def pairs(
+        self,
+        surface: SolidSurface,
+        x: np.ndarray,
+        h: np.ndarray | None,
+        reach: float,
+        normals: np.ndarray | None = None,
+        held: Candidates | None = None,
+    ) -> dict[str, Any]:
         """Slave node → nearest opposing master triangle within ``reach`` (mm), with its image (see
         :func:`knitframe_contact.solid_geometry.select_pairs`); on a smoothed surface also the
         patch projection and gap. ``held``: candidates to choose from instead of a search (:meth:`search`)."""
@@ -164,15 +227,36 @@ class SolidPenalty(SolidContactLaw):
         if smooth:
             Xm = self.patches(surface, x, cand.triangle, cand.shift, normals)
         ns = node_normals(x, surface.triangles[surface.tri_slave])[slave]
-        chosen = select_pairs(x[slave[cand.point]], cand.point, cand.triangle, Xm, ns[cand.point], reach,
-                              open_rim=surface.open_rim(cand.triangle, False),
-                              corner_normals=self.corner_normals(surface, cand.triangle, normals))
+        chosen = select_pairs(
+            x[slave[cand.point]],
+            cand.point,
+            cand.triangle,
+            Xm,
+            ns[cand.point],
+            reach,
+            open_rim=surface.open_rim(cand.triangle, False),
+            corner_normals=self.corner_normals(surface, cand.triangle, normals),
+        )
         rows = chosen.rows
-        return {"node": slave[cand.point[rows]], "triangle": cand.triangle[rows], "image": cand.image[rows],
-                "g": chosen.g, "projection": chosen.projection if smooth else None, "candidates": cand}
+        return {
+            "node": slave[cand.point[rows]],
+            "triangle": cand.triangle[rows],
+            "image": cand.image[rows],
+            "g": chosen.g,
+            "projection": chosen.projection if smooth else None,
+            "candidates": cand,
+        }
 
-    def _active(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, reach: float, order: int,
-                normals: np.ndarray | None = None, held: Candidates | None = None):
+    def _active(
+        self,
+        surface: SolidSurface,
+        x: np.ndarray,
+        h: np.ndarray | None,
+        reach: float,
+        order: int,
+        normals: np.ndarray | None = None,
+        held: Candidates | None = None,
+    ):
         """Active pairs: nodes (m, 4) and images (m, 4, 2) of (s, a, b, c), their points, gaps and derivatives."""
         pr = self.pairs(surface, x, h, reach, normals, held)
         tri = surface.triangles[pr["triangle"]]
@@ -190,15 +274,34 @@ class SolidPenalty(SolidContactLaw):
             proj = P2Projection(*(getattr(pr["projection"], f.name)[sel] for f in attrs.fields(P2Projection)))
             g, dg, Hg = g[sel], None, None
             if order >= 1:
-                dg, Hg = self.patch_gap_derivatives(surface, p[:, 1:], pr["triangle"][sel], proj, None, order, normals)
+                dg, Hg = self.patch_gap_derivatives(
+                    surface, p[:, 1:], pr["triangle"][sel], proj, None, order, normals
+                )
         else:
             g, dg, Hg = plane_gap(p[:, 0], p[:, 1], p[:, 2], p[:, 3], order=order)
-        return {"node": pr["node"][sel], "triangle": pr["triangle"][sel], "image": pr["image"][sel],
-                "nodes": nodes[sel], "images": images[sel], "p": p, "g": g, "dg": dg, "Hg": Hg,
-                "candidates": pr["candidates"]}
+        return {
+            "node": pr["node"][sel],
+            "triangle": pr["triangle"][sel],
+            "image": pr["image"][sel],
+            "nodes": nodes[sel],
+            "images": images[sel],
+            "p": p,
+            "g": g,
+            "dg": dg,
+            "Hg": Hg,
+            "candidates": pr["candidates"],
+        }
 
-    def friction_state(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, *, stiffness: float,
-                       reach: float, normals: np.ndarray | None = None) -> FrictionState:
+    def friction_state(
+        self,
+        surface: SolidSurface,
+        x: np.ndarray,
+        h: np.ndarray | None,
+        *,
+        stiffness: float,
+        reach: float,
+        normals: np.ndarray | None = None,
+    ) -> FrictionState:
         """Freeze the active node pairs of the converged state x for the next increment's friction.
 
         Each pair keeps its slave node, master triangle and image, the barycentric point ξ of the
@@ -217,14 +320,34 @@ class SolidPenalty(SolidContactLaw):
         np.add.at(den, sf.ravel(), 1.0)
         size = num[a["node"]] / den[a["node"]]
         force = surface.tributary[a["node"]] * self.normal_pressure(a["g"], stiffness, reach)
-        return FrictionState(a["node"], np.full(len(lam), -1), a["triangle"], a["image"], lam[:, 1:], force,
-                             nrm / np.linalg.norm(nrm, axis=1, keepdims=True), size, a["nodes"], a["images"], weights,
-                             np.einsum("mk,mki->mi", weights, p))
+        return FrictionState(
+            a["node"],
+            np.full(len(lam), -1),
+            a["triangle"],
+            a["image"],
+            lam[:, 1:],
+            force,
+            nrm / np.linalg.norm(nrm, axis=1, keepdims=True),
+            size,
+            a["nodes"],
+            a["images"],
+            weights,
+            np.einsum("mk,mki->mi", weights, p),
+        )
 
-    def evaluate(self, surface: SolidSurface, x: np.ndarray, h: np.ndarray | None, order: int, *,
-                 stiffness: float, reach: float, friction_state: FrictionState | None = None,
-                 normals: np.ndarray | None = None, candidates: Candidates | None = None
-                 ) -> tuple[float, Any, Any, dict[str, Any]]:
+    def evaluate(
+        self,
+        surface: SolidSurface,
+        x: np.ndarray,
+        h: np.ndarray | None,
+        order: int,
+        *,
+        stiffness: float,
+        reach: float,
+        friction_state: FrictionState | None = None,
+        normals: np.ndarray | None = None,
+        candidates: Candidates | None = None,
+    ) -> tuple[float, Any, Any, dict[str, Any]]:
         """Energy (N·mm), gradient and Hessian in q = [u (3N), h (6)], and diagnostics.
 
         Parameters
@@ -248,20 +371,24 @@ class SolidPenalty(SolidContactLaw):
         terms = [(a["nodes"], a["images"], grad, hess)]
         info: dict[str, Any] = {}
         if friction_state is not None and self.friction > 0 and len(friction_state):
-            Ef, gf, Hf, info = friction_terms(friction_state, x, h, surface.lattice, self.friction, self.slip, order)
+            Ef, gf, Hf, info = friction_terms(
+                friction_state, x, h, surface.lattice, self.friction, self.slip, order
+            )
             E += Ef
             info["friction_energy"] = Ef
             terms.append((friction_state.nodes, friction_state.images, gf, Hf))
         E, G, H = assemble(surface.n_nodes, surface.lattice, E, terms, order)
         pressure = np.zeros(surface.n_nodes)
         pressure[a["node"]] = self.normal_pressure(g, stiffness, reach)
-        info.update({
-            "active": int(g.size),
-            "max_penetration": float(-g.min()) if g.size else 0.0,
-            "pressure": pressure,
-            "force": float(np.sum(weight * pressure[a["node"]])),
-            "candidates": a["candidates"],
-        })
+        info.update(
+            {
+                "active": int(g.size),
+                "max_penetration": float(-g.min()) if g.size else 0.0,
+                "pressure": pressure,
+                "force": float(np.sum(weight * pressure[a["node"]])),
+                "candidates": a["candidates"],
+            }
+        )
         return E, G, H, info
 
 

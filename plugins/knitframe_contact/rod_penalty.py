@@ -34,7 +34,8 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
-from knitframe import hookimpl, validators as v
+from knitframe import hookimpl
+from knitframe import validators as v
 from knitframe_contact.solid_geometry import friction_potential
 
 
@@ -43,17 +44,26 @@ class RodPenalty:
     """Smooth penalty + stiffening barrier between rod centerlines, optional regularised Coulomb friction."""
 
     name: ClassVar[str] = "rod_penalty"
-    description: ClassVar[str] = "smooth centerline penalty with a stiffening core, regularised Coulomb friction (rods)"
+    description: ClassVar[str] = (
+        "smooth centerline penalty with a stiffening core, regularised Coulomb friction (rods)"
+    )
     discretisation: ClassVar[str] = "rod"
 
-    stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: line contact stiffness of two parallel yarns at 5 % flattening, N/mm²; default: the yarn model's
+    stiffness: float | None = attrs.field(
+        default=None, validator=v.optional(v.positive)
+    )  #: line contact stiffness of two parallel yarns at 5 % flattening, N/mm²; default: the yarn model's
     smoothing: float = attrs.field(default=0.05, validator=v.in_range(1e-3, 1.0))  #: ε/dk, -
-    core: float = attrs.field(default=0.5, validator=v.in_range(0.0, 1.0, hi_open=True))  #: smallest centre distance / dk (0: no barrier), -
+    core: float = attrs.field(
+        default=0.5, validator=v.in_range(0.0, 1.0, hi_open=True)
+    )  #: smallest centre distance / dk (0: no barrier), -
     friction: float = attrs.field(default=0.3, validator=v.in_range(0.0, 10.0))  #: Coulomb coefficient μ, -
-    slip: float = attrs.field(default=0.01, validator=v.in_range(0.0, 1.0, lo_open=True))  #: regularisation slip ε_s / dk, -
+    slip: float = attrs.field(
+        default=0.01, validator=v.in_range(0.0, 1.0, lo_open=True)
+    )  #: regularisation slip ε_s / dk, -
 
-    def normal(self, d: np.ndarray, dk: float, k: float, k_core: float | None = None
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def normal(
+        self, d: np.ndarray, dk: float, k: float, k_core: float | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Energy e and its first and second derivatives with respect to the centre distance d.
 
         Parameters
@@ -98,8 +108,9 @@ class RodPenalty:
         """Repulsion −de/dd at centre distances d (mm); zero when d ≥ dk."""
         return -self.normal(d, dk, k, k_core)[1]
 
-    def friction_potential(self, u: np.ndarray, lam: np.ndarray, dk: float
-                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def friction_potential(
+        self, u: np.ndarray, lam: np.ndarray, dk: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Friction pseudo-potential D, its gradient (m, 3) and Hessian (m, 3, 3) in the slip u (m, 3) mm.
 
         ``lam`` (m,) is the lagged normal force, N.

@@ -37,17 +37,46 @@ from knitframe.errors import NumericalError
 from knitframe.periodic import Lattice, PointMap
 
 __all__ = [
-    "plane_gap", "barycentric", "point_triangle_distance", "nearest", "node_normals", "penalty_terms", "penalty_depth",
-    "combine", "rim_edges",
-    "assemble", "SolidSurface", "Candidates", "bezier_points", "distance_bound", "select_pairs", "Selection",
-    "p2_shape", "p2_coefficients", "project_p2", "P2Projection", "facet_gap", "p2_gap_derivatives",
-    "FrictionState", "friction_potential", "friction_terms", "facet_size", "nagata_facets", "chain_facet_derivatives",
+    "plane_gap",
+    "barycentric",
+    "point_triangle_distance",
+    "nearest",
+    "node_normals",
+    "penalty_terms",
+    "penalty_depth",
+    "combine",
+    "rim_edges",
+    "assemble",
+    "SolidSurface",
+    "Candidates",
+    "bezier_points",
+    "distance_bound",
+    "select_pairs",
+    "Selection",
+    "p2_shape",
+    "p2_coefficients",
+    "project_p2",
+    "P2Projection",
+    "facet_gap",
+    "p2_gap_derivatives",
+    "FrictionState",
+    "friction_potential",
+    "friction_terms",
+    "facet_size",
+    "nagata_facets",
+    "chain_facet_derivatives",
 ]
+
+
 def _skew(v: np.ndarray) -> np.ndarray:
     """[v]× (m, 3, 3) with [v]× w = v × w."""
     z = np.zeros(v.shape[0])
     return np.stack(
-        [np.stack([z, -v[:, 2], v[:, 1]], 1), np.stack([v[:, 2], z, -v[:, 0]], 1), np.stack([-v[:, 1], v[:, 0], z], 1)],
+        [
+            np.stack([z, -v[:, 2], v[:, 1]], 1),
+            np.stack([v[:, 2], z, -v[:, 0]], 1),
+            np.stack([-v[:, 1], v[:, 0], z], 1),
+        ],
         axis=1,
     )
 
@@ -59,8 +88,9 @@ _A[1, 2], _A[1, 1] = 1.0, -1.0
 _A[2, 3], _A[2, 1] = 1.0, -1.0
 
 
-def plane_gap(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray, order: int = 2
-              ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+def plane_gap(
+    p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray, order: int = 2
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """Signed distance of points p to the planes of triangles (a, b, c), with exact derivatives.
 
     Parameters
@@ -154,8 +184,9 @@ def node_normals(x: np.ndarray, triangles: np.ndarray, identify: np.ndarray | No
     return out / np.where(nrm > 0, nrm, 1.0)
 
 
-def nagata_facets(Xt: np.ndarray, nt: np.ndarray, regularisation: float = 1e-2, blocks: bool = True
-                  ) -> tuple[np.ndarray, np.ndarray | None]:
+def nagata_facets(
+    Xt: np.ndarray, nt: np.ndarray, regularisation: float = 1e-2, blocks: bool = True
+) -> tuple[np.ndarray, np.ndarray | None]:
     """Quadratic patches over flat triangles that follow given nodal normals (Nagata 2005).
 
     Each edge (i, j) of a triangle Xt (m, 3, 3) becomes the quadratic curve whose end tangents
@@ -189,8 +220,12 @@ def nagata_facets(Xt: np.ndarray, nt: np.ndarray, regularisation: float = 1e-2, 
         a, det = 1.0 + regularisation, (1.0 + regularisation) ** 2 - c * c
         # C = (M + δI)⁻¹ diag(−1, 1)
         C00, C01, C10, C11 = -a / det, -c / det, c / det, a / det
-        W = 0.5 * (C00[:, None, None] * ni[:, :, None] * ni[:, None, :] + C01[:, None, None] * ni[:, :, None] * nj[:, None, :]
-                   + C10[:, None, None] * nj[:, :, None] * ni[:, None, :] + C11[:, None, None] * nj[:, :, None] * nj[:, None, :])
+        W = 0.5 * (
+            C00[:, None, None] * ni[:, :, None] * ni[:, None, :]
+            + C01[:, None, None] * ni[:, :, None] * nj[:, None, :]
+            + C10[:, None, None] * nj[:, :, None] * ni[:, None, :]
+            + C11[:, None, None] * nj[:, :, None] * nj[:, None, :]
+        )
         if blocks:
             A[:, k, i] = 0.5 * (eye - W)
             A[:, k, j] = 0.5 * (eye + W)
@@ -198,8 +233,9 @@ def nagata_facets(Xt: np.ndarray, nt: np.ndarray, regularisation: float = 1e-2, 
     return X6, A
 
 
-def chain_facet_derivatives(dg: np.ndarray, Hg: np.ndarray | None, A: np.ndarray
-                            ) -> tuple[np.ndarray, np.ndarray | None]:
+def chain_facet_derivatives(
+    dg: np.ndarray, Hg: np.ndarray | None, A: np.ndarray
+) -> tuple[np.ndarray, np.ndarray | None]:
     """Gap derivatives in (slave points, 6 patch points) → (slave points, 3 corners) through X6 = A x.
 
     dg (m, ks + 6, 3), Hg (m, ks + 6, 3, ks + 6, 3) and A from :func:`nagata_facets`; with B the
@@ -271,18 +307,30 @@ class SolidSurface:
     area: np.ndarray  #: (F,) reference facet areas, mm²
     slave_nodes: np.ndarray  #: nodes of the slave facets
     tributary: np.ndarray  #: (N,) reference slave area per node (a third of each slave triangle), mm²
-    open_facet: np.ndarray  #: (F, 3) master facets' edges (corners 01, 12, 20) on the master surface's open boundary
+    open_facet: (
+        np.ndarray
+    )  #: (F, 3) master facets' edges (corners 01, 12, 20) on the master surface's open boundary
     open_triangle: np.ndarray  #: (T, 3) the same for the linear triangles of the master facets
-    identify: np.ndarray | None = None  #: (N,) the node each node stands for across a periodic seam (None: itself)
+    identify: np.ndarray | None = (
+        None  #: (N,) the node each node stands for across a periodic seam (None: itself)
+    )
 
     def open_rim(self, element: np.ndarray, quadratic: bool) -> np.ndarray:
         """(m, 3) open-boundary flags of the edges of master elements (facets with ``quadratic``, else triangles)."""
         return (self.open_facet if quadratic else self.open_triangle)[element]
 
     @classmethod
-    def build(cls, X: np.ndarray, facets: np.ndarray, slave: np.ndarray, master: np.ndarray,
-              topology: SegmentTopology, exclusion: float, lattice: Lattice | None = None,
-              identify: np.ndarray | None = None) -> "SolidSurface":
+    def build(
+        cls,
+        X: np.ndarray,
+        facets: np.ndarray,
+        slave: np.ndarray,
+        master: np.ndarray,
+        topology: SegmentTopology,
+        exclusion: float,
+        lattice: Lattice | None = None,
+        identify: np.ndarray | None = None,
+    ) -> SolidSurface:
         """Surface over reference nodes X (N, 3); areas and tributary areas from X.
 
         ``identify`` (N,): the node each node stands for when counting the master surface's
@@ -296,20 +344,46 @@ class SolidSurface:
         tri = split_facets(facets)
         per = len(tri) // max(F, 1)
         tri_of = lambda f: (np.arange(per)[:, None] * F + np.asarray(f)[None, :]).ravel()  # noqa: E731
-        t_area = 0.5 * np.linalg.norm(np.cross(X[tri[:, 1]] - X[tri[:, 0]], X[tri[:, 2]] - X[tri[:, 0]]), axis=1)
+        t_area = 0.5 * np.linalg.norm(
+            np.cross(X[tri[:, 1]] - X[tri[:, 0]], X[tri[:, 2]] - X[tri[:, 0]]), axis=1
+        )
         area = t_area.reshape(per, F).sum(axis=0) if F else np.zeros(0)
         ts = tri_of(slave)
         trib = np.zeros(len(X))
         for k in range(3):
             np.add.at(trib, tri[ts, k], t_area[ts] / 3.0)
         ident = np.arange(len(X)) if identify is None else np.asarray(identify, np.int64)
-        return cls(len(X), np.asarray(X, np.float64), facets, np.asarray(slave, np.int64), np.asarray(master, np.int64), topology,
-                   float(exclusion), lattice, tri, ts, tri_of(master), area, np.unique(facets[slave]), trib,
-                   _open_edges(ident[facets[:, :3]], np.asarray(master, np.int64)),
-                   _open_edges(ident[tri], tri_of(master)), None if identify is None else ident)
+        return cls(
+            len(X),
+            np.asarray(X, np.float64),
+            facets,
+            np.asarray(slave, np.int64),
+            np.asarray(master, np.int64),
+            topology,
+            float(exclusion),
+            lattice,
+            tri,
+            ts,
+            tri_of(master),
+            area,
+            np.unique(facets[slave]),
+            trib,
+            _open_edges(ident[facets[:, :3]], np.asarray(master, np.int64)),
+            _open_edges(ident[tri], tri_of(master)),
+            None if identify is None else ident,
+        )
 
-    def candidates(self, points: np.ndarray, point_node: np.ndarray, x: np.ndarray, h: np.ndarray | None,
-                   reach: float, *, quadratic: bool = False, group: int = 1) -> Candidates:
+    def candidates(
+        self,
+        points: np.ndarray,
+        point_node: np.ndarray,
+        x: np.ndarray,
+        h: np.ndarray | None,
+        reach: float,
+        *,
+        quadratic: bool = False,
+        group: int = 1,
+    ) -> Candidates:
         """Master elements (with images) that may lie within ``reach`` of each point.
 
         The master elements are the linear triangles of the master facets, or with ``quadratic``
@@ -338,8 +412,11 @@ class SolidSurface:
         hull = bezier_points(Xe) if quadratic else Xe
         rho = np.sqrt(np.max(np.sum((hull - cen[:, None, :]) ** 2, axis=2), axis=1, initial=0.0))
         images = IMAGES if self.lattice is not None else IMAGES[:1]
-        shifts = self.lattice.shift(images, np.zeros(6) if h is None else h) if self.lattice is not None \
+        shifts = (
+            self.lattice.shift(images, np.zeros(6) if h is None else h)
+            if self.lattice is not None
             else np.zeros((1, 3))
+        )
         n_g = len(points) // group
         pg = points.reshape(n_g, group, 3)
         gc = pg.mean(axis=1)
@@ -411,10 +488,16 @@ def distance_bound(p: np.ndarray, Xe: np.ndarray) -> tuple[np.ndarray, np.ndarra
     g2 = np.maximum(_dot(d, d) - (l1 * r1 + l2 * r2), 0.0)
     area2 = np.sqrt(det)
     e12 = d11 - 2.0 * d12 + d22  # |x2 − x1|²
-    ell = np.maximum(np.maximum(-l0 * area2 / np.sqrt(e12), -l1 * area2 / np.sqrt(d22)), -l2 * area2 / np.sqrt(d11))
+    ell = np.maximum(
+        np.maximum(-l0 * area2 / np.sqrt(e12), -l1 * area2 / np.sqrt(d22)), -l2 * area2 / np.sqrt(d11)
+    )
     bound = np.sqrt(g2 + np.maximum(ell, 0.0) ** 2)
     if Xe.shape[1] == 6:
-        bows = (Xe[:, 3] - 0.5 * (x0 + Xe[:, 1]), Xe[:, 4] - 0.5 * (Xe[:, 1] + Xe[:, 2]), Xe[:, 5] - 0.5 * (Xe[:, 2] + x0))
+        bows = (
+            Xe[:, 3] - 0.5 * (x0 + Xe[:, 1]),
+            Xe[:, 4] - 0.5 * (Xe[:, 1] + Xe[:, 2]),
+            Xe[:, 5] - 0.5 * (Xe[:, 2] + x0),
+        )
         bow = np.stack([np.sqrt(_dot(b, b)) for b in bows], axis=1)
         bound = bound - np.minimum(bow.sum(axis=1), 4.0 / 3.0 * bow.max(axis=1))
     return bound, np.column_stack([l0, l1, l2])
@@ -430,12 +513,22 @@ class Selection:
 
     rows: np.ndarray  #: (s,) rows of the candidates, one per point that has an opposing element within reach
     g: np.ndarray  #: (s,) signed gap, mm
-    projection: "P2Projection | None"  #: closest points on quadratic facets (rows), else None
+    projection: P2Projection | None  #: closest points on quadratic facets (rows), else None
 
 
-def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.ndarray, normal: np.ndarray,
-                 reach: float, *, prescreen: float = 0.2, open_rim: np.ndarray | None = None,
-                 facing: float = OPPOSING, corner_normals: np.ndarray | None = None) -> Selection:
+def select_pairs(
+    p: np.ndarray,
+    point: np.ndarray,
+    element: np.ndarray,
+    Xe: np.ndarray,
+    normal: np.ndarray,
+    reach: float,
+    *,
+    prescreen: float = 0.2,
+    open_rim: np.ndarray | None = None,
+    facing: float = OPPOSING,
+    corner_normals: np.ndarray | None = None,
+) -> Selection:
     """For every query point, the nearest opposing master element of its candidates.
 
     A candidate (point p, element at its image, nodes Xe) qualifies when the element's normal at
@@ -495,10 +588,14 @@ def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.n
     m_flat = np.cross(Xe[:, 1] - Xe[:, 0], Xe[:, 2] - Xe[:, 0]) if quadratic else None
 
     def unfolded(n, rows, limit=0.0):
-        return _dot(n, m_flat[rows]) > limit * np.linalg.norm(n, axis=1) * np.linalg.norm(m_flat[rows], axis=1)
+        return _dot(n, m_flat[rows]) > limit * np.linalg.norm(n, axis=1) * np.linalg.norm(
+            m_flat[rows], axis=1
+        )
 
     def facing_ok(n, rows):
-        return _dot(n, normal[rows]) < facing * np.linalg.norm(n, axis=1) * np.linalg.norm(normal[rows], axis=1)
+        return _dot(n, normal[rows]) < facing * np.linalg.norm(n, axis=1) * np.linalg.norm(
+            normal[rows], axis=1
+        )
 
     res1 = narrow(first)
     ok1 = facing_ok(res1[1], first) & (res1[0] < reach)
@@ -516,7 +613,9 @@ def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.n
     if quadratic:
         ok2 &= unfolded(res2[1], rest)
     rows = np.concatenate([first, rest])
-    dist, inside, g = (np.concatenate([a, b]) for a, b in ((res1[0], res2[0]), (res1[2], res2[2]), (res1[3], res2[3])))
+    dist, inside, g = (
+        np.concatenate([a, b]) for a, b in ((res1[0], res2[0]), (res1[2], res2[2]), (res1[3], res2[3]))
+    )
     ok = np.flatnonzero(np.concatenate([ok1, ok2]))
     # ranks within rounding of each other are ties: compare them on a grid of 1e-10·reach, so
     # that the choice between coplanar neighbours does not flip with round-off
@@ -535,8 +634,9 @@ def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.n
         rim = np.flatnonzero(~proj["interior"])
         r = p[rows[chosen]] - proj["x"]  # from the closest point to the query point
         # on the rim but along the normal (a point right over an edge or corner): the facet's own gap
-        normal_only = np.linalg.norm(r[rim] - proj["g"][rim, None] * proj["n"][rim], axis=1) \
-            <= 1e-10 * np.maximum(proj["dist"][rim], reach)
+        normal_only = np.linalg.norm(
+            r[rim] - proj["g"][rim, None] * proj["n"][rim], axis=1
+        ) <= 1e-10 * np.maximum(proj["dist"][rim], reach)
         proj["interior"][rim[normal_only]] = True
         rim = rim[~normal_only]
         if open_rim is not None and rim.size:
@@ -564,7 +664,9 @@ def select_pairs(p: np.ndarray, point: np.ndarray, element: np.ndarray, Xe: np.n
                 side = _dot(r, np.einsum("mk,mkc->mc", bary, corner_normals[rows[chosen[rim]]]))
             sign = np.where(side < 0.0, -1.0, 1.0)
             ok_d = d > 1e-12 * reach
-            unit = np.where(ok_d[:, None], r / np.where(ok_d, d, 1.0)[:, None], proj["n"][rim] * sign[:, None])
+            unit = np.where(
+                ok_d[:, None], r / np.where(ok_d, d, 1.0)[:, None], proj["n"][rim] * sign[:, None]
+            )
             proj["n"][rim] = sign[:, None] * unit
             g[rim] = proj["g"][rim] = sign * d
         proj = P2Projection(**proj)
@@ -605,8 +707,14 @@ def p2_coefficients(Xf: np.ndarray) -> tuple[np.ndarray, ...]:
     a3 = 2x0 + 2x1 − 4x3, a4 = 4(x0 − x3 + x4 − x5), a5 = 2x0 + 2x2 − 4x5.
     """
     x0, x1, x2, x3, x4, x5 = (Xf[:, i] for i in range(6))
-    return (x0, -3 * x0 - x1 + 4 * x3, -3 * x0 - x2 + 4 * x5, 2 * x0 + 2 * x1 - 4 * x3, 4 * (x0 - x3 + x4 - x5),
-            2 * x0 + 2 * x2 - 4 * x5)
+    return (
+        x0,
+        -3 * x0 - x1 + 4 * x3,
+        -3 * x0 - x2 + 4 * x5,
+        2 * x0 + 2 * x1 - 4 * x3,
+        4 * (x0 - x3 + x4 - x5),
+        2 * x0 + 2 * x2 - 4 * x5,
+    )
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -627,8 +735,16 @@ class P2Projection:
     interior: np.ndarray  #: (m,) ξ* is an unclipped stationary point (p − x ⟂ the facet)
 
 
-def project_p2(p: np.ndarray, Xf: np.ndarray, iterations: int = 30, tol: float = 1e-13,
-               lam: np.ndarray | None = None, *, extend: bool = False, start: np.ndarray | None = None) -> P2Projection:
+def project_p2(
+    p: np.ndarray,
+    Xf: np.ndarray,
+    iterations: int = 30,
+    tol: float = 1e-13,
+    lam: np.ndarray | None = None,
+    *,
+    extend: bool = False,
+    start: np.ndarray | None = None,
+) -> P2Projection:
     """Closest points of p (m, 3) on quadratic facets Xf (m, 6, 3), ξ* in the reference triangle.
 
     Projected Newton's method on f(ξ) = ½|p − x(ξ)|² from the projection onto the corners'
@@ -704,8 +820,9 @@ def project_p2(p: np.ndarray, Xf: np.ndarray, iterations: int = 30, tol: float =
         # closest point for a far local minimum on the rim, and the gap then jumps with p
         f0 = 0.5 * _dot(r, r)
         full = np.max(np.abs(new - xi[act]), axis=1)
-        new, stuck = _descend(pa, b0, b1, b2, b3, b4, b5, xi[act], np.column_stack([ds, dt]), f0, ~out,
-                              clip=not extend)
+        new, stuck = _descend(
+            pa, b0, b1, b2, b3, b4, b5, xi[act], np.column_stack([ds, dt]), f0, ~out, clip=not extend
+        )
         # no point along a step longer than tol lowers f: not a minimum, so not converged
         out |= stuck & (full > tol)
         moved = np.max(np.abs(new - xi[act]), axis=1)
@@ -801,8 +918,9 @@ def _adjugate(A: np.ndarray) -> np.ndarray:
     return out
 
 
-def p2_gap_derivatives(pr: P2Projection, Xf: np.ndarray, weights: np.ndarray | None = None, order: int = 2
-                       ) -> tuple[np.ndarray, np.ndarray | None]:
+def p2_gap_derivatives(
+    pr: P2Projection, Xf: np.ndarray, weights: np.ndarray | None = None, order: int = 2
+) -> tuple[np.ndarray, np.ndarray | None]:
     """Gradient and Hessian of the gap g = n(ξ*)·(p − x(ξ*)) to quadratic facets at their closest points.
 
     The query point is p = Σ_k w_k y_k of ``weights`` (m, ks) and points y_k (ks = 1, w = 1 for p
@@ -876,8 +994,15 @@ def rim_edges(xi: np.ndarray) -> np.ndarray:
     return np.column_stack([xi[:, 1] <= 0.0, xi.sum(axis=1) >= 1.0 - 1e-14, xi[:, 0] <= 0.0])
 
 
-def _rim_gap_hessian(pr: "P2Projection", rows: np.ndarray, U: np.ndarray, V: np.ndarray, a3: np.ndarray,
-                     a4: np.ndarray, a5: np.ndarray) -> np.ndarray:
+def _rim_gap_hessian(
+    pr: P2Projection,
+    rows: np.ndarray,
+    U: np.ndarray,
+    V: np.ndarray,
+    a3: np.ndarray,
+    a4: np.ndarray,
+    a5: np.ndarray,
+) -> np.ndarray:
     """∂²g (k, K, 3, K, 3) of the signed distance at closest points on the rim (see :func:`p2_gap_derivatives`)."""
     k, K = U.shape
     g, n = pr.g[rows], pr.n[rows]
@@ -901,8 +1026,9 @@ def _rim_gap_hessian(pr: "P2Projection", rows: np.ndarray, U: np.ndarray, V: np.
     return H
 
 
-def facet_gap(p: np.ndarray, Xf: np.ndarray, order: int = 1
-              ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, np.ndarray]:
+def facet_gap(
+    p: np.ndarray, Xf: np.ndarray, order: int = 1
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, np.ndarray]:
     """Gap g = n·(p − x(ξ*)) of points p (m, 3) to quadratic facets Xf (m, 6, 3) at the closest point ξ*.
 
     Returns g (m,), dg (m, 7, 3) and Hg (m, 7, 3, 7, 3) with respect to (p, x_1 … x_6) (see
@@ -917,12 +1043,15 @@ def facet_gap(p: np.ndarray, Xf: np.ndarray, order: int = 1
 
 def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     ab = b - a
-    t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0.0, 1.0)
+    t = np.clip(
+        np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0.0, 1.0
+    )
     return np.linalg.norm(p - a - t[:, None] * ab, axis=1)
 
 
-def point_triangle_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray, tol: float = 0.0,
-                            gap: bool = False) -> tuple[np.ndarray, ...]:
+def point_triangle_distance(
+    p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray, tol: float = 0.0, gap: bool = False
+) -> tuple[np.ndarray, ...]:
     """Distance (m,) from points to triangles, and whether the projection lies inside (barycentric ≥ −tol).
 
     With ``gap`` the signed plane gap (m,) of :func:`plane_gap` is returned too.
@@ -930,7 +1059,9 @@ def point_triangle_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.n
     lam = barycentric(p, a, b, c)
     inside = np.all(lam >= -tol, axis=1)
     g = plane_gap(p, a, b, c, order=0)[0]
-    edge = np.minimum(np.minimum(_segment_distance(p, a, b), _segment_distance(p, b, c)), _segment_distance(p, c, a))
+    edge = np.minimum(
+        np.minimum(_segment_distance(p, a, b), _segment_distance(p, b, c)), _segment_distance(p, c, a)
+    )
     dist = np.where(inside, np.abs(g), edge)
     return (dist, inside, g) if gap else (dist, inside)
 
@@ -948,7 +1079,9 @@ def nearest(point: np.ndarray, dist: np.ndarray, *ties: np.ndarray) -> np.ndarra
     return order[first]
 
 
-def penalty_depth(g: np.ndarray, band: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def penalty_depth(
+    g: np.ndarray, band: tuple[float, float] | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """ψ(d), ψ'(d), ψ''(d) of the penetration d = ⟨−g⟩ (mm², mm, -): the penalty energy is ½ ε w ψ.
 
     ψ = d² up to the band's start d1; across the band (d1, d2) it fades out, ψ = d² S(t),
@@ -968,9 +1101,15 @@ def penalty_depth(g: np.ndarray, band: tuple[float, float] | None = None) -> tup
     return psi, d_psi, dd_psi
 
 
-def penalty_terms(g: np.ndarray, dg: np.ndarray, Hg: np.ndarray | None, weight: np.ndarray, stiffness: float,
-                  order: int, band: tuple[float, float] | None = None
-                  ) -> tuple[float, np.ndarray | None, np.ndarray | None]:
+def penalty_terms(
+    g: np.ndarray,
+    dg: np.ndarray,
+    Hg: np.ndarray | None,
+    weight: np.ndarray,
+    stiffness: float,
+    order: int,
+    band: tuple[float, float] | None = None,
+) -> tuple[float, np.ndarray | None, np.ndarray | None]:
     """Energy ½ ε w ψ(⟨−g⟩), its element gradients (m, k, 3) and Hessians (m, k, 3, k, 3) for active pairs.
 
     ``weight`` (m,) is the slave area each gap stands for (mm²), ``stiffness`` ε in N/mm³; ψ = d²
@@ -993,8 +1132,9 @@ def penalty_terms(g: np.ndarray, dg: np.ndarray, Hg: np.ndarray | None, weight: 
     return E, grad, hess
 
 
-def combine(key: np.ndarray, grad: list[np.ndarray] | None, hess: list[np.ndarray] | None
-            ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+def combine(
+    key: np.ndarray, grad: list[np.ndarray] | None, hess: list[np.ndarray] | None
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """Sum the element terms of rows that share ``key`` (same nodes and images) before scattering.
 
     ``grad`` and ``hess`` are lists of arrays whose rows, one after the other, match ``key``
@@ -1013,7 +1153,7 @@ def combine(key: np.ndarray, grad: list[np.ndarray] | None, hess: list[np.ndarra
         for a in parts:
             m = len(a)
             if m:
-                A = sp.csr_matrix((np.ones(m), (inv[off:off + m], np.arange(m))), shape=(len(first), m))
+                A = sp.csr_matrix((np.ones(m), (inv[off : off + m], np.arange(m))), shape=(len(first), m))
                 out = out + A @ a.reshape(m, -1)
             off += m
         return out.reshape((len(first),) + parts[0].shape[1:])
@@ -1021,8 +1161,13 @@ def combine(key: np.ndarray, grad: list[np.ndarray] | None, hess: list[np.ndarra
     return first, total(grad), total(hess)
 
 
-def assemble(n_nodes: int, lattice: Lattice | None, E: float,
-             terms: list[tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]], order: int):
+def assemble(
+    n_nodes: int,
+    lattice: Lattice | None,
+    E: float,
+    terms: list[tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]],
+    order: int,
+):
     """Global (E, gradient (n_dof,), Hessian CSR) of element terms ``(nodes, images, grad, hess)``.
 
     Each term has m elements of k points: nodes (m, k), images (m, k, 2), grad (m, k, 3) and
@@ -1057,7 +1202,7 @@ def assemble(n_nodes: int, lattice: Lattice | None, E: float,
             S = pm.weights[sel][..., 1:].reshape(ms, k3, 2)
             M = np.zeros((ms, k3, 6))
             for c in range(3):
-                M[:, c::3, 2 * c: 2 * c + 2] = S[:, c::3, :]
+                M[:, c::3, 2 * c : 2 * c + 2] = S[:, c::3, :]
             HM = Hl @ M
             Hx = np.empty((ms, k3 + 6, k3 + 6))
             Hx[:, :k3, :k3] = Hl
@@ -1093,11 +1238,14 @@ def assemble(n_nodes: int, lattice: Lattice | None, E: float,
 # -- friction ------------------------------------------------------------------------------------------------
 
 
-def facet_size(surface: "SolidSurface") -> np.ndarray:
+def facet_size(surface: SolidSurface) -> np.ndarray:
     """Reference size of every facet (F,): the mean length of its three corner-to-corner edges, mm."""
     X = surface.X[surface.facets[:, :3]]
-    return (np.linalg.norm(X[:, 1] - X[:, 0], axis=1) + np.linalg.norm(X[:, 2] - X[:, 1], axis=1)
-            + np.linalg.norm(X[:, 0] - X[:, 2], axis=1)) / 3.0
+    return (
+        np.linalg.norm(X[:, 1] - X[:, 0], axis=1)
+        + np.linalg.norm(X[:, 2] - X[:, 1], axis=1)
+        + np.linalg.norm(X[:, 0] - X[:, 2], axis=1)
+    ) / 3.0
 
 
 @attrs.frozen(eq=False)
@@ -1129,8 +1277,9 @@ class FrictionState:
         return int(self.force.shape[0])
 
 
-def friction_potential(u: np.ndarray, mu_lam: np.ndarray, eps: np.ndarray
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def friction_potential(
+    u: np.ndarray, mu_lam: np.ndarray, eps: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Regularised Coulomb potential D (m,), its gradient (m, 3) and Hessian (m, 3, 3) in the slip u (m, 3).
 
     With y = |u|/ε_s::
@@ -1157,8 +1306,15 @@ def friction_potential(u: np.ndarray, mu_lam: np.ndarray, eps: np.ndarray
     return D, g, np.where(stick[:, None, None], H_stick, H_slip)
 
 
-def friction_terms(state: FrictionState, x: np.ndarray, h: np.ndarray | None, lattice: Lattice | None,
-                   mu: float, slip: float, order: int) -> tuple[float, np.ndarray | None, np.ndarray | None, dict]:
+def friction_terms(
+    state: FrictionState,
+    x: np.ndarray,
+    h: np.ndarray | None,
+    lattice: Lattice | None,
+    mu: float,
+    slip: float,
+    order: int,
+) -> tuple[float, np.ndarray | None, np.ndarray | None, dict]:
     """Lagged regularised Coulomb friction of frozen pairs: energy, element gradients and Hessians.
 
     For each pair the relative position c = Σ_a w_a p_a of the slave point and the master's
@@ -1185,8 +1341,10 @@ def friction_terms(state: FrictionState, x: np.ndarray, h: np.ndarray | None, la
     if not np.isfinite(E):
         raise NumericalError("solid contact: non-finite friction energy")
     gc = gu - _dot(gu, nrm)[:, None] * nrm  # P ∇D
-    info = {"slipping": int(np.count_nonzero(np.linalg.norm(u, axis=1) >= eps)),
-            "friction_force": float(np.sum(np.linalg.norm(gc, axis=1)))}
+    info = {
+        "slipping": int(np.count_nonzero(np.linalg.norm(u, axis=1) >= eps)),
+        "friction_force": float(np.sum(np.linalg.norm(gc, axis=1))),
+    }
     if order == 0:
         return E, None, None, info
     w = state.weights

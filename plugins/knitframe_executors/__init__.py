@@ -24,8 +24,8 @@ module-level function and each job a plain dict (both picklable), with finished 
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
-from typing import Any, Callable
+from collections.abc import Callable, Mapping
+from typing import Any
 
 __all__ = ["executor_from_config", "Tally", "FAILURE_MODES"]
 

@@ -22,15 +22,15 @@ import importlib.util
 import os
 import time
 import warnings
-from collections.abc import Mapping
-from typing import Any, Callable, ClassVar
+from collections.abc import Callable, Mapping
+from typing import Any, ClassVar
 
 import attrs
 
-from knitframe import hookimpl, validators as v
+from knitframe import hookimpl
+from knitframe import validators as v
 from knitframe.cache import JobCache, JobFailure, failure_reason
 from knitframe.errors import ConfigError, FieldError, KnitframeWarning, PluginError
-
 from knitframe_executors import Tally, check_failures
 
 #: the nanny's setting that slows assembly in workers (see the module docstring)
@@ -62,7 +62,9 @@ def _check_address(instance: Any, attribute: Any, value: str | None) -> None:
     if value is None:
         return
     if "://" not in value or not value.split("://", 1)[1]:
-        raise FieldError(attribute.name, f"expected a scheduler address such as 'tcp://10.0.0.5:8786', got {value!r}")
+        raise FieldError(
+            attribute.name, f"expected a scheduler address such as 'tcp://10.0.0.5:8786', got {value!r}"
+        )
 
 
 @attrs.frozen
@@ -73,10 +75,18 @@ class DaskExecutor:
     description: ClassVar[str] = "jobs on a dask.distributed cluster (LocalCluster or scheduler address)"
 
     workers: int = attrs.field(default=2, validator=v.in_range(1, 4096))  #: LocalCluster worker processes
-    threads_per_worker: int = attrs.field(default=1, validator=v.in_range(1, 1024))  #: LocalCluster threads per worker (jobs running at once in each)
-    memory_limit: str = attrs.field(default="auto", validator=_check_memory_limit)  #: LocalCluster memory per worker, e.g. "4GB"; "auto" shares the machine's
-    address: str | None = attrs.field(default=None, validator=_check_address)  #: scheduler address of an existing cluster, e.g. "tcp://10.0.0.5:8786"; unset: a LocalCluster
-    dashboard_address: str = ":8787"  #: LocalCluster dashboard (Dask takes another port when it is busy; ":0" any free port)
+    threads_per_worker: int = attrs.field(
+        default=1, validator=v.in_range(1, 1024)
+    )  #: LocalCluster threads per worker (jobs running at once in each)
+    memory_limit: str = attrs.field(
+        default="auto", validator=_check_memory_limit
+    )  #: LocalCluster memory per worker, e.g. "4GB"; "auto" shares the machine's
+    address: str | None = attrs.field(
+        default=None, validator=_check_address
+    )  #: scheduler address of an existing cluster, e.g. "tcp://10.0.0.5:8786"; unset: a LocalCluster
+    dashboard_address: str = (
+        ":8787"  #: LocalCluster dashboard (Dask takes another port when it is busy; ":0" any free port)
+    )
     retries: int = attrs.field(default=0, validator=v.in_range(0, 100))  #: Dask retries of a task that raised
     cache_dir: str | None = None  #: where finished results are kept; None disables the cache
 
@@ -90,14 +100,19 @@ class DaskExecutor:
             try:
                 client = Client(self.address, timeout="10s")
             except (OSError, TimeoutError) as e:
-                raise ConfigError("executor.address", f"no Dask scheduler answers at {self.address}: "
-                                                      f"{failure_reason(e)}") from None
+                raise ConfigError(
+                    "executor.address", f"no Dask scheduler answers at {self.address}: {failure_reason(e)}"
+                ) from None
             self._check_workers(client)
             return client, None
         with dask.config.set({TRIM_KEY: None}):  # keep glibc's own trimming in the workers (module docstring)
-            cluster = LocalCluster(n_workers=self.workers, threads_per_worker=self.threads_per_worker,
-                                   memory_limit=self.memory_limit, processes=True,
-                                   dashboard_address=self.dashboard_address)
+            cluster = LocalCluster(
+                n_workers=self.workers,
+                threads_per_worker=self.threads_per_worker,
+                memory_limit=self.memory_limit,
+                processes=True,
+                dashboard_address=self.dashboard_address,
+            )
         try:
             return Client(cluster), cluster
         except BaseException:
@@ -112,10 +127,18 @@ class DaskExecutor:
                 f"{len(trimmed)} Dask worker(s) (e.g. {worker}) run with MALLOC_TRIM_THRESHOLD_={val}, set by Dask's "
                 "nanny, which slows assembly several-fold; start them with DASK_CONFIG naming a folder whose YAML "
                 "file sets distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_ to null (docs/sweeps.md)",
-                KnitframeWarning, stacklevel=3)
+                KnitframeWarning,
+                stacklevel=3,
+            )
 
-    def map(self, fn: Callable[[Mapping[str, Any]], Any], jobs: list[Mapping[str, Any]], *,
-            failures: str = "raise", progress: Callable[..., Any] | None = None) -> list[Any]:
+    def map(
+        self,
+        fn: Callable[[Mapping[str, Any]], Any],
+        jobs: list[Mapping[str, Any]],
+        *,
+        failures: str = "raise",
+        progress: Callable[..., Any] | None = None,
+    ) -> list[Any]:
         """``[fn(job) for job in jobs]`` in order, one Dask task per job not in the cache;
         ``failures = "keep"`` puts a JobFailure where a task erred."""
         from distributed import as_completed
@@ -130,11 +153,16 @@ class DaskExecutor:
         client, cluster = self._client()
         try:
             link = client.dashboard_link if cluster is None or importlib.util.find_spec("bokeh") else None
-            where = self.address or f"LocalCluster of {self.workers} worker(s) x {self.threads_per_worker} thread(s)"
+            where = (
+                self.address
+                or f"LocalCluster of {self.workers} worker(s) x {self.threads_per_worker} thread(s)"
+            )
             tally.note(f"dask: {where}; dashboard {link or 'not running (pip install bokeh)'}")
             name = getattr(fn, "__name__", "job")
-            futures = {client.submit(fn, jobs[i], key=f"{name}-{keys[i]}", pure=False, retries=self.retries): i
-                       for i in todo}
+            futures = {
+                client.submit(fn, jobs[i], key=f"{name}-{keys[i]}", pure=False, retries=self.retries): i
+                for i in todo
+            }
             ours = {f.key for f in futures}
             last_poll = [0.0]
 

@@ -7,15 +7,15 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from typing import Any, Callable, ClassVar
+from typing import Any, ClassVar
 
 import attrs
 
-from knitframe import hookimpl, validators as v
+from knitframe import hookimpl
+from knitframe import validators as v
 from knitframe.cache import JobCache, JobFailure, failure_reason
-
 from knitframe_executors import Tally, check_failures
 
 
@@ -26,11 +26,19 @@ class LocalExecutor:
     name: ClassVar[str] = "local"
     description: ClassVar[str] = "jobs in this process or a local process pool, cached by job hash"
 
-    workers: int = attrs.field(default=1, validator=v.in_range(1, 1024))  #: processes; 1 runs the jobs in this process
+    workers: int = attrs.field(
+        default=1, validator=v.in_range(1, 1024)
+    )  #: processes; 1 runs the jobs in this process
     cache_dir: str | None = None  #: where finished results are kept; None disables the cache
 
-    def map(self, fn: Callable[[Mapping[str, Any]], Any], jobs: list[Mapping[str, Any]], *,
-            failures: str = "raise", progress: Callable[..., Any] | None = None) -> list[Any]:
+    def map(
+        self,
+        fn: Callable[[Mapping[str, Any]], Any],
+        jobs: list[Mapping[str, Any]],
+        *,
+        failures: str = "raise",
+        progress: Callable[..., Any] | None = None,
+    ) -> list[Any]:
         """``[fn(job) for job in jobs]`` in order; ``failures = "keep"`` puts a JobFailure where a job raised."""
         check_failures(failures)
         cache = JobCache(self.cache_dir)

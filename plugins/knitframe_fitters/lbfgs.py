@@ -10,12 +10,14 @@ as easy to move as an angle. Same data, same result, on every machine.
 from __future__ import annotations
 
 import time
-from typing import ClassVar, Iterable
+from collections.abc import Iterable
+from typing import ClassVar
 
 import attrs
 import numpy as np
 
-from knitframe import hookimpl, validators as v
+from knitframe import hookimpl
+from knitframe import validators as v
 from knitframe.errors import NumericalError
 from knitframe.fitting import FitProblem, FitResult, UnitBox, finish, start_design
 from knitframe.parallel import one_blas_thread
@@ -29,10 +31,16 @@ class LBFGSFitter:
     name: ClassVar[str] = "lbfgs"
     description: ClassVar[str] = "scipy L-BFGS-B with analytic gradient, multi-start from a Halton screen"
 
-    starts: int = attrs.field(default=4, validator=v.in_range(1, 1000))  #: local runs from the best screened points
-    screen: int = attrs.field(default=64, validator=v.in_range(0, 100000))  #: Halton points screened for starts
+    starts: int = attrs.field(
+        default=4, validator=v.in_range(1, 1000)
+    )  #: local runs from the best screened points
+    screen: int = attrs.field(
+        default=64, validator=v.in_range(0, 100000)
+    )  #: Halton points screened for starts
     max_iter: int = attrs.field(default=500, validator=v.in_range(1, 10**6))  #: L-BFGS-B iterations per start
-    transverse_weight: float = attrs.field(default=1.0, validator=v.non_negative)  #: weight of transverse-strain NRMSE²
+    transverse_weight: float = attrs.field(
+        default=1.0, validator=v.non_negative
+    )  #: weight of transverse-strain NRMSE²
 
     def fit(self, model, responses: Iterable[Response]) -> FitResult:
         from scipy.optimize import minimize
@@ -51,12 +59,25 @@ class LBFGSFitter:
         best = None
         with one_blas_thread():
             for _, u0 in start_design(problem, box, self.screen)[: self.starts]:
-                res = minimize(fun, u0, jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * len(u0),
-                               options={"maxiter": self.max_iter, "ftol": 1e-12, "gtol": 1e-9})
+                res = minimize(
+                    fun,
+                    u0,
+                    jac=True,
+                    method="L-BFGS-B",
+                    bounds=[(0.0, 1.0)] * len(u0),
+                    options={"maxiter": self.max_iter, "ftol": 1e-12, "gtol": 1e-9},
+                )
                 if best is None or res.fun < best.fun:
                     best = res
-        return finish(problem, box.to_params(best.x), fitter=self.name, t0=t0, converged=bool(best.success),
-                      message=str(best.message), diagnostics={"starts": self.starts, "screen": self.screen})
+        return finish(
+            problem,
+            box.to_params(best.x),
+            fitter=self.name,
+            t0=t0,
+            converged=bool(best.success),
+            message=str(best.message),
+            diagnostics={"starts": self.starts, "screen": self.screen},
+        )
 
 
 @hookimpl

@@ -8,12 +8,14 @@ until ``max_evals`` black-box evaluations or NOMAD's own mesh-size stop.
 from __future__ import annotations
 
 import time
-from typing import ClassVar, Iterable
+from collections.abc import Iterable
+from typing import ClassVar
 
 import attrs
 import numpy as np
 
-from knitframe import hookimpl, validators as v
+from knitframe import hookimpl
+from knitframe import validators as v
 from knitframe.errors import NumericalError, PluginError
 from knitframe.fitting import FitProblem, FitResult, UnitBox, finish, start_design
 from knitframe.records import Response
@@ -35,9 +37,13 @@ class MADSFitter:
     description: ClassVar[str] = "NOMAD 4 mesh adaptive direct search (PyNomadBBO), as in the paper"
 
     max_evals: int = attrs.field(default=1500, validator=v.in_range(1, 10**7))  #: NOMAD MAX_BB_EVAL
-    screen: int = attrs.field(default=64, validator=v.in_range(0, 100000))  #: Halton points screened for the start
+    screen: int = attrs.field(
+        default=64, validator=v.in_range(0, 100000)
+    )  #: Halton points screened for the start
     seed: int = attrs.field(default=1, validator=v.in_range(0, 2**31 - 1))  #: NOMAD SEED
-    transverse_weight: float = attrs.field(default=1.0, validator=v.non_negative)  #: weight of transverse-strain NRMSE²
+    transverse_weight: float = attrs.field(
+        default=1.0, validator=v.non_negative
+    )  #: weight of transverse-strain NRMSE²
 
     def fit(self, model, responses: Iterable[Response]) -> FitResult:
         PyNomad = _import_nomad()
@@ -56,14 +62,25 @@ class MADSFitter:
             point.setBBO(repr(f).encode())
             return 1
 
-        opts = ["BB_OUTPUT_TYPE OBJ", f"MAX_BB_EVAL {self.max_evals}", "DISPLAY_DEGREE 0", f"SEED {self.seed}"]
+        opts = [
+            "BB_OUTPUT_TYPE OBJ",
+            f"MAX_BB_EVAL {self.max_evals}",
+            "DISPLAY_DEGREE 0",
+            f"SEED {self.seed}",
+        ]
         out = PyNomad.optimize(blackbox, list(map(float, u0)), [0.0] * k, [1.0] * k, opts)
         u = np.asarray(out.get("x_single_best") or u0, dtype=np.float64)
         # run_flag 1: NOMAD's mesh (or target) stop; 0: budget spent with a feasible point
         converged = int(out.get("run_flag", -1)) == 1
-        return finish(problem, box.to_params(u), fitter=self.name, t0=t0, converged=converged,
-                      message=str(out.get("stop_reason", "")),
-                      diagnostics={"nomad_evals": int(out.get("nb_evals", 0)), "seed": self.seed})
+        return finish(
+            problem,
+            box.to_params(u),
+            fitter=self.name,
+            t0=t0,
+            converged=converged,
+            message=str(out.get("stop_reason", "")),
+            diagnostics={"nomad_evals": int(out.get("nb_evals", 0)), "seed": self.seed},
+        )
 
 
 @hookimpl

@@ -181,24 +181,30 @@ _BULK = {
     "febio": "FEBio's U(J) of uncoupled materials, bulk modulus k = 2/D,",
 }
 _KEYWORDS = {
-    "abaqus": ["Keywords: Abaqus Keywords Guide, *ANISOTROPIC HYPERELASTIC with HOLZAPFEL and LOCAL DIRECTIONS=1 "
-               "(data line C10, D, k1, k2, kappa), and *ORIENTATION with LOCAL DIRECTIONS=1 (its last data line is "
-               "the fibre direction in the local axes).",
-               "Use: *SOLID SECTION (or *SHELL SECTION), ELSET=<your set>, MATERIAL={name}, ORIENTATION=ORI-{name}; "
-               "local axis 1 = course, 2 = wale, 3 = thickness. D > 0: hybrid elements (C3D8H) or membrane/shell "
-               "elements avoid volumetric locking."],
-    "calculix": ["Keywords: CalculiX CrunchiX User's Manual, 'Fiber reinforced materials' (a *MATERIAL whose NAME "
-                 "starts with ELASTIC_FIBER) and *USER MATERIAL with CONSTANTS = 2 + 4n: C10, D1, then per fibre the "
-                 "x and y direction cosines (z follows from unit length), k1, k2.",
-                 "Use: *SOLID SECTION, ELSET=<your set>, MATERIAL={ccx_name} with x = course, y = wale, z = "
-                 "thickness (or an *ORIENTATION on the section: the cosines are then in its local axes). CalculiX "
-                 "has no hybrid elements: C3D8I or C3D20R avoid volumetric locking."],
-    "febio": ["Keywords: FEBio User's Manual, material 'Holzapfel-Gasser-Ogden' (uncoupled: c, k1, k2, kappa, gamma "
-              "in degrees, k, with a mat_axis); paste the <material> element into the <Material> section of an FEBio "
-              "4 model.",
-              "FEBio's HGO has two fibre families at +-gamma about mat_axis a. Here a is the fibre and gamma = 0, so "
-              "both families lie on it and each takes half: k1 (FEBio) = a/t0 = k1/2; c = 2 C10 (FEBio's matrix is "
-              "c/2 (I1bar - 3)); k = 2/D."],
+    "abaqus": [
+        "Keywords: Abaqus Keywords Guide, *ANISOTROPIC HYPERELASTIC with HOLZAPFEL and LOCAL DIRECTIONS=1 "
+        "(data line C10, D, k1, k2, kappa), and *ORIENTATION with LOCAL DIRECTIONS=1 (its last data line is "
+        "the fibre direction in the local axes).",
+        "Use: *SOLID SECTION (or *SHELL SECTION), ELSET=<your set>, MATERIAL={name}, ORIENTATION=ORI-{name}; "
+        "local axis 1 = course, 2 = wale, 3 = thickness. D > 0: hybrid elements (C3D8H) or membrane/shell "
+        "elements avoid volumetric locking.",
+    ],
+    "calculix": [
+        "Keywords: CalculiX CrunchiX User's Manual, 'Fiber reinforced materials' (a *MATERIAL whose NAME "
+        "starts with ELASTIC_FIBER) and *USER MATERIAL with CONSTANTS = 2 + 4n: C10, D1, then per fibre the "
+        "x and y direction cosines (z follows from unit length), k1, k2.",
+        "Use: *SOLID SECTION, ELSET=<your set>, MATERIAL={ccx_name} with x = course, y = wale, z = "
+        "thickness (or an *ORIENTATION on the section: the cosines are then in its local axes). CalculiX "
+        "has no hybrid elements: C3D8I or C3D20R avoid volumetric locking.",
+    ],
+    "febio": [
+        "Keywords: FEBio User's Manual, material 'Holzapfel-Gasser-Ogden' (uncoupled: c, k1, k2, kappa, gamma "
+        "in degrees, k, with a mat_axis); paste the <material> element into the <Material> section of an FEBio "
+        "4 model.",
+        "FEBio's HGO has two fibre families at +-gamma about mat_axis a. Here a is the fibre and gamma = 0, so "
+        "both families lie on it and each takes half: k1 (FEBio) = a/t0 = k1/2; c = 2 C10 (FEBio's matrix is "
+        "c/2 (I1bar - 3)); k = 2/D.",
+    ],
 }
 _KEYWORDS["calculix-deck"] = _KEYWORDS["calculix"]
 
@@ -207,7 +213,9 @@ def _wrap(text: str, mark: str) -> list[str]:
     return [f"{mark} {line}" for line in textwrap.wrap(text, _WIDTH - len(mark) - 1, break_on_hyphens=False)]
 
 
-def _header(fmt: str, fs: FibreSolid, model: str, source: str, compression_fibre: bool, name: str) -> list[str]:
+def _header(
+    fmt: str, fs: FibreSolid, model: str, source: str, compression_fibre: bool, name: str
+) -> list[str]:
     """Header text (without comment marks): units, angle convention, mapping, the four differences."""
     from knitframe import __version__
 
@@ -219,13 +227,19 @@ def _header(fmt: str, fs: FibreSolid, model: str, source: str, compression_fibre
         if q < 1e-12:
             shares.append(f"{axis}: no fibre tension, the matrix alone")
         else:  # small strain: 3 C10/(k1 q) equibiaxial, 2 C10/(k1 q^2) strip-biaxial (this axis loaded)
-            shares.append(f"{axis}: {100 * 3 * fs.c10 / (fs.k1 * q):.2g} % (equibiaxial), "
-                          f"{100 * 2 * fs.c10 / (fs.k1 * q * q):.2g} % (strip-biaxial)")
+            shares.append(
+                f"{axis}: {100 * 3 * fs.c10 / (fs.k1 * q):.2g} % (equibiaxial), "
+                f"{100 * 2 * fs.c10 / (fs.k1 * q * q):.2g} % (strip-biaxial)"
+            )
     top = check_stretch(fs.b)
     _, _, l3 = fs.membrane(top, top)
     jm1 = top * top * l3 - 1.0
-    keep = ("this fit kept it (compression_fibre = true), so under compression the card is much softer than the "
-            "fit" if compression_fibre else "this fit dropped it too (compression_fibre = false)")
+    keep = (
+        "this fit kept it (compression_fibre = true), so under compression the card is much softer than the "
+        "fit"
+        if compression_fibre
+        else "this fit dropped it too (compression_fibre = false)"
+    )
     src = f" ({source})" if source else ""
     return [
         f"Written by knitframe {__version__} from a '{model}' fit{src}.",
@@ -272,14 +286,17 @@ def _comments(lines: list[str], mark: str = "**") -> list[str]:
 
 def _abaqus(fs: FibreSolid, name: str, head: list[str]) -> str:
     cx, cy = fs.direction
-    lines = [header_line("hgo", "abaqus"), *_comments(head),
-             f"*MATERIAL, NAME={name}",
-             "*ANISOTROPIC HYPERELASTIC, HOLZAPFEL, LOCAL DIRECTIONS=1",
-             ", ".join(_g(v) for v in (fs.c10, fs.d, fs.k1, fs.k2, 0.0)),
-             f"*ORIENTATION, NAME=ORI-{name}, LOCAL DIRECTIONS=1",
-             "1., 0., 0., 0., 1., 0.",
-             "3, 0.",
-             ", ".join(_d(v) for v in (cx, cy, 0.0))]
+    lines = [
+        header_line("hgo", "abaqus"),
+        *_comments(head),
+        f"*MATERIAL, NAME={name}",
+        "*ANISOTROPIC HYPERELASTIC, HOLZAPFEL, LOCAL DIRECTIONS=1",
+        ", ".join(_g(v) for v in (fs.c10, fs.d, fs.k1, fs.k2, 0.0)),
+        f"*ORIENTATION, NAME=ORI-{name}, LOCAL DIRECTIONS=1",
+        "1., 0., 0., 0., 1., 0.",
+        "3, 0.",
+        ", ".join(_d(v) for v in (cx, cy, 0.0)),
+    ]
     return "\n".join(lines) + "\n"
 
 
@@ -290,15 +307,20 @@ def _ccx_name(name: str) -> str:
 def _calculix_material(fs: FibreSolid, name: str) -> list[str]:
     cx, cy = fs.direction
     values = [_g(fs.c10), _g(fs.d), _d(cx), _d(cy), _g(fs.k1), _g(fs.k2)]
-    rows = [values[i:i + 8] for i in range(0, len(values), 8)]  # CalculiX: at most 8 entries per line
-    return [f"*MATERIAL, NAME={_ccx_name(name)}", f"*USER MATERIAL, CONSTANTS={len(values)}",
-            *(", ".join(row) for row in rows)]
+    rows = [values[i : i + 8] for i in range(0, len(values), 8)]  # CalculiX: at most 8 entries per line
+    return [
+        f"*MATERIAL, NAME={_ccx_name(name)}",
+        f"*USER MATERIAL, CONSTANTS={len(values)}",
+        *(", ".join(row) for row in rows),
+    ]
 
 
 def _calculix(fs: FibreSolid, name: str, head: list[str]) -> str:
     top = math.sqrt(1.0 + math.sqrt(CCX_EXP_LIMIT / fs.k2))
-    limit = (f"CalculiX stops when k2 (I4bar - 1)^2 > {CCX_EXP_LIMIT:g}: here when the fibre stretch passes "
-             f"{_g(top)}.")
+    limit = (
+        f"CalculiX stops when k2 (I4bar - 1)^2 > {CCX_EXP_LIMIT:g}: here when the fibre stretch passes "
+        f"{_g(top)}."
+    )
     lines = [header_line("hgo", "calculix"), *_comments(head + [limit]), *_calculix_material(fs, name)]
     return "\n".join(lines) + "\n"
 
@@ -306,52 +328,80 @@ def _calculix(fs: FibreSolid, name: str, head: list[str]) -> str:
 def _febio(fs: FibreSolid, name: str, head: list[str]) -> str:
     cx, cy = fs.direction
     mat = ET.Element("material", id="1", name=name, type="Holzapfel-Gasser-Ogden")
-    for tag, val in (("c", 2.0 * fs.c10), ("k1", fs.k1 / 2.0), ("k2", fs.k2), ("gamma", 0.0), ("kappa", 0.0),
-                     ("k", 2.0 / fs.d)):
+    for tag, val in (
+        ("c", 2.0 * fs.c10),
+        ("k1", fs.k1 / 2.0),
+        ("k2", fs.k2),
+        ("gamma", 0.0),
+        ("kappa", 0.0),
+        ("k", 2.0 / fs.d),
+    ):
         ET.SubElement(mat, tag).text = _g(val)
     axis = ET.SubElement(mat, "mat_axis", type="vector")
     ET.SubElement(axis, "a").text = ",".join(_d(v) for v in (cx, cy, 0.0))
     ET.SubElement(axis, "d").text = ",".join(_d(v) for v in (-cy, cx, 0.0))
     ET.indent(mat)
-    comment = "<!--\n" + "\n".join(textwrap.fill(line.replace("--", "-"), _WIDTH, break_on_hyphens=False)
-                                   for line in head) + "\n-->"
+    comment = (
+        "<!--\n"
+        + "\n".join(textwrap.fill(line.replace("--", "-"), _WIDTH, break_on_hyphens=False) for line in head)
+        + "\n-->"
+    )
     return "\n".join([header_line("hgo", "febio"), comment, ET.tostring(mat, encoding="unicode")]) + "\n"
 
 
-def _deck(fs: FibreSolid, name: str, head: list[str], model: Any, params_rad: np.ndarray, max_stretch: float | None,
-          increments: int = 5) -> str:
+def _deck(
+    fs: FibreSolid,
+    name: str,
+    head: list[str],
+    model: Any,
+    params_rad: np.ndarray,
+    max_stretch: float | None,
+    increments: int = 5,
+) -> str:
     """A CalculiX input: three separate 1 × 1 × t0 mm C3D8 blocks, each with F = diag(λ1, λ2, λ3), λ3 free."""
     top = check_stretch(fs.b) if max_stretch is None else float(max_stretch)
     if not (math.isfinite(top) and 1.0 < top <= 3.0):
         raise ConfigError("max_stretch", f"must be in (1, 3], got {max_stretch!r}")
-    cases = [("EQB", "equibiaxial", top, top), ("STRIP", "strip-biaxial", top, 1.0),
-             ("COMP", "equibiaxial-compression", CHECK_COMPRESSION, CHECK_COMPRESSION)]
+    cases = [
+        ("EQB", "equibiaxial", top, top),
+        ("STRIP", "strip-biaxial", top, 1.0),
+        ("COMP", "equibiaxial-compression", CHECK_COMPRESSION, CHECK_COMPRESSION),
+    ]
     t0 = fs.thickness
     lines = [header_line("hgo", "calculix-deck"), *_comments(head)]
-    lines += _comments([
-        "Check deck: one 1 mm x 1 mm x t0 C3D8 block per load case, in-plane displacements of every node "
-        "prescribed so that F = diag(lam1, lam2, lam3) with lam3 free (bottom face held in z), NLGEOM, the "
-        f"stretch ramped over {increments} equal increments. Run: ccx -i <this file without .inp>. The .dat "
-        "lists the total reaction of sets <case>_X1 (fx) and <case>_Y1 (fy): the faces are 1 mm wide, so these "
-        "are the tensions per unit width T1, T2 in N/mm, and the z displacement of <case>_TOP gives lam3.",
-        "Strip-biaxial: the lateral side is held (lam2 = 1). The compression case tests (1): its fibre is "
-        "slack, so CalculiX shows the matrix only, where knitframe's fit shows the fibre's compressive stress "
-        "when it kept it."])
-    lines += [f"** check case {c}: {kind}, lam1 1 -> {_g(l1)}, lam2 1 -> {_g(l2)}, {increments} increments"
-              for c, kind, l1, l2 in cases]
-    lines += [f"** check block thickness t0 = {_g(t0)} mm",
-              "** Expected tension per unit width, N/mm: knitframe's fitted model, and this card's own energy",
-              "** solved exactly for the same block (what CalculiX should print).",
-              f"** {'case':<6}{'lam1':>9}{'lam2':>9}{'knitframe T1':>15}{'T2':>13}{'card T1':>13}{'T2':>13}"
-              f"{'lam3':>11}"]
+    lines += _comments(
+        [
+            "Check deck: one 1 mm x 1 mm x t0 C3D8 block per load case, in-plane displacements of every node "
+            "prescribed so that F = diag(lam1, lam2, lam3) with lam3 free (bottom face held in z), NLGEOM, the "
+            f"stretch ramped over {increments} equal increments. Run: ccx -i <this file without .inp>. The .dat "
+            "lists the total reaction of sets <case>_X1 (fx) and <case>_Y1 (fy): the faces are 1 mm wide, so these "
+            "are the tensions per unit width T1, T2 in N/mm, and the z displacement of <case>_TOP gives lam3.",
+            "Strip-biaxial: the lateral side is held (lam2 = 1). The compression case tests (1): its fibre is "
+            "slack, so CalculiX shows the matrix only, where knitframe's fit shows the fibre's compressive stress "
+            "when it kept it.",
+        ]
+    )
+    lines += [
+        f"** check case {c}: {kind}, lam1 1 -> {_g(l1)}, lam2 1 -> {_g(l2)}, {increments} increments"
+        for c, kind, l1, l2 in cases
+    ]
+    lines += [
+        f"** check block thickness t0 = {_g(t0)} mm",
+        "** Expected tension per unit width, N/mm: knitframe's fitted model, and this card's own energy",
+        "** solved exactly for the same block (what CalculiX should print).",
+        f"** {'case':<6}{'lam1':>9}{'lam2':>9}{'knitframe T1':>15}{'T2':>13}{'card T1':>13}{'T2':>13}"
+        f"{'lam3':>11}",
+    ]
     for c, _, l1e, l2e in cases:
         for i in range(1, increments + 1):
             t = i / increments
             l1, l2 = 1 + t * (l1e - 1), 1 + t * (l2e - 1)
             P1, P2 = model.stress(params_rad, np.array([l1]), np.array([l2]))
             T1, T2, l3 = fs.membrane(l1, l2)
-            lines.append(f"** {c:<6}{l1:>9.5f}{l2:>9.5f}{float(P1[0]):>15.6g}{float(P2[0]):>13.6g}{T1:>13.6g}"
-                         f"{T2:>13.6g}{l3:>11.6f}")
+            lines.append(
+                f"** {c:<6}{l1:>9.5f}{l2:>9.5f}{float(P1[0]):>15.6g}{float(P2[0]):>13.6g}{T1:>13.6g}"
+                f"{T2:>13.6g}{l3:>11.6f}"
+            )
     lines += ["*HEADING", f"knitframe check of the {_ccx_name(name)} card", "*NODE, NSET=NALL"]
     corners = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]
     for e, _ in enumerate(cases):
@@ -360,8 +410,14 @@ def _deck(fs: FibreSolid, name: str, head: list[str], model: Any, params_rad: np
     for e, (c, *_rest) in enumerate(cases):
         n = [8 * e + k + 1 for k in range(8)]
         lines += [f"*ELEMENT, TYPE=C3D8, ELSET={c}", f"{e + 1}, " + ", ".join(map(str, n))]
-        sets = {"X0": (0, 3, 4, 7), "X1": (1, 2, 5, 6), "Y0": (0, 1, 4, 5), "Y1": (2, 3, 6, 7), "Z0": (0, 1, 2, 3),
-                "TOP": (4, 5, 6, 7)}
+        sets = {
+            "X0": (0, 3, 4, 7),
+            "X1": (1, 2, 5, 6),
+            "Y0": (0, 1, 4, 5),
+            "Y1": (2, 3, 6, 7),
+            "Z0": (0, 1, 2, 3),
+            "TOP": (4, 5, 6, 7),
+        }
         for s, idx in sets.items():
             lines += [f"*NSET, NSET={c}_{s}", ", ".join(str(n[i]) for i in idx)]
     lines += _calculix_material(fs, name)
@@ -369,22 +425,44 @@ def _deck(fs: FibreSolid, name: str, head: list[str], model: Any, params_rad: np
         lines.append(f"*SOLID SECTION, ELSET={c}, MATERIAL={_ccx_name(name)}")
     lines += ["*STEP, NLGEOM, INC=1000", "*STATIC, DIRECT", f"{_g(1.0 / increments)}, 1.", "*BOUNDARY"]
     for c, _, l1, l2 in cases:
-        lines += [f"{c}_X0, 1, 1, 0.", f"{c}_X1, 1, 1, {_g(l1 - 1.0)}", f"{c}_Y0, 2, 2, 0.",
-                  f"{c}_Y1, 2, 2, {_g(l2 - 1.0)}", f"{c}_Z0, 3, 3, 0."]
+        lines += [
+            f"{c}_X0, 1, 1, 0.",
+            f"{c}_X1, 1, 1, {_g(l1 - 1.0)}",
+            f"{c}_Y0, 2, 2, 0.",
+            f"{c}_Y1, 2, 2, {_g(l2 - 1.0)}",
+            f"{c}_Z0, 3, 3, 0.",
+        ]
     for c, *_rest in cases:
-        lines += [f"*NODE PRINT, NSET={c}_X1, TOTALS=ONLY", "RF", f"*NODE PRINT, NSET={c}_Y1, TOTALS=ONLY", "RF",
-                  f"*NODE PRINT, NSET={c}_TOP", "U"]
+        lines += [
+            f"*NODE PRINT, NSET={c}_X1, TOTALS=ONLY",
+            "RF",
+            f"*NODE PRINT, NSET={c}_Y1, TOTALS=ONLY",
+            "RF",
+            f"*NODE PRINT, NSET={c}_TOP",
+            "U",
+        ]
     lines.append("*END STEP")
     return "\n".join(lines) + "\n"
 
 
-def write_card(fmt: str, model: Any, params: dict[str, float], *, source: str = "", thickness: float = 1.0,
-               name: str = "KNIT", matrix_fraction: float = 1e-4, bulk_ratio: float = 1e5,
-               max_stretch: float | None = None) -> str:
+def write_card(
+    fmt: str,
+    model: Any,
+    params: dict[str, float],
+    *,
+    source: str = "",
+    thickness: float = 1.0,
+    name: str = "KNIT",
+    matrix_fraction: float = 1e-4,
+    bulk_ratio: float = 1e5,
+    max_stretch: float | None = None,
+) -> str:
     """The ``hgo`` card in ``fmt`` from the parameters as stored (``a``, ``b``, ``theta_deg``)."""
     if not isinstance(name, str) or not _NAME.match(name):
-        raise ConfigError("name", f"must start with a letter and hold only letters, digits, '_' and '-' "
-                          f"(at most 60), got {name!r}")
+        raise ConfigError(
+            "name",
+            f"must start with a letter and hold only letters, digits, '_' and '-' (at most 60), got {name!r}",
+        )
     fs = FibreSolid(params["a"], params["b"], params["theta_deg"], thickness, matrix_fraction, bulk_ratio)
     head = _header(fmt, fs, model.name, source, bool(getattr(model, "compression_fibre", True)), name)
     if fmt == "abaqus":

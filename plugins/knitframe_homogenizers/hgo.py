@@ -175,8 +175,9 @@ def abaqus_card(name: str, c10: float, d: float, k1: float, k2: float, theta: fl
     return "\n".join(lines) + "\n"
 
 
-def febio_block(name: str, matrix_E: float, matrix_v: float, fibres: list[tuple[float, float, float]],
-                notes: list[str]) -> str:
+def febio_block(
+    name: str, matrix_E: float, matrix_v: float, fibres: list[tuple[float, float, float]], notes: list[str]
+) -> str:
     """FEBio ``<material type="solid mixture">``: neo-Hookean matrix plus ``fiber-exp-pow`` fibres.
 
     ``fibres`` holds ``(ξ, α, θ)`` per family: ``Ψ = ξ/(α β)(exp[α (I_n − 1)^β] − 1)`` with β = 2,
@@ -302,7 +303,9 @@ class HGO:
         top = float(np.max(lam))
         slack = self.free_side_slack(params, direction)
         if 1.0 < top <= slack:
-            warnings.warn(free_side_zero_message(self.name, top, slack, direction), KnitframeWarning, stacklevel=2)
+            warnings.warn(
+                free_side_zero_message(self.name, top, slack, direction), KnitframeWarning, stacklevel=2
+            )
         return lf, P
 
     def card(self, fmt: str, params, **options) -> str:
@@ -316,21 +319,31 @@ class HGO:
 
         return write_card(fmt, self, dict(params), **options)
 
-    def abaqus(self, params, *, thickness: float = 1.0, name: str = "KNIT", matrix_fraction: float = 1e-3) -> str:
+    def abaqus(
+        self, params, *, thickness: float = 1.0, name: str = "KNIT", matrix_fraction: float = 1e-3
+    ) -> str:
         """ABAQUS card: k1 = 2a/t, k2 = b, κ = 0, fibre at θ; a small matrix C10 = matrix_fraction·k1/2."""
         a, b, theta = (float(p) for p in params)
         k1 = 2.0 * a / thickness
-        notes = [f"knitframe hgo: a = {_fmt(a)} N/mm, b = {_fmt(b)}, theta = {_fmt(math.degrees(theta))} deg, "
-                 f"thickness = {_fmt(thickness)} mm", *HOST_NOTES,
-                 "D = 0 makes the matrix incompressible (Abaqus/Standard: use hybrid or plane-stress elements)."]
+        notes = [
+            f"knitframe hgo: a = {_fmt(a)} N/mm, b = {_fmt(b)}, theta = {_fmt(math.degrees(theta))} deg, "
+            f"thickness = {_fmt(thickness)} mm",
+            *HOST_NOTES,
+            "D = 0 makes the matrix incompressible (Abaqus/Standard: use hybrid or plane-stress elements).",
+        ]
         return abaqus_card(name, matrix_fraction * k1 / 2.0, 0.0, k1, b, theta, notes)
 
-    def febio(self, params, *, thickness: float = 1.0, name: str = "knit", matrix_fraction: float = 1e-3) -> str:
+    def febio(
+        self, params, *, thickness: float = 1.0, name: str = "knit", matrix_fraction: float = 1e-3
+    ) -> str:
         """FEBio block: ξ = 2a/t, α = b, β = 2, fibre at θ, neo-Hookean matrix E = 3·matrix_fraction·ξ."""
         a, b, theta = (float(p) for p in params)
         ksi = 2.0 * a / thickness
-        notes = [f"knitframe hgo: a = {_fmt(a)} N/mm, b = {_fmt(b)}, theta = {_fmt(math.degrees(theta))} deg, "
-                 f"thickness = {_fmt(thickness)} mm.", *HOST_NOTES]
+        notes = [
+            f"knitframe hgo: a = {_fmt(a)} N/mm, b = {_fmt(b)}, theta = {_fmt(math.degrees(theta))} deg, "
+            f"thickness = {_fmt(thickness)} mm.",
+            *HOST_NOTES,
+        ]
         # the same matrix as the ABAQUS card (E = 6 C10); ν just below 0.5 keeps FEBio's matrix stable
         return febio_block(name, 3.0 * matrix_fraction * ksi, 0.49, [(ksi, b, theta)], notes)
 

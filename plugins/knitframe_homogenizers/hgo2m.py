@@ -57,7 +57,9 @@ class HGO2M:
     """Course and wale exponential fibres (a1, b1, a2, b2) plus an orthotropic neo-Hookean membrane (mu1, mu2, K)."""
 
     name: ClassVar[str] = "hgo2m"
-    description: ClassVar[str] = "course + wale fibres and a membrane (mu1, mu2, K, a1, b1, a2, b2); predicts lateral strain"
+    description: ClassVar[str] = (
+        "course + wale fibres and a membrane (mu1, mu2, K, a1, b1, a2, b2); predicts lateral strain"
+    )
     param_names: ClassVar[tuple[str, ...]] = ("mu1", "mu2", "K", "a1", "b1", "a2", "b2")
     units: ClassVar[tuple[str, ...]] = ("N/mm", "N/mm", "N/mm", "N/mm", "-", "N/mm", "-")
     log_scale: ClassVar[tuple[bool, ...]] = (True,) * 7
@@ -75,8 +77,10 @@ class HGO2M:
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """μ1, μ2, K, a1, a2 in [1e-6, 1e2] N/mm; b1, b2 in [1e-4, 1e3]."""
-        return (np.array([1e-6, 1e-6, 1e-6, 1e-6, 1e-4, 1e-6, 1e-4]),
-                np.array([1e2, 1e2, 1e2, 1e2, 1e3, 1e2, 1e3]))
+        return (
+            np.array([1e-6, 1e-6, 1e-6, 1e-6, 1e-4, 1e-6, 1e-4]),
+            np.array([1e2, 1e2, 1e2, 1e2, 1e3, 1e2, 1e3]),
+        )
 
     def x0(self) -> np.ndarray:
         """Default parameters: μ1 = μ2 = K = 0.02 N/mm, a1 = a2 = 0.05 N/mm, b1 = b2 = 1."""
@@ -88,8 +92,13 @@ class HGO2M:
         l1, l2 = as_stretch(lam1, lam2)
         J = l1 * l2
         c = self.compression_fibre
-        return (0.5 * mu1 * _log_term(l1) + 0.5 * mu2 * _log_term(l2) + 0.25 * K * (J * J - 1.0 - 2.0 * np.log(J))
-                + _fibre(a1, b1, l1, c)["psi"] + _fibre(a2, b2, l2, c)["psi"])
+        return (
+            0.5 * mu1 * _log_term(l1)
+            + 0.5 * mu2 * _log_term(l2)
+            + 0.25 * K * (J * J - 1.0 - 2.0 * np.log(J))
+            + _fibre(a1, b1, l1, c)["psi"]
+            + _fibre(a2, b2, l2, c)["psi"]
+        )
 
     def stress(self, params, lam1, lam2):
         """Nominal tensions ``P1 = μ1(λ1 − 1/λ1) + K/2 (J² − 1)/λ1 + 2λ1 g1`` and likewise P2, N/mm."""
@@ -164,9 +173,16 @@ class HGO2M:
             "FEBio uses per-volume energies: values are divided by the thickness.",
         ]
         if self.compression_fibre:
-            notes.append("FEBio fibres carry no compression; this model's fibres do (compression_fibre = true).")
-        return febio_block(name, 2.0 * G * (1.0 + nu), nu,
-                           [(2.0 * a1 / thickness, b1, 0.0), (2.0 * a2 / thickness, b2, 0.5 * math.pi)], notes)
+            notes.append(
+                "FEBio fibres carry no compression; this model's fibres do (compression_fibre = true)."
+            )
+        return febio_block(
+            name,
+            2.0 * G * (1.0 + nu),
+            nu,
+            [(2.0 * a1 / thickness, b1, 0.0), (2.0 * a2 / thickness, b2, 0.5 * math.pi)],
+            notes,
+        )
 
 
 @hookimpl

@@ -7,7 +7,8 @@ either to the factory or per call: without it AMG needs hundreds of times more i
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -33,8 +34,13 @@ def rigid_body_modes(points: np.ndarray) -> np.ndarray:
     return B.reshape(3 * n, 6)
 
 
-def amg(theta: float = 0.05, krylov: str = "cg", tol: float = 1e-10, maxiter: int = 500,
-        near_null_space: np.ndarray | None = None) -> Callable[..., np.ndarray]:
+def amg(
+    theta: float = 0.05,
+    krylov: str = "cg",
+    tol: float = 1e-10,
+    maxiter: int = 500,
+    near_null_space: np.ndarray | None = None,
+) -> Callable[..., np.ndarray]:
     """Factory: ``solve(A, b, near_null_space=None)`` by smoothed-aggregation AMG + CG/GMRES.
 
     Parameters
@@ -64,7 +70,9 @@ def amg(theta: float = 0.05, krylov: str = "cg", tol: float = 1e-10, maxiter: in
         B = near_null_space if near_null_space is not None else default_B
         if B is not None and B.shape[0] != A.shape[0]:
             raise NumericalError(f"amg: near-null space has {B.shape[0]} rows, matrix has {A.shape[0]}")
-        ml = pyamg.smoothed_aggregation_solver(A, B=B, strength=("symmetric", {"theta": theta}), max_coarse=500)
+        ml = pyamg.smoothed_aggregation_solver(
+            A, B=B, strength=("symmetric", {"theta": theta}), max_coarse=500
+        )
         M = ml.aspreconditioner(cycle="V")
         bn = float(np.linalg.norm(b))
         if bn == 0.0:
@@ -77,17 +85,22 @@ def amg(theta: float = 0.05, krylov: str = "cg", tol: float = 1e-10, maxiter: in
         if krylov == "cg":
             x, info = spla.cg(A, b, rtol=tol, atol=0.0, maxiter=maxiter, M=M, callback=count)
         else:
-            x, info = spla.gmres(A, b, rtol=tol, atol=0.0, maxiter=maxiter, M=M, callback=count,
-                                 callback_type="pr_norm")
+            x, info = spla.gmres(
+                A, b, rtol=tol, atol=0.0, maxiter=maxiter, M=M, callback=count, callback_type="pr_norm"
+            )
         res = float(np.linalg.norm(b - A @ x)) / bn
         if info != 0 or not np.all(np.isfinite(x)) or res > 10 * tol:
-            raise NumericalError(f"amg ({krylov}): no convergence in {it[0]} iterations (relative residual {res:.3g})")
+            raise NumericalError(
+                f"amg ({krylov}): no convergence in {it[0]} iterations (relative residual {res:.3g})"
+            )
         return x
 
     return solve
 
 
-amg.description = "pyamg smoothed aggregation (θ = 0.05, optional rigid-body modes) preconditioning CG or GMRES"
+amg.description = (
+    "pyamg smoothed aggregation (θ = 0.05, optional rigid-body modes) preconditioning CG or GMRES"
+)
 
 
 @hookimpl

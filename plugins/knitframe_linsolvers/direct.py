@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import importlib.util
 import weakref
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -24,8 +25,10 @@ BACKENDS = ("auto", "superlu", "pardiso", "cholmod")
 #: every digit; above, PARDISO is much faster after its one-off start-up (a P1 jersey cell, 8 091 unknowns:
 #: 0.05 s against 0.45 s per new matrix; docs/performance.md, ``bench_volumetric.py iteration``)
 AUTO_PARDISO_SIZE = 5_000
-_MODULES = {"pardiso": ("pypardiso", "pip install pypardiso"),
-            "cholmod": ("sksparse", "pip install scikit-sparse (needs libsuitesparse-dev)")}
+_MODULES = {
+    "pardiso": ("pypardiso", "pip install pypardiso"),
+    "cholmod": ("sksparse", "pip install scikit-sparse (needs libsuitesparse-dev)"),
+}
 
 
 def available(backend: str) -> bool:
@@ -116,8 +119,9 @@ def upper(A: Any) -> sp.csr_matrix:
     return U
 
 
-def _refine(apply: Callable[[np.ndarray], np.ndarray], A: Any, b: np.ndarray, refine: int,
-            rtol: float) -> np.ndarray | None:
+def _refine(
+    apply: Callable[[np.ndarray], np.ndarray], A: Any, b: np.ndarray, refine: int, rtol: float
+) -> np.ndarray | None:
     """x = apply(b), then up to ``refine`` corrections x += apply(b − A x).
 
     Returns x once |b − A x| ≤ rtol |b|; after the last correction, the iterate of the smallest
@@ -176,8 +180,10 @@ def _pardiso(A: Any, b: np.ndarray, refine: int = 4, rtol: float = 1e-10) -> np.
         return x
     if A.shape[0] <= SUPERLU_FALLBACK_LIMIT:
         return _superlu(A, b)
-    raise NumericalError(f"direct (PARDISO): no solution with |b − A x| ≤ {rtol:g} |b| after {refine} refinements "
-                         f"({A.shape[0]} unknowns, too many for the SuperLU fallback)")
+    raise NumericalError(
+        f"direct (PARDISO): no solution with |b − A x| ≤ {rtol:g} |b| after {refine} refinements "
+        f"({A.shape[0]} unknowns, too many for the SuperLU fallback)"
+    )
 
 
 class _KeptPardiso:
@@ -208,8 +214,10 @@ class _KeptPardiso:
         x = _refine(self._apply, self.A, np.asarray(b, dtype=np.float64), self.refine, self.rtol)
         if x is not None:
             return x
-        raise NumericalError(f"direct (PARDISO): no solution with |b - A x| <= {self.rtol:g} |b| from the kept "
-                             f"factorisation after {self.refine} refinements")
+        raise NumericalError(
+            f"direct (PARDISO): no solution with |b - A x| <= {self.rtol:g} |b| from the kept "
+            f"factorisation after {self.refine} refinements"
+        )
 
     def free(self) -> None:
         self.solver.free_memory(everything=True)
@@ -292,8 +300,13 @@ def direct(backend: str = "auto") -> Callable[[Any, np.ndarray], np.ndarray]:
             return (_factorize_pardiso if A.shape[0] >= AUTO_PARDISO_SIZE else _factorize_superlu)(A)
 
         return _with_factorize(auto, auto_factorize)
-    return _with_factorize(*{"superlu": (_superlu, _factorize_superlu), "pardiso": (_pardiso, _factorize_pardiso),
-                             "cholmod": (_cholmod, _factorize_cholmod)}[backend])
+    return _with_factorize(
+        *{
+            "superlu": (_superlu, _factorize_superlu),
+            "pardiso": (_pardiso, _factorize_pardiso),
+            "cholmod": (_cholmod, _factorize_cholmod),
+        }[backend]
+    )
 
 
 def _with_factorize(solve: Callable, factorize: Callable) -> Callable[[Any, np.ndarray], np.ndarray]:

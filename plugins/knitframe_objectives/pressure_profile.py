@@ -26,7 +26,9 @@ class PressureProfile:
     """Area-weighted mean squared relative error of the pressure to a graduated target profile."""
 
     name: ClassVar[str] = "pressure_profile"
-    description: ClassVar[str] = "graduated compression: a target at the wrist/ankle falling along the limb by ratios"
+    description: ClassVar[str] = (
+        "graduated compression: a target at the wrist/ankle falling along the limb by ratios"
+    )
     quantity: ClassVar[str] = "pressure"
 
     target_mmHg: float = 25.0  #: target pressure at the distal end (wrist or ankle), mmHg (RAL class II)
@@ -37,7 +39,9 @@ class PressureProfile:
         if not (np.isfinite(self.target_mmHg) and self.target_mmHg > 0):
             raise FieldError("target_mmHg", f"must be a finite number > 0, got {self.target_mmHg}")
         if len(self.at) != len(self.ratios) or len(self.at) < 1:
-            raise FieldError("ratios", f"needs one ratio per position in 'at' ({len(self.at)}), got {len(self.ratios)}")
+            raise FieldError(
+                "ratios", f"needs one ratio per position in 'at' ({len(self.at)}), got {len(self.ratios)}"
+            )
         at = np.asarray(self.at, dtype=np.float64)
         if not np.all(np.isfinite(at)) or np.any(at < 0) or np.any(at > 1) or np.any(np.diff(at) <= 0):
             raise FieldError("at", f"must be increasing positions in [0, 1], got {self.at}")

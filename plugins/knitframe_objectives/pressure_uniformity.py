@@ -7,7 +7,8 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
-from knitframe import hookimpl, validators as v
+from knitframe import hookimpl
+from knitframe import validators as v
 from knitframe.errors import NumericalError
 from knitframe_objectives.stress_variance import level_cost, weighted_cv2
 
@@ -49,7 +50,9 @@ class PressureUniformity:
     description: ClassVar[str] = "uniform (or target) interface pressure p = T/r by Laplace's law"
     quantity: ClassVar[str] = "pressure"
 
-    target_mmHg: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: target pressure, mmHg
+    target_mmHg: float | None = attrs.field(
+        default=None, validator=v.optional(v.positive)
+    )  #: target pressure, mmHg
 
     @property
     def relative(self) -> bool:

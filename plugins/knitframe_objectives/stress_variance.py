@@ -22,10 +22,14 @@ def weighted_cv2(x: np.ndarray, w: np.ndarray) -> float:
     x = np.asarray(x, dtype=np.float64)
     w = np.asarray(w, dtype=np.float64)
     if x.shape != w.shape or x.size == 0:
-        raise NumericalError(f"values and weights must be non-empty and of one shape, got {x.shape} and {w.shape}")
+        raise NumericalError(
+            f"values and weights must be non-empty and of one shape, got {x.shape} and {w.shape}"
+        )
     x, w = x.ravel(), w.ravel()
     if x.size == 0:
-        raise NumericalError(f"values and weights must be non-empty and of one shape, got {x.shape} and {w.shape}")
+        raise NumericalError(
+            f"values and weights must be non-empty and of one shape, got {x.shape} and {w.shape}"
+        )
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(w))) or np.any(w < 0) or w.sum() <= 0:
         raise NumericalError("values must be finite and weights finite, non-negative and not all zero")
     W = w.sum()

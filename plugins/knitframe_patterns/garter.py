@@ -6,7 +6,8 @@ from typing import ClassVar
 
 import attrs
 
-from knitframe import hookimpl, validators as v
+from knitframe import hookimpl
+from knitframe import validators as v
 from knitframe_patterns.loops import KnitLoopPattern
 
 
@@ -21,7 +22,9 @@ class Garter(KnitLoopPattern):
     # Garter is shorter along the wale than jersey (knit and purl rows nest). 6.5 keeps the loop
     # height near Crane's 0.89 wale pitches at SL11 and every SL10-12 cell interlocked: a
     # modelling default, not a measurement.
-    Kc: float = attrs.field(default=6.5, validator=v.positive)  #: course constant for garter (jersey's 5.3 x ~1.2), -
+    Kc: float = attrs.field(
+        default=6.5, validator=v.positive
+    )  #: course constant for garter (jersey's 5.3 x ~1.2), -
 
 
 @hookimpl

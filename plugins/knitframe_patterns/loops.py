@@ -123,7 +123,9 @@ class LoopRow:
 
     def centerline(self, name: str) -> Centerline:
         """The row as a Centerline over its two stitches, t in [-π, 3π] (sinker to sinker)."""
-        return Centerline(name, self.position, self.derivative, -np.pi, 3.0 * np.pi, (2.0 * self.course_pitch, 0.0, 0.0))
+        return Centerline(
+            name, self.position, self.derivative, -np.pi, 3.0 * np.pi, (2.0 * self.course_pitch, 0.0, 0.0)
+        )
 
 
 _check_table = check_stitch_lengths
@@ -145,12 +147,20 @@ class KnitLoopPattern:
     description: ClassVar[str] = ""
     layout: ClassVar[tuple[tuple[str, str], tuple[str, str]]] = (("k", "k"), ("k", "k"))
 
-    stitch_lengths: dict[str, float] = attrs.field(factory=lambda: dict(STITCH_LENGTHS), validator=_check_table)  #: machine setting -> yarn length per stitch, mm
-    Kc: float = attrs.field(default=KC, validator=_MUNDEN)  #: Munden course constant (courses/cm = Kc/ℓ[cm]), -
+    stitch_lengths: dict[str, float] = attrs.field(
+        factory=lambda: dict(STITCH_LENGTHS), validator=_check_table
+    )  #: machine setting -> yarn length per stitch, mm
+    Kc: float = attrs.field(
+        default=KC, validator=_MUNDEN
+    )  #: Munden course constant (courses/cm = Kc/ℓ[cm]), -
     Kw: float = attrs.field(default=KW, validator=_MUNDEN)  #: Munden wale constant (wales/cm = Kw/ℓ[cm]), -
     roundness: float = attrs.field(default=1.5, validator=v.in_range(0.0, 10.0))  #: Crane's a, -
-    depth: float = attrs.field(default=0.625, validator=_DEPTH)  #: out-of-plane amplitude D / dk (Crane: 1/1.6), -
-    sharpness: float = attrs.field(default=3.0, validator=v.in_range(0.0, 50.0, lo_open=True))  #: knit/purl blend κ, -
+    depth: float = attrs.field(
+        default=0.625, validator=_DEPTH
+    )  #: out-of-plane amplitude D / dk (Crane: 1/1.6), -
+    sharpness: float = attrs.field(
+        default=3.0, validator=v.in_range(0.0, 50.0, lo_open=True)
+    )  #: knit/purl blend κ, -
 
     def pitches(self, arc: float, fabric: Fabric) -> tuple[float, float]:
         """(course, wale) pitch in mm: the fabric's if given, else Munden's ℓ/Kw and ℓ/Kc."""
@@ -160,7 +170,16 @@ class KnitLoopPattern:
         """The two LoopRows for loop-height amplitude ``height`` (mm)."""
         sig = [[SIGN[s] for s in row] for row in self.layout]
         return [
-            LoopRow(pc, r * pw, height, self.roundness, self.depth * dk, tuple(sig[r]), tuple(sig[(r + 1) % 2]), self.sharpness)
+            LoopRow(
+                pc,
+                r * pw,
+                height,
+                self.roundness,
+                self.depth * dk,
+                tuple(sig[r]),
+                tuple(sig[(r + 1) % 2]),
+                self.sharpness,
+            )
             for r in range(2)
         ]
 
@@ -176,13 +195,22 @@ class KnitLoopPattern:
         dk = float(fabric.yarn.dk)
         # below H = p_w/2 the heads of one row do not reach the legs of the next
         height = solve_arc_length(
-            lambda h: self._per_stitch(h, pc, pw, dk), arc, 0.5 * pw, max(pw, arc),
+            lambda h: self._per_stitch(h, pc, pw, dk),
+            arc,
+            0.5 * pw,
+            max(pw, arc),
             context=f"course pitch {pc:.4g} mm, wale pitch {pw:.4g} mm and dk {dk:g} mm",
         )
         rows = self.rows(height, pc, pw, dk)
         yarns = tuple(row.centerline(f"row{r}") for r, row in enumerate(rows))
         cell = course_cell(
-            self.name, yarns, pc, pw, dk, self.layout, arc,
+            self.name,
+            yarns,
+            pc,
+            pw,
+            dk,
+            self.layout,
+            arc,
             info={
                 "curve": "crane2023",
                 "loop_height": height,

@@ -15,7 +15,8 @@ from typing import Any, ClassVar
 
 import attrs
 
-from knitframe import hookimpl, validators as v
+from knitframe import hookimpl
+from knitframe import validators as v
 from knitframe.csvio import read_table
 from knitframe.errors import DataError
 from knitframe.records import Response
@@ -29,10 +30,16 @@ class AutoReader:
     """Detect the reader from each file's header row, then read the file with it."""
 
     name: ClassVar[str] = "auto"
-    description: ClassVar[str] = "detect the reader from the file's header (singal2024, generic, or an installed one)"
+    description: ClassVar[str] = (
+        "detect the reader from the file's header (singal2024, generic, or an installed one)"
+    )
 
-    average: bool = True  #: passed to the chosen reader: one mean ± sd Response per curve; false: one per repeat
-    points: int | None = attrs.field(default=None, validator=v.optional(v.in_range(2, 100000)))  #: passed to the chosen reader (its default if unset)
+    average: bool = (
+        True  #: passed to the chosen reader: one mean ± sd Response per curve; false: one per repeat
+    )
+    points: int | None = attrs.field(
+        default=None, validator=v.optional(v.in_range(2, 100000))
+    )  #: passed to the chosen reader (its default if unset)
 
     def detect(self, path: Path) -> str:
         """Name of the reader for ``path``; a header no reader accepts is a DataError listing what each expects."""
@@ -40,14 +47,25 @@ class AutoReader:
 
         table = read_table(path, need_rows=False)
         readers = get_registry()["reader"]
-        matches = [n for n in readers if n != self.name and callable(getattr(readers[n], "accepts", None))
-                   and readers[n].accepts(list(table.header))]
+        matches = [
+            n
+            for n in readers
+            if n != self.name
+            and callable(getattr(readers[n], "accepts", None))
+            and readers[n].accepts(list(table.header))
+        ]
         if matches:
             return sorted(matches, key=lambda n: (n == FALLBACK, n))[0]
-        expected = "; ".join(f"{n}: {getattr(readers[n], 'expects', None) or 'its own format (select it by name)'}"
-                             for n in readers if n != self.name)
-        raise DataError(path, f"no reader knows the header ({', '.join(table.header)}); readers expect: {expected}",
-                        line=table.header_line)
+        expected = "; ".join(
+            f"{n}: {getattr(readers[n], 'expects', None) or 'its own format (select it by name)'}"
+            for n in readers
+            if n != self.name
+        )
+        raise DataError(
+            path,
+            f"no reader knows the header ({', '.join(table.header)}); readers expect: {expected}",
+            line=table.header_line,
+        )
 
     def reader_for(self, path: Path) -> Any:
         """The chosen reader for ``path``, built with this reader's ``average`` and ``points``."""
@@ -58,8 +76,11 @@ class AutoReader:
         name = self.detect(path)
         impl = reg["reader"][name]
         fields = attrs.fields_dict(impl) if isinstance(impl, type) and attrs.has(impl) else {}
-        options = {k: val for k, val in (("average", self.average), ("points", self.points))
-                   if k in fields and val is not None}
+        options = {
+            k: val
+            for k, val in (("average", self.average), ("points", self.points))
+            if k in fields and val is not None
+        }
         return instantiate(reg, "reader", {"kind": name, **options}, "reader")
 
     def read(self, path: Path) -> list[Response]:

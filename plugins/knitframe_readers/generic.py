@@ -51,14 +51,27 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
-from knitframe import hookimpl, validators as v
-from knitframe.csvio import (FORCE_TENSION, Table, check_loading, check_tension, read_table, strains_as_fractions,
-                             tension_per_width)
+from knitframe import hookimpl
+from knitframe import validators as v
+from knitframe.csvio import (
+    FORCE_TENSION,
+    Table,
+    check_loading,
+    check_tension,
+    read_table,
+    strains_as_fractions,
+    tension_per_width,
+)
+from knitframe.curves import average_repeats, uniaxial_response
 from knitframe.errors import DataError
 from knitframe.records import Provenance, Response
-from knitframe.curves import average_repeats, uniaxial_response
 
-_DIRECTIONS = {"course": "uniaxial-course", "x": "uniaxial-course", "wale": "uniaxial-wale", "y": "uniaxial-wale"}
+_DIRECTIONS = {
+    "course": "uniaxial-course",
+    "x": "uniaxial-course",
+    "wale": "uniaxial-wale",
+    "y": "uniaxial-wale",
+}
 
 
 def _metadata(comments: list[str]) -> dict[str, str]:
@@ -74,10 +87,18 @@ def _metadata(comments: list[str]) -> dict[str, str]:
 def _one_of(table: Table, names: tuple[str, ...], what: str, required: bool = True) -> str | None:
     found = [n for n in names if n in table]
     if len(found) > 1:
-        raise DataError(table.path, f"give only one of the columns {', '.join(found)} for the {what}", line=_header_line(table))
+        raise DataError(
+            table.path,
+            f"give only one of the columns {', '.join(found)} for the {what}",
+            line=_header_line(table),
+        )
     if not found and required:
-        raise DataError(table.path, f"missing column for the {what}: one of {', '.join(names)} "
-                                    f"(header has {', '.join(table.header)})", line=_header_line(table))
+        raise DataError(
+            table.path,
+            f"missing column for the {what}: one of {', '.join(names)} "
+            f"(header has {', '.join(table.header)})",
+            line=_header_line(table),
+        )
     return found[0] if found else None
 
 
@@ -90,7 +111,9 @@ def _stretch(table: Table, column: str, x: np.ndarray) -> np.ndarray:
     lam = x if column.endswith("stretch") else 1.0 + x
     if np.any(lam <= 0):
         i = int(np.flatnonzero(lam <= 0)[0])
-        raise DataError(table.path, f"{column} {x[i]} gives a non-positive stretch", line=table.lines[i], column=column)
+        raise DataError(
+            table.path, f"{column} {x[i]} gives a non-positive stretch", line=table.lines[i], column=column
+        )
     return lam
 
 
@@ -99,24 +122,38 @@ class GenericReader:
     """Documented CSV: strain or stretch, course or wale, N/mm or MPa with a thickness; repeats → mean ± sd."""
 
     name: ClassVar[str] = "generic"
-    description: ClassVar[str] = ("generic CSV: strain|stretch, course|wale, tension_N_per_mm|stress_MPa (+ thickness)"
-                                  "|force_N (+ width)")
+    description: ClassVar[str] = (
+        "generic CSV: strain|stretch, course|wale, tension_N_per_mm|stress_MPa (+ thickness)"
+        "|force_N (+ width)"
+    )
     #: the header this reader expects, for the auto reader's message when no reader matches
-    expects: ClassVar[str] = ("strain or stretch, and tension_N_per_mm, stress_MPa or force_N (optional: sample, "
-                              "direction, transverse_strain or transverse_stretch, thickness_mm, width_mm)")
+    expects: ClassVar[str] = (
+        "strain or stretch, and tension_N_per_mm, stress_MPa or force_N (optional: sample, "
+        "direction, transverse_strain or transverse_stretch, thickness_mm, width_mm)"
+    )
 
     average: bool = True  #: one mean ± sd Response per direction; false gives one Response per sample
     points: int = attrs.field(default=50, validator=v.in_range(2, 100000))  #: grid size when averaging
-    direction: str | None = attrs.field(default=None, validator=v.optional(v.one_of(tuple(_DIRECTIONS))))  #: default direction
-    thickness_mm: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: default thickness, mm
-    width_mm: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: default specimen width, mm
-    max_tension: float = attrs.field(default=FORCE_TENSION, validator=v.positive)  #: N/mm; beyond it a tension reads as a force in N
+    direction: str | None = attrs.field(
+        default=None, validator=v.optional(v.one_of(tuple(_DIRECTIONS)))
+    )  #: default direction
+    thickness_mm: float | None = attrs.field(
+        default=None, validator=v.optional(v.positive)
+    )  #: default thickness, mm
+    width_mm: float | None = attrs.field(
+        default=None, validator=v.optional(v.positive)
+    )  #: default specimen width, mm
+    max_tension: float = attrs.field(
+        default=FORCE_TENSION, validator=v.positive
+    )  #: N/mm; beyond it a tension reads as a force in N
 
     @classmethod
     def accepts(cls, header: list[str]) -> bool:
         """True if ``header`` has a loaded strain (or stretch) column and a load column."""
         cols = {h.strip().lower() for h in header}
-        return bool(cols & {"strain", "stretch"}) and bool(cols & {"tension_n_per_mm", "stress_mpa", "force_n"})
+        return bool(cols & {"strain", "stretch"}) and bool(
+            cols & {"tension_n_per_mm", "stress_mpa", "force_n"}
+        )
 
     def read(self, path: Path) -> list[Response]:
         path = Path(path)
@@ -125,7 +162,9 @@ class GenericReader:
         meta = _metadata(table.comments)
         axial_col = _one_of(table, ("strain", "stretch"), "loaded strain")
         load_col = _one_of(table, ("tension_n_per_mm", "stress_mpa", "force_n"), "load")
-        lat_col = _one_of(table, ("transverse_strain", "transverse_stretch"), "transverse strain", required=False)
+        lat_col = _one_of(
+            table, ("transverse_strain", "transverse_stretch"), "transverse strain", required=False
+        )
         strains = strains_as_fractions(table, {c: table[c] for c in (axial_col, lat_col) if c}, axial_col)
         lam = _stretch(table, axial_col, strains[axial_col])
         lat = _stretch(table, lat_col, strains[lat_col]) if lat_col else np.ones_like(lam)
@@ -133,33 +172,70 @@ class GenericReader:
         if load_col == "stress_mpa":
             tension = tension * self._thickness(table, meta)
         elif load_col == "force_n":
-            tension = tension / self._positive(table, meta, "width_mm", self.width_mm, "force_N needs the specimen "
-                                               "width: add a '# width_mm = ...' line or a width_mm column")
+            tension = tension / self._positive(
+                table,
+                meta,
+                "width_mm",
+                self.width_mm,
+                "force_N needs the specimen width: add a '# width_mm = ...' line or a width_mm column",
+            )
         else:
             width = self._positive(table, meta, "width_mm", self.width_mm, None)
-            tension = tension_per_width(table, load_col, tension, width,
-                                        "give the specimen width ('# width_mm = ...' line or width_mm column) to "
-                                        "convert it, or name the column force_N", limit=self.max_tension)
+            tension = tension_per_width(
+                table,
+                load_col,
+                tension,
+                width,
+                "give the specimen width ('# width_mm = ...' line or width_mm column) to "
+                "convert it, or name the column force_N",
+                limit=self.max_tension,
+            )
         loads = self._directions(table, meta)
         samples = table.text("sample") if "sample" in table else ["1"] * len(table)
-        check_loading(table, axial_col, lam, [np.array([ld == load and s == k for ld, s in zip(loads, samples)])
-                                              for load, k in dict.fromkeys(zip(loads, samples))])
+        check_loading(
+            table,
+            axial_col,
+            lam,
+            [
+                np.array([ld == load and s == k for ld, s in zip(loads, samples)])
+                for load, k in dict.fromkeys(zip(loads, samples))
+            ],
+        )
         out = []
         for load in dict.fromkeys(loads):
             rows = np.array([ld == load for ld in loads])
             check_tension(table, load_col, tension, rows, load.split("-")[1] if len(set(loads)) > 1 else "")
-            out += self._responses(path, load, lam[rows], lat[rows], tension[rows],
-                                   [s for s, r in zip(samples, rows) if r], lat_col is not None,
-                                   {"warnings": list(table.warnings)} if table.warnings else {})
+            out += self._responses(
+                path,
+                load,
+                lam[rows],
+                lat[rows],
+                tension[rows],
+                [s for s, r in zip(samples, rows) if r],
+                lat_col is not None,
+                {"warnings": list(table.warnings)} if table.warnings else {},
+            )
         return out
 
     def _thickness(self, table: Table, meta: dict[str, str]) -> np.ndarray | float:
-        return self._positive(table, meta, "thickness_mm", self.thickness_mm, "stress_MPa needs a thickness: add a "
-                              "'# thickness_mm = ...' line or a thickness_mm column", column="stress_mpa")
+        return self._positive(
+            table,
+            meta,
+            "thickness_mm",
+            self.thickness_mm,
+            "stress_MPa needs a thickness: add a '# thickness_mm = ...' line or a thickness_mm column",
+            column="stress_mpa",
+        )
 
     @staticmethod
-    def _positive(table: Table, meta: dict[str, str], key: str, default: float | None, missing: str | None,
-                  column: str | None = None) -> np.ndarray | float | None:
+    def _positive(
+        table: Table,
+        meta: dict[str, str],
+        key: str,
+        default: float | None,
+        missing: str | None,
+        column: str | None = None,
+    ) -> np.ndarray | float | None:
         """A length in mm from the ``key`` column, the ``# key = ...`` line or the option, in that order.
 
         Values must be > 0. Without any of them: a DataError saying ``missing``, or None if that is None.
@@ -168,7 +244,12 @@ class GenericReader:
             t = table[key]
             if np.any(t <= 0):
                 i = int(np.flatnonzero(t <= 0)[0])
-                raise DataError(table.path, f"{key.split('_')[0]} must be > 0, got {t[i]}", line=table.lines[i], column=key)
+                raise DataError(
+                    table.path,
+                    f"{key.split('_')[0]} must be > 0, got {t[i]}",
+                    line=table.lines[i],
+                    column=key,
+                )
             return t
         if key in meta:
             try:
@@ -187,12 +268,19 @@ class GenericReader:
             cells = [c.strip().lower() for c in table.text("direction")]
             for i, c in enumerate(cells):
                 if c not in _DIRECTIONS:
-                    raise DataError(table.path, f"direction must be course or wale (x or y), got {c!r}",
-                                    line=table.lines[i], column="direction")
+                    raise DataError(
+                        table.path,
+                        f"direction must be course or wale (x or y), got {c!r}",
+                        line=table.lines[i],
+                        column="direction",
+                    )
             return [_DIRECTIONS[c] for c in cells]
         d = meta.get("direction", self.direction)
         if d is None:
-            raise DataError(table.path, "cannot tell the direction: add a '# direction = course|wale' line or a direction column")
+            raise DataError(
+                table.path,
+                "cannot tell the direction: add a '# direction = course|wale' line or a direction column",
+            )
         if d.strip().lower() not in _DIRECTIONS:
             raise DataError(table.path, f"'# direction' must be course or wale (x or y), got {d!r}")
         return [_DIRECTIONS[d.strip().lower()]] * len(table)
@@ -200,21 +288,42 @@ class GenericReader:
     def _responses(self, path, load, lam, lat, tension, samples, measured, notes) -> list[Response]:
         ids = list(dict.fromkeys(samples))
         groups = [np.array([s == k for s in samples]) for k in ids]
-        prov = Provenance(kind="experiment", source=path.name, extra={"transverse_measured": measured, **notes})
+        prov = Provenance(
+            kind="experiment", source=path.name, extra={"transverse_measured": measured, **notes}
+        )
         d = 0 if load == "uniaxial-course" else 1
         base = f"{path.stem}-{('course', 'wale')[d]}"
         if not self.average:
-            return [_response(d, lam[g], lat[g], tension[g], None, None, 1, f"{base}/{k}", load, prov)
-                    for k, g in zip(ids, groups)]
+            return [
+                _response(d, lam[g], lat[g], tension[g], None, None, 1, f"{base}/{k}", load, prov)
+                for k, g in zip(ids, groups)
+            ]
         if len(ids) == 1:  # nothing to average: keep the measured points, sorted by strain
             o = np.argsort(lam, kind="stable")
             return [_response(d, lam[o], lat[o], tension[o], None, None, 1, base, load, prov)]
         try:
             grid, lat_m, lat_sd, ten_m, ten_sd = average_repeats(
-                [lam[g] - 1 for g in groups], [lat[g] - 1 for g in groups], [tension[g] for g in groups], self.points)
+                [lam[g] - 1 for g in groups],
+                [lat[g] - 1 for g in groups],
+                [tension[g] for g in groups],
+                self.points,
+            )
         except ValueError as e:
             raise DataError(path, f"{('course', 'wale')[d]} samples: {e}") from None
-        return [_response(d, 1 + grid, 1 + lat_m, ten_m, lat_sd if measured else None, ten_sd, len(ids), base, load, prov)]
+        return [
+            _response(
+                d,
+                1 + grid,
+                1 + lat_m,
+                ten_m,
+                lat_sd if measured else None,
+                ten_sd,
+                len(ids),
+                base,
+                load,
+                prov,
+            )
+        ]
 
 
 def _load_column(table: Table) -> str | None:

@@ -18,7 +18,8 @@ from typing import ClassVar
 import attrs
 import numpy as np
 
-from knitframe import hookimpl, validators as v
+from knitframe import hookimpl
+from knitframe import validators as v
 from knitframe.csvio import check_loading, check_tension, read_table, strains_as_fractions, tension_per_width
 from knitframe.curves import average_repeats, uniaxial_response  # noqa: F401  (average_repeats re-exported)
 from knitframe.errors import DataError
@@ -43,7 +44,9 @@ class Singal2024Reader:
     """Uniaxial tests of Singal et al. 2024: one Response per file (mean ± sd over repeats) or per repeat."""
 
     name: ClassVar[str] = "singal2024"
-    description: ClassVar[str] = "Singal et al. 2024 uniaxial knit tests (video, strain_axial, strain_transverse, N/mm)"
+    description: ClassVar[str] = (
+        "Singal et al. 2024 uniaxial knit tests (video, strain_axial, strain_transverse, N/mm)"
+    )
 
     average: bool = True  #: one mean ± sd Response per file; false gives one Response per repeat
     points: int = attrs.field(default=40, validator=v.in_range(2, 100000))  #: grid size when averaging
@@ -65,18 +68,28 @@ class Singal2024Reader:
         elif stem.endswith("-y") or header.rstrip("'").endswith(" y"):
             load = "uniaxial-wale"
         else:
-            raise DataError(path, "cannot tell the direction: the file name must end in -x (course) or -y (wale)")
-        strains = strains_as_fractions(table, {c: table[c] for c in ("strain_axial", "strain_transverse")},
-                                       "strain_axial")
+            raise DataError(
+                path, "cannot tell the direction: the file name must end in -x (course) or -y (wale)"
+            )
+        strains = strains_as_fractions(
+            table, {c: table[c] for c in ("strain_axial", "strain_transverse")}, "strain_axial"
+        )
         axial, lateral = strains["strain_axial"], strains["strain_transverse"]
-        tension = tension_per_width(table, "tension_N_per_mm", table["tension_N_per_mm"], clamp_width(table.comments),
-                                    "divide it by the specimen width, or state the width in a comment line "
-                                    "'# fabric width at clamp <w> mm'")
+        tension = tension_per_width(
+            table,
+            "tension_N_per_mm",
+            table["tension_N_per_mm"],
+            clamp_width(table.comments),
+            "divide it by the specimen width, or state the width in a comment line "
+            "'# fabric width at clamp <w> mm'",
+        )
         check_tension(table, "tension_N_per_mm", tension)
         for col, arr in (("strain_axial", axial), ("strain_transverse", lateral)):
             if np.any(arr <= -1):
                 i = int(np.flatnonzero(arr <= -1)[0])
-                raise DataError(path, f"strain {arr[i]} gives a non-positive stretch", line=table.lines[i], column=col)
+                raise DataError(
+                    path, f"strain {arr[i]} gives a non-positive stretch", line=table.lines[i], column=col
+                )
         videos = table.text("video")
         ids = list(dict.fromkeys(videos))
         groups = [np.array([vv == k for vv in videos]) for k in ids]
@@ -95,7 +108,10 @@ class Singal2024Reader:
             ]
         try:
             grid, lat, lat_sd, ten, ten_sd = average_repeats(
-                [axial[g] for g in groups], [lateral[g] for g in groups], [tension[g] for g in groups], self.points
+                [axial[g] for g in groups],
+                [lateral[g] for g in groups],
+                [tension[g] for g in groups],
+                self.points,
             )
         except ValueError as e:
             raise DataError(path, str(e)) from None

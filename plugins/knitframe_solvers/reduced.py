@@ -41,21 +41,29 @@ class ReducedSolver:
     """Evaluate a parameterised reduced model along the scene's load path (Response kind "model")."""
 
     name: ClassVar[str] = "reduced"
-    description: ClassVar[str] = "fitted reduced model (hgo, hgo2m, ...) along the load path; no geometry, instant"
+    description: ClassVar[str] = (
+        "fitted reduced model (hgo, hgo2m, ...) along the load path; no geometry, instant"
+    )
     effects: ClassVar[frozenset[str]] = frozenset({"large_deformation", "anisotropy"})
-    loads: ClassVar[frozenset[str]] = frozenset({"equibiaxial", "uniaxial-course", "uniaxial-wale", "general"})
+    loads: ClassVar[frozenset[str]] = frozenset(
+        {"equibiaxial", "uniaxial-course", "uniaxial-wale", "general"}
+    )
     #: cheap enough for the conformance kit to simulate with default options
     conformance_simulate: ClassVar[bool] = True
 
     model: str | dict[str, Any] = "hgo"  #: homogenizer name, or a table with ``kind`` and its options
-    params: dict[str, float] = attrs.Factory(dict)  #: parameters by name, angles as ``<name>_deg``; empty: the model's defaults
-    params_file: str | None = None  #: params.json of a fit (relative to the working directory); overrides ``model``/``params``
+    params: dict[str, float] = attrs.Factory(
+        dict
+    )  #: parameters by name, angles as ``<name>_deg``; empty: the model's defaults
+    params_file: str | None = (
+        None  #: params.json of a fit (relative to the working directory); overrides ``model``/``params``
+    )
 
     def __attrs_post_init__(self) -> None:
         self.resolved("")  # fail at configuration time, not in the middle of a run (paths below [solver])
 
     @classmethod
-    def from_fit(cls, result: FitResult) -> "ReducedSolver":
+    def from_fit(cls, result: FitResult) -> ReducedSolver:
         """The solver for a fitted model."""
         options = attrs.asdict(result.model) if attrs.has(type(result.model)) else {}
         return cls({"kind": result.model.name, **options}, params_to_json(result.param_names, result.params))
@@ -78,15 +86,20 @@ class ReducedSolver:
             except (OSError, ValueError, RecursionError) as e:
                 raise ConfigError(at("params_file"), f"cannot read {p}: {e}") from None
             if not isinstance(data, dict) or not isinstance(data.get("options", {}), dict):
-                raise ConfigError(at("params_file"), f"{p} is not a params.json of a fit (a table with 'model' "
-                                  "and the parameters)")
+                raise ConfigError(
+                    at("params_file"),
+                    f"{p} is not a params.json of a fit (a table with 'model' and the parameters)",
+                )
             fit = FitResult.from_json(data, path=at("params_file"))
             model, params, where = fit.model, fit.params, at("params_file")
         else:
             model = instantiate(get_registry(), "homogenizer", self.model, at("model"))
             where = at("params")
-            params = (params_from_json(model.param_names, self.params, where) if self.params
-                      else np.asarray(model.x0(), dtype=np.float64))
+            params = (
+                params_from_json(model.param_names, self.params, where)
+                if self.params
+                else np.asarray(model.x0(), dtype=np.float64)
+            )
         try:
             within_model_bounds(model, params)
         except FieldError as e:
@@ -105,8 +118,10 @@ class ReducedSolver:
             lf, P = model.solve_uniaxial(params, lam, load.direction)
             zero = np.zeros_like(P)
             if np.any(lf <= FREE_MIN):
-                notes = (f"free side collapsed (no lateral stiffness) beyond loaded stretch "
-                         f"{lam[np.argmax(lf <= FREE_MIN)]:.4g}")
+                notes = (
+                    f"free side collapsed (no lateral stiffness) beyond loaded stretch "
+                    f"{lam[np.argmax(lf <= FREE_MIN)]:.4g}"
+                )
             if load.direction == "course":
                 lam1, lam2, P1, P2, kind = lam, lf, P, zero, "uniaxial-course"
             else:
@@ -115,12 +130,19 @@ class ReducedSolver:
             P1, P2 = model.stress(params, lam1, lam2)
             kind = load.kind
         if not (np.all(np.isfinite(P1)) and np.all(np.isfinite(P2))):
-            raise NumericalError(f"reduced model '{model.name}' gave non-finite tension with params {params.tolist()}")
+            raise NumericalError(
+                f"reduced model '{model.name}' gave non-finite tension with params {params.tolist()}"
+            )
         if progress is not None:
             progress(1.0, 1.0, "reduced model evaluated")
         prov = Provenance(
-            kind="model", source=model.name, solver=self.name, wall_time=time.perf_counter() - t0, converged=True,
-            notes=notes, extra={"params": params_to_json(model.param_names, params)},
+            kind="model",
+            source=model.name,
+            solver=self.name,
+            wall_time=time.perf_counter() - t0,
+            converged=True,
+            notes=notes,
+            extra={"params": params_to_json(model.param_names, params)},
         )
         return Response(lam1, lam2, P1, P2, load=kind, label=f"{model.name} ({load.kind})", provenance=prov)
 

@@ -69,17 +69,17 @@ import attrs
 import numpy as np
 import scipy.sparse as sp
 
-from knitframe.stepfiles import StepSeries
-from knitframe.geometry import unit_cell
-from knitframe import hookimpl, validators as v
+from knitframe import hookimpl
+from knitframe import validators as v
 from knitframe.config import instantiate
-from knitframe.errors import KnitframeWarning, ConfigError, FieldError, NumericalError
+from knitframe.errors import ConfigError, FieldError, KnitframeWarning, NumericalError
+from knitframe.geometry import unit_cell
 from knitframe.newton import NewtonOptions, StepCheckpoints, continuation, minimise
 from knitframe.periodic import macro_index
 from knitframe.plugins import get_registry
 from knitframe.records import Fabric, Provenance, Response, Scene
+from knitframe.stepfiles import StepSeries
 from knitframe.yarns import yarn_model
-
 from knitframe_solvers.rod_contact import line_energy
 from knitframe_solvers.rod_model import RodEnergy, RodModel, from_cell
 
@@ -135,7 +135,7 @@ def loop_depth_start(model: RodModel, amplitude: float) -> np.ndarray:
     """State q whose centerlines have the loop depth scaled by ``amplitude``: u_z = (a − 1)(z − z̄), no macro strain."""
     q = np.zeros(model.n_dof)
     z = model.X[:, 2]
-    q[2: 3 * model.n_nodes: 3] = (amplitude - 1.0) * (z - z.mean())
+    q[2 : 3 * model.n_nodes : 3] = (amplitude - 1.0) * (z - z.mean())
     return q
 
 
@@ -143,9 +143,15 @@ def start_count(instance, attribute, value) -> None:
     """``starts`` is "auto" or a whole number of starts from 1 to len(START_SET)."""
     if value == "auto":
         return
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 1 <= value <= len(START_SET):
-        raise FieldError(attribute.name, f"must be \"auto\" or a whole number from 1 to {len(START_SET)}, "
-                                         f"got {v.shown(value)}")
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, np.integer))
+        or not 1 <= value <= len(START_SET)
+    ):
+        raise FieldError(
+            attribute.name,
+            f'must be "auto" or a whole number from 1 to {len(START_SET)}, got {v.shown(value)}',
+        )
 
 
 def rod_stiffness(yarn, registry=None, law=None, line_stiffness: float | None = None) -> dict[str, float]:
@@ -171,12 +177,17 @@ def rod_stiffness(yarn, registry=None, law=None, line_stiffness: float | None = 
         out["k_contact"] = line_stiffness / line_energy(law, 0.95 * dk, dk, 1.0, 0.0, derivative=2)
         core = float(getattr(law, "core", 0.0))
         y_mid = 0.5 * (core + 0.5 * (1.0 + core))
-        out["k_core"] = (float(yarn.E_axial) / line_energy(law, y_mid * dk, dk, 0.0, 1.0, derivative=2)
-                         if core > 0 else 0.0)
+        out["k_core"] = (
+            float(yarn.E_axial) / line_energy(law, y_mid * dk, dk, 0.0, 1.0, derivative=2)
+            if core > 0
+            else 0.0
+        )
     return out
 
 
-def write_rod_vtu(path: Path, model: RodModel, q: np.ndarray, radius: float, cell_data: dict | None = None) -> Path:
+def write_rod_vtu(
+    path: Path, model: RodModel, q: np.ndarray, radius: float, cell_data: dict | None = None
+) -> Path:
     """Deformed centerlines as VTU line cells; segments crossing the cell boundary get their own end point."""
     import meshio
 
@@ -190,11 +201,19 @@ def write_rod_vtu(path: Path, model: RodModel, q: np.ndarray, radius: float, cel
     cells[cross, 1] = n + np.arange(int(cross.sum()))
     yarn = np.concatenate([model.yarn, model.yarn[model.edges[cross, 0]]])
     disp = pts - np.vstack([model.X, model.X[model.edges[cross, 1]]])
-    meshio.write(path, meshio.Mesh(
-        pts, [("line", cells)],
-        point_data={"yarn": yarn.astype(np.float64), "displacement": disp, "radius": np.full(len(pts), radius)},
-        cell_data={k: [np.asarray(v_, dtype=np.float64)] for k, v_ in (cell_data or {}).items()},
-    ))
+    meshio.write(
+        path,
+        meshio.Mesh(
+            pts,
+            [("line", cells)],
+            point_data={
+                "yarn": yarn.astype(np.float64),
+                "displacement": disp,
+                "radius": np.full(len(pts), radius),
+            },
+            cell_data={k: [np.asarray(v_, dtype=np.float64)] for k, v_ in (cell_data or {}).items()},
+        ),
+    )
     return path
 
 
@@ -203,31 +222,68 @@ class RodSolver:
     """Discrete elastic rods (EA, EI) on the periodic 2x2 cell with penalty contact and macro DOFs."""
 
     name: ClassVar[str] = "rod"
-    description: ClassVar[str] = "fast unit-cell solver: discrete elastic rods, penalty contact with periodic images"
+    description: ClassVar[str] = (
+        "fast unit-cell solver: discrete elastic rods, penalty contact with periodic images"
+    )
     effects: ClassVar[frozenset[str]] = frozenset(
-        {"large_deformation", "bending", "contact", "self_contact", "friction", "prestress"})
-    loads: ClassVar[frozenset[str]] = frozenset({"equibiaxial", "uniaxial-course", "uniaxial-wale", "general"})
+        {"large_deformation", "bending", "contact", "self_contact", "friction", "prestress"}
+    )
+    loads: ClassVar[frozenset[str]] = frozenset(
+        {"equibiaxial", "uniaxial-course", "uniaxial-wale", "general"}
+    )
 
-    segments_per_stitch: int | None = attrs.field(default=None, validator=v.optional(v.in_range(4, 1000)))  #: rod segments per stitch of yarn; unset: segments no longer than dk/2 (at least 16), -
+    segments_per_stitch: int | None = attrs.field(
+        default=None, validator=v.optional(v.in_range(4, 1000))
+    )  #: rod segments per stitch of yarn; unset: segments no longer than dk/2 (at least 16), -
     linear_solver: str | dict[str, Any] = "direct"  #: linear-solver plugin name or table with ``kind``
     contact_law: str | dict[str, Any] = "rod_penalty"  #: rod contact-law plugin name or table with ``kind``
-    prestress_steps: int = attrs.field(default=8, validator=v.in_range(1, 1000))  #: steps growing the contact radius, -
-    prestress_start: Literal["auto", "straight", "knitted"] = "auto"  #: yarn rest shape during the pre-stress: straight throughout, or the knitted shape released to straight; "auto" tries straight, then knitted
-    starts: int | Literal["auto"] = attrs.field(default="auto", validator=start_count)  #: pre-stress starts explored, the first n of nominal, other rest shape (straight/knitted), 1.5x the pre-stress steps, loop depth x0.5, x1.5; the load continues from the lowest relaxed energy, or from the next if that load path fails; "auto": the first 3
+    prestress_steps: int = attrs.field(
+        default=8, validator=v.in_range(1, 1000)
+    )  #: steps growing the contact radius, -
+    prestress_start: Literal["auto", "straight", "knitted"] = (
+        "auto"  #: yarn rest shape during the pre-stress: straight throughout, or the knitted shape released to straight; "auto" tries straight, then knitted
+    )
+    starts: int | Literal["auto"] = attrs.field(
+        default="auto", validator=start_count
+    )  #: pre-stress starts explored, the first n of nominal, other rest shape (straight/knitted), 1.5x the pre-stress steps, loop depth x0.5, x1.5; the load continues from the lowest relaxed energy, or from the next if that load path fails; "auto": the first 3
     follow_branch: bool = True  #: under a uniaxial load, cut back a step whose free side jumps so the path follows its branch; a jump left at the smallest increment is flagged with where it happened
-    initial_radius: float = attrs.field(default=0.7, validator=v.in_range(0.0, 1.0, lo_open=True))  #: largest start of the pre-stress radius / (dk/2), -
-    self_contact_exclusion: float = attrs.field(default=np.pi, validator=v.positive)  #: same-strand pairs closer than this × dk along the yarn are neighbours, -
+    initial_radius: float = attrs.field(
+        default=0.7, validator=v.in_range(0.0, 1.0, lo_open=True)
+    )  #: largest start of the pre-stress radius / (dk/2), -
+    self_contact_exclusion: float = attrs.field(
+        default=np.pi, validator=v.positive
+    )  #: same-strand pairs closer than this × dk along the yarn are neighbours, -
     tolerance: float = attrs.field(default=1e-9, validator=v.positive)  #: Newton residual tolerance / EA, -
-    stabilisation: float = attrs.field(default=1e-6, validator=v.non_negative)  #: relative Hessian shift while a strand has no contact, -
-    max_step: float = attrs.field(default=0.2, validator=v.positive)  #: largest node move per Newton step / max(current contact distance, dk/2), -
-    min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))  #: smallest cut-back increment / load step, -
-    max_iterations: int = attrs.field(default=100, validator=v.in_range(1, 10000))  #: Newton iterations per increment, -
-    relax: bool = True  #: after pre-stress, let the lattice contract or expand to zero tension and load from there
-    on_failure: Literal["raise", "truncate"] = "raise"  #: "truncate" returns the converged steps (converged = false)
-    EA: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: override axial stiffness, N
-    EI: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: override bending stiffness, N·mm²
-    contact_stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: override the line contact stiffness at 5 % flattening, N/mm²
-    contact_quadrature: int = attrs.field(default=4, validator=v.in_range(1, 16))  #: Gauss points per segment (each way) of the contact integral, -
+    stabilisation: float = attrs.field(
+        default=1e-6, validator=v.non_negative
+    )  #: relative Hessian shift while a strand has no contact, -
+    max_step: float = attrs.field(
+        default=0.2, validator=v.positive
+    )  #: largest node move per Newton step / max(current contact distance, dk/2), -
+    min_step_fraction: float = attrs.field(
+        default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True)
+    )  #: smallest cut-back increment / load step, -
+    max_iterations: int = attrs.field(
+        default=100, validator=v.in_range(1, 10000)
+    )  #: Newton iterations per increment, -
+    relax: bool = (
+        True  #: after pre-stress, let the lattice contract or expand to zero tension and load from there
+    )
+    on_failure: Literal["raise", "truncate"] = (
+        "raise"  #: "truncate" returns the converged steps (converged = false)
+    )
+    EA: float | None = attrs.field(
+        default=None, validator=v.optional(v.positive)
+    )  #: override axial stiffness, N
+    EI: float | None = attrs.field(
+        default=None, validator=v.optional(v.positive)
+    )  #: override bending stiffness, N·mm²
+    contact_stiffness: float | None = attrs.field(
+        default=None, validator=v.optional(v.positive)
+    )  #: override the line contact stiffness at 5 % flattening, N/mm²
+    contact_quadrature: int = attrs.field(
+        default=4, validator=v.in_range(1, 16)
+    )  #: Gauss points per segment (each way) of the contact integral, -
 
     # ------------------------------------------------------------------------------------- setup
     def validate(self, fabric: Fabric, scene: Scene, registry=None) -> None:
@@ -248,8 +304,10 @@ class RodSolver:
         try:
             v.near_own("EA", self.EA, own["EA"], "N")
             v.near_own("EI", self.EI, own["EI"], "N·mm²")
-            for key, value in (("contact_stiffness", self.contact_stiffness),
-                               ("contact_law.stiffness", getattr(law, "stiffness", None))):
+            for key, value in (
+                ("contact_stiffness", self.contact_stiffness),
+                ("contact_law.stiffness", getattr(law, "stiffness", None)),
+            ):
                 v.near_own(key, value, own["k_line"], "N/mm²")
         except FieldError as e:
             raise ConfigError(f"solver.{e.field}", e.problem) from None
@@ -267,14 +325,18 @@ class RodSolver:
         if np.isfinite(E0):
             return None
         d_min = float(energy.pairs(q).distance.min(initial=cell.dk))
-        return (f"rod: the knitted centerlines overlap (closest centre distance {d_min:.4g} mm < "
-                f"{getattr(energy.law, 'core', 0) * cell.dk:.4g} mm); add 'prestress' to scene.effects")
+        return (
+            f"rod: the knitted centerlines overlap (closest centre distance {d_min:.4g} mm < "
+            f"{getattr(energy.law, 'core', 0) * cell.dk:.4g} mm); add 'prestress' to scene.effects"
+        )
 
     def make_contact_law(self, registry=None) -> Any:
         """The rod contact law named by ``contact_law``; ConfigError if it is unknown or not for rods."""
         law = instantiate(registry or get_registry(), "contact_law", self.contact_law, "solver.contact_law")
         if getattr(law, "discretisation", None) != "rod":
-            raise ConfigError("solver.contact_law", f"contact law '{law.name}' is for '{law.discretisation}', not rods")
+            raise ConfigError(
+                "solver.contact_law", f"contact law '{law.name}' is for '{law.discretisation}', not rods"
+            )
         return law
 
     def setup(self, fabric: Fabric, scene: Scene, registry=None) -> tuple[RodModel, RodEnergy, Any]:
@@ -283,13 +345,27 @@ class RodSolver:
         cell = unit_cell(fabric, registry)
         model = from_cell(cell, self.segments(cell))
         law = self.make_contact_law(registry) if "contact" in scene.effects else None
-        stiff = rod_stiffness(fabric.yarn, registry, law,
-                              line_stiffness=self.contact_stiffness or getattr(law, "stiffness", None))
+        stiff = rod_stiffness(
+            fabric.yarn,
+            registry,
+            law,
+            line_stiffness=self.contact_stiffness or getattr(law, "stiffness", None),
+        )
         energy = RodEnergy(
-            model, self.EA or stiff["EA"], self.EI or stiff["EI"], bending="bending" in scene.effects, law=law,
-            dk=cell.dk, dk_full=cell.dk, k_contact=stiff.get("k_contact", 0.0), k_core=stiff.get("k_core"),
-            self_contact="self_contact" in scene.effects, exclusion=self.self_contact_exclusion * cell.dk,
-            friction="friction" in scene.effects, quadrature=self.contact_quadrature, k_line=stiff["k_line"],
+            model,
+            self.EA or stiff["EA"],
+            self.EI or stiff["EI"],
+            bending="bending" in scene.effects,
+            law=law,
+            dk=cell.dk,
+            dk_full=cell.dk,
+            k_contact=stiff.get("k_contact", 0.0),
+            k_core=stiff.get("k_core"),
+            self_contact="self_contact" in scene.effects,
+            exclusion=self.self_contact_exclusion * cell.dk,
+            friction="friction" in scene.effects,
+            quadrature=self.contact_quadrature,
+            k_line=stiff["k_line"],
         )
         return model, energy, cell
 
@@ -300,12 +376,21 @@ class RodSolver:
         return max(16, 4 * int(np.ceil(cell.arc_length_per_stitch / (0.5 * cell.dk) / 4.0)))
 
     def _key(self, fabric: Fabric, scene: Scene) -> str:
-        text = json.dumps([fabric.to_dict(), scene.to_dict(), attrs.asdict(self)], sort_keys=True, default=str)
+        text = json.dumps(
+            [fabric.to_dict(), scene.to_dict(), attrs.asdict(self)], sort_keys=True, default=str
+        )
         return hashlib.sha256(text.encode()).hexdigest()[:24]
 
     # ---------------------------------------------------------------------------------- simulate
-    def simulate(self, fabric: Fabric, scene: Scene, *, progress=None, output_dir: str | Path | None = None,
-                 checkpoint_dir: str | Path | None = None) -> Response:
+    def simulate(
+        self,
+        fabric: Fabric,
+        scene: Scene,
+        *,
+        progress=None,
+        output_dir: str | Path | None = None,
+        checkpoint_dir: str | Path | None = None,
+    ) -> Response:
         """Pre-stress (if asked) and follow the scene's load path; returns tensions per unit width.
 
         Parameters
@@ -331,15 +416,22 @@ class RodSolver:
         prestress = "prestress" in scene.effects and energy.law is not None
         total = n_load + (self.prestress_steps if prestress else 0) + 1  # + the relaxed lattice
         report = progress or (lambda done, tot, msg: None)
-        opts = NewtonOptions(atol=self.tolerance * energy.EA, rtol=1e-10, max_iter=self.max_iterations,
-                             stabilisation=self.stabilisation, max_step=self.max_step,
-                             xtol=1e-12 * float(np.linalg.norm(lat.L1) + np.linalg.norm(lat.L2)))
+        opts = NewtonOptions(
+            atol=self.tolerance * energy.EA,
+            rtol=1e-10,
+            max_iter=self.max_iterations,
+            stabilisation=self.stabilisation,
+            max_step=self.max_step,
+            xtol=1e-12 * float(np.linalg.norm(lat.L1) + np.linalg.norm(lat.L2)),
+        )
         L_max = float(max(np.linalg.norm(lat.L1), np.linalg.norm(lat.L2)))
 
         def step_norm(dx: np.ndarray) -> float:
             # in units of the current contact distance, which is small early in the pre-stress
-            return max(float(np.max(np.linalg.norm(dx[: 3 * n].reshape(-1, 3), axis=1))),
-                       float(np.max(np.abs(dx[3 * n:]))) * L_max) / max(energy.dk, 0.5 * cell.dk)
+            return max(
+                float(np.max(np.linalg.norm(dx[: 3 * n].reshape(-1, 3), axis=1))),
+                float(np.max(np.abs(dx[3 * n :]))) * L_max,
+            ) / max(energy.dk, 0.5 * cell.dk)
 
         n_strands = model.n_strands
 
@@ -349,12 +441,16 @@ class RodSolver:
         base_free = np.ones(model.n_dof, bool)
         base_free[:3] = False  # pin node 0: the cell's free translation
         vtu = "vtu" in scene.outputs and output_dir is not None
-        ckpt = StepCheckpoints(checkpoint_dir, self._key(fabric, scene)) if checkpoint_dir is not None else None
+        ckpt = (
+            StepCheckpoints(checkpoint_dir, self._key(fabric, scene)) if checkpoint_dir is not None else None
+        )
 
         def newton(q0: np.ndarray, free: np.ndarray, options: NewtonOptions = opts):
             if energy.friction and energy.law is not None:
                 energy.update_lag(q0)
-            return minimise(energy, q0, free, solve=solve, options=options, stabilise=stabilise, step_norm=step_norm)
+            return minimise(
+                energy, q0, free, solve=solve, options=options, stabilise=stabilise, step_norm=step_norm
+            )
 
         def relax_lattice(q0: np.ndarray, free: np.ndarray) -> np.ndarray:
             # Springs on the course and wale stretch tie the lattice to where the pre-stress left
@@ -365,6 +461,7 @@ class RodSolver:
             K0 = 10.0 * float(np.abs(energy(q0, 2)[2].diagonal()[idx]).max())
             x = q0
             for K in [K0 * 10.0**-k for k in range(RELAX_DECADES)] + [0.0]:
+
                 def fun(qv: np.ndarray, order: int = 2, K: float = K):
                     E, g, H, info = energy(qv, order)
                     dh = qv[idx] - h0
@@ -375,8 +472,16 @@ class RodSolver:
                     if order >= 2:
                         H = H + sp.csr_matrix((np.full(2, K), (idx, idx)), shape=H.shape)
                     return E, g, H, info
-                x = minimise(fun, x, free, solve=solve, options=attrs.evolve(opts, max_iter=4 * self.max_iterations),
-                             stabilise=stabilise, step_norm=step_norm).x
+
+                x = minimise(
+                    fun,
+                    x,
+                    free,
+                    solve=solve,
+                    options=attrs.evolve(opts, max_iter=4 * self.max_iterations),
+                    stabilise=stabilise,
+                    step_norm=step_norm,
+                ).x
             return x
 
         rows: list[tuple[float, float, float, float]] = []
@@ -386,9 +491,19 @@ class RodSolver:
         # what a checkpoint carries besides q, rows and the starts' relaxed states, so a resumed run
         # retraces the same path: relaxed_step is the step index of the relaxed lattice (a fallback to
         # another start rewrites the steps from there); snaps are the jumps the load path kept
-        state: dict[str, Any] = {"phase": "prestress", "target": -1, "dk": energy.dk, "dk0": None, "lam_ref": None,
-                                 "start": None, "relaxed_energy": None, "starts": [], "start_chosen": None,
-                                 "relaxed_step": None, "snaps": []}
+        state: dict[str, Any] = {
+            "phase": "prestress",
+            "target": -1,
+            "dk": energy.dk,
+            "dk0": None,
+            "lam_ref": None,
+            "start": None,
+            "relaxed_energy": None,
+            "starts": [],
+            "start_chosen": None,
+            "relaxed_step": None,
+            "snaps": [],
+        }
         # the relaxed state of every start (row i: state["starts"][i]; NaN where it did not converge)
         start_states = np.zeros((0, model.n_dof))
         step_counter = [0]
@@ -412,8 +527,15 @@ class RodSolver:
             if series is not None:  # before the checkpoint: every checkpointed step has its file
                 series.write(step_counter[0], lambda path: write_rod_vtu(path, model, qv, 0.5 * energy.dk))
             if ckpt is not None:
-                ckpt.save(step_counter[0], {"q": qv, "rows": np.array(rows, dtype=np.float64).reshape(-1, 4),
-                                            "starts_q": start_states}, state)
+                ckpt.save(
+                    step_counter[0],
+                    {
+                        "q": qv,
+                        "rows": np.array(rows, dtype=np.float64).reshape(-1, 4),
+                        "starts_q": start_states,
+                    },
+                    state,
+                )
             step_counter[0] += 1
             report(done, total, message)
 
@@ -436,15 +558,22 @@ class RodSolver:
             d_min = float(energy.pairs(q0).distance.min(initial=dk_full))
             return min(self.initial_radius * dk_full, 0.95 * d_min)
 
-        def run_prestress(start: str, q0: np.ndarray, first: int, dk0: float, n_steps: int,
-                          label: str | None = None, min_fraction: float | None = None) -> np.ndarray:
+        def run_prestress(
+            start: str,
+            q0: np.ndarray,
+            first: int,
+            dk0: float,
+            n_steps: int,
+            label: str | None = None,
+            min_fraction: float | None = None,
+        ) -> np.ndarray:
             """Grow the contact distance dk0 → dk geometrically at F̄ = I, from pre-stress step ``first`` of ``n_steps``.
 
             With a ``label`` (a start other than the nominal one) the steps are reported as progress
             but neither checkpointed nor written: only the chosen start's relaxed state is.
             """
             free = base_free.copy()
-            free[3 * n:] = False
+            free[3 * n :] = False
             t_first = first / n_steps
             targets = [k / n_steps for k in range(first + 1, n_steps + 1)]
             loose = attrs.evolve(opts, atol=1e3 * opts.atol, max_iter=2 * self.max_iterations)
@@ -469,18 +598,25 @@ class RodSolver:
                     report(self.prestress_steps, total, message)
 
             try:
-                out = continuation(solve_prestress, q0, targets, t0=t_first,
-                                   min_fraction=min_fraction or self.min_step_fraction, on_target=on_prestress)
+                out = continuation(
+                    solve_prestress,
+                    q0,
+                    targets,
+                    t0=t_first,
+                    min_fraction=min_fraction or self.min_step_fraction,
+                    on_target=on_prestress,
+                )
             except NumericalError as e:
-                raise NumericalError(f"pre-stress{label} (contact distance {energy.dk:.4g} of {dk_full:.4g} mm): {e}"
-                                     ) from None
+                raise NumericalError(
+                    f"pre-stress{label} (contact distance {energy.dk:.4g} of {dk_full:.4g} mm): {e}"
+                ) from None
             finally:
                 energy.kappa0 = None
                 energy.dk = dk_full
             return out[-1].x if out else q0
 
         relax_free = base_free.copy()
-        relax_free[3 * n:] = ~lat.constraints(None, None)[0]
+        relax_free[3 * n :] = ~lat.constraints(None, None)[0]
 
         def relaxed(qv: np.ndarray) -> np.ndarray:
             """The state the load path starts from: with ``relax``, the lattice at zero tension."""
@@ -505,18 +641,39 @@ class RodSolver:
             best = float(energy(q_nominal, 0)[0])
             start_states = np.full((count, model.n_dof), np.nan)
             start_states[0] = q_nominal
-            entries = [{"name": START_SET[0].name, "rest": state["start"], "prestress_steps": self.prestress_steps,
-                        "amplitude": 1.0, "converged": True, "energy_Nmm": best, "relaxed_stretch": stretch_of(q_nominal)}]
+            entries = [
+                {
+                    "name": START_SET[0].name,
+                    "rest": state["start"],
+                    "prestress_steps": self.prestress_steps,
+                    "amplitude": 1.0,
+                    "converged": True,
+                    "energy_Nmm": best,
+                    "relaxed_stretch": stretch_of(q_nominal),
+                }
+            ]
             for k, st in enumerate(START_SET[1:count], start=1):
-                rest = state["start"] if st.rest == "option" else ("knitted" if state["start"] == "straight" else "straight")
+                rest = (
+                    state["start"]
+                    if st.rest == "option"
+                    else ("knitted" if state["start"] == "straight" else "straight")
+                )
                 steps = max(1, int(round(st.steps * self.prestress_steps)))
                 entry = {"name": st.name, "rest": rest, "prestress_steps": steps, "amplitude": st.amplitude}
                 t0 = time.perf_counter()
                 try:
                     q0 = loop_depth_start(model, st.amplitude)
-                    qk = relaxed(run_prestress(rest, q0, 0, initial_distance(q0), steps,
-                                               label=f" start {k + 1}/{count} ({st.name})",
-                                               min_fraction=max(self.min_step_fraction, EXTRA_START_MIN_FRACTION)))
+                    qk = relaxed(
+                        run_prestress(
+                            rest,
+                            q0,
+                            0,
+                            initial_distance(q0),
+                            steps,
+                            label=f" start {k + 1}/{count} ({st.name})",
+                            min_fraction=max(self.min_step_fraction, EXTRA_START_MIN_FRACTION),
+                        )
+                    )
                     E = float(energy(qk, 0)[0])
                     if not np.isfinite(E):
                         raise NumericalError(f"non-finite energy {E} at the relaxed state")
@@ -540,11 +697,15 @@ class RodSolver:
                     starts = [state["start"]]
                 else:
                     state["dk0"] = initial_distance(q)
-                    starts = ["straight", "knitted"] if self.prestress_start == "auto" else [self.prestress_start]
+                    starts = (
+                        ["straight", "knitted"] if self.prestress_start == "auto" else [self.prestress_start]
+                    )
                 for k, start in enumerate(starts):
                     state["start"] = start
                     try:
-                        q = run_prestress(start, q, int(state["target"]) + 1, state["dk0"], self.prestress_steps)
+                        q = run_prestress(
+                            start, q, int(state["target"]) + 1, state["dk0"], self.prestress_steps
+                        )
                         break
                     except NumericalError as e:
                         if k + 1 == len(starts):
@@ -567,7 +728,9 @@ class RodSolver:
                 q = relaxed(q)
                 if prestress:
                     q = explore_starts(q)
-                state.update(lam_ref=stretch_of(q), relaxed_energy=float(energy(q, 0)[0]), relaxed_step=step_counter[0])
+                state.update(
+                    lam_ref=stretch_of(q), relaxed_energy=float(energy(q, 0)[0]), relaxed_step=step_counter[0]
+                )
                 after("load", -1, q, "relaxed lattice" if self.relax else "start of the load path", offset)
             lam_ref = state["lam_ref"]
 
@@ -578,14 +741,16 @@ class RodSolver:
             def prescribed(tau: float):
                 l1 = None if lam1_path is None else float(np.interp(tau, np.arange(n_load + 1), lam1_path))
                 l2 = None if lam2_path is None else float(np.interp(tau, np.arange(n_load + 1), lam2_path))
-                return lat.constraints(None if l1 is None else l1 * lam_ref[0], None if l2 is None else l2 * lam_ref[1])
+                return lat.constraints(
+                    None if l1 is None else l1 * lam_ref[0], None if l2 is None else l2 * lam_ref[1]
+                )
 
             # the free side of a uniaxial path is watched for jumps to another branch (follow_branch)
             watch = self.follow_branch and scene.load.kind == "uniaxial"
             k_load = 0 if scene.load.direction == "course" else 1
             loaded_path = lam1_path if k_load == 0 else lam2_path
             # the smallest increment continuation tries, in loaded stretch
-            smallest = (self.min_step_fraction * float(np.abs(np.diff(loaded_path)).min()) if watch else 0.0)
+            smallest = self.min_step_fraction * float(np.abs(np.diff(loaded_path)).min()) if watch else 0.0
             # cut: an increment of this load step was cut back for a jump; last: the last converged (tau, q);
             # lenient: load steps up to this tau may jump (following their branch failed at its fold)
             follow: dict[str, Any] = {"cut": False, "last": None, "lenient": -1.0}
@@ -593,34 +758,42 @@ class RodSolver:
             def solve_load(tau: float, q0: np.ndarray):
                 pres, vals = prescribed(tau)
                 qs = q0.copy()
-                qs[3 * n:][pres] = vals[pres]
+                qs[3 * n :][pres] = vals[pres]
                 # predictor: carry the cell content along with the lattice (about the pinned node 0)
-                A = lat.F(qs[3 * n:]) @ np.linalg.inv(lat.F(q0[3 * n:]))
+                A = lat.F(qs[3 * n :]) @ np.linalg.inv(lat.F(q0[3 * n :]))
                 x = model.positions(q0)
                 qs[: 3 * n] = (x[0] + (x - x[0]) @ A.T - model.X).reshape(-1)
                 free = base_free.copy()
-                free[3 * n:] = ~pres
+                free[3 * n :] = ~pres
                 res = newton(qs, free)
                 if watch:
                     a, b = np.divide(stretch_of(q0), lam_ref), np.divide(stretch_of(res.x), lam_ref)
                     d_load, d_free = abs(b[k_load] - a[k_load]), b[1 - k_load] - a[1 - k_load]
                     if is_jump(d_load, d_free, CUT_RATIO):
                         lenient = tau <= follow["lenient"] + 1e-12
-                        if not lenient and d_load > smallest * (1.0 + 1e-6):  # continuation can still halve it
+                        if not lenient and d_load > smallest * (
+                            1.0 + 1e-6
+                        ):  # continuation can still halve it
                             follow["cut"] = True
-                            raise NumericalError(f"the free stretch jumped {a[1 - k_load]:.3f} -> {b[1 - k_load]:.3f} "
-                                                 f"over a loaded increment of {d_load:.3g} (another branch)")
-                        snaps.append({"loaded": [float(a[k_load]), float(b[k_load])],
-                                      "free": [float(a[1 - k_load]), float(b[1 - k_load])],
-                                      "how": "fold not converged" if lenient else "smallest increment"})
+                            raise NumericalError(
+                                f"the free stretch jumped {a[1 - k_load]:.3f} -> {b[1 - k_load]:.3f} "
+                                f"over a loaded increment of {d_load:.3g} (another branch)"
+                            )
+                        snaps.append(
+                            {
+                                "loaded": [float(a[k_load]), float(b[k_load])],
+                                "free": [float(a[1 - k_load]), float(b[1 - k_load])],
+                                "how": "fold not converged" if lenient else "smallest increment",
+                            }
+                        )
                 follow["last"] = (tau, res.x)
                 return res
 
             def on_load(i: int, tau: float, res) -> None:
                 nonlocal q
                 q = res.x
-                T1, T2 = lat.tensions(res.gradient[3 * n:])
-                h = q[3 * n:]
+                T1, T2 = lat.tensions(res.gradient[3 * n :])
+                h = q[3 * n :]
                 # stretches relative to the relaxed lattice; tensions per unit relaxed width
                 l1, l2 = 1.0 + h[macro_index(0, 0)], 1.0 + h[macro_index(1, 1)]
                 rows.append((l1 / lam_ref[0], l2 / lam_ref[1], T1 / lam_ref[1], T2 / lam_ref[0]))
@@ -633,8 +806,14 @@ class RodSolver:
                 """The load path from load time ``t_at`` and state ``q_at`` to its end; NumericalError if it fails."""
                 while True:
                     try:
-                        continuation(solve_load, q_at, list(np.arange(np.floor(t_at) + 1, n_load + 1, dtype=float)),
-                                     t0=t_at, min_fraction=self.min_step_fraction, on_target=on_load)
+                        continuation(
+                            solve_load,
+                            q_at,
+                            list(np.arange(np.floor(t_at) + 1, n_load + 1, dtype=float)),
+                            t0=t_at,
+                            min_fraction=self.min_step_fraction,
+                            on_target=on_load,
+                        )
                         return
                     except NumericalError:
                         last = follow["last"]
@@ -656,8 +835,11 @@ class RodSolver:
                 snaps.clear()
                 path_states.clear()
                 follow.update(cut=False, last=None, lenient=-1.0)
-                state.update(lam_ref=stretch_of(qk), relaxed_energy=float(entry["energy_Nmm"]),
-                             start_chosen=entry["name"])
+                state.update(
+                    lam_ref=stretch_of(qk),
+                    relaxed_energy=float(entry["energy_Nmm"]),
+                    start_chosen=entry["name"],
+                )
                 lam_ref = state["lam_ref"]
                 after("load", -1, qk, f"relaxed lattice (start '{entry['name']}')", offset)
                 return qk
@@ -667,9 +849,15 @@ class RodSolver:
             names = [e["name"] for e in entries]
             order = fallback_order(entries)
             # a fallback needs the starts' relaxed states (a checkpoint of an older version has none)
-            can_fall_back = (len(order) > 1 and state["relaxed_step"] is not None
-                             and len(start_states) == len(entries) and state["start_chosen"] in names)
-            path_states: list[np.ndarray] = []  # q of each converged load step of this path since this run began
+            can_fall_back = (
+                len(order) > 1
+                and state["relaxed_step"] is not None
+                and len(start_states) == len(entries)
+                and state["start_chosen"] in names
+            )
+            path_states: list[
+                np.ndarray
+            ] = []  # q of each converged load step of this path since this run began
             tried: dict[int, tuple[list, list, list]] = {}  # start -> its failed path (rows, states, snaps)
             all_failed = False
             t_at = float(start_index + 1)
@@ -682,8 +870,10 @@ class RodSolver:
                         raise
                     error = e
                 current = names.index(state["start_chosen"])
-                entries[current].update(load_error=f"after {len(rows)} of {n_load} load steps: {first_clause(str(error))}",
-                                        load_steps=len(rows))
+                entries[current].update(
+                    load_error=f"after {len(rows)} of {n_load} load steps: {first_clause(str(error))}",
+                    load_steps=len(rows),
+                )
                 if len(path_states) == len(rows):  # the whole path is in memory (not resumed midway)
                     tried[current] = (list(rows), list(path_states), [dict(sn) for sn in snaps])
                 nxt = next_start(entries, order)
@@ -714,11 +904,16 @@ class RodSolver:
                 raise NumericalError(f"no start could follow the load path: {summary}")
             if can_fall_back and state["start_chosen"] != names[order[0]]:  # fell back
                 first, used = entries[order[0]], entries[names.index(state["start_chosen"])]
-                others = "".join(f"; nor could '{entries[k]['name']}' ({entries[k]['load_error']})" for k in order[1:]
-                                 if "load_steps" in entries[k])
-                message = (f"rod solver ({fabric.pattern}, {fabric.yarn.name}): the lowest-energy start '{first['name']}' "
-                           f"could not follow the load path ({first['load_error']}){others}; continued from "
-                           f"'{used['name']}' (energy {used['energy_Nmm'] - first['energy_Nmm']:.4g} N·mm higher)")
+                others = "".join(
+                    f"; nor could '{entries[k]['name']}' ({entries[k]['load_error']})"
+                    for k in order[1:]
+                    if "load_steps" in entries[k]
+                )
+                message = (
+                    f"rod solver ({fabric.pattern}, {fabric.yarn.name}): the lowest-energy start '{first['name']}' "
+                    f"could not follow the load path ({first['load_error']}){others}; continued from "
+                    f"'{used['name']}' (energy {used['energy_Nmm'] - first['energy_Nmm']:.4g} N·mm higher)"
+                )
                 notes.append(message)
                 warnings.warn(message, KnitframeWarning, stacklevel=2)
         except NumericalError as e:
@@ -731,35 +926,69 @@ class RodSolver:
         jumps = locate_jumps(branch_jumps(arr, load), snaps, arr, load)
         drops = tension_drops(arr, load)
         for j in drops:
-            message = (f"rod solver ({fabric.pattern}, {fabric.yarn.name}): load step {j['step']} snapped to another "
-                       f"equilibrium state: the {j['direction']} tension fell {j['from']:.4g} -> {j['to']:.4g} N/mm "
-                       f"while its stretch grew; the curve after it is another state")
+            message = (
+                f"rod solver ({fabric.pattern}, {fabric.yarn.name}): load step {j['step']} snapped to another "
+                f"equilibrium state: the {j['direction']} tension fell {j['from']:.4g} -> {j['to']:.4g} N/mm "
+                f"while its stretch grew; the curve after it is another state"
+            )
             notes.append(message)
             warnings.warn(message, KnitframeWarning, stacklevel=2)
         jumps = sorted(jumps + drops, key=lambda j: j["step"])
         for j in (j for j in jumps if "free" in j):
-            where = ("" if "at_loaded_stretch" not in j else
-                     " (between loaded stretch {:.4f} and {:.4f}, {})".format(*j["at_loaded_stretch"], j["how"]))
-            message = (f"rod solver ({fabric.pattern}, {fabric.yarn.name}): load step {j['step']} jumped to another "
-                       f"equilibrium branch{where}: the free {j['free']} stretch went {j['from']:.3f} -> {j['to']:.3f} "
-                       f"while the loaded stretch changed by {j['loaded_change']:.3f}; the curve after it is another state")
+            where = (
+                ""
+                if "at_loaded_stretch" not in j
+                else " (between loaded stretch {:.4f} and {:.4f}, {})".format(
+                    *j["at_loaded_stretch"], j["how"]
+                )
+            )
+            message = (
+                f"rod solver ({fabric.pattern}, {fabric.yarn.name}): load step {j['step']} jumped to another "
+                f"equilibrium branch{where}: the free {j['free']} stretch went {j['from']:.3f} -> {j['to']:.3f} "
+                f"while the loaded stretch changed by {j['loaded_change']:.3f}; the curve after it is another state"
+            )
             notes.append(message)
             warnings.warn(message, KnitframeWarning, stacklevel=2)
         key = load.response_kind
-        size = f"SL{fabric.stitch_length:g}" if fabric.stitch_length is not None else f"{fabric.arc_length:g} mm/stitch"
-        prov = Provenance(
-            kind="simulation", source=f"rod {fabric.pattern}", solver=self.name,
-            mesh=f"{model.n_nodes} nodes, {len(model.edges)} segments ({self.segments(cell)}/stitch)",
-            wall_time=time.perf_counter() - t_start, converged=converged, notes="; ".join(notes),
-            extra={"EA_N": energy.EA, "EI_Nmm2": energy.EI, "k_line_N_per_mm2": energy.k_line,
-                   "dk_mm": cell.dk, "L1_mm": lat.L1.tolist(), "L2_mm": lat.L2.tolist(),
-                   "effects": sorted(scene.effects), "options": attrs.asdict(self),
-                   "prestress_start": state["start"], "relaxed_stretch": state["lam_ref"], "branch_jumps": jumps,
-                   "relaxed_energy_Nmm": state["relaxed_energy"], "starts": state["starts"],
-                   "start_chosen": state["start_chosen"]},
+        size = (
+            f"SL{fabric.stitch_length:g}"
+            if fabric.stitch_length is not None
+            else f"{fabric.arc_length:g} mm/stitch"
         )
-        return Response(arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3], load=key,
-                        label=f"rod {fabric.pattern} {size} {fabric.yarn.name}", provenance=prov)
+        prov = Provenance(
+            kind="simulation",
+            source=f"rod {fabric.pattern}",
+            solver=self.name,
+            mesh=f"{model.n_nodes} nodes, {len(model.edges)} segments ({self.segments(cell)}/stitch)",
+            wall_time=time.perf_counter() - t_start,
+            converged=converged,
+            notes="; ".join(notes),
+            extra={
+                "EA_N": energy.EA,
+                "EI_Nmm2": energy.EI,
+                "k_line_N_per_mm2": energy.k_line,
+                "dk_mm": cell.dk,
+                "L1_mm": lat.L1.tolist(),
+                "L2_mm": lat.L2.tolist(),
+                "effects": sorted(scene.effects),
+                "options": attrs.asdict(self),
+                "prestress_start": state["start"],
+                "relaxed_stretch": state["lam_ref"],
+                "branch_jumps": jumps,
+                "relaxed_energy_Nmm": state["relaxed_energy"],
+                "starts": state["starts"],
+                "start_chosen": state["start_chosen"],
+            },
+        )
+        return Response(
+            arr[:, 0],
+            arr[:, 1],
+            arr[:, 2],
+            arr[:, 3],
+            load=key,
+            label=f"rod {fabric.pattern} {size} {fabric.yarn.name}",
+            provenance=prov,
+        )
 
 
 def fallback_order(starts: list[dict[str, Any]]) -> list[int]:
@@ -774,7 +1003,9 @@ def fallback_order(starts: list[dict[str, Any]]) -> list[int]:
         return []
     first = ok[0]
     for k in ok[1:]:
-        if starts[k]["energy_Nmm"] < starts[first]["energy_Nmm"] - SAME_ENERGY * abs(starts[first]["energy_Nmm"]):
+        if starts[k]["energy_Nmm"] < starts[first]["energy_Nmm"] - SAME_ENERGY * abs(
+            starts[first]["energy_Nmm"]
+        ):
             first = k
     return [first] + sorted((k for k in ok if k != first), key=lambda k: (starts[k]["energy_Nmm"], k))
 
@@ -791,7 +1022,11 @@ def next_start(starts: list[dict[str, Any]], order: list[int]) -> int | None:
         if "load_error" in starts[k]:
             continue
         E = starts[k]["energy_Nmm"]
-        same = [j for j in failed if abs(E - starts[j]["energy_Nmm"]) <= SAME_ENERGY * abs(starts[j]["energy_Nmm"])]
+        same = [
+            j
+            for j in failed
+            if abs(E - starts[j]["energy_Nmm"]) <= SAME_ENERGY * abs(starts[j]["energy_Nmm"])
+        ]
         if same:
             starts[k]["load_error"] = f"not tried: the same relaxed state as '{starts[same[0]]['name']}'"
             continue
@@ -809,8 +1044,9 @@ def is_jump(d_load: Any, d_free: Any, ratio: float = JUMP_RATIO, floor: float = 
     return np.abs(d_free) > np.maximum(ratio * np.abs(d_load), floor)
 
 
-def branch_jumps(rows: np.ndarray, load: Any, *, ratio: float = JUMP_RATIO, floor: float = JUMP_FLOOR
-                 ) -> list[dict[str, Any]]:
+def branch_jumps(
+    rows: np.ndarray, load: Any, *, ratio: float = JUMP_RATIO, floor: float = JUMP_FLOOR
+) -> list[dict[str, Any]]:
     r"""Load steps where the free side's stretch jumps: a snap to another equilibrium branch.
 
     ``rows`` holds (λ1, λ2, T1, T2) per converged load step, from the relaxed lattice (λ = 1).
@@ -829,13 +1065,21 @@ def branch_jumps(rows: np.ndarray, load: Any, *, ratio: float = JUMP_RATIO, floo
     d_free = np.diff(lam[:, k_free])
     out = []
     for k in np.flatnonzero(is_jump(d_load, d_free, ratio, floor)):
-        out.append({"step": int(k) + 1, "free": "wale" if k_free else "course", "from": float(lam[k, k_free]),
-                    "to": float(lam[k + 1, k_free]), "loaded_change": float(d_load[k])})
+        out.append(
+            {
+                "step": int(k) + 1,
+                "free": "wale" if k_free else "course",
+                "from": float(lam[k, k_free]),
+                "to": float(lam[k + 1, k_free]),
+                "loaded_change": float(d_load[k]),
+            }
+        )
     return out
 
 
-def tension_drops(rows: np.ndarray, load: Any, *, fraction: float = DROP_FRACTION,
-                  floor: float = DROP_FLOOR) -> list[dict[str, Any]]:
+def tension_drops(
+    rows: np.ndarray, load: Any, *, fraction: float = DROP_FRACTION, floor: float = DROP_FLOOR
+) -> list[dict[str, Any]]:
     r"""Load steps of a path with no free side (equibiaxial, general) where a tension falls.
 
     ``rows`` holds (λ1, λ2, T1, T2) per converged load step. Along a direction d whose stretch
@@ -856,13 +1100,21 @@ def tension_drops(rows: np.ndarray, load: Any, *, fraction: float = DROP_FRACTIO
         grows = np.diff(lam[:, d]) > 0
         fall = T[:-1, d] - T[1:, d]
         for k in np.flatnonzero(grows & (fall > np.maximum(fraction * np.abs(T[:-1, d]), scale))):
-            out.append({"step": int(k) + 1, "direction": name, "from": float(T[k, d]), "to": float(T[k + 1, d]),
-                        "kind": "tension drop"})
+            out.append(
+                {
+                    "step": int(k) + 1,
+                    "direction": name,
+                    "from": float(T[k, d]),
+                    "to": float(T[k + 1, d]),
+                    "kind": "tension drop",
+                }
+            )
     return sorted(out, key=lambda j: (j["step"], j["direction"]))
 
 
-def locate_jumps(jumps: list[dict[str, Any]], snaps: list[dict[str, list[float]]], rows: np.ndarray,
-                 load: Any) -> list[dict[str, Any]]:
+def locate_jumps(
+    jumps: list[dict[str, Any]], snaps: list[dict[str, list[float]]], rows: np.ndarray, load: Any
+) -> list[dict[str, Any]]:
     """The load steps' jumps with where each happened: ``at_loaded_stretch`` [λa, λb] of its snap.
 
     ``snaps`` are the jumps the load path kept (``follow_branch``), each with its loaded and
@@ -880,9 +1132,16 @@ def locate_jumps(jumps: list[dict[str, Any]], snaps: list[dict[str, list[float]]
     for snap in snaps:
         lo, hi = snap["loaded"]
         step = int(np.clip(np.searchsorted(ends, 0.5 * (lo + hi)), 1, len(rows)))  # loaded stretch rises
-        jump = out.setdefault(step, {"step": step, "free": "wale" if k_load == 0 else "course",
-                                     "from": snap["free"][0], "to": snap["free"][1],
-                                     "loaded_change": float(abs(ends[step] - ends[step - 1]))})
+        jump = out.setdefault(
+            step,
+            {
+                "step": step,
+                "free": "wale" if k_load == 0 else "course",
+                "from": snap["free"][0],
+                "to": snap["free"][1],
+                "loaded_change": float(abs(ends[step] - ends[step - 1])),
+            },
+        )
         jump.update(at_loaded_stretch=[lo, hi], how=snap["how"])
     return [out[k] for k in sorted(out)]
 

@@ -45,8 +45,16 @@ def gauss_points(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return a.reshape(-1), b.reshape(-1), np.outer(w, w).reshape(-1)
 
 
-def quadrature_contact(p: np.ndarray, lengths: np.ndarray, law, dk: float, k: float, k_core: float | None,
-                       rule: tuple[np.ndarray, np.ndarray, np.ndarray], order: int = 2):
+def quadrature_contact(
+    p: np.ndarray,
+    lengths: np.ndarray,
+    law,
+    dk: float,
+    k: float,
+    k_core: float | None,
+    rule: tuple[np.ndarray, np.ndarray, np.ndarray],
+    order: int = 2,
+):
     """Contact energy of segment pairs by the double integral of a rod contact law's density.
 
     Parameters
@@ -110,8 +118,17 @@ def line_energy(law, d: float, dk: float, k: float, k_core: float | None, deriva
     return 2.0 * quad(integrand, 0.0, span, epsabs=0.0, epsrel=1e-10, limit=200)[0]
 
 
-def friction_energy(p: np.ndarray, s: np.ndarray, t: np.ndarray, c_lag: np.ndarray, normal: np.ndarray,
-                    lam: np.ndarray, law, dk: float, order: int = 2):
+def friction_energy(
+    p: np.ndarray,
+    s: np.ndarray,
+    t: np.ndarray,
+    c_lag: np.ndarray,
+    normal: np.ndarray,
+    lam: np.ndarray,
+    law,
+    dk: float,
+    order: int = 2,
+):
     """Lagged friction pseudo-potential of point pairs on segment pairs p (m, 4, 3).
 
     The material points at parameters (s, t) have slipped by Δc = J x − c_lag since the lag;

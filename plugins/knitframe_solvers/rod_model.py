@@ -23,7 +23,6 @@ import scipy.sparse as sp
 
 from knitframe.contact_search import SegmentTopology, find_pairs
 from knitframe.periodic import N_MACRO, Lattice, PointMap
-
 from knitframe_solvers.rod_contact import friction_energy, gauss_points, pair_weights, quadrature_contact
 from knitframe_solvers.rod_terms import bend, stretch
 
@@ -62,7 +61,7 @@ class RodModel:
         x = self.positions(q)
         p = x[self.triplets]
         if self.lattice is not None:
-            p = p + self.lattice.shift(self.triplet_images, q[3 * self.n_nodes:])
+            p = p + self.lattice.shift(self.triplet_images, q[3 * self.n_nodes :])
         a, b = p[:, 1] - p[:, 0], p[:, 2] - p[:, 1]
         c = np.einsum("ij,ij->i", a, b) / (np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1))
         return 2.0 * np.sqrt(np.maximum(1.0 - c, 0.0) / (1.0 + c))
@@ -74,7 +73,7 @@ class RodModel:
     def segments(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Current edge end points (E, 3) each, with image shifts applied."""
         x = self.positions(q)
-        h = q[3 * self.n_nodes:]
+        h = q[3 * self.n_nodes :]
         p = x[self.edges]
         if self.lattice is not None:
             p = p + self.lattice.shift(self.edge_images, h)
@@ -105,12 +104,28 @@ def open_rods(polylines: list[np.ndarray]) -> RodModel:
     E = np.vstack(edges)
     T = np.vstack(tri) if tri else np.zeros((0, 3), np.int64)
     l0 = np.linalg.norm(X[E[:, 1]] - X[E[:, 0]], axis=1)
-    lbar = 0.5 * (np.linalg.norm(X[T[:, 1]] - X[T[:, 0]], axis=1) + np.linalg.norm(X[T[:, 2]] - X[T[:, 1]], axis=1))
+    lbar = 0.5 * (
+        np.linalg.norm(X[T[:, 1]] - X[T[:, 0]], axis=1) + np.linalg.norm(X[T[:, 2]] - X[T[:, 1]], axis=1)
+    )
     n_r = len(polylines)
-    topo = SegmentTopology(np.concatenate(strand), np.zeros(len(E), np.int64), np.concatenate(arc),
-                           np.zeros(n_r, np.int64), np.zeros(n_r))
-    return RodModel(X, E, np.zeros((len(E), 2, 2), np.int64), T, np.zeros((len(T), 3, 2), np.int64),
-                    l0, lbar, topo, np.concatenate(yarn))
+    topo = SegmentTopology(
+        np.concatenate(strand),
+        np.zeros(len(E), np.int64),
+        np.concatenate(arc),
+        np.zeros(n_r, np.int64),
+        np.zeros(n_r),
+    )
+    return RodModel(
+        X,
+        E,
+        np.zeros((len(E), 2, 2), np.int64),
+        T,
+        np.zeros((len(T), 3, 2), np.int64),
+        l0,
+        lbar,
+        topo,
+        np.concatenate(yarn),
+    )
 
 
 def _uniform_arc_samples(curve, n: int) -> np.ndarray:
@@ -270,9 +285,17 @@ class RodEnergy:
         """Segment pairs closer than dk under the current state (one contact search)."""
         self.calls["contact_search"] += 1
         p0, p1 = self.model.segments(q)
-        h = q[3 * self.model.n_nodes:]
-        return find_pairs(p0, p1, self.dk, topology=self.model.topology, lattice=self.model.lattice, h=h,
-                          self_contact=self.self_contact, exclusion=self.exclusion)
+        h = q[3 * self.model.n_nodes :]
+        return find_pairs(
+            p0,
+            p1,
+            self.dk,
+            topology=self.model.topology,
+            lattice=self.model.lattice,
+            h=h,
+            self_contact=self.self_contact,
+            exclusion=self.exclusion,
+        )
 
     def _pair_map(self, i: np.ndarray, j: np.ndarray, k: np.ndarray) -> PointMap:
         m = self.model
@@ -287,20 +310,21 @@ class RodEnergy:
         """Freeze the contacting point pairs of state q (normal forces, normals, material points) for friction."""
         pr = self.pairs(q)
         pm = self._pair_map(pr.i, pr.j, pr.k)
-        p = pm.points(self.model.positions(q), q[3 * self.model.n_nodes:])
+        p = pm.points(self.model.positions(q), q[3 * self.model.n_nodes :])
         xa, xb, wq = self.rule()
         c = np.einsum("qi,mic->mqc", pair_weights(xa, xb), p)
         r = np.linalg.norm(c, axis=2)
         lam = -(self._lengths(pr.i, pr.j)[:, None] * wq) * self.law.normal(r, self.dk, *self.stiffness())[1]
         m_, q_ = np.nonzero(lam > 0)
-        self.lag = FrictionLag(pr.i[m_], pr.j[m_], pr.k[m_], xa[q_], xb[q_], c[m_, q_],
-                               c[m_, q_] / r[m_, q_, None], lam[m_, q_])
+        self.lag = FrictionLag(
+            pr.i[m_], pr.j[m_], pr.k[m_], xa[q_], xb[q_], c[m_, q_], c[m_, q_] / r[m_, q_, None], lam[m_, q_]
+        )
 
     # -- total ---------------------------------------------------------------------------------
     def __call__(self, q: np.ndarray, order: int = 2):
         m = self.model
         x = m.positions(q)
-        h = q[3 * m.n_nodes:]
+        h = q[3 * m.n_nodes :]
         E = 0.0
         g = np.zeros(m.n_dof) if order >= 1 else None
         coo: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
@@ -324,8 +348,15 @@ class RodEnergy:
             self.calls["contact"] += 1
             if len(pr):
                 pm = self._pair_map(pr.i, pr.j, pr.k)
-                e, ge, He, r_min = quadrature_contact(pm.points(x, h), self._lengths(pr.i, pr.j), self.law, self.dk,
-                                                      *self.stiffness(), self.rule(), order)
+                e, ge, He, r_min = quadrature_contact(
+                    pm.points(x, h),
+                    self._lengths(pr.i, pr.j),
+                    self.law,
+                    self.dk,
+                    *self.stiffness(),
+                    self.rule(),
+                    order,
+                )
                 act = r_min < self.dk
                 if order >= 1:  # pairs with no sample inside dk contribute nothing
                     pm = self._pair_map(pr.i[act], pr.j[act], pr.k[act])
@@ -342,7 +373,12 @@ class RodEnergy:
                 self.calls["friction"] += 1
                 L = self.lag
                 pm = self._pair_map(L.i, L.j, L.k)
-                add(pm, *friction_energy(pm.points(x, h), L.s, L.t, L.c, L.normal, L.lam, self.law, self.dk, order))
+                add(
+                    pm,
+                    *friction_energy(
+                        pm.points(x, h), L.s, L.t, L.c, L.normal, L.lam, self.law, self.dk, order
+                    ),
+                )
         if self.external is not None:
             E -= float(self.external @ q)
             if order >= 1:
@@ -352,6 +388,8 @@ class RodEnergy:
             r, c, v = (np.concatenate(a) for a in zip(*coo))
             H = sp.csr_matrix((v, (r, c)), shape=(m.n_dof, m.n_dof))
         if not np.isfinite(E):
-            info["diagnostic"] = (f"contact barrier crossed (closest centre distance {info['min_distance']:.4g} mm, "
-                                  f"contact distance {self.dk:.4g} mm)")
+            info["diagnostic"] = (
+                f"contact barrier crossed (closest centre distance {info['min_distance']:.4g} mm, "
+                f"contact distance {self.dk:.4g} mm)"
+            )
         return E, g, H, info

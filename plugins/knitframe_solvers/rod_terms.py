@@ -70,7 +70,9 @@ def stretch(p: np.ndarray, l0: np.ndarray, EA: np.ndarray | float, order: int = 
     return E, g, H
 
 
-def bend(p: np.ndarray, lbar: np.ndarray, EI: np.ndarray | float, order: int = 2, kappa0: np.ndarray | None = None):
+def bend(
+    p: np.ndarray, lbar: np.ndarray, EI: np.ndarray | float, order: int = 2, kappa0: np.ndarray | None = None
+):
     """Bending energy of vertex triplets.
 
     Parameters

@@ -50,21 +50,21 @@ from typing import Any, ClassVar, Literal
 import attrs
 import numpy as np
 import scipy.sparse as sp
+from knitframe_contact.solid_geometry import SolidSurface
 
-from knitframe.stepfiles import StepSeries
-from knitframe.geometry import unit_cell
-from knitframe import hookimpl, validators as v
+from knitframe import hookimpl
+from knitframe import validators as v
 from knitframe.config import instantiate
 from knitframe.contact_search import SegmentTopology
 from knitframe.errors import ConfigError, FieldError, KnitframeWarning, NumericalError
+from knitframe.geometry import unit_cell
 from knitframe.memory import retain_freed_memory
 from knitframe.newton import NewtonOptions, StepCheckpoints, continuation, minimise
 from knitframe.periodic import N_MACRO, Lattice, macro_index, periodic_transform
 from knitframe.plugins import get_registry
 from knitframe.records import Fabric, Provenance, Response, Scene
+from knitframe.stepfiles import StepSeries
 from knitframe.yarns import yarn_model
-
-from knitframe_contact.solid_geometry import SolidSurface
 from knitframe_solvers.volumetric_material import SolidForms, YarnLaw
 
 __all__ = ["VolumetricSolver", "contact_surface", "write_solid_vtu"]
@@ -74,8 +74,10 @@ __all__ = ["VolumetricSolver", "contact_surface", "write_solid_vtu"]
 #: the SL11 P2 r/3 runs end their steps at 0.7-6.6 ×, the coarse P1 run under 0.05 ×)
 IMBALANCE_NOTE = 10.0
 #: the warning of every P1 run that bends yarns (measured in docs/validation.md, "Is the reference converged?")
-P1_LOCKING = ("volumetric order 1: linear tetrahedra lock in bending, so a knitted cell's P1 tensions are several "
-              "times too high even at seed r/3; use order = 2 for numbers and P1 only for a quick look")
+P1_LOCKING = (
+    "volumetric order 1: linear tetrahedra lock in bending, so a knitted cell's P1 tensions are several "
+    "times too high even at seed r/3; use order = 2 for numbers and P1 only for a quick look"
+)
 
 
 def contact_surface(cm: Any, lattice: Lattice | None, exclusion: float | None = None) -> SolidSurface:
@@ -139,7 +141,10 @@ def write_solid_vtu(path: Path, forms: SolidForms, u: np.ndarray, s: float, pres
         X,
         [(cell_type, forms.edofs.T)],
         point_data={"displacement": u.reshape(-1, 3), "contact_pressure": pressure},
-        cell_data={"max_principal_stress": [smax], "yarn": [np.asarray(getattr(forms, "element_body", np.zeros(len(smax))))]},
+        cell_data={
+            "max_principal_stress": [smax],
+            "yarn": [np.asarray(getattr(forms, "element_body", np.zeros(len(smax))))],
+        },
     )
     out.write(str(path))
     return Path(path)
@@ -150,53 +155,124 @@ class VolumetricSolver:
     """Tetrahedral yarn solids (P1/P2) on the periodic 2x2 cell with solid contact and macro DOFs."""
 
     name: ClassVar[str] = "volumetric"
-    description: ClassVar[str] = "paper-fidelity unit-cell solver: P2 tetrahedral yarn solids, solid contact, pre-stress"
+    description: ClassVar[str] = (
+        "paper-fidelity unit-cell solver: P2 tetrahedral yarn solids, solid contact, pre-stress"
+    )
     effects: ClassVar[frozenset[str]] = frozenset(
-        {"large_deformation", "bending", "contact", "self_contact", "friction", "prestress", "anisotropy"})
-    loads: ClassVar[frozenset[str]] = frozenset({"equibiaxial", "uniaxial-course", "uniaxial-wale", "general"})
+        {"large_deformation", "bending", "contact", "self_contact", "friction", "prestress", "anisotropy"}
+    )
+    loads: ClassVar[frozenset[str]] = frozenset(
+        {"equibiaxial", "uniaxial-course", "uniaxial-wale", "general"}
+    )
 
-    order: int = attrs.field(default=2, validator=v.in_range(1, 2))  #: polynomial order of the tetrahedra (1 or 2), -
-    seed: float = attrs.field(default=1.0 / 3.0, validator=v.in_range(0.05, 1.5))  #: element size / yarn radius, -
-    contact_law: str | dict[str, Any] = "ipc"  #: solid contact-law plugin name or table with ``kind`` (ipc: barrier, the default; mortar, penalty), -
+    order: int = attrs.field(
+        default=2, validator=v.in_range(1, 2)
+    )  #: polynomial order of the tetrahedra (1 or 2), -
+    seed: float = attrs.field(
+        default=1.0 / 3.0, validator=v.in_range(0.05, 1.5)
+    )  #: element size / yarn radius, -
+    contact_law: str | dict[str, Any] = (
+        "ipc"  #: solid contact-law plugin name or table with ``kind`` (ipc: barrier, the default; mortar, penalty), -
+    )
     linear_solver: str | dict[str, Any] = "direct"  #: linear-solver plugin name or table with ``kind``
-    contact_modulus: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: modulus scaling the penalty, MPa; default the yarn's E_transverse
+    contact_modulus: float | None = attrs.field(
+        default=None, validator=v.optional(v.positive)
+    )  #: modulus scaling the penalty, MPa; default the yarn's E_transverse
     reach: float = attrs.field(default=0.5, validator=v.positive)  #: contact search distance / yarn radius, -
-    self_contact_exclusion: float = attrs.field(default=np.pi, validator=v.positive)  #: same-strand pairs closer than this × dk along the yarn are the yarn itself (the ipc law: all pairs within 0.75 × this, none beyond it), -
-    prestress_steps: int = attrs.field(default=8, validator=v.in_range(1, 1000))  #: steps of the radial pre-stress, -
-    initial_radius: float = attrs.field(default=0.9, validator=v.in_range(0.05, 1.0))  #: largest start radius of the pre-stress / r, -
-    min_clearance: float = attrs.field(default=0.25, validator=v.in_range(0.05, 2.0))  #: with pre-stress, closest centerline distance / r below which a cell is refused (the pre-stress starts at 0.95 of half of it; without pre-stress the limit is r), -
-    tolerance: float = attrs.field(default=1e-3, validator=v.positive)  #: Newton residual tolerance (largest nodal force) / (E_transverse r²), -
-    flux_tolerance: float = attrs.field(default=5e-3, validator=v.non_negative)  #: also converged at a residual ≤ this × the average nodal force flux (ABAQUS's R_n; 0: off), -
-    late_flux_tolerance: float = attrs.field(default=2e-2, validator=v.non_negative)  #: the flux ratio after 9 iterations (ABAQUS's R_P; 0: flux_tolerance throughout), -
-    correction_tolerance: float = attrs.field(default=1e-2, validator=v.positive)  #: ... when the last Newton correction ≤ this × the increment's displacement (ABAQUS's C_n), -
-    path_tolerance_factor: float = attrs.field(default=10.0, validator=v.in_range(1.0, 1e6))  #: tolerances (residual, flux, step) of the intermediate pre-stress states / the final ones, -
-    max_step: float = attrs.field(default=0.25, validator=v.positive)  #: largest node move per Newton step / yarn radius (at most reach / 2 with contact_search = "iteration"), -
-    tangent: Literal["adaptive", "exact", "projected"] = attrs.field(default="projected", validator=v.one_of(("adaptive", "exact", "projected")))  #: Newton's Hessian: its PSD projection per quadrature point (projected Newton), the exact tangent, or the projection while exact steps fail ("adaptive": projected far from the solution, exact near it)
-    start_projected: bool = attrs.field(default=False, validator=v.boolean)  #: with tangent = "adaptive", start every increment on the projected tangent (an increment's first exact step mostly fails: this saves its evaluation and factorisation)
-    step_tolerance: float = attrs.field(default=0.01, validator=v.non_negative)  #: also converged when the exact Newton step moves no node more than this × r (IPC's test; 0: off), -
-    predictor: Literal["affine", "secant"] = attrs.field(default="affine", validator=v.one_of(("affine", "secant")))  #: start of a load increment: the affine map of the macro step, plus ("secant") the yarns' fluctuation and free macro DOFs extrapolated from the last two converged increments (with a barrier, its crossing-free part; taken only if it lowers the energy)
-    eigenvalue_filter: Literal["clamp", "abs", "element"] = attrs.field(default="clamp", validator=v.one_of(("clamp", "abs", "element")))  #: the projected tangent's negative eigenvalues: set to zero at each quadrature point ("clamp", the closest PSD matrix), to their absolute value there ("abs": a compressed fibre's mode keeps its stiffness's size), or set to zero in each element matrix ("element", IPC's projection; a 30 × 30 eigenproblem per P2 element)
-    chord: bool = attrs.field(default=True, validator=v.boolean)  #: with barrier contact, after a Newton step the CCD bound shortened, chord steps on its factorisation (−H⁻¹ at the new gradients) while they lower the energy at least as fast per second (a gradient and a back-substitution instead of a Hessian and a factorisation; needs a linear solver that factorises)
-    chord_after_full_steps: bool = attrs.field(default=True, validator=v.boolean)  #: with chord, chord steps also after a full Newton step (α = 1), while they lower the energy as fast per second: the tails of the load increments, where projected Newton's full steps converge only linearly
-    halve_reversals: bool = attrs.field(default=True, validator=v.boolean)  #: halve a full Newton step that reverses the last one where it moves most, when that lowers the energy (a node group flipping between two states across a kink of the energy, e.g. friction's stick-slip switch: in the P2 r/3 pre-stress it ended a 2-cycle that had held the step test from iteration 13 to 32: 20 iterations instead of 33)
-    extrapolation: float = attrs.field(default=1.0, validator=v.in_range(1.0, 1e3))  #: after a full Newton or chord step, a longer one (up to this × it, within max_step and the CCD bound) at the minimum of the energy's quadratic along it, if that lowers the energy further (projected Newton steps short along soft modes near a solution: 8 saves a third of the Hessians of P1 cells, but slowed the P2 r/3 cell by 10 %; 1: off), -
-    cap_shift: float = attrs.field(default=0.0, validator=v.non_negative)  #: a Newton step over this × max_step raises the Levenberg shift (damping a near-singular mode, e.g. a yarn only contact holds) instead of being scaled down whole (0: off), -
-    min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))  #: smallest cut-back increment / step, -
-    max_iterations: int | None = attrs.field(default=None, validator=v.optional(v.in_range(1, 10000)))  #: Newton iterations per increment (default 40; 200 with barrier contact, whose CCD-bounded steps are short while contacts engage), -
-    stall_iterations: int = attrs.field(default=10, validator=v.in_range(0, 10000))  #: cut back once the residual has not improved in this many Newton iterations (0: only after max_iterations; barrier contact never: its residual rises while contacts engage and the energy falls), -
-    intorder: int = attrs.field(default=2, validator=v.in_range(1, 6))  #: quadrature order of the solid (2: 4 points), -
-    stabilisation: float = attrs.field(default=1e-4, validator=v.in_range(0.0, 1.0))  #: weak foundation on each increment's displacement / (E_transverse / h²), -
-    contact_search: Literal["iteration", "evaluation"] = attrs.field(default="iteration", validator=v.one_of(("iteration", "evaluation")))  #: when the broad-phase contact search runs: once per Newton iteration, its candidates held through the line search ("iteration"), or at every energy evaluation, -
-    on_failure: Literal["raise", "truncate"] = "raise"  #: "truncate" returns the converged steps (converged = false)
-    retain_freed_memory: bool = attrs.field(default=True, validator=v.boolean)  #: keep freed memory in the process for the run (glibc: large blocks from the heap, never trimmed), so that the factors and tangents of each Newton iteration reuse pages instead of faulting them in afresh (in one P2 r/3 run: 135 million page faults, 13 % of the CPU time); the process keeps its peak heap until it exits
+    self_contact_exclusion: float = attrs.field(
+        default=np.pi, validator=v.positive
+    )  #: same-strand pairs closer than this × dk along the yarn are the yarn itself (the ipc law: all pairs within 0.75 × this, none beyond it), -
+    prestress_steps: int = attrs.field(
+        default=8, validator=v.in_range(1, 1000)
+    )  #: steps of the radial pre-stress, -
+    initial_radius: float = attrs.field(
+        default=0.9, validator=v.in_range(0.05, 1.0)
+    )  #: largest start radius of the pre-stress / r, -
+    min_clearance: float = attrs.field(
+        default=0.25, validator=v.in_range(0.05, 2.0)
+    )  #: with pre-stress, closest centerline distance / r below which a cell is refused (the pre-stress starts at 0.95 of half of it; without pre-stress the limit is r), -
+    tolerance: float = attrs.field(
+        default=1e-3, validator=v.positive
+    )  #: Newton residual tolerance (largest nodal force) / (E_transverse r²), -
+    flux_tolerance: float = attrs.field(
+        default=5e-3, validator=v.non_negative
+    )  #: also converged at a residual ≤ this × the average nodal force flux (ABAQUS's R_n; 0: off), -
+    late_flux_tolerance: float = attrs.field(
+        default=2e-2, validator=v.non_negative
+    )  #: the flux ratio after 9 iterations (ABAQUS's R_P; 0: flux_tolerance throughout), -
+    correction_tolerance: float = attrs.field(
+        default=1e-2, validator=v.positive
+    )  #: ... when the last Newton correction ≤ this × the increment's displacement (ABAQUS's C_n), -
+    path_tolerance_factor: float = attrs.field(
+        default=10.0, validator=v.in_range(1.0, 1e6)
+    )  #: tolerances (residual, flux, step) of the intermediate pre-stress states / the final ones, -
+    max_step: float = attrs.field(
+        default=0.25, validator=v.positive
+    )  #: largest node move per Newton step / yarn radius (at most reach / 2 with contact_search = "iteration"), -
+    tangent: Literal["adaptive", "exact", "projected"] = attrs.field(
+        default="projected", validator=v.one_of(("adaptive", "exact", "projected"))
+    )  #: Newton's Hessian: its PSD projection per quadrature point (projected Newton), the exact tangent, or the projection while exact steps fail ("adaptive": projected far from the solution, exact near it)
+    start_projected: bool = attrs.field(
+        default=False, validator=v.boolean
+    )  #: with tangent = "adaptive", start every increment on the projected tangent (an increment's first exact step mostly fails: this saves its evaluation and factorisation)
+    step_tolerance: float = attrs.field(
+        default=0.01, validator=v.non_negative
+    )  #: also converged when the exact Newton step moves no node more than this × r (IPC's test; 0: off), -
+    predictor: Literal["affine", "secant"] = attrs.field(
+        default="affine", validator=v.one_of(("affine", "secant"))
+    )  #: start of a load increment: the affine map of the macro step, plus ("secant") the yarns' fluctuation and free macro DOFs extrapolated from the last two converged increments (with a barrier, its crossing-free part; taken only if it lowers the energy)
+    eigenvalue_filter: Literal["clamp", "abs", "element"] = attrs.field(
+        default="clamp", validator=v.one_of(("clamp", "abs", "element"))
+    )  #: the projected tangent's negative eigenvalues: set to zero at each quadrature point ("clamp", the closest PSD matrix), to their absolute value there ("abs": a compressed fibre's mode keeps its stiffness's size), or set to zero in each element matrix ("element", IPC's projection; a 30 × 30 eigenproblem per P2 element)
+    chord: bool = attrs.field(
+        default=True, validator=v.boolean
+    )  #: with barrier contact, after a Newton step the CCD bound shortened, chord steps on its factorisation (−H⁻¹ at the new gradients) while they lower the energy at least as fast per second (a gradient and a back-substitution instead of a Hessian and a factorisation; needs a linear solver that factorises)
+    chord_after_full_steps: bool = attrs.field(
+        default=True, validator=v.boolean
+    )  #: with chord, chord steps also after a full Newton step (α = 1), while they lower the energy as fast per second: the tails of the load increments, where projected Newton's full steps converge only linearly
+    halve_reversals: bool = attrs.field(
+        default=True, validator=v.boolean
+    )  #: halve a full Newton step that reverses the last one where it moves most, when that lowers the energy (a node group flipping between two states across a kink of the energy, e.g. friction's stick-slip switch: in the P2 r/3 pre-stress it ended a 2-cycle that had held the step test from iteration 13 to 32: 20 iterations instead of 33)
+    extrapolation: float = attrs.field(
+        default=1.0, validator=v.in_range(1.0, 1e3)
+    )  #: after a full Newton or chord step, a longer one (up to this × it, within max_step and the CCD bound) at the minimum of the energy's quadratic along it, if that lowers the energy further (projected Newton steps short along soft modes near a solution: 8 saves a third of the Hessians of P1 cells, but slowed the P2 r/3 cell by 10 %; 1: off), -
+    cap_shift: float = attrs.field(
+        default=0.0, validator=v.non_negative
+    )  #: a Newton step over this × max_step raises the Levenberg shift (damping a near-singular mode, e.g. a yarn only contact holds) instead of being scaled down whole (0: off), -
+    min_step_fraction: float = attrs.field(
+        default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True)
+    )  #: smallest cut-back increment / step, -
+    max_iterations: int | None = attrs.field(
+        default=None, validator=v.optional(v.in_range(1, 10000))
+    )  #: Newton iterations per increment (default 40; 200 with barrier contact, whose CCD-bounded steps are short while contacts engage), -
+    stall_iterations: int = attrs.field(
+        default=10, validator=v.in_range(0, 10000)
+    )  #: cut back once the residual has not improved in this many Newton iterations (0: only after max_iterations; barrier contact never: its residual rises while contacts engage and the energy falls), -
+    intorder: int = attrs.field(
+        default=2, validator=v.in_range(1, 6)
+    )  #: quadrature order of the solid (2: 4 points), -
+    stabilisation: float = attrs.field(
+        default=1e-4, validator=v.in_range(0.0, 1.0)
+    )  #: weak foundation on each increment's displacement / (E_transverse / h²), -
+    contact_search: Literal["iteration", "evaluation"] = attrs.field(
+        default="iteration", validator=v.one_of(("iteration", "evaluation"))
+    )  #: when the broad-phase contact search runs: once per Newton iteration, its candidates held through the line search ("iteration"), or at every energy evaluation, -
+    on_failure: Literal["raise", "truncate"] = (
+        "raise"  #: "truncate" returns the converged steps (converged = false)
+    )
+    retain_freed_memory: bool = attrs.field(
+        default=True, validator=v.boolean
+    )  #: keep freed memory in the process for the run (glibc: large blocks from the heap, never trimmed), so that the factors and tangents of each Newton iteration reuse pages instead of faulting them in afresh (in one P2 r/3 run: 135 million page faults, 13 % of the CPU time); the process keeps its peak heap until it exits
 
     def _key(self, fabric: Fabric, scene: Scene, law: Any = None) -> str:
         """Checkpoint key: the inputs, the solver options and the resolved contact law (its defaults included)."""
         resolved = None if law is None else [type(law).__name__, attrs.asdict(law)]
-        text = json.dumps([fabric.to_dict(), scene.to_dict(), attrs.asdict(self), resolved], sort_keys=True, default=str)
+        text = json.dumps(
+            [fabric.to_dict(), scene.to_dict(), attrs.asdict(self), resolved], sort_keys=True, default=str
+        )
         return hashlib.sha256(text.encode()).hexdigest()[:24]
 
-    def setup(self, fabric: Fabric, scene: Scene, registry=None) -> "VolumetricModel":
+    def setup(self, fabric: Fabric, scene: Scene, registry=None) -> VolumetricModel:
         """Mesh, material forms, periodic map and contact of a fabric's cell for the effects of a scene."""
         from knitframe.mesh import cell_mesh
 
@@ -208,8 +284,13 @@ class VolumetricSolver:
         limit = self.min_clearance * 0.5 * cell.dk if "prestress" in scene.effects else None
         cm = cell_mesh(cell, seed=self.seed, order=self.order, min_distance=limit)
         t_mesh = time.perf_counter() - t0
-        forms = SolidForms(cm.mesh, YarnLaw.from_yarn(fabric.yarn, registry), cm.node_tangent, intorder=self.intorder,
-                           node_offset=cm.node_offset)
+        forms = SolidForms(
+            cm.mesh,
+            YarnLaw.from_yarn(fabric.yarn, registry),
+            cm.node_tangent,
+            intorder=self.intorder,
+            node_offset=cm.node_offset,
+        )
         forms.element_body = cm.element_body
         forms.projection = self.eigenvalue_filter
         lattice = Lattice(cell.L1, cell.L2)
@@ -228,8 +309,20 @@ class VolumetricSolver:
         stiffness = law.penalty(modulus, h) if law is not None else 0.0
         vol = float(forms.dx.sum())
         damping = self.stabilisation * fabric.yarn.E_transverse / h**2 * vol / cm.n_nodes
-        model = VolumetricModel(cell, cm, forms, lattice, T.tocsr(), independent, law, surface, stiffness,
-                                self.reach * cm.radius, t_mesh, damping)
+        model = VolumetricModel(
+            cell,
+            cm,
+            forms,
+            lattice,
+            T.tocsr(),
+            independent,
+            law,
+            surface,
+            stiffness,
+            self.reach * cm.radius,
+            t_mesh,
+            damping,
+        )
         model.friction = law is not None and "friction" in scene.effects
         model.barrier = law is not None and hasattr(law, "step_limit")
         model.hold_candidates = self.holds_candidates(law)
@@ -252,11 +345,17 @@ class VolumetricSolver:
         self.holds_candidates(law if "contact" in scene.effects else None)
         try:
             v.near_own("contact_modulus", self.contact_modulus, fabric.yarn.E_transverse, "MPa")
-            if hasattr(law, "penalty"):  # the penalty the run will use, against the law's default for this yarn
+            if hasattr(
+                law, "penalty"
+            ):  # the penalty the run will use, against the law's default for this yarn
                 h = self.seed * 0.5 * fabric.yarn.dk
                 key = "stiffness" if getattr(law, "stiffness", None) is not None else "factor"
-                v.near_own(f"contact_law.{key}", law.penalty(self.contact_modulus or fabric.yarn.E_transverse, h),
-                           type(law)().penalty(fabric.yarn.E_transverse, h), "N/mm³ penalty")
+                v.near_own(
+                    f"contact_law.{key}",
+                    law.penalty(self.contact_modulus or fabric.yarn.E_transverse, h),
+                    type(law)().penalty(fabric.yarn.E_transverse, h),
+                    "N/mm³ penalty",
+                )
         except FieldError as e:
             raise ConfigError(f"solver.{e.field}", e.problem) from None
         self.check_law_reach(law, scene)
@@ -277,15 +376,24 @@ class VolumetricSolver:
         clear = clearance(cell).minimum
         if "prestress" in scene.effects:
             if clear < self.min_clearance * r:
-                raise ConfigError("solver.min_clearance", f"the knitted centerlines come {clear:.4g} mm close, under "
-                                  f"min_clearance × r = {self.min_clearance * r:.4g} mm: the tubes cross; loosen the "
-                                  "stitch or lower min_clearance")
+                raise ConfigError(
+                    "solver.min_clearance",
+                    f"the knitted centerlines come {clear:.4g} mm close, under "
+                    f"min_clearance × r = {self.min_clearance * r:.4g} mm: the tubes cross; loosen the "
+                    "stitch or lower min_clearance",
+                )
         elif "contact" in scene.effects and 2.0 * r - clear > 0.02 * r:
-            raise ConfigError("scene.effects", f"the knitted yarns overlap by {2.0 * r - clear:.3g} mm (centerlines "
-                              f"{clear:.4g} mm apart, dk = {2 * r:.4g} mm); add 'prestress' to scene.effects")
+            raise ConfigError(
+                "scene.effects",
+                f"the knitted yarns overlap by {2.0 * r - clear:.3g} mm (centerlines "
+                f"{clear:.4g} mm apart, dk = {2 * r:.4g} mm); add 'prestress' to scene.effects",
+            )
         elif clear < r:
-            raise ConfigError("scene.effects", f"the knitted centerlines come {clear:.4g} mm close, under the yarn "
-                              f"radius {r:.4g} mm: the tubes cross; add 'contact' and 'prestress' to scene.effects")
+            raise ConfigError(
+                "scene.effects",
+                f"the knitted centerlines come {clear:.4g} mm close, under the yarn "
+                f"radius {r:.4g} mm: the tubes cross; add 'contact' and 'prestress' to scene.effects",
+            )
 
     def check_law_reach(self, law: Any, scene: Scene) -> None:
         """Refuse, before any work, a load path past what a signed-gap law has been seen to finish.
@@ -300,16 +408,20 @@ class VolumetricSolver:
         _, lam1, lam2 = scene.load.stretches()
         top = max(float(np.max(np.abs(np.asarray(x) - 1.0))) for x in (lam1, lam2) if x is not None)
         if top > limit + 1e-12:
-            raise ConfigError("solver.contact_law",
-                              f"'{law.name}' does not finish knitted cells past {100 * limit:g} % strain (the load "
-                              f"reaches {100 * top:.3g} %): use contact_law = 'ipc' (the default), or a shorter load path")
+            raise ConfigError(
+                "solver.contact_law",
+                f"'{law.name}' does not finish knitted cells past {100 * limit:g} % strain (the load "
+                f"reaches {100 * top:.3g} %): use contact_law = 'ipc' (the default), or a shorter load path",
+            )
 
     def make_contact_law(self, registry=None) -> Any:
         """The solid contact law named by ``contact_law``; ConfigError if it is unknown or not for solids."""
         law = instantiate(registry or get_registry(), "contact_law", self.contact_law, "solver.contact_law")
         if getattr(law, "discretisation", None) != "solid":
-            raise ConfigError("solver.contact_law",
-                              f"contact law '{law.name}' is for '{law.discretisation}', not solid meshes")
+            raise ConfigError(
+                "solver.contact_law",
+                f"contact law '{law.name}' is for '{law.discretisation}', not solid meshes",
+            )
         return law
 
     def holds_candidates(self, law: Any) -> bool:
@@ -319,15 +431,23 @@ class VolumetricSolver:
         must be at most half the reach (ConfigError otherwise): two nodes each moving max_step
         could close a gap wider than the reach within one step.
         """
-        held = (self.contact_search == "iteration" and law is not None
-                and "candidates" in inspect.signature(law.evaluate).parameters)
+        held = (
+            self.contact_search == "iteration"
+            and law is not None
+            and "candidates" in inspect.signature(law.evaluate).parameters
+        )
         if held and self.max_step > 0.5 * self.reach:
-            raise ConfigError("solver.max_step", f"{self.max_step:g} is more than half the contact reach "
-                              f"({self.reach:g}): with contact_search = 'iteration' a step could bring an unseen "
-                              "pair into contact; lower max_step or use contact_search = 'evaluation'")
+            raise ConfigError(
+                "solver.max_step",
+                f"{self.max_step:g} is more than half the contact reach "
+                f"({self.reach:g}): with contact_search = 'iteration' a step could bring an unseen "
+                "pair into contact; lower max_step or use contact_search = 'evaluation'",
+            )
         return held
 
-    def newton_options(self, fabric: Fabric, radius: float, barrier: bool) -> tuple[NewtonOptions, NewtonOptions]:
+    def newton_options(
+        self, fabric: Fabric, radius: float, barrier: bool
+    ) -> tuple[NewtonOptions, NewtonOptions]:
         """Newton options of the knitted state and load steps, and the looser ones of the intermediate pre-stress.
 
         The residual tolerance is ``tolerance``·E_T·r² (the contact forces that resolve the pre-stress
@@ -343,22 +463,48 @@ class VolumetricSolver:
         # gaps continuous across facets), so a step must lower it (the fallback let the energy climb and
         # the iteration wander)
         max_iter = self.max_iterations or (200 if barrier else 40)
-        opts = NewtonOptions(atol=self.tolerance * fabric.yarn.E_transverse * r * r, rtol=1e-10, max_iter=max_iter,
-                             max_step=self.max_step, xtol=1e-10 * r, max_backtracks=12, residual_backtracks=0,
-                             max_shift_increases=7, flux_rtol=self.flux_tolerance,
-                             correction_rtol=self.correction_tolerance, late_flux_rtol=self.late_flux_tolerance,
-                             stall_iterations=0 if barrier else self.stall_iterations, cap_shift=self.cap_shift,
-                             projection={"exact": "off", "projected": "always"}.get(self.tangent, self.tangent),
-                             step_tol=self.step_tolerance, start_projected=self.start_projected,
-                             chord=self.chord and barrier, extrapolate=self.extrapolation,
-                             halve_reversals=self.halve_reversals, chord_full=self.chord_after_full_steps)
+        opts = NewtonOptions(
+            atol=self.tolerance * fabric.yarn.E_transverse * r * r,
+            rtol=1e-10,
+            max_iter=max_iter,
+            max_step=self.max_step,
+            xtol=1e-10 * r,
+            max_backtracks=12,
+            residual_backtracks=0,
+            max_shift_increases=7,
+            flux_rtol=self.flux_tolerance,
+            correction_rtol=self.correction_tolerance,
+            late_flux_rtol=self.late_flux_tolerance,
+            stall_iterations=0 if barrier else self.stall_iterations,
+            cap_shift=self.cap_shift,
+            projection={"exact": "off", "projected": "always"}.get(self.tangent, self.tangent),
+            step_tol=self.step_tolerance,
+            start_projected=self.start_projected,
+            chord=self.chord and barrier,
+            extrapolate=self.extrapolation,
+            halve_reversals=self.halve_reversals,
+            chord_full=self.chord_after_full_steps,
+        )
         f = self.path_tolerance_factor
-        loose = attrs.evolve(opts, atol=f * opts.atol, flux_rtol=f * opts.flux_rtol,
-                             late_flux_rtol=f * opts.late_flux_rtol, step_tol=f * opts.step_tol)
+        loose = attrs.evolve(
+            opts,
+            atol=f * opts.atol,
+            flux_rtol=f * opts.flux_rtol,
+            late_flux_rtol=f * opts.late_flux_rtol,
+            step_tol=f * opts.step_tol,
+        )
         return opts, loose
 
-    def simulate(self, fabric: Fabric, scene: Scene, *, progress=None, output_dir: str | Path | None = None,
-                 checkpoint_dir: str | Path | None = None, trace=None) -> Response:
+    def simulate(
+        self,
+        fabric: Fabric,
+        scene: Scene,
+        *,
+        progress=None,
+        output_dir: str | Path | None = None,
+        checkpoint_dir: str | Path | None = None,
+        trace=None,
+    ) -> Response:
         """Pre-stress (if asked) and follow the scene's load path; returns tensions per unit width.
 
         Parameters
@@ -390,6 +536,7 @@ class VolumetricSolver:
 
         def timed(fn, count: bool):
             """fn with its wall time added to the linear-solve time (and, with ``count``, counted as a solve)."""
+
             def wrapper(*args):
                 t0 = time.perf_counter()
                 try:
@@ -397,6 +544,7 @@ class VolumetricSolver:
                 finally:
                     model.timings["linear_solve"] += time.perf_counter() - t0
                     model.evaluations["linear_solves"] += int(count)
+
             return wrapper
 
         solve = timed(backend, True)
@@ -422,7 +570,11 @@ class VolumetricSolver:
         base_free = np.ones(n_ind + N_MACRO, bool)
         base_free[:3] = False  # pin one node: the cell's free translation
         vtu = "vtu" in scene.outputs and output_dir is not None
-        ckpt = StepCheckpoints(checkpoint_dir, self._key(fabric, scene, model.law)) if checkpoint_dir is not None else None
+        ckpt = (
+            StepCheckpoints(checkpoint_dir, self._key(fabric, scene, model.law))
+            if checkpoint_dir is not None
+            else None
+        )
         lat = model.lattice
 
         def step_norm(dx: np.ndarray) -> float:
@@ -438,8 +590,14 @@ class VolumetricSolver:
             e = float(res.info.get("stabilisation_energy", 0.0))
             return e / abs(res.energy) if res.energy else 0.0
 
-        def newton(q0: np.ndarray, free: np.ndarray, anchor: np.ndarray | None = None, options: NewtonOptions = opts,
-                   where: tuple[str, float] = ("prestress", 0.0), anchored: bool = False):
+        def newton(
+            q0: np.ndarray,
+            free: np.ndarray,
+            anchor: np.ndarray | None = None,
+            options: NewtonOptions = opts,
+            where: tuple[str, float] = ("prestress", 0.0),
+            anchored: bool = False,
+        ):
             if not anchored:
                 model.anchor(q0 if anchor is None else anchor)
             t0 = time.perf_counter()
@@ -453,21 +611,46 @@ class VolumetricSolver:
                     split = {k: now[k] - last[k] for k in now}
                     last.update(now)
                     trace({"record": "iteration", "phase": where[0], "t": where[1], **entry, **split})
+
             try:
-                res = minimise(model, q0, free, solve=solve, options=options, step_norm=step_norm,
-                               step_limit=model.step_limit if model.barrier else None, on_iteration=each)
+                res = minimise(
+                    model,
+                    q0,
+                    free,
+                    solve=solve,
+                    options=options,
+                    step_norm=step_norm,
+                    step_limit=model.step_limit if model.barrier else None,
+                    on_iteration=each,
+                )
             except NumericalError as e:
                 if trace is not None:
-                    trace({"record": "solve", "phase": where[0], "t": where[1], "converged": False,
-                           "wall_s": time.perf_counter() - t0, "history": list(getattr(e, "history", ())),
-                           "diagnostic": str(e)})
+                    trace(
+                        {
+                            "record": "solve",
+                            "phase": where[0],
+                            "t": where[1],
+                            "converged": False,
+                            "wall_s": time.perf_counter() - t0,
+                            "history": list(getattr(e, "history", ())),
+                            "diagnostic": str(e),
+                        }
+                    )
                 raise
             if trace is not None:
-                trace({"record": "solve", "phase": where[0], "t": where[1], "converged": True,
-                       "wall_s": time.perf_counter() - t0,
-                       "iterations": res.iterations, "history": list(res.history),
-                       "max_penetration_over_r": float(res.info.get("max_penetration", 0.0)) / r,
-                       "stabilisation_share": stab_share(res)})
+                trace(
+                    {
+                        "record": "solve",
+                        "phase": where[0],
+                        "t": where[1],
+                        "converged": True,
+                        "wall_s": time.perf_counter() - t0,
+                        "iterations": res.iterations,
+                        "history": list(res.history),
+                        "max_penetration_over_r": float(res.info.get("max_penetration", 0.0)) / r,
+                        "stabilisation_share": stab_share(res),
+                    }
+                )
             if options is opts:
                 shares.append(stab_share(res))
                 residuals.append(float(np.max(np.abs(res.gradient[free]), initial=0.0)))
@@ -475,9 +658,11 @@ class VolumetricSolver:
                 if flux > 0 and residuals[-1] > IMBALANCE_NOTE * flux:
                     # the step test (a Newton step under step_tolerance) can pass where barrier pairs deep inside
                     # d̂ make the Hessian so stiff that a tiny step leaves forces far above the flux: say so
-                    notes.append(f"{where[0]} {where[1]:g} converged with a residual of "
-                                 f"{residuals[-1]:.3g} N, {residuals[-1] / flux:.3g} × the force flux "
-                                 "(its tensions carry that imbalance)")
+                    notes.append(
+                        f"{where[0]} {where[1]:g} converged with a residual of "
+                        f"{residuals[-1]:.3g} N, {residuals[-1] / flux:.3g} × the force flux "
+                        "(its tensions carry that imbalance)"
+                    )
                 penetrations.append(float(res.info.get("max_penetration", 0.0)))
             return res
 
@@ -508,14 +693,19 @@ class VolumetricSolver:
 
         def write_step(path: Path, qv: np.ndarray) -> None:
             _, _, _, info = model(qv, 0)
-            write_solid_vtu(path, model.forms, model.T @ qv, model.s, info.get("pressure", np.zeros(model.cm.n_nodes)))
+            write_solid_vtu(
+                path, model.forms, model.T @ qv, model.s, info.get("pressure", np.zeros(model.cm.n_nodes))
+            )
 
         def after(phase: str, index: int, qv: np.ndarray, message: str, done: int) -> None:
             if series is not None:  # before the checkpoint: every checkpointed step has its file
                 series.write(step_counter[0], lambda path: write_step(path, qv))
             if ckpt is not None:
-                ckpt.save(step_counter[0], {"q": qv, "rows": np.array(rows, dtype=np.float64).reshape(-1, 4)},
-                          {"phase": phase, "target": index, "s0": s0})
+                ckpt.save(
+                    step_counter[0],
+                    {"q": qv, "rows": np.array(rows, dtype=np.float64).reshape(-1, 4)},
+                    {"phase": phase, "target": index, "s0": s0},
+                )
             step_counter[0] += 1
             report(done, total, message)
 
@@ -526,12 +716,20 @@ class VolumetricSolver:
                 t_first = (start_index + 1) / self.prestress_steps
                 targets = [k / self.prestress_steps for k in range(start_index + 2, self.prestress_steps + 1)]
 
-                s_done = [s0 + t_first * (1.0 - s0)]  # the radius factor of the last converged state (not of a failed try)
+                s_done = [
+                    s0 + t_first * (1.0 - s0)
+                ]  # the radius factor of the last converged state (not of a failed try)
 
                 def solve_prestress(t: float, q0: np.ndarray):
                     s_new = s0 + t * (1.0 - s0)
                     q1 = model.grow(q0, s_done[0], s_new)
-                    res = newton(q1, free, anchor=q0, options=loose if t < 1.0 - 1e-12 else opts, where=("prestress", t))
+                    res = newton(
+                        q1,
+                        free,
+                        anchor=q0,
+                        options=loose if t < 1.0 - 1e-12 else opts,
+                        where=("prestress", t),
+                    )
                     s_done[0] = s_new
                     return res
 
@@ -541,11 +739,19 @@ class VolumetricSolver:
                     idx = int(round(t * self.prestress_steps)) - 1
                     after("prestress", idx, q, f"pre-stress {idx + 1}/{self.prestress_steps}", idx + 1)
 
-                if start_index < 0:  # equilibrium of the shrunk state (curvature makes it not quite stress-free)
+                if (
+                    start_index < 0
+                ):  # equilibrium of the shrunk state (curvature makes it not quite stress-free)
                     model.s = s0
                     q = newton(q, free, options=loose).x
-                continuation(solve_prestress, q, targets, t0=t_first, min_fraction=self.min_step_fraction,
-                             on_target=on_prestress)
+                continuation(
+                    solve_prestress,
+                    q,
+                    targets,
+                    t0=t_first,
+                    min_fraction=self.min_step_fraction,
+                    on_target=on_prestress,
+                )
                 start_phase, start_index = "load", -1
             model.s = 1.0
             if start_phase == "prestress":
@@ -554,7 +760,8 @@ class VolumetricSolver:
                 if overlap > 0.02 * r:
                     raise NumericalError(
                         f"volumetric: the knitted yarns overlap by {overlap:.3g} mm (centerlines {clear.minimum:.4g} mm "
-                        f"apart, dk = {2 * r:.4g} mm); add 'prestress' to scene.effects")
+                        f"apart, dk = {2 * r:.4g} mm); add 'prestress' to scene.effects"
+                    )
                 start_phase, start_index = "load", -1
 
             lam1_path = None if lam1 is None else np.concatenate([[1.0], lam1])
@@ -620,11 +827,19 @@ class VolumetricSolver:
 
             first = start_index + 1
             path.append((float(first), q))
-            continuation(solve_load, q, list(np.arange(first + 1, n_load + 1, dtype=float)), t0=float(first),
-                         min_fraction=self.min_step_fraction, on_target=on_load)
+            continuation(
+                solve_load,
+                q,
+                list(np.arange(first + 1, n_load + 1, dtype=float)),
+                t0=float(first),
+                min_fraction=self.min_step_fraction,
+                on_target=on_load,
+            )
         except NumericalError as e:
             if self.on_failure == "raise" or not rows:
-                raise NumericalError(f"volumetric solver ({fabric.pattern}, {fabric.yarn.name}): {e}") from None
+                raise NumericalError(
+                    f"volumetric solver ({fabric.pattern}, {fabric.yarn.name}): {e}"
+                ) from None
             converged = False
             notes.append(f"stopped after {len(rows)} of {n_load} load steps: {e}")
         arr = np.array(rows, dtype=np.float64).reshape(-1, 4)
@@ -632,19 +847,38 @@ class VolumetricSolver:
         key = load.response_kind
         sl = fabric.stitch_length if fabric.stitch_length is not None else fabric.arc_length
         prov = Provenance(
-            kind="simulation", source=f"volumetric {fabric.pattern}", solver=self.name, mesh=model.cm.summary(),
-            wall_time=time.perf_counter() - t_start, converged=converged, notes="; ".join(notes),
-            extra={"timings_s": {k: round(v_, 3) for k, v_ in model.timings.items()},
-                   "newton_evaluations": model.evaluations,
-                   "tolerance_N": opts.atol, "max_final_residual_N": max(residuals, default=0.0),
-                   "max_penetration_over_r": max(penetrations, default=0.0) / r,
-                   "max_stabilisation_share": max(shares, default=0.0), "prestress_start_radius_over_r": s0,
-                   "penalty_N_per_mm3": model.stiffness, "dk_mm": model.cell.dk,
-                   "L1_mm": lat.L1.tolist(), "L2_mm": lat.L2.tolist(), "effects": sorted(scene.effects),
-                   "options": attrs.asdict(self)},
+            kind="simulation",
+            source=f"volumetric {fabric.pattern}",
+            solver=self.name,
+            mesh=model.cm.summary(),
+            wall_time=time.perf_counter() - t_start,
+            converged=converged,
+            notes="; ".join(notes),
+            extra={
+                "timings_s": {k: round(v_, 3) for k, v_ in model.timings.items()},
+                "newton_evaluations": model.evaluations,
+                "tolerance_N": opts.atol,
+                "max_final_residual_N": max(residuals, default=0.0),
+                "max_penetration_over_r": max(penetrations, default=0.0) / r,
+                "max_stabilisation_share": max(shares, default=0.0),
+                "prestress_start_radius_over_r": s0,
+                "penalty_N_per_mm3": model.stiffness,
+                "dk_mm": model.cell.dk,
+                "L1_mm": lat.L1.tolist(),
+                "L2_mm": lat.L2.tolist(),
+                "effects": sorted(scene.effects),
+                "options": attrs.asdict(self),
+            },
         )
-        return Response(arr[:, 0], arr[:, 1], arr[:, 2], arr[:, 3], load=key,
-                        label=f"volumetric {fabric.pattern} SL{sl:g} {fabric.yarn.name}", provenance=prov)
+        return Response(
+            arr[:, 0],
+            arr[:, 1],
+            arr[:, 2],
+            arr[:, 3],
+            load=key,
+            label=f"volumetric {fabric.pattern} SL{sl:g} {fabric.yarn.name}",
+            provenance=prov,
+        )
 
 
 class VolumetricModel:
@@ -665,14 +899,17 @@ class VolumetricModel:
     the reach into contact. Implicit FE codes likewise search contact once per iteration.
     """
 
-    def __init__(self, cell, cm, forms, lattice, T, independent, law, surface, stiffness, reach, t_mesh,
-                 damping=0.0):
+    def __init__(
+        self, cell, cm, forms, lattice, T, independent, law, surface, stiffness, reach, t_mesh, damping=0.0
+    ):
         self.cell, self.cm, self.forms, self.lattice = cell, cm, forms, lattice
         self.T, self.independent = T, independent
         self.law, self.surface, self.stiffness, self.reach = law, surface, stiffness, reach
         n = 3 * cm.n_nodes
         # q → [u (3N), h (6)] for the contact terms, which also depend on h through the images
-        self.Q = sp.vstack([T, sp.hstack([sp.csr_matrix((N_MACRO, T.shape[1] - N_MACRO)), sp.identity(N_MACRO)])]).tocsr()
+        self.Q = sp.vstack(
+            [T, sp.hstack([sp.csr_matrix((N_MACRO, T.shape[1] - N_MACRO)), sp.identity(N_MACRO)])]
+        ).tocsr()
         self.QT = self.Q.T.tocsr()
         self.TT = T.T.tocsr()
         self.n = n
@@ -681,14 +918,26 @@ class VolumetricModel:
         self.X_ind = cm.nodes[independent]
         self.damping = float(damping)
         self.u0 = np.zeros(n)
-        self._pull_back = None  # (K's indptr and indices, M, K's diagonal positions, H's indices, indptr, shape)
-        self.timings = {"mesh": t_mesh, "material": 0.0, "contact": 0.0, "transform": 0.0, "linear_solve": 0.0}
+        self._pull_back = (
+            None  # (K's indptr and indices, M, K's diagonal positions, H's indices, indptr, shape)
+        )
+        self.timings = {
+            "mesh": t_mesh,
+            "material": 0.0,
+            "contact": 0.0,
+            "transform": 0.0,
+            "linear_solve": 0.0,
+        }
         self.friction = False  # lagged Coulomb friction (scene effect "friction")
         self.friction_state = None
         self.normals = None  # nodal normals of the smoothed P1 master surface, frozen per increment (anchor)
-        self.hold_candidates = False  # broad-phase contact search at order-2 evaluations only, held for order 0 and 1
+        self.hold_candidates = (
+            False  # broad-phase contact search at order-2 evaluations only, held for order 0 and 1
+        )
         self.held = None
-        self.barrier = False  # a barrier contact law: the line search is bounded by continuous collision detection
+        self.barrier = (
+            False  # a barrier contact law: the line search is bounded by continuous collision detection
+        )
         self.evaluations = {"energy": 0, "gradient": 0, "hessian": 0, "linear_solves": 0}
 
     def pull_back(self, K: sp.csr_matrix) -> sp.csr_matrix:
@@ -702,9 +951,16 @@ class VolumetricModel:
         """
         cached = self._pull_back
         # the same pattern: the same index arrays, or equal ones (scipy may copy them when it builds K)
-        same = cached is not None and (cached[0] is K.indptr and cached[1] is K.indices or (
-            cached[0].shape == K.indptr.shape and cached[1].shape == K.indices.shape
-            and np.array_equal(cached[0], K.indptr) and np.array_equal(cached[1], K.indices)))
+        same = cached is not None and (
+            cached[0] is K.indptr
+            and cached[1] is K.indices
+            or (
+                cached[0].shape == K.indptr.shape
+                and cached[1].shape == K.indices.shape
+                and np.array_equal(cached[0], K.indptr)
+                and np.array_equal(cached[1], K.indices)
+            )
+        )
         if not same:
             if not K.has_sorted_indices:
                 K.sort_indices()
@@ -759,8 +1015,9 @@ class VolumetricModel:
         frozen = getattr(self.law, "master_normals", None)
         self.normals = None if frozen is None else frozen(self.surface, x)
         if self.friction:
-            self.friction_state = self.law.friction_state(self.surface, x, q0[-N_MACRO:], stiffness=self.stiffness,
-                                                          reach=self.reach, **self._normals())
+            self.friction_state = self.law.friction_state(
+                self.surface, x, q0[-N_MACRO:], stiffness=self.stiffness, reach=self.reach, **self._normals()
+            )
 
     def step_limit(self, q: np.ndarray, dq: np.ndarray) -> float:
         """Largest fraction α ≤ 1 of the step dq from q along which no yarn surfaces cross (the law's CCD)."""
@@ -768,7 +1025,9 @@ class VolumetricModel:
         x = self.cm.nodes + (self.T @ q).reshape(-1, 3)
         dx = (self.T @ dq).reshape(-1, 3)
         try:
-            return self.law.step_limit(self.surface, x, q[-N_MACRO:], dx, dq[-N_MACRO:], stiffness=self.stiffness)
+            return self.law.step_limit(
+                self.surface, x, q[-N_MACRO:], dx, dq[-N_MACRO:], stiffness=self.stiffness
+            )
         finally:
             self.timings["contact"] += time.perf_counter() - t0
 
@@ -815,8 +1074,9 @@ class VolumetricModel:
             kw.update(self._normals())
             if self.hold_candidates and order < 2 and self.held is not None:
                 kw["candidates"] = self.held
-            Ec, gc, Hc, info = self.law.evaluate(self.surface, x, h, order, stiffness=self.stiffness, reach=self.reach,
-                                                 **kw)
+            Ec, gc, Hc, info = self.law.evaluate(
+                self.surface, x, h, order, stiffness=self.stiffness, reach=self.reach, **kw
+            )
             if self.hold_candidates and order == 2:
                 self.held = info.get("candidates")
             info.pop("candidates", None)

@@ -34,8 +34,9 @@ P = Jθ Pe(Fe)·Fθ⁻ᵀ and A_iJkL = Jθ Ae_iMkN Fθ⁻¹_JM Fθ⁻¹_LN.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any, Callable, Iterator
+from typing import Any
 
 import attrs
 import numpy as np
@@ -85,11 +86,12 @@ class YarnLaw:
 
     model: Any  #: yarn model plugin instance with ``evaluate``
     #: whether ``model.evaluate`` takes ``order`` (read once from its signature, not per call)
-    takes_order: bool = attrs.field(init=False, default=attrs.Factory(lambda self: _accepts_order(self.model),
-                                                                       takes_self=True))
+    takes_order: bool = attrs.field(
+        init=False, default=attrs.Factory(lambda self: _accepts_order(self.model), takes_self=True)
+    )
 
     @classmethod
-    def from_yarn(cls, yarn: Any, registry: Any = None) -> "YarnLaw":
+    def from_yarn(cls, yarn: Any, registry: Any = None) -> YarnLaw:
         """Law of the yarn model named by ``yarn.model``, parameterised by the Yarn record."""
         from knitframe.plugins import get_registry
 
@@ -150,7 +152,9 @@ def _filter_eigenvalues(M: np.ndarray, method: str = "clamp") -> np.ndarray:
     """Symmetric part of a stack of matrices M (p, n, n) rebuilt as V diag(f(w)) Vᵀ, f(w) = max(w, 0) or |w|."""
     M = 0.5 * (M + np.swapaxes(M, 1, 2))
     w, V = np.linalg.eigh(M)
-    return np.einsum("pij,pj,pkj->pik", V, np.abs(w) if method == "abs" else np.maximum(w, 0.0), V, optimize=True)
+    return np.einsum(
+        "pij,pj,pkj->pik", V, np.abs(w) if method == "abs" else np.maximum(w, 0.0), V, optimize=True
+    )
 
 
 def psd_project_elements(Ke: np.ndarray) -> np.ndarray:
@@ -193,8 +197,17 @@ class SolidForms:
     threads : threads the chunks run on (default: the CPUs this process may use, at most 8).
     """
 
-    def __init__(self, mesh: Any, law: Any, node_tangent: np.ndarray | None = None, *, intorder: int = 2,
-                 chunk: int = 4096, node_offset: np.ndarray | None = None, threads: int | None = None):
+    def __init__(
+        self,
+        mesh: Any,
+        law: Any,
+        node_tangent: np.ndarray | None = None,
+        *,
+        intorder: int = 2,
+        chunk: int = 4096,
+        node_offset: np.ndarray | None = None,
+        threads: int | None = None,
+    ):
         import skfem
 
         elem = skfem.ElementTetP2() if isinstance(mesh, skfem.MeshTet2) else skfem.ElementTetP1()
@@ -217,11 +230,17 @@ class SolidForms:
         self.projection = "clamp"  #: eigenvalue filter of the projected tangent: "clamp" or "abs" per point (:func:`psd_project`), "element" (:func:`psd_project_elements`)
         self.flux: np.ndarray | None = None  #: Σ_e |R_e| of the last evaluate(order >= 1), N
         nl, ne = self.edofs.shape
-        self.vdofs = (3 * self.edofs[:, None, :] + np.arange(3)[None, :, None]).reshape(3 * nl, ne)  # (3nl, n_el)
+        self.vdofs = (3 * self.edofs[:, None, :] + np.arange(3)[None, :, None]).reshape(
+            3 * nl, ne
+        )  # (3nl, n_el)
         self._pattern: tuple[sp.csr_matrix, np.ndarray] | None = None
-        self._scatter: dict[int, tuple[np.ndarray, np.ndarray]] | None = None  # per chunk start: CSR entries touched, inverse map
+        self._scatter: dict[int, tuple[np.ndarray, np.ndarray]] | None = (
+            None  # per chunk start: CSR entries touched, inverse map
+        )
         if threads is None:
-            threads = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+            threads = (
+                len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+            )
         self.threads = max(1, min(int(threads), 8))
         self._pool: ThreadPoolExecutor | None = None
 
@@ -274,6 +293,7 @@ class SolidForms:
     # -- forms -------------------------------------------------------------------------------------
     def energy(self, u: np.ndarray, s: float = 1.0) -> float:
         """Strain energy W = Σ Jθ Ψ(F Fθ⁻¹) dV, N·mm; +inf if any element is inverted."""
+
         def chunk(sl: slice) -> float:
             F = self.deformation_gradient(u, sl)
             a = self.fibre[:, sl]
@@ -287,7 +307,9 @@ class SolidForms:
 
     def _eigen(self, s: float, sl: slice) -> tuple[np.ndarray, np.ndarray]:
         if self.grad_offset is None:
-            raise NumericalError("volumetric solid: a pre-stress parameter s != 1 needs the nodes' centerline offsets")
+            raise NumericalError(
+                "volumetric solid: a pre-stress parameter s != 1 needs the nodes' centerline offsets"
+            )
         return _eigen_transform(self.grad_offset[:, :, sl], s)
 
     def _stress(self, F: np.ndarray, a: np.ndarray, s: float, sl: slice) -> np.ndarray:
@@ -299,12 +321,15 @@ class SolidForms:
 
     def residual(self, u: np.ndarray, s: float = 1.0) -> np.ndarray:
         """Internal force R = ∂W/∂u (3N,), N."""
+
         def chunk(sl: slice) -> np.ndarray:
             F = self.deformation_gradient(u, sl)
             self._check(F, sl)
             P = self._stress(F, self.fibre[:, sl], s, sl)
             Re = np.einsum("iJeq,lJeq,eq->lie", P, self.grad[:, :, sl], self.dx[sl])
-            return np.bincount(self.vdofs[:, sl].ravel(), Re.reshape(-1, Re.shape[-1]).ravel(), minlength=self.ndof)
+            return np.bincount(
+                self.vdofs[:, sl].ravel(), Re.reshape(-1, Re.shape[-1]).ravel(), minlength=self.ndof
+            )
 
         out = np.zeros(self.ndof)
         for r in self._map(chunk):
@@ -313,8 +338,12 @@ class SolidForms:
 
     def stress(self, u: np.ndarray, s: float = 1.0) -> np.ndarray:
         """First Piola-Kirchhoff stress at the quadrature points (3, 3, n_el, n_qp), MPa."""
-        return np.concatenate(list(self._map(lambda sl: self._stress(self.deformation_gradient(u, sl), self.fibre[:, sl], s, sl))),
-                              axis=2)
+        return np.concatenate(
+            list(
+                self._map(lambda sl: self._stress(self.deformation_gradient(u, sl), self.fibre[:, sl], s, sl))
+            ),
+            axis=2,
+        )
 
     def pattern(self) -> tuple[sp.csr_matrix, np.ndarray]:
         """CSR sparsity pattern of the tangent and the map from element-matrix entries to its data."""
@@ -341,7 +370,7 @@ class SolidForms:
             m2 = self.vdofs.shape[0] ** 2
             out = {}
             for sl in self._chunks():
-                touched, inverse = np.unique(where[sl.start * m2: sl.stop * m2], return_inverse=True)
+                touched, inverse = np.unique(where[sl.start * m2 : sl.stop * m2], return_inverse=True)
                 out[sl.start] = (touched, inverse.astype(np.int32))
             self._scatter = out
         return self._scatter
@@ -350,8 +379,9 @@ class SolidForms:
         """Tangent stiffness K = ∂R/∂u (3N, 3N) as CSR, N/mm."""
         return self.evaluate(u, s, 2)[2]
 
-    def evaluate(self, u: np.ndarray, s: float = 1.0, order: int = 2, *, project: bool = False
-                 ) -> tuple[float, np.ndarray | None, sp.csr_matrix | None]:
+    def evaluate(
+        self, u: np.ndarray, s: float = 1.0, order: int = 2, *, project: bool = False
+    ) -> tuple[float, np.ndarray | None, sp.csr_matrix | None]:
         """(W, R, K) in one pass over the elements: the law is evaluated once per chunk.
 
         ``order`` 0 gives W only (+inf for an inverted element), 1 adds R, 2 adds K. With
@@ -380,7 +410,11 @@ class SolidForms:
             if hasattr(self.law, "evaluate"):
                 Psi, P, A = self.law.evaluate(F, a, order)
             else:
-                Psi, P, A = self.law.energy(F, a), self.law.stress(F, a), self.law.tangent(F, a) if order == 2 else None
+                Psi, P, A = (
+                    self.law.energy(F, a),
+                    self.law.stress(F, a),
+                    self.law.tangent(F, a) if order == 2 else None,
+                )
             W = float(np.sum(Jt * Psi * self.dx[sl]))
             if Ti is not None:
                 P = Jt * np.einsum("iMeq,JMeq->iJeq", P, Ti)

@@ -28,7 +28,9 @@ class DataTable:
     """Schema of the ``[data]`` table."""
 
     files: list[str]  #: data files, relative to the config file
-    reader: str | dict[str, Any] = "auto"  #: reader plugin name ("auto": chosen from each file's header), or a table with ``kind`` and options
+    reader: str | dict[str, Any] = (
+        "auto"  #: reader plugin name ("auto": chosen from each file's header), or a table with ``kind`` and options
+    )
 
     def __attrs_post_init__(self) -> None:
         if not self.files:
@@ -50,7 +52,7 @@ class DataStage:
     chosen: tuple[str, ...] = ()  #: the readers the ``auto`` reader chose, one per file
 
     @classmethod
-    def from_config(cls, config, ctx) -> "DataStage":
+    def from_config(cls, config, ctx) -> DataStage:
         table = build(DataTable, config["data"], "data", source=ctx.source)
         reader = instantiate(ctx.registry, "reader", table.reader, "data.reader", source=ctx.source)
         responses: list[Response] = []
@@ -76,7 +78,10 @@ class DataStage:
         write_responses_csv(ctx.output("responses.csv"), self.responses)
         plot_responses(ctx.output("responses.png"), self.responses, title="imported responses")
         ctx.results[self.name] = {
-            "curves": [{"label": r.label, "load": r.load, "points": len(r), "samples": r.n_samples} for r in self.responses],
+            "curves": [
+                {"label": r.label, "load": r.load, "points": len(r), "samples": r.n_samples}
+                for r in self.responses
+            ],
             "headline": f"{len(self.responses)} curves imported",
         }
 

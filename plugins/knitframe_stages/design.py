@@ -32,12 +32,12 @@ with ``[design.machine]`` also ``sleeve.k`` (knitout, checked by knitout-interpr
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any, ClassVar, Literal
 
 import attrs
 
-from knitframe import hookimpl, validators as v
+from knitframe import hookimpl
+from knitframe import validators as v
 from knitframe.config import PluginSpec, instantiate
 from knitframe.errors import ConfigError, FieldError
 from knitframe.schema import build
@@ -47,11 +47,21 @@ from knitframe.schema import build
 class TubeTable:
     """Schema of ``[design.tube]``."""
 
-    mode: Literal["paper", "knitting"] = "knitting"  #: "paper": wrist cylinder mapped element for element; "knitting": needles × courses
-    circumference: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: paper mode: tube circumference, mm (default: the wrist's)
-    length: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: paper mode: tube length, mm (default: the limb's)
-    needles: int | None = attrs.field(default=None, validator=v.optional(v.in_range(4, 10000)))  #: knitting mode: stitches per course (default: searched)
-    axial_stretch: float = attrs.field(default=1.0, validator=v.in_range(0.5, 2.0))  #: knitting mode: target wale stretch on the limb
+    mode: Literal["paper", "knitting"] = (
+        "knitting"  #: "paper": wrist cylinder mapped element for element; "knitting": needles × courses
+    )
+    circumference: float | None = attrs.field(
+        default=None, validator=v.optional(v.positive)
+    )  #: paper mode: tube circumference, mm (default: the wrist's)
+    length: float | None = attrs.field(
+        default=None, validator=v.optional(v.positive)
+    )  #: paper mode: tube length, mm (default: the limb's)
+    needles: int | None = attrs.field(
+        default=None, validator=v.optional(v.in_range(4, 10000))
+    )  #: knitting mode: stitches per course (default: searched)
+    axial_stretch: float = attrs.field(
+        default=1.0, validator=v.in_range(0.5, 2.0)
+    )  #: knitting mode: target wale stretch on the limb
 
 
 @attrs.frozen
@@ -61,10 +71,16 @@ class MachineTable:
     machine: str = "SWG091N2"  #: knitout ;;Machine: (the model knitout-interpreter simulates)
     gauge: int = 15  #: needles per inch of the machine; the tube is knitted at half gauge
     width: int | None = None  #: needles per bed the program may use (default: the machine's, 540)
-    carriers: dict[str, int] = attrs.Factory(dict)  #: yarn -> carrier number (default: the lowest free, in the order the tube uses the yarns)
-    stitch_numbers: dict[str, int] = attrs.Factory(dict)  #: stitch length ("11") or "default" -> x-stitch-number, over the built-in table
+    carriers: dict[str, int] = attrs.Factory(
+        dict
+    )  #: yarn -> carrier number (default: the lowest free, in the order the tube uses the yarns)
+    stitch_numbers: dict[str, int] = attrs.Factory(
+        dict
+    )  #: stitch length ("11") or "default" -> x-stitch-number, over the built-in table
     dat: bool = False  #: also write sleeve.dat (Shima DAT) through knitout-to-dat-python
-    check: bool = True  #: run sleeve.k through knitout-interpreter before writing it (about 25 s for the example)
+    check: bool = (
+        True  #: run sleeve.k through knitout-interpreter before writing it (about 25 s for the example)
+    )
 
     def __attrs_post_init__(self) -> None:
         self.spec()  # every field checked; a FieldError names it
@@ -73,27 +89,40 @@ class MachineTable:
         """The :class:`~knitframe.garment.knitout.MachineSpec` of this table."""
         from knitframe.garment.knitout import MachineSpec
 
-        return MachineSpec(self.machine, self.gauge, self.width, dict(self.carriers), dict(self.stitch_numbers),
-                           self.dat)
+        return MachineSpec(
+            self.machine, self.gauge, self.width, dict(self.carriers), dict(self.stitch_numbers), self.dat
+        )
 
 
 @attrs.frozen
 class DesignTable:
     """Schema of the ``[design]`` table."""
 
-    limb: str | dict[str, Any] = "example"  #: "example", a scan file (STL, OBJ, PLY), or {positions_mm, circumferences_mm, ellipticity}
+    limb: str | dict[str, Any] = (
+        "example"  #: "example", a scan file (STL, OBJ, PLY), or {positions_mm, circumferences_mm, ellipticity}
+    )
     library: str = "builtin"  #: "builtin" or a library.json file
-    objective: str | dict[str, Any] = "pressure_profile"  #: objective plugin name, or a table with kind and options
-    method: Literal["optimal", "paper"] = "optimal"  #: exact course bands, or the paper's per-element procedure
+    objective: str | dict[str, Any] = (
+        "pressure_profile"  #: objective plugin name, or a table with kind and options
+    )
+    method: Literal["optimal", "paper"] = (
+        "optimal"  #: exact course bands, or the paper's per-element procedure
+    )
     pressure: Literal["equivalent", "local"] = "equivalent"  #: the radius the pressure objectives use
-    min_courses: float = attrs.field(default=10.0, validator=v.in_range(0.0, 1e5))  #: least courses in each region
-    max_fabrics: int | None = attrs.field(default=None, validator=v.optional(v.in_range(1, 1000)))  #: at most this many distinct fabrics
+    min_courses: float = attrs.field(
+        default=10.0, validator=v.in_range(0.0, 1e5)
+    )  #: least courses in each region
+    max_fabrics: int | None = attrs.field(
+        default=None, validator=v.optional(v.in_range(1, 1000))
+    )  #: at most this many distinct fabrics
     base: str | None = None  #: the single fabric to compare with (default: the library's first cotton)
     stations: int = attrs.field(default=41, validator=v.in_range(3, 2000))  #: stations along the limb
     around: int = attrs.field(default=64, validator=v.in_range(8, 2000))  #: points around each section
     axis: list[float] | None = None  #: a scan's axis direction (default: its longest principal axis)
     tube: TubeTable = attrs.Factory(TubeTable)  #: how the tube is made
-    machine: MachineTable | None = None  #: knit it on a V-bed machine: sleeve.k, sleeve-chart.png (and sleeve.dat)
+    machine: MachineTable | None = (
+        None  #: knit it on a V-bed machine: sleeve.k, sleeve-chart.png (and sleeve.dat)
+    )
 
     def __attrs_post_init__(self) -> None:
         if self.axis is not None and len(self.axis) != 3:
@@ -110,19 +139,28 @@ def load_limb(value: Any, ctx: Any, table: DesignTable) -> Any:
         allowed = {"positions_mm", "circumferences_mm", "ellipticity", "name"}
         extra = sorted(set(value) - allowed)
         if extra:
-            raise ConfigError(f"design.limb.{extra[0]}", f"unknown key; expected one of {', '.join(sorted(allowed))}",
-                              source=ctx.source)
+            raise ConfigError(
+                f"design.limb.{extra[0]}",
+                f"unknown key; expected one of {', '.join(sorted(allowed))}",
+                source=ctx.source,
+            )
         for key in ("positions_mm", "circumferences_mm"):
             if key not in value:
                 raise ConfigError(f"design.limb.{key}", "required key is missing", source=ctx.source)
         try:
-            return Limb.from_measurements(value["positions_mm"], value["circumferences_mm"],
-                                          ellipticity=value.get("ellipticity", 1.0), n_stations=table.stations,
-                                          n_around=table.around, name=value.get("name", "limb"))
+            return Limb.from_measurements(
+                value["positions_mm"],
+                value["circumferences_mm"],
+                ellipticity=value.get("ellipticity", 1.0),
+                n_stations=table.stations,
+                n_around=table.around,
+                name=value.get("name", "limb"),
+            )
         except (ValueError, TypeError, FieldError) as e:
             field = getattr(e, "field", "")
-            raise ConfigError(f"design.limb{'.' + field if field else ''}", getattr(e, "problem", str(e)),
-                              source=ctx.source) from None
+            raise ConfigError(
+                f"design.limb{'.' + field if field else ''}", getattr(e, "problem", str(e)), source=ctx.source
+            ) from None
     path = ctx.path(value, "design.limb")
     return Limb.from_scan(path, axis=table.axis, n_stations=table.stations, n_around=table.around)
 
@@ -152,24 +190,33 @@ class DesignStage:
     objective_name: str
 
     @classmethod
-    def from_config(cls, config, ctx) -> "DesignStage":
+    def from_config(cls, config, ctx) -> DesignStage:
         from knitframe.garment.tube import Tube
 
         table = build(DesignTable, config["design"], "design", source=ctx.source)
-        objective = instantiate(ctx.registry, "design_objective", table.objective, "design.objective",
-                                source=ctx.source)
+        objective = instantiate(
+            ctx.registry, "design_objective", table.objective, "design.objective", source=ctx.source
+        )
         library = load_library(table.library, ctx)
         if table.base is not None and table.base not in library.names:
-            raise ConfigError("design.base", f"no fabric '{table.base}' in library '{library.name}'; it has "
-                              f"{', '.join(library.names)}", source=ctx.source)
+            raise ConfigError(
+                "design.base",
+                f"no fabric '{table.base}' in library '{library.name}'; it has {', '.join(library.names)}",
+                source=ctx.source,
+            )
         if table.method == "paper" and table.tube.mode != "paper":
-            raise ConfigError("design.method", "the paper's per-element method needs design.tube.mode = 'paper'",
-                              source=ctx.source)
+            raise ConfigError(
+                "design.method",
+                "the paper's per-element method needs design.tube.mode = 'paper'",
+                source=ctx.source,
+            )
         if table.machine is not None:
             library = check_machine(table, library, ctx)
         limb = load_limb(table.limb, ctx, table)
         Tube(**attrs.asdict(table.tube))
-        return cls(table, limb, library, objective, PluginSpec.parse(table.objective, "design.objective").kind)
+        return cls(
+            table, limb, library, objective, PluginSpec.parse(table.objective, "design.objective").kind
+        )
 
     def run(self, ctx) -> None:
         from knitframe.garment.core import design
@@ -179,28 +226,44 @@ class DesignStage:
         ctx.used("stage", self.name)
         ctx.used("design_objective", self.objective_name)
         t = self.options
-        d = design(self.limb, self.library, self.objective, tube=Tube(**attrs.asdict(t.tube)), method=t.method,
-                   pressure=t.pressure, min_courses=t.min_courses, max_fabrics=t.max_fabrics, base=t.base)
+        d = design(
+            self.limb,
+            self.library,
+            self.objective,
+            tube=Tube(**attrs.asdict(t.tube)),
+            method=t.method,
+            pressure=t.pressure,
+            min_courses=t.min_courses,
+            max_fabrics=t.max_fabrics,
+            base=t.base,
+        )
         for name in write_design(d, ctx.out):
             ctx.outputs.append(name)
         machine = self._machine_outputs(d, ctx) if t.machine is not None else None
         ctx.objects[self.name] = d
         pe = d.standard_positions()
         ctx.results[self.name] = {
-            "objective": self.objective_name, "value": d.value, "regions": len(d.regions()),
-            "limits_respected": d.limits_respected, "stress_cv": d.stress_cv(),
-            "baseline_stress_cv": d.baseline["stress_cv"], "guarantee": d.guarantee,
-            "headline": (f"{len(d.regions())} regions, {self.objective_name} {d.value:.4g}; pressure "
-                         f"{pe['distal']['pressure_equivalent_mmHg']:.1f} mmHg distal, "
-                         f"{pe['top']['pressure_equivalent_mmHg']:.1f} mmHg top; stress CV "
-                         f"{d.stress_cv():.3f} (one fabric: {d.baseline['stress_cv']:.3f}); "
-                         f"limits {'respected' if d.limits_respected else 'EXCEEDED'}"),
+            "objective": self.objective_name,
+            "value": d.value,
+            "regions": len(d.regions()),
+            "limits_respected": d.limits_respected,
+            "stress_cv": d.stress_cv(),
+            "baseline_stress_cv": d.baseline["stress_cv"],
+            "guarantee": d.guarantee,
+            "headline": (
+                f"{len(d.regions())} regions, {self.objective_name} {d.value:.4g}; pressure "
+                f"{pe['distal']['pressure_equivalent_mmHg']:.1f} mmHg distal, "
+                f"{pe['top']['pressure_equivalent_mmHg']:.1f} mmHg top; stress CV "
+                f"{d.stress_cv():.3f} (one fabric: {d.baseline['stress_cv']:.3f}); "
+                f"limits {'respected' if d.limits_respected else 'EXCEEDED'}"
+            ),
         }
         if machine is not None:
             ctx.results[self.name]["machine"] = machine
             ctx.results[self.name]["headline"] += (
                 f"; sleeve.k: {machine['needles']} stitches × {machine['courses']} courses, "
-                + (f"checked by {machine['check']['interpreter']}" if machine["check"] else "not checked"))
+                + (f"checked by {machine['check']['interpreter']}" if machine["check"] else "not checked")
+            )
 
     def _machine_outputs(self, d: Any, ctx: Any) -> dict[str, Any]:
         """sleeve.k, sleeve-chart.png (and sleeve.dat) of the design, checked by knitout-interpreter."""
@@ -210,9 +273,13 @@ class DesignStage:
         try:
             kmap = KnitMap.from_design(d)
             spec = m.spec()  # carriers of library yarns this design does not use are not needed
-            p = plan(kmap, attrs.evolve(spec, carriers={y: c for y, c in spec.carriers.items() if y in kmap.yarns}))
+            p = plan(
+                kmap, attrs.evolve(spec, carriers={y: c for y, c in spec.carriers.items() if y in kmap.yarns})
+            )
         except FieldError as e:
-            where = {"tube": "design.tube.mode", "pattern": "design.machine"}.get(e.field, f"design.machine.{e.field}")
+            where = {"tube": "design.tube.mode", "pattern": "design.machine"}.get(
+                e.field, f"design.machine.{e.field}"
+            )
             raise ConfigError(where, e.problem) from None
         lines, report = program(p, check=m.check)
         names, info = write_machine_outputs(p, lines, ctx.out, dat=m.dat)
@@ -236,26 +303,45 @@ def check_machine(table: DesignTable, library: Any, ctx: Any) -> Any:
             raise ConfigError(f"design.machine.{key}", problem, source=ctx.source)
     spec = m.spec()
     if table.tube.needles is not None and table.tube.needles > spec.bed_width:
-        raise ConfigError("design.machine.width", f"the tube needs {table.tube.needles} needles per bed (half gauge: "
-                          f"one per stitch of the course, design.tube.needles) but the machine width is "
-                          f"{spec.bed_width}", source=ctx.source)
+        raise ConfigError(
+            "design.machine.width",
+            f"the tube needs {table.tube.needles} needles per bed (half gauge: "
+            f"one per stitch of the course, design.tube.needles) but the machine width is "
+            f"{spec.bed_width}",
+            source=ctx.source,
+        )
     kept = [e for e in library.entries if e.pattern in PATTERNS]
     if not kept:
-        raise ConfigError("design.library", f"no fabric of library '{library.name}' can be knitted by the machine "
-                          f"output (patterns {', '.join(PATTERNS)})", source=ctx.source)
+        raise ConfigError(
+            "design.library",
+            f"no fabric of library '{library.name}' can be knitted by the machine "
+            f"output (patterns {', '.join(PATTERNS)})",
+            source=ctx.source,
+        )
     left_out = [e.name for e in library.entries if e.pattern not in PATTERNS]
     if left_out:
         if table.base in left_out:
-            raise ConfigError("design.base", f"fabric '{table.base}' cannot be knitted by the machine output (its "
-                              f"pattern is not one of {', '.join(PATTERNS)})", source=ctx.source)
-        warnings.warn(f"design.machine: fabrics {', '.join(left_out)} are left out of the library: the machine "
-                      f"output knits only {', '.join(PATTERNS)}", KnitframeWarning, stacklevel=2)
+            raise ConfigError(
+                "design.base",
+                f"fabric '{table.base}' cannot be knitted by the machine output (its "
+                f"pattern is not one of {', '.join(PATTERNS)})",
+                source=ctx.source,
+            )
+        warnings.warn(
+            f"design.machine: fabrics {', '.join(left_out)} are left out of the library: the machine "
+            f"output knits only {', '.join(PATTERNS)}",
+            KnitframeWarning,
+            stacklevel=2,
+        )
         library = attrs.evolve(library, entries=kept)
     yarns = list(dict.fromkeys(e.yarn for e in kept))
     for yarn in spec.carriers:
         if yarn not in yarns:
-            raise ConfigError(f"design.machine.carriers.{yarn}", f"library '{library.name}' has no yarn '{yarn}'; it "
-                              f"has {', '.join(yarns)}", source=ctx.source)
+            raise ConfigError(
+                f"design.machine.carriers.{yarn}",
+                f"library '{library.name}' has no yarn '{yarn}'; it has {', '.join(yarns)}",
+                source=ctx.source,
+            )
     for e in kept:
         try:
             spec.stitch_number(e.stitch_length, e.name)

@@ -44,10 +44,16 @@ class FitTable:
     model: str | dict[str, Any] = "hgo"  #: homogenizer name, or a table with ``kind`` and options
     fitter: str | dict[str, Any] = "lbfgs"  #: fitter name, or a table with ``kind`` and options
     labels: list[str] = attrs.Factory(list)  #: fit only these Responses (by label); empty: all
-    kinds: list[Literal["experiment", "simulation", "model"]] = attrs.Factory(list)  #: fit only Responses of these provenance kinds; empty: all
+    kinds: list[Literal["experiment", "simulation", "model"]] = attrs.Factory(
+        list
+    )  #: fit only Responses of these provenance kinds; empty: all
     name: str = ""  #: name of this fit when several [[fit]] tables are given; prefixes its output files
-    export: list[Literal["abaqus", "calculix", "calculix-deck", "febio"]] = attrs.Factory(list)  #: material cards of the fitted model to write next to params.json (docs/export.md)
-    export_thickness: float = attrs.field(default=1.0, validator=v.positive)  #: reference thickness t0 (mm) of the solid the export cards describe: k1 = 2a/t0
+    export: list[Literal["abaqus", "calculix", "calculix-deck", "febio"]] = attrs.Factory(
+        list
+    )  #: material cards of the fitted model to write next to params.json (docs/export.md)
+    export_thickness: float = attrs.field(
+        default=1.0, validator=v.positive
+    )  #: reference thickness t0 (mm) of the solid the export cards describe: k1 = 2a/t0
 
 
 @attrs.frozen
@@ -78,49 +84,82 @@ class FitStage:
         return f"fit:{self.fit_name}" if self.fit_name else "fit"
 
     @classmethod
-    def from_config(cls, config, ctx) -> "FitStage":
+    def from_config(cls, config, ctx) -> FitStage:
         table = build(FitTable, config["fit"], "fit", source=ctx.source)
         model = instantiate(ctx.registry, "homogenizer", table.model, "fit.model", source=ctx.source)
         fitter = instantiate(ctx.registry, "fitter", table.fitter, "fit.fitter", source=ctx.source)
         if not (ctx.tables - {"fit", "patchwork", "pipeline"}):
-            raise ConfigError("fit", "nothing to fit: add a [data] table (or a stage that makes Responses)",
-                              source=ctx.source)
+            raise ConfigError(
+                "fit",
+                "nothing to fit: add a [data] table (or a stage that makes Responses)",
+                source=ctx.source,
+            )
         for i, fmt in enumerate(table.export):
             if fmt in table.export[:i]:
                 raise ConfigError(f"fit.export[{i}]", f"{fmt!r} is listed twice", source=ctx.source)
             why = card_refusal(model, fmt)
             if why:
                 raise ConfigError(f"fit.export[{i}]", why, source=ctx.source)
-        return cls(model, fitter, PluginSpec.parse(table.model, "fit.model").kind,
-                   PluginSpec.parse(table.fitter, "fit.fitter").kind, tuple(table.labels), ctx.source,
-                   tuple(table.kinds), table.name, tuple(table.export), table.export_thickness)
+        return cls(
+            model,
+            fitter,
+            PluginSpec.parse(table.model, "fit.model").kind,
+            PluginSpec.parse(table.fitter, "fit.fitter").kind,
+            tuple(table.labels),
+            ctx.source,
+            tuple(table.kinds),
+            table.name,
+            tuple(table.export),
+            table.export_thickness,
+        )
 
     def run(self, ctx) -> None:
         ctx.used("stage", self.name)
         ctx.used("homogenizer", self.model_name)
         ctx.used("fitter", self.fitter_name)
-        responses = [r for r in ctx.responses if (not self.labels or r.label in self.labels)
-                     and (not self.kinds or r.provenance.kind in self.kinds)]
+        responses = [
+            r
+            for r in ctx.responses
+            if (not self.labels or r.label in self.labels)
+            and (not self.kinds or r.provenance.kind in self.kinds)
+        ]
         missing = sorted(set(self.labels) - {r.label for r in ctx.responses})
         if missing:
-            raise ConfigError("fit.labels", f"no Response labelled {missing[0]!r}; have "
-                              f"{', '.join(r.label for r in ctx.responses) or 'none'}", source=self.source)
+            raise ConfigError(
+                "fit.labels",
+                f"no Response labelled {missing[0]!r}; have "
+                f"{', '.join(r.label for r in ctx.responses) or 'none'}",
+                source=self.source,
+            )
         if not responses:
-            raise ConfigError("fit", "no Responses to fit: an earlier stage must produce some", source=self.source)
+            raise ConfigError(
+                "fit", "no Responses to fit: an earlier stage must produce some", source=self.source
+            )
         result = self.fitter.fit(self.model, responses)
         prefix = f"{self.fit_name}-" if self.fit_name else ""
-        write_fit_outputs(result, responses, ctx.output(f"{prefix}params.json"), ctx.output(f"{prefix}fit.png"))
+        write_fit_outputs(
+            result, responses, ctx.output(f"{prefix}params.json"), ctx.output(f"{prefix}fit.png")
+        )
         data = result.to_json()
         cards = []
         for fmt in self.export:  # the same text as `knitframe export <prefix>params.json --format fmt`
-            text = export_card(data, fmt, path=f"{prefix}params.json", registry=ctx.registry,
-                               options={"thickness": "fit.export_thickness", "format": "fit.export"},
-                               thickness=self.export_thickness)
+            text = export_card(
+                data,
+                fmt,
+                path=f"{prefix}params.json",
+                registry=ctx.registry,
+                options={"thickness": "fit.export_thickness", "format": "fit.export"},
+                thickness=self.export_thickness,
+            )
             name = f"{prefix}params.{FORMATS[fmt]}"
             ctx.output(name).write_text(text, encoding="utf-8")
             cards.append(name)
         ctx.models.append(result)
-        ctx.results[self.label] = {**data, "headline": result.headline(), **({"cards": cards} if cards else {})}
+        ctx.results[self.label] = {
+            **data,
+            "headline": result.headline(),
+            **({"cards": cards} if cards else {}),
+        }
 
 
 @hookimpl

@@ -47,17 +47,33 @@ from typing import Any, ClassVar
 import attrs
 import numpy as np
 
-from knitframe import __version__, hookimpl, validators as v
+from knitframe import __version__, hookimpl
+from knitframe import validators as v
 from knitframe.config import PluginSpec, instantiate
+from knitframe.convergence import convergence_table, mesh_convergence, write_convergence
 from knitframe.errors import ConfigError, KnitframeError, KnitframeWarning, NumericalError
 from knitframe.ladder import (
-    DEFAULT_RUNGS, RUNGS, CostModel, rung, LadderResult, TimingPoint, _response, format_duration, format_memory,
-    plot_curves, plot_pareto, read_timings, run_rung, shipped_timings_path, tension_errors,
-    within_range, write_csv, write_table,
+    DEFAULT_RUNGS,
+    RUNGS,
+    CostModel,
+    LadderResult,
+    TimingPoint,
+    _response,
+    format_duration,
+    format_memory,
+    plot_curves,
+    plot_pareto,
+    read_timings,
+    run_rung,
+    rung,
+    shipped_timings_path,
+    tension_errors,
+    within_range,
+    write_csv,
+    write_table,
 )
 from knitframe.records import Scene
 from knitframe.report import write_responses_csv
-from knitframe.convergence import convergence_table, mesh_convergence, write_convergence
 from knitframe.schema import build
 
 log = logging.getLogger("knitframe.ladder")
@@ -74,16 +90,32 @@ MAX_ATTEMPTS = 20
 class LadderTable:
     """Schema of the ``[ladder]`` table."""
 
-    rungs: list[str] = attrs.Factory(lambda: list(DEFAULT_RUNGS))  #: rung names (docs/ladder.md): those listed there, or rod:N, volumetric:p1:r/X, volumetric:p2:r/X at any resolution; default: reduced, rod:8, rod:16, rod:32, volumetric:p1:coarse, volumetric:p1:r/3, volumetric:p2:r/1.67
-    max_time: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: skip the rungs whose estimated wall time is over this, s; unset: run them all
-    executor: str | dict[str, Any] = "local"  #: executor plugin name, or a table with ``kind`` and its options; the rungs of a wave go through its ``map``
+    rungs: list[str] = attrs.Factory(
+        lambda: list(DEFAULT_RUNGS)
+    )  #: rung names (docs/ladder.md): those listed there, or rod:N, volumetric:p1:r/X, volumetric:p2:r/X at any resolution; default: reduced, rod:8, rod:16, rod:32, volumetric:p1:coarse, volumetric:p1:r/3, volumetric:p2:r/1.67
+    max_time: float | None = attrs.field(
+        default=None, validator=v.optional(v.positive)
+    )  #: skip the rungs whose estimated wall time is over this, s; unset: run them all
+    executor: str | dict[str, Any] = (
+        "local"  #: executor plugin name, or a table with ``kind`` and its options; the rungs of a wave go through its ``map``
+    )
     cache: bool = True  #: keep finished rungs in the executor's cache and reuse them
-    cache_dir: str | None = None  #: where the finished rungs are kept; unset: the executors' cache, which `knitframe cache clear` empties ($KNITFRAME_CACHE_DIR, else knitframe/jobs in $XDG_CACHE_HOME or ~/.cache)
-    timings: list[str] = attrs.Factory(list)  #: measured timings for the cost model: ladder.csv files of earlier ladders, or JSON files like the shipped one
+    cache_dir: str | None = (
+        None  #: where the finished rungs are kept; unset: the executors' cache, which `knitframe cache clear` empties ($KNITFRAME_CACHE_DIR, else knitframe/jobs in $XDG_CACHE_HOME or ~/.cache)
+    )
+    timings: list[str] = attrs.Factory(
+        list
+    )  #: measured timings for the cost model: ladder.csv files of earlier ladders, or JSON files like the shipped one
     shipped_timings: bool = True  #: let the cost model use the timings shipped with knitframe
-    solver_options: dict[str, Any] = attrs.Factory(dict)  #: solver options for every rung of a solver, by solver name: ``{ volumetric = { contact_modulus = 1.2 } }``
-    reduced_model: str | dict[str, Any] = "auto"  #: the reduced rung's homogenizer; "auto": hgo, or hgo2m when the load leaves a side free
-    reduced_fitter: str | dict[str, Any] = "lbfgs"  #: the reduced rung's fitter name, or a table with ``kind`` and options
+    solver_options: dict[str, Any] = attrs.Factory(
+        dict
+    )  #: solver options for every rung of a solver, by solver name: ``{ volumetric = { contact_modulus = 1.2 } }``
+    reduced_model: str | dict[str, Any] = (
+        "auto"  #: the reduced rung's homogenizer; "auto": hgo, or hgo2m when the load leaves a side free
+    )
+    reduced_fitter: str | dict[str, Any] = (
+        "lbfgs"  #: the reduced rung's fitter name, or a table with ``kind`` and options
+    )
 
 
 def default_cache_dir() -> Path:
@@ -102,8 +134,11 @@ def _fabric_label(fabric: Any) -> str:
 def _scene_label(scene: Scene) -> str:
     load = scene.load
     kind = f"uniaxial ({load.direction}, free side)" if load.kind == "uniaxial" else load.kind
-    text = f"{kind} 0→{100 * load.max_strain:g} % in {load.steps} steps" if load.kind != "general" else (
-        f"general path of {len(load.lambda1)} points")
+    text = (
+        f"{kind} 0→{100 * load.max_strain:g} % in {load.steps} steps"
+        if load.kind != "general"
+        else (f"general path of {len(load.lambda1)} points")
+    )
     return ("pre-stress + " if "prestress" in scene.effects else "") + text
 
 
@@ -112,7 +147,9 @@ class LadderStage:
     """Run the rungs of the accuracy ladder on the config's fabric and scene and compare them."""
 
     name: ClassVar[str] = "ladder"
-    description: ClassVar[str] = "accuracy ladder: one fabric and scene through rungs of fidelity, with time, memory and error"
+    description: ClassVar[str] = (
+        "accuracy ladder: one fabric and scene through rungs of fidelity, with time, memory and error"
+    )
     order: ClassVar[int] = 40
     uses: ClassVar[tuple[str, ...]] = ("fabric", "scene", "yarns", "executor")
     schema: ClassVar[type] = LadderTable
@@ -129,14 +166,18 @@ class LadderStage:
     source: str | None = None
 
     @classmethod
-    def from_config(cls, config, ctx) -> "LadderStage":
+    def from_config(cls, config, ctx) -> LadderStage:
         src = ctx.source
         table = build(LadderTable, config["ladder"], "ladder", source=src)
         names = _check_rungs(table.rungs, src)
         scene_table = config.get("scene", {})
         if isinstance(scene_table, dict) and isinstance(scene_table.get("load"), list):
-            raise ConfigError("scene.load", "the ladder follows one load path: give one load table (an array of "
-                              "loads is for the [solver] stage)", source=src)
+            raise ConfigError(
+                "scene.load",
+                "the ladder follows one load path: give one load table (an array of "
+                "loads is for the [solver] stage)",
+                source=src,
+            )
         scene = build(Scene, scene_table, "scene", source=src)
         simulate = ctx.registry["stage"]["simulate"]
         used_solvers = {rung(n).solver for n in names if n != "reduced"}
@@ -148,19 +189,31 @@ class LadderStage:
                 continue
             solver_cls = ctx.registry["solver"][rg.solver]
             effects = sorted(scene.effects & solver_cls.effects)
-            solver_table = {"kind": rg.solver, "on_failure": "truncate", **options.get(rg.solver, {}),
-                            **rg.options}
-            sub = {"solver": solver_table, "scene": {**scene_table, "effects": effects, "outputs": ["response"]}}
+            solver_table = {
+                "kind": rg.solver,
+                "on_failure": "truncate",
+                **options.get(rg.solver, {}),
+                **rg.options,
+            }
+            sub = {
+                "solver": solver_table,
+                "scene": {**scene_table, "effects": effects, "outputs": ["response"]},
+            }
             sub.update({k: config[k] for k in ("fabric", "yarns") if k in config})
             try:
                 stages[name] = simulate.from_config(sub, ctx)
             except ConfigError as e:
                 path = e.path
                 if path.startswith("solver."):
-                    path = f"ladder.solver_options.{rg.solver}.{path[len('solver.'):]}"
+                    path = f"ladder.solver_options.{rg.solver}.{path[len('solver.') :]}"
                 raise ConfigError(path, e.problem, source=src) from None
-            jobs[name] = {"rung": name, "solver": solver_table, "config": sub, "knitframe": __version__,
-                          "attempt": 0}
+            jobs[name] = {
+                "rung": name,
+                "solver": solver_table,
+                "config": sub,
+                "knitframe": __version__,
+                "attempt": 0,
+            }
         reduced = None
         if "reduced" in names:
             reduced = _reduced_job(table, scene, scene_table, ctx.registry, src)
@@ -190,24 +243,39 @@ class LadderStage:
         for name, st in self.stages.items():
             rg = rung(name)
             dofs, increments = _size(st, ctx.registry)
-            rows[name] = {"rung": name, "family": rg.family, "solver": rg.solver,
-                          "options": dict(self.jobs[name]["solver"]), "effects": " ".join(sorted(st.scene.effects)),
-                          "dofs": dofs, "increments": increments, "fabric": _fabric_label(fabric),
-                          "load": self.scene.load.response_kind, "cached": False, "reference": False}
+            rows[name] = {
+                "rung": name,
+                "family": rg.family,
+                "solver": rg.solver,
+                "options": dict(self.jobs[name]["solver"]),
+                "effects": " ".join(sorted(st.scene.effects)),
+                "dofs": dofs,
+                "increments": increments,
+                "fabric": _fabric_label(fabric),
+                "load": self.scene.load.response_kind,
+                "cached": False,
+                "reference": False,
+            }
         cost = CostModel(self.timings)
         pending = list(self.stages)
         budget = self.settings.max_time
         while pending:
-            est = {n: cost.estimate(rows[n]["family"], rows[n]["dofs"], rows[n]["increments"]) for n in pending}
+            est = {
+                n: cost.estimate(rows[n]["family"], rows[n]["dofs"], rows[n]["increments"]) for n in pending
+            }
             for n in pending:
                 e = est[n]
-                rows[n].update(estimated_time_s=None if e is None else e.seconds,
-                               estimated_rss_mb=None if e is None else e.rss_mb,
-                               estimate_basis=None if e is None else e.basis)
+                rows[n].update(
+                    estimated_time_s=None if e is None else e.seconds,
+                    estimated_rss_mb=None if e is None else e.rss_mb,
+                    estimate_basis=None if e is None else e.basis,
+                )
                 if budget is not None and e is not None and e.seconds > budget:
-                    rows[n]["status"] = (f"skipped: {e.text()}, over max_time {format_duration(budget)}")
-                    log.warning(f"ladder: skipping {n}: {e.text()}, over max_time {format_duration(budget)} "
-                                f"({budget:g} s)")
+                    rows[n]["status"] = f"skipped: {e.text()}, over max_time {format_duration(budget)}"
+                    log.warning(
+                        f"ladder: skipping {n}: {e.text()}, over max_time {format_duration(budget)} "
+                        f"({budget:g} s)"
+                    )
             pending = [n for n in pending if "status" not in rows[n]]
             if not pending:
                 break
@@ -218,15 +286,26 @@ class LadderStage:
                 wave = wave[:1]
             for n in wave:
                 e = est[n]
-                what = f"{e.text()} ({e.basis})" if e is not None else "no estimate (no timings of its family)"
+                what = (
+                    f"{e.text()} ({e.basis})" if e is not None else "no estimate (no timings of its family)"
+                )
                 dofs = f"{rows[n]['dofs']:,}".replace(",", " ")
                 log.info(f"ladder: {n} ({dofs} DOFs): {what}")
             results = _map(executor, [self.jobs[n] for n in wave], t_start)
             for n, res in zip(wave, results):
                 self._record(rows[n], res, t_start, curves)
                 if rows[n]["status"] == "ok":
-                    cost.add(TimingPoint(rows[n]["family"], rows[n]["dofs"], rows[n]["increments"],
-                                         rows[n]["wall_time_s"], rows[n].get("peak_rss_mb"), "run", n))
+                    cost.add(
+                        TimingPoint(
+                            rows[n]["family"],
+                            rows[n]["dofs"],
+                            rows[n]["increments"],
+                            rows[n]["wall_time_s"],
+                            rows[n].get("peak_rss_mb"),
+                            "run",
+                            n,
+                        )
+                    )
             pending = [n for n in pending if n not in wave]
 
         finished = [n for n in self.rungs if rows.get(n, {}).get("status") == "ok"]
@@ -236,7 +315,9 @@ class LadderStage:
         if not curves:
             statuses = "; ".join(f"{n}: {rows[n].get('status')}" for n in self.rungs if n in rows)
             if all(str(r.get("status", "")).startswith("skipped") for r in rows.values()):
-                raise ConfigError("ladder.max_time", f"every rung was skipped ({statuses})", source=self.source)
+                raise ConfigError(
+                    "ladder.max_time", f"every rung was skipped ({statuses})", source=self.source
+                )
             raise NumericalError(f"no rung of the ladder finished: {statuses}")
         measured = self._measured(ctx)
         self._compare(rows, curves, reference, measured)
@@ -248,7 +329,9 @@ class LadderStage:
         """Whether the executor runs a wave's jobs side by side (the local one with one worker does not)."""
         return self.executor_name != "local" or getattr(self.executor, "workers", 1) > 1
 
-    def _record(self, row: dict[str, Any], res: dict[str, Any], t_start: float, curves: dict[str, Any]) -> None:
+    def _record(
+        self, row: dict[str, Any], res: dict[str, Any], t_start: float, curves: dict[str, Any]
+    ) -> None:
         row["status"] = res.get("status", "crashed: no result")
         row["cached"] = res.get("finished_unix", t_start) < t_start
         row["started_unix"], row["finished_unix"] = res.get("started_unix"), res.get("finished_unix")
@@ -263,33 +346,56 @@ class LadderStage:
             warnings.warn(f"ladder rung {row['rung']}: {w}", KnitframeWarning, stacklevel=2)
         if row["wall_time_s"] is not None:
             mem = "" if row["peak_rss_mb"] is None else f", {format_memory(row['peak_rss_mb'])}"
-            log.info(f"ladder: {row['rung']}: {row['status']}, {format_duration(row['wall_time_s'])}{mem}"
-                     + (" (cached)" if row["cached"] else ""))
+            log.info(
+                f"ladder: {row['rung']}: {row['status']}, {format_duration(row['wall_time_s'])}{mem}"
+                + (" (cached)" if row["cached"] else "")
+            )
         else:
             log.warning(f"ladder: {row['rung']}: {row['status']}")
 
-    def _run_reduced(self, executor: Any, reference: str | None, curves: dict[str, Any], t_start: float,
-                     fabric: Any) -> dict:
+    def _run_reduced(
+        self, executor: Any, reference: str | None, curves: dict[str, Any], t_start: float, fabric: Any
+    ) -> dict:
         job = dict(self.reduced)
         model = job["solver"]["model"]
-        row = {"rung": "reduced", "family": "reduced", "solver": "reduced", "fabric": _fabric_label(fabric),
-               "load": self.scene.load.response_kind, "effects": " ".join(job["scene"]["effects"]),
-               "cached": False, "reference": False, "increments": self.scene.load.steps,
-               "options": {"model": model, "fitter": job["solver"]["fitter"]}}
+        row = {
+            "rung": "reduced",
+            "family": "reduced",
+            "solver": "reduced",
+            "fabric": _fabric_label(fabric),
+            "load": self.scene.load.response_kind,
+            "effects": " ".join(job["scene"]["effects"]),
+            "cached": False,
+            "reference": False,
+            "increments": self.scene.load.steps,
+            "options": {"model": model, "fitter": job["solver"]["fitter"]},
+        }
         if reference is None:
             row["status"] = "skipped: no rung converged to fit the reduced model to"
             return row
         ref = curves[reference]
-        job["reference"] = {"lambda1": ref.lambda1.tolist(), "lambda2": ref.lambda2.tolist(),
-                            "T1": ref.T1.tolist(), "T2": ref.T2.tolist(), "load": ref.load, "label": reference}
+        job["reference"] = {
+            "lambda1": ref.lambda1.tolist(),
+            "lambda2": ref.lambda2.tolist(),
+            "T1": ref.T1.tolist(),
+            "T2": ref.T2.tolist(),
+            "load": ref.load,
+            "label": reference,
+        }
         res = _map(executor, [job], t_start)[0]
         self._record(row, res, t_start, curves)
         if res.get("params"):
             row["dofs"] = len(res["params"])
-            row["options"] = {**row["options"], "model": res.get("model", model), "params": res["params"],
-                              "fitted_to": reference}
-            row["notes"] = (f"fitted to {reference} in {format_duration(res.get('fit_time_s') or 0.0)}; "
-                            f"time is one evaluation of the path")
+            row["options"] = {
+                **row["options"],
+                "model": res.get("model", model),
+                "params": res["params"],
+                "fitted_to": reference,
+            }
+            row["notes"] = (
+                f"fitted to {reference} in {format_duration(res.get('fit_time_s') or 0.0)}; "
+                f"time is one evaluation of the path"
+            )
         return row
 
     def _measured(self, ctx) -> list[Any]:
@@ -300,16 +406,24 @@ class LadderStage:
         if other:
             log.info(f"ladder: measured curves of another load are not compared: {', '.join(other)}")
         if experiments and not same:
-            warnings.warn(f"ladder: no measured curve is {kind} (the scene's load); the rungs are compared "
-                          f"with the best rung only", KnitframeWarning, stacklevel=2)
+            warnings.warn(
+                f"ladder: no measured curve is {kind} (the scene's load); the rungs are compared "
+                f"with the best rung only",
+                KnitframeWarning,
+                stacklevel=2,
+            )
         _, lam1, lam2 = self.scene.load.stretches()
         top = max(float(np.max(x)) for x in (lam1, lam2) if x is not None)
         out = []
         for r in same:
             cut = within_range(r, top)
             if cut is None:
-                warnings.warn(f"ladder: measured curve '{r.label}' has fewer than 2 points within the path "
-                              f"(stretch ≤ {top:g}); not compared", KnitframeWarning, stacklevel=2)
+                warnings.warn(
+                    f"ladder: measured curve '{r.label}' has fewer than 2 points within the path "
+                    f"(stretch ≤ {top:g}); not compared",
+                    KnitframeWarning,
+                    stacklevel=2,
+                )
             else:
                 out.append(cut)
         return out
@@ -321,11 +435,16 @@ class LadderStage:
             row["reference"] = name == reference
             if ref is not None:
                 e = tension_errors(ref, r)
-                row.update(nrmse_vs_best=e["overall"], nrmse_course_vs_best=e["course"], nrmse_wale_vs_best=e["wale"])
+                row.update(
+                    nrmse_vs_best=e["overall"], nrmse_course_vs_best=e["course"], nrmse_wale_vs_best=e["wale"]
+                )
             if measured:
                 errs = [tension_errors(m, r) for m in measured]
-                for key, col in (("overall", "nrmse_vs_measured"), ("course", "nrmse_course_vs_measured"),
-                                 ("wale", "nrmse_wale_vs_measured")):
+                for key, col in (
+                    ("overall", "nrmse_vs_measured"),
+                    ("course", "nrmse_course_vs_measured"),
+                    ("wale", "nrmse_wale_vs_measured"),
+                ):
                     vals = [e[key] for e in errs if e[key] is not None]
                     row[col] = float(np.mean(vals)) if vals else None
 
@@ -340,11 +459,18 @@ class LadderStage:
                 last = [r for r in found if r["strain"] == max(x["strain"] for x in found)]
                 text = "; ".join(
                     f"{r['direction']} T {r['T_finest']:.4g} N/mm, "
-                    + (f"order {r['order']:.2f}, extrapolated {r['T_extrapolated']:.4g}, error of the finest "
-                       f"{100 * r['error_finest']:.3g} %" if r["order"] is not None else r["behaviour"])
-                    for r in last)
-                log.info(f"ladder: mesh convergence of {family} ({found[0]['rungs']}) at "
-                         f"{100 * last[0]['strain']:g} %: {text}")
+                    + (
+                        f"order {r['order']:.2f}, extrapolated {r['T_extrapolated']:.4g}, error of the finest "
+                        f"{100 * r['error_finest']:.3g} %"
+                        if r["order"] is not None
+                        else r["behaviour"]
+                    )
+                    for r in last
+                )
+                log.info(
+                    f"ladder: mesh convergence of {family} ({found[0]['rungs']}) at "
+                    f"{100 * last[0]['strain']:g} %: {text}"
+                )
         return rows
 
     def _write(self, ctx, rows, curves, measured, fabric, reference, convergence=()) -> None:
@@ -359,15 +485,28 @@ class LadderStage:
             md.write_text(table, encoding="utf-8")
         plot_pareto(ctx.output("ladder.png"), rows, title=title)
         ordered = {n: curves[n] for n in self.rungs if n in curves}
-        plot_curves(ctx.output("curves.png"), ordered, measured, title=title, load=self.scene.load.response_kind,
-                    reference=reference)
+        plot_curves(
+            ctx.output("curves.png"),
+            ordered,
+            measured,
+            title=title,
+            load=self.scene.load.response_kind,
+            reference=reference,
+        )
         write_responses_csv(ctx.output("ladder-curves.csv"), list(ordered.values()))
         done = [r for r in rows if r.get("wall_time_s") is not None]
         skipped = [r["rung"] for r in rows if str(r.get("status", "")).startswith("skipped")]
-        headline = (f"{len(done)} of {len(rows)} rungs ran, best {reference or 'none'}"
-                    + (f"; skipped {', '.join(skipped)}" if skipped else "")
-                    + (f"; measured: {', '.join(labels)}" if labels else ""))
-        ctx.results[self.name] = {"reference": reference, "rungs": rows, "measured": labels, "headline": headline}
+        headline = (
+            f"{len(done)} of {len(rows)} rungs ran, best {reference or 'none'}"
+            + (f"; skipped {', '.join(skipped)}" if skipped else "")
+            + (f"; measured: {', '.join(labels)}" if labels else "")
+        )
+        ctx.results[self.name] = {
+            "reference": reference,
+            "rungs": rows,
+            "measured": labels,
+            "headline": headline,
+        }
         ctx.objects[self.name] = LadderResult(rows, ordered, measured, reference, table)
 
 
@@ -386,8 +525,12 @@ def _check_rungs(names: list[str], source: str | None) -> tuple[str, ...]:
             raise ConfigError(f"ladder.rungs[{i}]", f"rung {name!r} is named twice", source=source)
         seen.add(name)
     if seen == {"reduced"}:
-        raise ConfigError("ladder.rungs", "'reduced' is fitted to the best simulated rung: name at least one "
-                          "rod or volumetric rung as well", source=source)
+        raise ConfigError(
+            "ladder.rungs",
+            "'reduced' is fitted to the best simulated rung: name at least one "
+            "rod or volumetric rung as well",
+            source=source,
+        )
     return tuple(sorted(seen, key=lambda n: rung(n).fidelity))
 
 
@@ -402,7 +545,9 @@ def _check_solver_options(table: dict[str, Any], solvers: set[str], source: str 
         fixed = {k for r in RUNGS.values() if r.solver == solver for k in r.options} | {"kind"}
         for k in opts:
             if k in fixed:
-                raise ConfigError(f"{path}.{k}", "is set by each rung (choose the rungs instead)", source=source)
+                raise ConfigError(
+                    f"{path}.{k}", "is set by each rung (choose the rungs instead)", source=source
+                )
         if solver in solvers:
             out[solver] = dict(opts)
     return out
@@ -417,16 +562,24 @@ def _reduced_job(table: LadderTable, scene: Scene, scene_table: dict, registry, 
     effects = sorted(scene.effects & registry["solver"]["reduced"].effects)
     sub_scene = {**scene_table, "effects": effects, "outputs": ["response"]}
     build(Scene, sub_scene, "scene", source=source)
-    return {"rung": "reduced", "solver": {"kind": "reduced", "model": model, "fitter": table.reduced_fitter},
-            "scene": sub_scene, "knitframe": __version__, "attempt": 0}
+    return {
+        "rung": "reduced",
+        "solver": {"kind": "reduced", "model": model, "fitter": table.reduced_fitter},
+        "scene": sub_scene,
+        "knitframe": __version__,
+        "attempt": 0,
+    }
 
 
 def _executor(table: LadderTable, config, ctx) -> tuple[Any, str]:
     """The executor of ``[ladder] executor``, or of the config's ``[executor]`` table when it has one."""
     if "executor" in config:
         if "executor" in config["ladder"]:
-            raise ConfigError("ladder.executor", "the config has an [executor] table as well: name the executor "
-                              "in one place", source=ctx.source)
+            raise ConfigError(
+                "ladder.executor",
+                "the config has an [executor] table as well: name the executor in one place",
+                source=ctx.source,
+            )
         from knitframe_executors import executor_from_config
 
         executor, name = executor_from_config(config, ctx)
@@ -448,8 +601,9 @@ def _executor(table: LadderTable, config, ctx) -> tuple[Any, str]:
             options["cache_dir"] = str(ctx.path(table.cache_dir, "ladder.cache_dir", must_exist=False))
         else:
             options["cache_dir"] = str(default_cache_dir())
-    return instantiate(ctx.registry, "executor", {"kind": spec.kind, **options}, "ladder.executor",
-                       source=ctx.source), spec.kind
+    return instantiate(
+        ctx.registry, "executor", {"kind": spec.kind, **options}, "ladder.executor", source=ctx.source
+    ), spec.kind
 
 
 def _map(executor: Any, jobs: list[dict[str, Any]], t_start: float) -> list[dict[str, Any]]:

@@ -36,7 +36,8 @@ from typing import ClassVar, Literal
 import attrs
 import numpy as np
 
-from knitframe import hookimpl, validators as v
+from knitframe import hookimpl
+from knitframe import validators as v
 from knitframe.config import PluginSpec
 from knitframe.errors import ConfigError, FieldError, KnitframeError
 from knitframe.fitting import FitResult
@@ -57,8 +58,11 @@ class Region:
     def __attrs_post_init__(self) -> None:
         kind = self.source.split(":", 1)[0]
         if kind not in ("fit", "response", "file"):
-            raise FieldError("source", f"must be 'fit', 'fit:<index>', 'response:<label>' or 'file:<params.json>', "
-                                       f"got {self.source!r}")
+            raise FieldError(
+                "source",
+                f"must be 'fit', 'fit:<index>', 'response:<label>' or 'file:<params.json>', "
+                f"got {self.source!r}",
+            )
         if kind == "fit" and ":" in self.source and not self.source.split(":", 1)[1].lstrip("-").isdigit():
             raise FieldError("source", f"'fit:<index>' needs an integer index, got {self.source!r}")
 
@@ -67,11 +71,15 @@ class Region:
 class PatchworkTable:
     """Schema of the ``[patchwork]`` table."""
 
-    regions: list[Region]  #: tables with name, source ("fit", "fit:<i>", "response:<label>", "file:<params.json>"), length and width in mm
+    regions: list[
+        Region
+    ]  #: tables with name, source ("fit", "fit:<i>", "response:<label>", "file:<params.json>"), length and width in mm
     mode: Literal["series", "parallel", "grid"] = "series"  #: how the regions are combined
     direction: Literal["course", "wale"] = "course"  #: load direction for model regions
     lateral: Literal["free", "fixed"] = "free"  #: model regions: free side (P = 0) or fixed (λ = 1)
-    max_strain: float = attrs.field(default=0.3, validator=v.in_range(0.0, 5.0, lo_open=True))  #: engineering strain of the whole patchwork, -
+    max_strain: float = attrs.field(
+        default=0.3, validator=v.in_range(0.0, 5.0, lo_open=True)
+    )  #: engineering strain of the whole patchwork, -
     steps: int = attrs.field(default=30, validator=v.in_range(1, 100000))  #: load steps
     layout: list[list[str]] = attrs.Factory(list)  #: grid: region names, rows across the load
     row_widths: list[float] = attrs.Factory(list)  #: grid: width of each row, mm
@@ -88,7 +96,9 @@ class PatchworkTable:
             for i, row in enumerate(self.layout):
                 for name in row:
                     if name not in names:
-                        raise FieldError(f"layout[{i}]", f"unknown region {name!r}; regions are {', '.join(names)}")
+                        raise FieldError(
+                            f"layout[{i}]", f"unknown region {name!r}; regions are {', '.join(names)}"
+                        )
             if len(self.row_widths) != len(self.layout) or any(w <= 0 for w in self.row_widths):
                 raise FieldError("row_widths", f"needs {len(self.layout)} widths > 0, one per layout row")
 
@@ -108,7 +118,7 @@ class PatchworkStage:
     source: str | None = None
 
     @classmethod
-    def from_config(cls, config, ctx) -> "PatchworkStage":
+    def from_config(cls, config, ctx) -> PatchworkStage:
         table = build(PatchworkTable, config["patchwork"], "patchwork", source=ctx.source)
         files = {}
         for i, r in enumerate(table.regions):
@@ -121,7 +131,9 @@ class PatchworkStage:
                     raise ConfigError(key, f"cannot read {path.name}: {e}", source=ctx.source) from None
                 files[r.name] = FitResult.from_json(data, ctx.registry, key)
             elif r.source.startswith("fit") and "fit" not in ctx.tables:
-                raise ConfigError(key, "refers to a fitted model but the config has no [fit] table", source=ctx.source)
+                raise ConfigError(
+                    key, "refers to a fitted model but the config has no [fit] table", source=ctx.source
+                )
         if table.lateral == "free":
             _check_free_side(table, files, config, ctx)
         return cls(table, files, ctx.source)
@@ -134,7 +146,9 @@ class PatchworkStage:
         if kind == "fit":
             idx = int(arg) if arg else -1
             if not -len(ctx.models) <= idx < len(ctx.models):
-                raise ConfigError(key, f"no fitted model {idx}; the run has {len(ctx.models)}", source=self.source)
+                raise ConfigError(
+                    key, f"no fitted model {idx}; the run has {len(ctx.models)}", source=self.source
+                )
             return ctx.models[idx]
         for r in ctx.responses:
             if r.label == arg:
@@ -161,8 +175,15 @@ class PatchworkStage:
             lengths = [[1.0] for _ in names]
         strain = np.linspace(0.0, t.max_strain, t.steps + 1)
         try:
-            res = grid([[src[n] for n in row] for row in names], widths, lengths, strain, direction=t.direction,
-                       lateral=t.lateral, mode=t.mode)
+            res = grid(
+                [[src[n] for n in row] for row in names],
+                widths,
+                lengths,
+                strain,
+                direction=t.direction,
+                lateral=t.lateral,
+                mode=t.mode,
+            )
         except ValueError as e:
             raise ConfigError("patchwork", str(e), source=self.source) from None
         response = res.to_response(t.direction, label=f"patchwork ({t.mode})")
@@ -171,10 +192,12 @@ class PatchworkStage:
         curves = [r for r in src.values() if hasattr(r, "loaded_direction")]
         plot_responses(ctx.output("patchwork.png"), [*curves, response], title=f"patchwork ({t.mode})")
         ctx.results[self.name] = {
-            "mode": t.mode, "regions": [r.name for r in t.regions], "max_tension_N_per_mm": float(res.tension.max()),
+            "mode": t.mode,
+            "regions": [r.name for r in t.regions],
+            "max_tension_N_per_mm": float(res.tension.max()),
             "max_force_N": float(res.force.max()),
             "headline": f"{t.mode} patchwork of {len(t.regions)} regions: {res.tension.max():.4g} N/mm at "
-                        f"{100 * t.max_strain:.0f} % strain",
+            f"{100 * t.max_strain:.0f} % strain",
         }
 
     @staticmethod
@@ -182,14 +205,20 @@ class PatchworkStage:
         cols = ["strain", "tension_N_per_mm", "force_N"]
         cols += [f"row{i}_tension_N_per_mm" for i in range(len(names))]
         cols += [f"row{i}_{n}_stretch" for i, row in enumerate(names) for n in row]
-        cols += [f"row{i}_interface{j}_displacement_mm" for i, row in enumerate(names) for j in range(len(row) - 1)]
+        cols += [
+            f"row{i}_interface{j}_displacement_mm" for i, row in enumerate(names) for j in range(len(row) - 1)
+        ]
         with open(path, "w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(cols)
             for k in range(len(res.strain)):
                 vals = [res.strain[k], res.tension[k], res.force[k], *res.row_tension[k]]
                 vals += [res.stretch[k, i, j] for i, row in enumerate(names) for j in range(len(row))]
-                vals += [res.interface_displacement[k, i, j] for i, row in enumerate(names) for j in range(len(row) - 1)]
+                vals += [
+                    res.interface_displacement[k, i, j]
+                    for i, row in enumerate(names)
+                    for j in range(len(row) - 1)
+                ]
                 w.writerow([f"{x:.10g}" for x in vals])
 
 
@@ -228,10 +257,14 @@ def _check_free_side(table: PatchworkTable, files: dict[str, FitResult], config,
             continue
         if not getattr(model, "predicts_lateral", True):
             origin = " (the [fit] default)" if default else ""
-            raise ConfigError("patchwork.lateral", f"'free' needs models that predict their free side, but region "
-                              f"'{r.name}' uses '{name}'{origin}: with a free side P_free = 0 forces I4 = 1, so it "
-                              "carries no tension up to stretch 1/cos(theta) and then collapses; fit 'hgo2m' or set "
-                              "lateral = \"fixed\"", source=ctx.source)
+            raise ConfigError(
+                "patchwork.lateral",
+                f"'free' needs models that predict their free side, but region "
+                f"'{r.name}' uses '{name}'{origin}: with a free side P_free = 0 forces I4 = 1, so it "
+                "carries no tension up to stretch 1/cos(theta) and then collapses; fit 'hgo2m' or set "
+                'lateral = "fixed"',
+                source=ctx.source,
+            )
 
 
 @hookimpl

@@ -30,15 +30,15 @@ from typing import Any, ClassVar
 import attrs
 
 from knitframe import hookimpl
-from knitframe.geometry import checked_cell
-from knitframe.yarns import config_yarns, resolve_yarn
 from knitframe.config import PluginSpec, instantiate
 from knitframe.effects import require_effects
 from knitframe.errors import ConfigError
+from knitframe.geometry import checked_cell
 from knitframe.progress import ProgressBar
 from knitframe.records import Fabric, Scene
 from knitframe.report import compare, plot_comparison, write_responses_csv
 from knitframe.schema import build
+from knitframe.yarns import config_yarns, resolve_yarn
 
 
 @attrs.frozen
@@ -73,20 +73,25 @@ class SimulateStage:
     scenes: tuple[Scene, ...] = ()  #: every scene, one per load of ``scene.load = [...]``
 
     @classmethod
-    def from_config(cls, config, ctx) -> "SimulateStage":
+    def from_config(cls, config, ctx) -> SimulateStage:
         src = ctx.source
         spec = PluginSpec.parse(config["solver"], "solver")
         solver = instantiate(ctx.registry, "solver", config["solver"], "solver", source=src)
         if "fabric" not in config:
-            raise ConfigError("fabric", "required table is missing (pattern, stitch_length, yarn)", source=src)
+            raise ConfigError(
+                "fabric", "required table is missing (pattern, stitch_length, yarn)", source=src
+            )
         table = dict(config["fabric"])
         if "yarn" not in table:
             raise ConfigError("fabric.yarn", "required key is missing", source=src)
         try:
             own = config_yarns(ctx.registry, config.get("yarns", {}))
             value = table["yarn"]
-            table["yarn"] = own[value] if isinstance(value, str) and value in own else resolve_yarn(
-                ctx.registry, value, "fabric.yarn")
+            table["yarn"] = (
+                own[value]
+                if isinstance(value, str) and value in own
+                else resolve_yarn(ctx.registry, value, "fabric.yarn")
+            )
         except ConfigError as e:
             raise ConfigError(e.path, e.problem, source=src) from None
         fabric = build(Fabric, table, "fabric", source=src)
@@ -102,7 +107,9 @@ class SimulateStage:
             require_effects(scene, solver, ctx.registry, name=spec.kind)
             if validate is not None:
                 try:
-                    validate(fabric, scene, ctx.registry)  # the solver's own checks: plugins by name, yarn model ...
+                    validate(
+                        fabric, scene, ctx.registry
+                    )  # the solver's own checks: plugins by name, yarn model ...
                 except ConfigError as e:
                     raise ConfigError(e.path, e.problem, source=src) from None
         return cls(spec.kind, solver, fabric, scenes[0], tuple(scenes))
@@ -117,14 +124,23 @@ class SimulateStage:
         write_responses_csv(ctx.output("simulated.csv"), responses)
         measured = [r for r in ctx.responses if r.provenance.kind == "experiment"]
         ratios = compare(responses, measured)
-        plot_comparison(ctx.output("simulated.png"), responses, measured,
-                        title=f"{self.solver_name}: {responses[0].label}", ratios=ratios)
-        headline = "; ".join(f"{r.label} {r.load}: {len(r)} steps, converged={r.provenance.converged}, "
-                             f"{r.provenance.wall_time or 0:.1f} s" for r in responses)
+        plot_comparison(
+            ctx.output("simulated.png"),
+            responses,
+            measured,
+            title=f"{self.solver_name}: {responses[0].label}",
+            ratios=ratios,
+        )
+        headline = "; ".join(
+            f"{r.label} {r.load}: {len(r)} steps, converged={r.provenance.converged}, "
+            f"{r.provenance.wall_time or 0:.1f} s"
+            for r in responses
+        )
         if ratios:
             headline += "; simulated/measured tension " + ", ".join(
-                f"{load} " + "/".join(f"{v:.2g}" for v in row.values()) + " at " + "/".join(row) for load, row in
-                ratios.items())
+                f"{load} " + "/".join(f"{v:.2g}" for v in row.values()) + " at " + "/".join(row)
+                for load, row in ratios.items()
+            )
         first = responses[0]
         ctx.results[self.name] = {
             "solver": self.solver_name,
@@ -144,11 +160,15 @@ class SimulateStage:
         kwargs: dict[str, Any] = {}
         bar = None
         if not ctx.quiet:
-            bar = ProgressBar(f"{self.solver_name} {self.fabric.pattern}"
-                              + (f" {scene.load.response_kind}" if several else ""))
+            bar = ProgressBar(
+                f"{self.solver_name} {self.fabric.pattern}"
+                + (f" {scene.load.response_kind}" if several else "")
+            )
             kwargs["progress"] = bar
         if _accepts(self.solver.simulate, "checkpoint_dir"):
-            kwargs["checkpoint_dir"] = ctx.checkpoint_dir("simulate")  # checkpoints are keyed by fabric and scene
+            kwargs["checkpoint_dir"] = ctx.checkpoint_dir(
+                "simulate"
+            )  # checkpoints are keyed by fabric and scene
         vtu = "vtu" + (f"/{scene.load.response_kind}" if several else "")
         if "vtu" in scene.outputs and _accepts(self.solver.simulate, "output_dir"):
             kwargs["output_dir"] = ctx.out / vtu
@@ -174,12 +194,18 @@ def _scenes(table: Any, source: str | None) -> list[Scene]:
         try:
             scenes.append(build(Scene, {**table, "load": load}, "scene", source=source))
         except ConfigError as e:
-            path = e.path.replace("scene.load", f"scene.load[{i}]", 1) if e.path.startswith("scene.load") else e.path
+            path = (
+                e.path.replace("scene.load", f"scene.load[{i}]", 1)
+                if e.path.startswith("scene.load")
+                else e.path
+            )
             raise ConfigError(path, e.problem, source=source) from None
     kinds = [s.load.response_kind for s in scenes]
     dup = next((k for k in kinds if kinds.count(k) > 1), None)
     if dup is not None:
-        raise ConfigError("scene.load", f"two loads of the same kind ({dup}); give each load once", source=source)
+        raise ConfigError(
+            "scene.load", f"two loads of the same kind ({dup}); give each load once", source=source
+        )
     return scenes
 
 

@@ -90,9 +90,9 @@ import attrs
 import numpy as np
 
 from knitframe import hookimpl
+from knitframe import validators as v
 from knitframe.cache import JobCache, JobFailure, failure_reason, job_keys
 from knitframe.config import PluginSpec, instantiate
-from knitframe import validators as v
 from knitframe.errors import ConfigError, DataError, FieldError, KnitframeWarning
 from knitframe.geometry import checked_cell
 from knitframe.progress import ProgressBar
@@ -107,8 +107,19 @@ SCENE_KEYS = ("load", "effects")
 #: the point key that carries measured tests
 MEASURED_KEY = "measured"
 #: per-curve columns of sweep.csv for points with measured tests, each once per direction (``_course``, ``_wale``)
-VALIDATION_COLUMNS = ("measured", "measured_status", "measured_to", "simulated_to", "nrmse_measured", "ratio_10",
-                      "ratio_20", "ratio_30", "lateral_at", "lateral_simulated", "lateral_measured")
+VALIDATION_COLUMNS = (
+    "measured",
+    "measured_status",
+    "measured_to",
+    "simulated_to",
+    "nrmse_measured",
+    "ratio_10",
+    "ratio_20",
+    "ratio_30",
+    "lateral_at",
+    "lateral_simulated",
+    "lateral_measured",
+)
 #: most points one sweep may have
 MAX_POINTS = 100_000
 #: failed points named one per line at the end of a run (the rest are in sweep.csv)
@@ -127,9 +138,13 @@ class SweepFit:
 class MeasuredTable:
     """Schema of a point's ``measured`` table: the tests the point is simulated as and compared with."""
 
-    files: list[str]  #: test files, relative to the config file: uniaxial tests with free sides, at most one per direction
+    files: list[
+        str
+    ]  #: test files, relative to the config file: uniaxial tests with free sides, at most one per direction
     reader: str | dict[str, Any] = "auto"  #: reader plugin name, or a table with ``kind`` and options
-    max_strain: float | None = attrs.field(default=None, validator=v.optional(v.in_range(0.0, 5.0, lo_open=True)))  #: simulate at most to this strain; unset: to the end of each test
+    max_strain: float | None = attrs.field(
+        default=None, validator=v.optional(v.in_range(0.0, 5.0, lo_open=True))
+    )  #: simulate at most to this strain; unset: to the end of each test
 
     def __attrs_post_init__(self) -> None:
         if not self.files:
@@ -141,9 +156,15 @@ class SweepTable:
     """Schema of the ``[sweep]`` table."""
 
     name: str = "sweep"  #: the fabric library's name (library.json) and the sweep's label
-    grid: dict[str, list[Any]] = attrs.Factory(dict)  #: lists of values whose product gives the points: [fabric] keys, load, effects, solver (tables of options), solver options by name, or measured
-    points: list[dict[str, Any]] = attrs.Factory(list)  #: the points as tables of the same keys, plus an optional ``name``; ``measured = { files = [...], reader = "singal2024", max_strain = 0.6 }`` simulates the tests' own loads and compares (docs/sweeps.md)
-    solver: dict[str, Any] = attrs.Factory(lambda: {"kind": "rod"})  #: the [solver] table of every point (``kind`` and options)
+    grid: dict[str, list[Any]] = attrs.Factory(
+        dict
+    )  #: lists of values whose product gives the points: [fabric] keys, load, effects, solver (tables of options), solver options by name, or measured
+    points: list[dict[str, Any]] = attrs.Factory(
+        list
+    )  #: the points as tables of the same keys, plus an optional ``name``; ``measured = { files = [...], reader = "singal2024", max_strain = 0.6 }`` simulates the tests' own loads and compares (docs/sweeps.md)
+    solver: dict[str, Any] = attrs.Factory(
+        lambda: {"kind": "rod"}
+    )  #: the [solver] table of every point (``kind`` and options)
     fabric: dict[str, Any] = attrs.Factory(dict)  #: [fabric] keys common to every point
     scene: dict[str, Any] = attrs.Factory(dict)  #: the [scene] table of every point
     fit: SweepFit = attrs.Factory(SweepFit)  #: the reduced model and fitter for every point
@@ -199,7 +220,7 @@ def _remap(path: str, origin: dict[str, str]) -> str:
     """A simulate-stage error path (``fabric.yarn.dk``) as the sweep key that set it."""
     for key in sorted(origin, key=len, reverse=True):
         if path == key or path.startswith(key + ".") or path.startswith(key + "["):
-            return origin[key] + path[len(key):]
+            return origin[key] + path[len(key) :]
     top = path.split(".")[0].split("[")[0]
     return f"sweep.{path}" if top in ("solver", "fabric", "scene") else path
 
@@ -226,9 +247,15 @@ class SweepProgress(ProgressBar):
         elapsed = time.perf_counter() - self.t0
         if not self.total:
             return f"knitframe: {self.label}: starting, {_fmt(elapsed)} elapsed"
-        left = "unknown" if self.done <= 0 else "about " + _fmt(elapsed * max(self.total - self.done, 0.0) / self.done)
-        return (f"knitframe: {self.label}: {self.done:g}/{self.total:g} finished ({self.message}), "
-                f"{_fmt(elapsed)} elapsed, {left} left")
+        left = (
+            "unknown"
+            if self.done <= 0
+            else "about " + _fmt(elapsed * max(self.total - self.done, 0.0) / self.done)
+        )
+        return (
+            f"knitframe: {self.label}: {self.done:g}/{self.total:g} finished ({self.message}), "
+            f"{_fmt(elapsed)} elapsed, {left} left"
+        )
 
     def note(self, text: str) -> None:
         if self._bar is not None:
@@ -289,11 +316,20 @@ def run_point(job: dict[str, Any]) -> dict[str, Any]:
                 raise
             fit_error = failure_reason(e)
         t2 = time.perf_counter()
-    notes = list(dict.fromkeys(" ".join(str(w.message).split()) for w in seen
-                               if issubclass(w.category, KnitframeWarning)))
-    out = {"fit": fit, "responses": [r.to_dict() if r is not None else None for r in responses],
-           "simulate_s": t1 - t0, "fit_s": t2 - t1, "wall_time_s": t2 - t0, "warnings": notes,
-           "host": socket.gethostname()}
+    notes = list(
+        dict.fromkeys(
+            " ".join(str(w.message).split()) for w in seen if issubclass(w.category, KnitframeWarning)
+        )
+    )
+    out = {
+        "fit": fit,
+        "responses": [r.to_dict() if r is not None else None for r in responses],
+        "simulate_s": t1 - t0,
+        "fit_s": t2 - t1,
+        "wall_time_s": t2 - t0,
+        "warnings": notes,
+        "host": socket.gethostname(),
+    }
     if keep_going:
         out.update({"failed_loads": failed_loads, "fit_error": fit_error})
     return out
@@ -314,11 +350,13 @@ def point_modules(job: dict[str, Any]) -> list[str]:
     from knitframe.plugins import get_registry
 
     reg = get_registry()
-    found = [_plugin_module(reg, "solver", job["solver"].get("kind")),
-             _plugin_module(reg, "pattern", job["fabric"].get("pattern")),
-             _plugin_module(reg, "yarn_model", (job["fabric"].get("yarn") or {}).get("model")),
-             _plugin_module(reg, "homogenizer", job["fit"]["model"].get("kind")),
-             _plugin_module(reg, "fitter", job["fit"]["fitter"].get("kind"))]
+    found = [
+        _plugin_module(reg, "solver", job["solver"].get("kind")),
+        _plugin_module(reg, "pattern", job["fabric"].get("pattern")),
+        _plugin_module(reg, "yarn_model", (job["fabric"].get("yarn") or {}).get("model")),
+        _plugin_module(reg, "homogenizer", job["fit"]["model"].get("kind")),
+        _plugin_module(reg, "fitter", job["fit"]["fitter"].get("kind")),
+    ]
     for value in job["solver"].values():  # options that name plugins: linear_solver, contact_law, ...
         name = value.get("kind") if isinstance(value, dict) else value
         if isinstance(name, str):
@@ -356,7 +394,9 @@ class SweepStage:
     """Simulate and fit many fabrics (a grid or a list) through an executor; a fabric library comes out."""
 
     name: ClassVar[str] = "sweep"
-    description: ClassVar[str] = "many fabrics (a grid or a list) through simulate and fit, locally or on Dask"
+    description: ClassVar[str] = (
+        "many fabrics (a grid or a list) through simulate and fit, locally or on Dask"
+    )
     order: ClassVar[int] = 30
     uses: ClassVar[tuple[str, ...]] = ("executor", "yarns")
     schema: ClassVar[type] = SweepTable
@@ -372,7 +412,7 @@ class SweepStage:
     source: str | None = None
 
     @classmethod
-    def from_config(cls, config, ctx) -> "SweepStage":
+    def from_config(cls, config, ctx) -> SweepStage:
         from knitframe_executors import executor_from_config
 
         src = ctx.source
@@ -392,7 +432,10 @@ class SweepStage:
         built: list[Point] = []
         jobs: list[dict[str, Any]] = []
         names: dict[str, int] = {}
-        fit = {"model": {"kind": model_name, **to_dict(model)}, "fitter": {"kind": fitter_name, **to_dict(fitter)}}
+        fit = {
+            "model": {"kind": model_name, **to_dict(model)},
+            "fitter": {"kind": fitter_name, **to_dict(fitter)},
+        }
         for i, (over, name, suffix, context) in enumerate(points):
             measured: tuple[Response, ...] = ()
             files: tuple[str, ...] = ()
@@ -400,8 +443,12 @@ class SweepStage:
                 over = dict(over)
                 value, where = over.pop(MEASURED_KEY)
                 if "load" in over:
-                    raise ConfigError(over["load"][1], "a point with measured tests simulates their own loads; remove "
-                                                       "load (or measured)" + context, source=src)
+                    raise ConfigError(
+                        over["load"][1],
+                        "a point with measured tests simulates their own loads; remove "
+                        "load (or measured)" + context,
+                        source=src,
+                    )
                 measured, files, loads = _measured_tests(value, where, table.scene.get("load"), ctx)
                 over["load"] = (loads, where)
             solver_table, fabric_table, scene_table, origin = _merge(base, over)
@@ -420,19 +467,42 @@ class SweepStage:
                 name = _slug(f"{fabric.pattern}-{_size(fabric)}-{fabric.yarn.name}") + suffix
             if name in names:
                 if not auto:
-                    raise ConfigError(f"sweep.points[{i}].name", f"'{name}' is also the name of point {names[name]}; "
-                                                                 "names must be distinct", source=src)
+                    raise ConfigError(
+                        f"sweep.points[{i}].name",
+                        f"'{name}' is also the name of point {names[name]}; names must be distinct",
+                        source=src,
+                    )
                 name = f"{name}-{i}"
             names[name] = i
-            built.append(Point(i, name, label, solver_table, stage, float(cell.arc_length_per_stitch),
-                               (float(cell.course_pitch), float(cell.wale_pitch)), measured, files))
+            built.append(
+                Point(
+                    i,
+                    name,
+                    label,
+                    solver_table,
+                    stage,
+                    float(cell.arc_length_per_stitch),
+                    (float(cell.course_pitch), float(cell.wale_pitch)),
+                    measured,
+                    files,
+                )
+            )
             solver = stage.solver
             solver_job = {"kind": stage.solver_name, **(to_dict(solver) if attrs.has(type(solver)) else {})}
             scenes = stage.scenes or (stage.scene,)
-            jobs.append({"solver": solver_job, "fabric": fabric.to_dict(), "scenes": [sc.to_dict() for sc in scenes],
-                         "fit": fit, **({"validation": True} if measured else {})})
+            jobs.append(
+                {
+                    "solver": solver_job,
+                    "fabric": fabric.to_dict(),
+                    "scenes": [sc.to_dict() for sc in scenes],
+                    "fit": fit,
+                    **({"validation": True} if measured else {}),
+                }
+            )
         executor, executor_name = executor_from_config(config, ctx)
-        return cls(table, tuple(built), tuple(jobs), model, model_name, fitter_name, executor, executor_name, src)
+        return cls(
+            table, tuple(built), tuple(jobs), model, model_name, fitter_name, executor, executor_name, src
+        )
 
     @property
     def label(self) -> str:
@@ -468,7 +538,9 @@ class SweepStage:
             if bar is not None:
                 bar.close()
         wall = time.perf_counter() - t0
-        for key, res in zip(keys, results):  # a validation point with a failed load or fit is tried again next run
+        for key, res in zip(
+            keys, results
+        ):  # a validation point with a failed load or fit is tried again next run
             if isinstance(res, dict) and (res.get("failed_loads") or res.get("fit_error")):
                 path = cache.path(key) if cache else None
                 if path is not None:
@@ -486,10 +558,17 @@ class SweepStage:
                 entries.append(entry)
         failed = [r for r in rows if r["status"] == "failed"]
         for r in failed[:SHOWN_FAILURES]:
-            warnings.warn(f"sweep point {r['index']} ({r['name']}) failed: {r['reason']}", KnitframeWarning, stacklevel=2)
+            warnings.warn(
+                f"sweep point {r['index']} ({r['name']}) failed: {r['reason']}",
+                KnitframeWarning,
+                stacklevel=2,
+            )
         if len(failed) > SHOWN_FAILURES:
-            warnings.warn(f"{len(failed) - SHOWN_FAILURES} more sweep points failed; see sweep.csv", KnitframeWarning,
-                          stacklevel=2)
+            warnings.warn(
+                f"{len(failed) - SHOWN_FAILURES} more sweep points failed; see sweep.csv",
+                KnitframeWarning,
+                stacklevel=2,
+            )
         self._write_csv(ctx.output("sweep.csv"), rows)
         verdicts = self._write_trends(ctx, rows)
         if entries:
@@ -497,26 +576,38 @@ class SweepStage:
 
             lib = FabricLibrary(self.settings.name, tuple(entries), self._library_source(len(entries)))
             lib.save(ctx.output("library.json"))
-            plot_params(ctx.output("params.png"), rows, self.model, title=self._title(),
-                        failed=len(failed))
+            plot_params(ctx.output("params.png"), rows, self.model, title=self._title(), failed=len(failed))
         else:
-            warnings.warn("no sweep point finished: library.json and params.png are not written (reasons in sweep.csv)",
-                          KnitframeWarning, stacklevel=2)
+            warnings.warn(
+                "no sweep point finished: library.json and params.png are not written (reasons in sweep.csv)",
+                KnitframeWarning,
+                stacklevel=2,
+            )
         done = len(rows) - len(failed)
         n_cached = sum(1 for r in rows if r["cached"] == "yes")
         ctx.results[self.label] = {
-            "points": len(rows), "done": done, "failed": len(failed), "cached": n_cached,
-            "in_library": len(entries), "executor": self.executor_name, "wall_time_s": round(wall, 3),
-            "headline": (f"{len(rows)} fabrics: {done} done, {len(failed)} failed, {n_cached} from the cache; "
-                         f"library of {len(entries)} fabrics; {wall:.1f} s on {self.executor_name}"),
+            "points": len(rows),
+            "done": done,
+            "failed": len(failed),
+            "cached": n_cached,
+            "in_library": len(entries),
+            "executor": self.executor_name,
+            "wall_time_s": round(wall, 3),
+            "headline": (
+                f"{len(rows)} fabrics: {done} done, {len(failed)} failed, {n_cached} from the cache; "
+                f"library of {len(entries)} fabrics; {wall:.1f} s on {self.executor_name}"
+            ),
         }
         if verdicts:
             ctx.results[self.label]["trends"] = verdicts
         if self.validating:
             self._write_csv(ctx.output("validation.csv"), curves)
-            plot_validation(ctx.output("validation.png"), panels,
-                            title=f"sweep {self.settings.name}: simulated ({', '.join(sorted({p.stage.solver_name for p in self.points}))}, "
-                                  "solid) over measured (dashed) tension")
+            plot_validation(
+                ctx.output("validation.png"),
+                panels,
+                title=f"sweep {self.settings.name}: simulated ({', '.join(sorted({p.stage.solver_name for p in self.points}))}, "
+                "solid) over measured (dashed) tension",
+            )
             ctx.results[self.label]["validation"] = curves
             ctx.results[self.label]["headline"] += "; " + _validation_headline(curves)
 
@@ -529,63 +620,109 @@ class SweepStage:
         if not {"a", "b", "theta_deg"} <= set(self._param_keys()) or not spans_trends(rows):
             return {}
         found = trends(rows)
-        ctx.output("trends.md").write_text(trends_markdown(found, title=f"The paper's trends: {self._title()}"),
-                                           encoding="utf-8")
+        ctx.output("trends.md").write_text(
+            trends_markdown(found, title=f"The paper's trends: {self._title()}"), encoding="utf-8"
+        )
         return {t.key: t.verdict for t in found}
 
     def _title(self) -> str:
         p = self.points[0]
-        return (f"{self.model_name} fitted by {self.fitter_name} to {p.stage.solver_name} simulations "
-                f"({_loads(p)}): sweep {self.settings.name}")
+        return (
+            f"{self.model_name} fitted by {self.fitter_name} to {p.stage.solver_name} simulations "
+            f"({_loads(p)}): sweep {self.settings.name}"
+        )
 
     def _library_source(self, n: int) -> str:
-        return (f"knitframe sweep '{self.settings.name}': {n} fabrics simulated by "
-                f"{', '.join(sorted({p.stage.solver_name for p in self.points}))} and fitted with {self.model_name} by "
-                f"{self.fitter_name} (knitframe run, [sweep] stage)")
+        return (
+            f"knitframe sweep '{self.settings.name}': {n} fabrics simulated by "
+            f"{', '.join(sorted({p.stage.solver_name for p in self.points}))} and fitted with {self.model_name} by "
+            f"{self.fitter_name} (knitframe run, [sweep] stage)"
+        )
 
     def _row(self, p: Point, res: Any, hit: bool) -> tuple[dict[str, Any], Any]:
         fabric, scene = p.stage.fabric, p.stage.scene
         loads = [sc.load for sc in (p.stage.scenes or (scene,))]
         row: dict[str, Any] = {
-            "index": p.index, "name": p.name, "status": "done", "reason": "",
-            "pattern": fabric.pattern, "yarn": fabric.yarn.name, "stitch_length": fabric.stitch_length,
+            "index": p.index,
+            "name": p.name,
+            "status": "done",
+            "reason": "",
+            "pattern": fabric.pattern,
+            "yarn": fabric.yarn.name,
+            "stitch_length": fabric.stitch_length,
             "arc_length_mm": fabric.arc_length if fabric.arc_length is not None else p.arc_length,
             "load": "+".join(ld.response_kind for ld in loads),
             "max_strain": "/".join(f"{ld.max_strain:g}" for ld in loads),
             "steps": "/".join(str(ld.steps) for ld in loads),
-            "effects": " ".join(sorted(scene.effects)), "solver": p.stage.solver_name,
-            "solver_options": json.dumps({k: v for k, v in p.solver_table.items() if k != "kind"}, sort_keys=True),
-            "model": self.model_name, "fitter": self.fitter_name,
+            "effects": " ".join(sorted(scene.effects)),
+            "solver": p.stage.solver_name,
+            "solver_options": json.dumps(
+                {k: v for k, v in p.solver_table.items() if k != "kind"}, sort_keys=True
+            ),
+            "model": self.model_name,
+            "fitter": self.fitter_name,
         }
         names = list(self._param_keys())
         row.update({k: "" for k in names})
-        row.update({"nrmse": "", "nrmse_course": "", "nrmse_wale": "", "converged": "", "course_pitch_mm": "",
-                    "wale_pitch_mm": "", "max_tension_N_per_mm": "", "max_stretch": "", "wall_time_s": "",
-                    "simulate_s": "", "fit_s": "", "cached": "yes" if hit else "no", "in_library": "no",
-                    "library_note": "", "at_bound": "", "warnings": "", "host": ""})
+        row.update(
+            {
+                "nrmse": "",
+                "nrmse_course": "",
+                "nrmse_wale": "",
+                "converged": "",
+                "course_pitch_mm": "",
+                "wale_pitch_mm": "",
+                "max_tension_N_per_mm": "",
+                "max_stretch": "",
+                "wall_time_s": "",
+                "simulate_s": "",
+                "fit_s": "",
+                "cached": "yes" if hit else "no",
+                "in_library": "no",
+                "library_note": "",
+                "at_bound": "",
+                "warnings": "",
+                "host": "",
+            }
+        )
         if isinstance(res, JobFailure) or not isinstance(res, dict):
             row["status"] = "failed"
-            row["reason"] = str(res) if isinstance(res, JobFailure) else f"unexpected result {type(res).__name__}"
+            row["reason"] = (
+                str(res) if isinstance(res, JobFailure) else f"unexpected result {type(res).__name__}"
+            )
             row["cached"] = "no"
             return row, None
-        sims = [r for r in res["responses"] if r is not None]  # a validation point keeps the loads that finished
+        sims = [
+            r for r in res["responses"] if r is not None
+        ]  # a validation point keeps the loads that finished
         fit = res["fit"] or {}
-        row["reason"] = "; ".join([f"{load} failed: {why}" for load, why in (res.get("failed_loads") or {}).items()]
-                                  + ([f"fit failed: {res['fit_error']}"] if res.get("fit_error") else []))
+        row["reason"] = "; ".join(
+            [f"{load} failed: {why}" for load, why in (res.get("failed_loads") or {}).items()]
+            + ([f"fit failed: {res['fit_error']}"] if res.get("fit_error") else [])
+        )
         row.update({k: fit.get(k) for k in names})
         nrmse = fit.get("nrmse") or {}
-        row.update({"nrmse": nrmse.get("overall"), "nrmse_course": nrmse.get("course"),
-                    "nrmse_wale": nrmse.get("wale"),
-                    "converged": all(r["provenance"].get("converged", True) for r in sims),
-                    "wall_time_s": round(res["wall_time_s"], 3), "simulate_s": round(res["simulate_s"], 3),
-                    "fit_s": round(res["fit_s"], 3), "at_bound": " ".join(fit.get("at_bound") or ()),
-                    "warnings": " | ".join(res.get("warnings", ())),
-                    "host": res.get("host", "")})
+        row.update(
+            {
+                "nrmse": nrmse.get("overall"),
+                "nrmse_course": nrmse.get("course"),
+                "nrmse_wale": nrmse.get("wale"),
+                "converged": all(r["provenance"].get("converged", True) for r in sims),
+                "wall_time_s": round(res["wall_time_s"], 3),
+                "simulate_s": round(res["simulate_s"], 3),
+                "fit_s": round(res["fit_s"], 3),
+                "at_bound": " ".join(fit.get("at_bound") or ()),
+                "warnings": " | ".join(res.get("warnings", ())),
+                "host": res.get("host", ""),
+            }
+        )
         cp, wp, pitch_source = self._pitches(p, sims[0])
         # the limits: the largest course tension and stretch of any simulated curve
         t_max = max(float(np.max(np.asarray(r["T1"], dtype=np.float64))) for r in sims)
         l_max = max(float(np.max(np.asarray(r["lambda1"], dtype=np.float64))) for r in sims)
-        row.update({"course_pitch_mm": cp, "wale_pitch_mm": wp, "max_tension_N_per_mm": t_max, "max_stretch": l_max})
+        row.update(
+            {"course_pitch_mm": cp, "wale_pitch_mm": wp, "max_tension_N_per_mm": t_max, "max_stretch": l_max}
+        )
         if res["fit"] is None:
             entry, note = None, f"no fit: {res.get('fit_error', '')}"
         else:
@@ -599,7 +736,9 @@ class SweepStage:
         """True when some point carries measured tests (sweep.csv then has the per-curve columns)."""
         return any(p.measured for p in self.points)
 
-    def _validate(self, p: Point, res: Any) -> tuple[dict[str, Any], list[dict[str, Any]], list[dict[str, Any]]]:
+    def _validate(
+        self, p: Point, res: Any
+    ) -> tuple[dict[str, Any], list[dict[str, Any]], list[dict[str, Any]]]:
         """The point's per-curve columns of sweep.csv (empty for a point without measured tests), its
         panels of validation.png and its rows of validation.csv."""
         columns: dict[str, Any] = {f"{c}_{d}": "" for d in ("course", "wale") for c in VALIDATION_COLUMNS}
@@ -617,19 +756,37 @@ class SweepStage:
             if sim is not None:
                 metrics = validate_uniaxial(sim, mea)
             else:
-                reason = failed_loads.get(mea.load) or (str(res) if not isinstance(res, dict) else "not simulated")
-            curve_row = {"index": p.index, "name": p.name, "pattern": p.stage.fabric.pattern,
-                         "yarn": p.stage.fabric.yarn.name, "direction": d, "measured": file,
-                         "measured_status": "done" if metrics is not None else "failed", "reason": reason}
+                reason = failed_loads.get(mea.load) or (
+                    str(res) if not isinstance(res, dict) else "not simulated"
+                )
+            curve_row = {
+                "index": p.index,
+                "name": p.name,
+                "pattern": p.stage.fabric.pattern,
+                "yarn": p.stage.fabric.yarn.name,
+                "direction": d,
+                "measured": file,
+                "measured_status": "done" if metrics is not None else "failed",
+                "reason": reason,
+            }
             for c in VALIDATION_COLUMNS[2:]:  # validate_uniaxial's "nrmse" is the column nrmse_measured
-                curve_row[c] = metrics.get(c.replace("nrmse_measured", "nrmse")) if metrics is not None else None
+                curve_row[c] = (
+                    metrics.get(c.replace("nrmse_measured", "nrmse")) if metrics is not None else None
+                )
             if metrics is None:
-                (_, e, _, _), = curve(mea)
+                ((_, e, _, _),) = curve(mea)
                 curve_row["measured_to"] = float(np.max(e))
             columns.update({f"{c}_{d}": curve_row[c] for c in VALIDATION_COLUMNS})
             curves.append(curve_row)
-            panels.append({"title": f"{p.name}: pulled along the {d}", "measured": mea, "simulated": sim,
-                           "metrics": metrics, "reason": reason})
+            panels.append(
+                {
+                    "title": f"{p.name}: pulled along the {d}",
+                    "measured": mea,
+                    "simulated": sim,
+                    "metrics": metrics,
+                    "reason": reason,
+                }
+            )
         return columns, panels, curves
 
     def _param_keys(self):
@@ -645,35 +802,80 @@ class SweepStage:
         if L1 is not None and L2 is not None and lam is not None and all(x is not None for x in lam):
             cp = float(np.linalg.norm(L1)) * float(lam[0]) / 2.0
             wp = float(np.linalg.norm(L2)) * float(lam[1]) / 2.0
-            return cp, wp, (f"relaxed {p.stage.solver_name} cell: course pitch |L1|·λ1/2, wale pitch |L2|·λ2/2 with the "
-                            f"knitted lattice L1 = {float(np.linalg.norm(L1)):.4g} mm, L2 = {float(np.linalg.norm(L2)):.4g} "
-                            f"mm and the relaxation's stretches λ1 = {float(lam[0]):.4g}, λ2 = {float(lam[1]):.4g}")
+            return (
+                cp,
+                wp,
+                (
+                    f"relaxed {p.stage.solver_name} cell: course pitch |L1|·λ1/2, wale pitch |L2|·λ2/2 with the "
+                    f"knitted lattice L1 = {float(np.linalg.norm(L1)):.4g} mm, L2 = {float(np.linalg.norm(L2)):.4g} "
+                    f"mm and the relaxation's stretches λ1 = {float(lam[0]):.4g}, λ2 = {float(lam[1]):.4g}"
+                ),
+            )
         cp, wp = p.cell_pitches
-        return cp, wp, (f"the knitted cell's pitches ({p.stage.solver_name} reports no relaxed lattice): not relaxed, "
-                        "measure them")
+        return (
+            cp,
+            wp,
+            (
+                f"the knitted cell's pitches ({p.stage.solver_name} reports no relaxed lattice): not relaxed, "
+                "measure them"
+            ),
+        )
 
-    def _entry(self, p: Point, fit: dict[str, Any], cp: float, wp: float, pitch_source: str, t_max: float,
-               l_max: float) -> tuple[Any, str]:
+    def _entry(
+        self,
+        p: Point,
+        fit: dict[str, Any],
+        cp: float,
+        wp: float,
+        pitch_source: str,
+        t_max: float,
+        l_max: float,
+    ) -> tuple[Any, str]:
         from knitframe.garment.library import FabricEntry
 
         fabric = p.stage.fabric
         nrmse = (fit.get("nrmse") or {}).get("overall")
-        source = (f"sweep '{self.settings.name}' point {p.index}: {p.stage.solver_name} simulation of {p.label}, "
-                  f"{_loads(p)} ({', '.join(sorted(p.stage.scene.effects))}); "
-                  f"{self.model_name} fitted by {self.fitter_name}"
-                  + (f", NRMSE {100 * nrmse:.2f} %" if isinstance(nrmse, (int, float)) else "")
-                  + "; limits: max_tension and max_stretch are the largest simulated course tension and stretch (the end "
-                    "of the simulated load path, not a measured failure)")
+        source = (
+            f"sweep '{self.settings.name}' point {p.index}: {p.stage.solver_name} simulation of {p.label}, "
+            f"{_loads(p)} ({', '.join(sorted(p.stage.scene.effects))}); "
+            f"{self.model_name} fitted by {self.fitter_name}"
+            + (f", NRMSE {100 * nrmse:.2f} %" if isinstance(nrmse, (int, float)) else "")
+            + "; limits: max_tension and max_stretch are the largest simulated course tension and stretch (the end "
+            "of the simulated load path, not a measured failure)"
+        )
         keys = list(self._param_keys())
-        info = {k: fit[k] for k in ("fitter", "nrmse", "nrmse_transverse", "objective", "n_evals", "converged",
-                                    "at_bound", "warnings") if k in fit}
+        info = {
+            k: fit[k]
+            for k in (
+                "fitter",
+                "nrmse",
+                "nrmse_transverse",
+                "objective",
+                "n_evals",
+                "converged",
+                "at_bound",
+                "warnings",
+            )
+            if k in fit
+        }
         try:
             entry = FabricEntry(
-                name=p.name, pattern=fabric.pattern, yarn=fabric.yarn.name, stitch_length=fabric.stitch_length,
+                name=p.name,
+                pattern=fabric.pattern,
+                yarn=fabric.yarn.name,
+                stitch_length=fabric.stitch_length,
                 arc_length=fabric.arc_length if fabric.arc_length is not None else p.arc_length,
-                model=self.model_name, model_options=dict(fit.get("options") or {}),
-                params={k: fit[k] for k in keys}, course_pitch=cp, wale_pitch=wp, max_tension=t_max,
-                max_stretch=l_max if l_max > 1.0 else None, source=source, pitch_source=pitch_source, fit=info)
+                model=self.model_name,
+                model_options=dict(fit.get("options") or {}),
+                params={k: fit[k] for k in keys},
+                course_pitch=cp,
+                wale_pitch=wp,
+                max_tension=t_max,
+                max_stretch=l_max if l_max > 1.0 else None,
+                source=source,
+                pitch_source=pitch_source,
+                fit=info,
+            )
         except (ConfigError, TypeError, ValueError) as e:
             return None, " ".join(str(e).split())
         return entry, ""
@@ -699,19 +901,30 @@ def _expand(table: SweepTable, solver_fields: set[str], src: str | None):
     that set it, the point's name if given, a name suffix for grid keys other than the fabric's, and
     a text naming a grid point in error messages."""
     allowed = set(FABRIC_KEYS) | set(SCENE_KEYS) | {"solver", MEASURED_KEY} | solver_fields
-    shown = ", ".join(list(FABRIC_KEYS) + list(SCENE_KEYS) + ["solver", MEASURED_KEY]) + ", or an option of the solver"
+    shown = (
+        ", ".join(list(FABRIC_KEYS) + list(SCENE_KEYS) + ["solver", MEASURED_KEY])
+        + ", or an option of the solver"
+    )
     if bool(table.grid) == bool(table.points):
-        raise ConfigError("sweep", "give the points as a grid (sweep.grid) or as a list (sweep.points), one of them",
-                          source=src)
+        raise ConfigError(
+            "sweep",
+            "give the points as a grid (sweep.grid) or as a list (sweep.points), one of them",
+            source=src,
+        )
 
     def check_value(key: str, value: Any, where: str) -> None:
         if key == "solver" and not _is_table(value):
             raise ConfigError(where, f"expected a table of solver options, got {_short(value)}", source=src)
         if key == MEASURED_KEY and not _is_table(value):
-            raise ConfigError(where, f"expected a table (files, reader, max_strain), got {_short(value)}", source=src)
-        if key == "load" and not (_is_table(value) or (isinstance(value, list) and value
-                                                        and all(_is_table(v) for v in value))):
-            raise ConfigError(where, f"expected a load table or an array of load tables, got {_short(value)}", source=src)
+            raise ConfigError(
+                where, f"expected a table (files, reader, max_strain), got {_short(value)}", source=src
+            )
+        if key == "load" and not (
+            _is_table(value) or (isinstance(value, list) and value and all(_is_table(v) for v in value))
+        ):
+            raise ConfigError(
+                where, f"expected a load table or an array of load tables, got {_short(value)}", source=src
+            )
 
     out = []
     if table.grid:
@@ -728,8 +941,11 @@ def _expand(table: SweepTable, solver_fields: set[str], src: str | None):
         if n > MAX_POINTS:
             raise ConfigError("sweep.grid", f"{n} points; at most {MAX_POINTS}", source=src)
         # keys other than the fabric's that take several values name their value's index in the point's name
-        varied = [k for k in keys if len(table.grid[k]) > 1 and k not in ("pattern", "yarn", "stitch_length",
-                                                                           "arc_length")]
+        varied = [
+            k
+            for k in keys
+            if len(table.grid[k]) > 1 and k not in ("pattern", "yarn", "stitch_length", "arc_length")
+        ]
         for i, combo in enumerate(itertools.product(*(range(len(table.grid[k])) for k in keys))):
             over = {k: (table.grid[k][j], f"sweep.grid.{k}[{j}]") for k, j in zip(keys, combo)}
             text = ", ".join(f"{k} = {_short(table.grid[k][j])}" for k, j in zip(keys, combo))
@@ -756,8 +972,9 @@ def _expand(table: SweepTable, solver_fields: set[str], src: str | None):
     return out
 
 
-def _measured_tests(value: Any, where: str, base_load: Any, ctx: Any) -> tuple[tuple[Response, ...], tuple[str, ...],
-                                                                              list[dict[str, Any]]]:
+def _measured_tests(
+    value: Any, where: str, base_load: Any, ctx: Any
+) -> tuple[tuple[Response, ...], tuple[str, ...], list[dict[str, Any]]]:
     """A point's measured tests: the curves read (one per load), the file of each, and the loads that
     simulate them: uniaxial along the test's direction with free sides, from the relaxed cell to the
     test's largest strain (at most ``max_strain``), in the base load's number of steps."""
@@ -781,17 +998,30 @@ def _measured_tests(value: Any, where: str, base_load: Any, ctx: Any) -> tuple[t
             raise ConfigError(key, f"{name} holds no curve", source=src)
         for r in read:
             if r.loaded_direction is None:
-                raise ConfigError(key, f"a {r.load} test; a point simulates uniaxial tests (one direction pulled, "
-                                       "the sides free) only", source=src)
-            (_, e, _, _), = curve(r)
+                raise ConfigError(
+                    key,
+                    f"a {r.load} test; a point simulates uniaxial tests (one direction pulled, "
+                    "the sides free) only",
+                    source=src,
+                )
+            ((_, e, _, _),) = curve(r)
             top = float(np.max(e)) if table.max_strain is None else min(float(np.max(e)), table.max_strain)
             if not top > 0:
-                raise ConfigError(key, f"the test in {name} never stretches (largest strain {float(np.max(e)):g})",
-                                  source=src)
+                raise ConfigError(
+                    key,
+                    f"the test in {name} never stretches (largest strain {float(np.max(e)):g})",
+                    source=src,
+                )
             curves.append(r)
             files.append(name)
-            loads.append({"kind": "uniaxial", "direction": "course" if r.loaded_direction == 0 else "wale",
-                          "max_strain": round(top, 4), **steps})
+            loads.append(
+                {
+                    "kind": "uniaxial",
+                    "direction": "course" if r.loaded_direction == 0 else "wale",
+                    "max_strain": round(top, 4),
+                    **steps,
+                }
+            )
     return tuple(curves), tuple(files), loads
 
 
@@ -802,8 +1032,10 @@ def _validation_headline(curves: list[dict[str, Any]]) -> str:
     for key in ("ratio_10", "ratio_20", "ratio_30"):
         values = [c[key] for c in done if c[key] is not None]
         if values:
-            text += (f"; sim/meas tension at {key[6:]} %: median {float(np.median(values)):.2g} "
-                     f"({min(values):.2g}-{max(values):.2g}, {len(values)} curves)")
+            text += (
+                f"; sim/meas tension at {key[6:]} %: median {float(np.median(values)):.2g} "
+                f"({min(values):.2g}-{max(values):.2g}, {len(values)} curves)"
+            )
     return text
 
 
@@ -823,7 +1055,9 @@ def _short(value: Any) -> str:
 
 
 # ------------------------------------------------------------------------------------------ Fig. 4
-def plot_params(path: Path, rows: list[dict[str, Any]], model: Any, *, title: str = "", failed: int = 0) -> None:
+def plot_params(
+    path: Path, rows: list[dict[str, Any]], model: Any, *, title: str = "", failed: int = 0
+) -> None:
     """The paper's Fig. 4: each fitted parameter against stitch length (arc length when a point has no
     stitch length), one panel each; colour per pattern, marker per yarn, a line per pattern and yarn.
     An open marker is a parameter that ended at a bound of the model's box: the data do not determine it."""
@@ -840,15 +1074,20 @@ def plot_params(path: Path, rows: list[dict[str, Any]], model: Any, *, title: st
     done = [r for r in rows if r["status"] == "done" and all(r[k] not in ("", None) for k in keys)]
     log = list(getattr(model, "log_scale", (False,) * len(keys)))
     by_sl = all(r["stitch_length"] not in (None, "") for r in done)
-    xkey, xlabel = ("stitch_length", "stitch length (machine setting)") if by_sl else ("arc_length_mm",
-                                                                                          "yarn per stitch, mm")
+    xkey, xlabel = (
+        ("stitch_length", "stitch length (machine setting)")
+        if by_sl
+        else ("arc_length_mm", "yarn per stitch, mm")
+    )
     patterns = list(dict.fromkeys(r["pattern"] for r in done))
     yarns = list(dict.fromkeys(r["yarn"] for r in done))
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     markers = ["o", "s", "^", "D", "v", "P", "X", "*", "<", ">"]
     groups: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
     for r in done:
-        variant = json.dumps([r["load"], r["max_strain"], r["steps"], r["effects"], r["solver"], r["solver_options"]])
+        variant = json.dumps(
+            [r["load"], r["max_strain"], r["steps"], r["effects"], r["solver"], r["solver_options"]]
+        )
         groups.setdefault((r["pattern"], r["yarn"], variant), []).append(r)
     variants = list(dict.fromkeys(k[2] for k in groups))
     styles = ["-", "--", ":", "-."]
@@ -862,20 +1101,27 @@ def plot_params(path: Path, rows: list[dict[str, Any]], model: Any, *, title: st
             color = colors[patterns.index(pattern) % len(colors)]
             marker = markers[yarns.index(yarn) % len(markers)]
             ax.plot(x, y, styles[variants.index(variant) % len(styles)], color=color, lw=1.3)
-            free = [key in r["at_bound"].split() for r in members]  # open: at a bound, not determined by the data
+            free = [
+                key in r["at_bound"].split() for r in members
+            ]  # open: at a bound, not determined by the data
             for xi, yi, f in zip(x, y, free):
                 ax.plot([xi], [yi], ls="", marker=marker, ms=6, color=color, mfc="white" if f else color)
         if by_sl and len(xs) <= 12:
             ax.set_xticks(xs)
         name = key[:-4] if key.endswith("_deg") else key
         unit = ", °" if key.endswith("_deg") else (", N/mm" if name == "a" else "")
-        ax.set_title({"theta": "θ"}.get(name, name) + unit.replace(", ", " (").rstrip() + (")" if unit else ""))
+        ax.set_title(
+            {"theta": "θ"}.get(name, name) + unit.replace(", ", " (").rstrip() + (")" if unit else "")
+        )
         ax.set_xlabel(xlabel)
         if k < len(log) and log[k]:
             ax.set_yscale("log")
         ax.grid(alpha=0.3)
     handles = [Line2D([], [], color=colors[i % len(colors)], lw=2, label=p) for i, p in enumerate(patterns)]
-    handles += [Line2D([], [], color="0.3", ls="", marker=markers[i % len(markers)], label=y) for i, y in enumerate(yarns)]
+    handles += [
+        Line2D([], [], color="0.3", ls="", marker=markers[i % len(markers)], label=y)
+        for i, y in enumerate(yarns)
+    ]
     if any(r["at_bound"] for r in done):
         handles.append(Line2D([], [], color="0.3", ls="", marker="o", mfc="white", label="open: at a bound"))
     axes[0, -1].legend(handles=handles, fontsize=7, loc="best")

@@ -25,13 +25,15 @@ class Isotropic(YarnModelBase):
         E, nu = self.E_axial, self.nu
         return E / (2.0 * (1.0 + nu)), E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
 
-    def evaluate(self, F: np.ndarray, fibre: np.ndarray | None = None, order: int = 2) -> tuple[np.ndarray, Any, Any]:
+    def evaluate(
+        self, F: np.ndarray, fibre: np.ndarray | None = None, order: int = 2
+    ) -> tuple[np.ndarray, Any, Any]:
         """(W, P, A) at F (..., 3, 3), MPa; ``fibre`` is accepted and ignored; ``order`` as in invariant_law."""
         mu, lam = self.lame
         return invariant_law(F, None, mu, lam, order=order)
 
     @classmethod
-    def from_yarn(cls, yarn: Yarn) -> "Isotropic":
+    def from_yarn(cls, yarn: Yarn) -> Isotropic:
         """Model with the yarn's axial modulus, Poisson ratio and knitted radius."""
         return cls(**cls._common(yarn))
 

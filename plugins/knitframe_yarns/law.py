@@ -66,8 +66,14 @@ def _outer(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
 
 
 def invariant_law(
-    F: np.ndarray, a: np.ndarray | None, mu: float, lam: float, alpha: float = 0.0, beta: float = 0.0,
-    gamma: float = 0.0, order: int = 2,
+    F: np.ndarray,
+    a: np.ndarray | None,
+    mu: float,
+    lam: float,
+    alpha: float = 0.0,
+    beta: float = 0.0,
+    gamma: float = 0.0,
+    order: int = 2,
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """Energy density, first Piola stress and tangent of the Bonet-Burton law (see module docstring).
 
@@ -119,7 +125,11 @@ def invariant_law(
     if fibre:
         A_ = a[..., :, None] * a[..., None, :]
         aCa = a[..., :, None] * Ca[..., None, :]
-        S = S + (beta * e4)[..., None, None] * Ci + 2.0 * (alpha + beta * lnJ + 2.0 * gamma * e4)[..., None, None] * A_
+        S = (
+            S
+            + (beta * e4)[..., None, None] * Ci
+            + 2.0 * (alpha + beta * lnJ + 2.0 * gamma * e4)[..., None, None] * A_
+        )
         S = S - alpha * (aCa + np.swapaxes(aCa, -1, -2))
         c1 = c1 - beta * e4
     P = F @ S
@@ -132,7 +142,8 @@ def invariant_law(
     A = lam * _outer(FC, FC)
     # 2c₁ C⁻¹⊙C⁻¹ pushed forward: c₁ (b_ik C⁻¹_JL + (FC⁻¹)_iL (FC⁻¹)_kJ)
     A = A + c1[..., None, None, None, None] * (
-        b[..., :, None, :, None] * Ci[..., None, :, None, :] + FC[..., :, None, None, :] * np.swapaxes(FC, -1, -2)[..., None, :, :, None]
+        b[..., :, None, :, None] * Ci[..., None, :, None, :]
+        + FC[..., :, None, None, :] * np.swapaxes(FC, -1, -2)[..., None, :, :, None]
     )
     # geometric term δ_ik S_LJ
     A = A + eye[..., :, None, :, None] * S[..., None, :, None, :]
@@ -162,8 +173,12 @@ class YarnModelBase:
 
     E_axial: float = attrs.field(validator=v.positive)  #: axial Young's modulus, MPa
     radius: float = attrs.field(validator=v.positive)  #: knitted radius dk/2, mm
-    nu: float = attrs.field(default=0.3, validator=v.in_range(-1.0, 0.5, lo_open=True, hi_open=True))  #: Poisson ratio, -
-    bending_modulus: float | None = attrs.field(default=None, validator=v.optional(v.positive))  #: fitted EI, N·mm²
+    nu: float = attrs.field(
+        default=0.3, validator=v.in_range(-1.0, 0.5, lo_open=True, hi_open=True)
+    )  #: Poisson ratio, -
+    bending_modulus: float | None = attrs.field(
+        default=None, validator=v.optional(v.positive)
+    )  #: fitted EI, N·mm²
 
     @property
     def transverse_modulus(self) -> float:
@@ -188,7 +203,11 @@ class YarnModelBase:
     @property
     def EI(self) -> float:
         """Bending stiffness, N·mm²: the fitted ``bending_modulus`` if given, else E_A π r⁴/4."""
-        return self.bending_modulus if self.bending_modulus is not None else self.E_axial * np.pi * self.radius**4 / 4.0
+        return (
+            self.bending_modulus
+            if self.bending_modulus is not None
+            else self.E_axial * np.pi * self.radius**4 / 4.0
+        )
 
     @property
     def GJ(self) -> float:
@@ -236,4 +255,9 @@ class YarnModelBase:
 
     @classmethod
     def _common(cls, yarn: Yarn) -> dict[str, float]:
-        return {"E_axial": yarn.E_axial, "radius": yarn.rk, "nu": yarn.nu, "bending_modulus": yarn.bending_stiffness}
+        return {
+            "E_axial": yarn.E_axial,
+            "radius": yarn.rk,
+            "nu": yarn.nu,
+            "bending_modulus": yarn.bending_stiffness,
+        }

@@ -90,4 +90,6 @@ YARNS = (
 def register_yarns(register) -> None:
     for yarn in YARNS:
         label = yarn.source.split(" (")[0]
-        register(yarn, description=f"{label}: d0 {yarn.d0:g} mm, dk {yarn.dk:g} mm, E_axial {yarn.E_axial:g} MPa")
+        register(
+            yarn, description=f"{label}: d0 {yarn.d0:g} mm, dk {yarn.dk:g} mm, E_axial {yarn.E_axial:g} MPa"
+        )

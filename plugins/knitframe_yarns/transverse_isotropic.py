@@ -12,7 +12,8 @@ from typing import Any, ClassVar
 import attrs
 import numpy as np
 
-from knitframe import hookimpl, validators as v
+from knitframe import hookimpl
+from knitframe import validators as v
 from knitframe.errors import FieldError
 from knitframe.records import Yarn
 from knitframe_yarns.law import YarnModelBase, constants, invariant_law
@@ -23,10 +24,14 @@ class TransverseIsotropic(YarnModelBase):
     """Transversely isotropic yarn: E_A along the fibre (yarn tangent), E_T and G_A across and in shear."""
 
     name: ClassVar[str] = "transverse_isotropic"
-    description: ClassVar[str] = "transversely isotropic hyperelastic yarn (Bonet-Burton), fibre = yarn tangent"
+    description: ClassVar[str] = (
+        "transversely isotropic hyperelastic yarn (Bonet-Burton), fibre = yarn tangent"
+    )
 
     E_transverse: float = attrs.field(kw_only=True, validator=v.positive)  #: transverse Young's modulus, MPa
-    G_axial: float | None = attrs.field(default=None, kw_only=True, validator=v.optional(v.positive))  #: axial shear modulus, MPa
+    G_axial: float | None = attrs.field(
+        default=None, kw_only=True, validator=v.optional(v.positive)
+    )  #: axial shear modulus, MPa
 
     def __attrs_post_init__(self) -> None:
         if self.E_transverse > self.E_axial:
@@ -49,18 +54,22 @@ class TransverseIsotropic(YarnModelBase):
         """Bonet-Burton constants μ, λ, α, β, γ (MPa)."""
         return constants(self.E_axial, self.E_transverse, self.shear_modulus, self.nu)
 
-    def evaluate(self, F: np.ndarray, fibre: np.ndarray | None = None, order: int = 2) -> tuple[np.ndarray, Any, Any]:
+    def evaluate(
+        self, F: np.ndarray, fibre: np.ndarray | None = None, order: int = 2
+    ) -> tuple[np.ndarray, Any, Any]:
         """(W, P, A) at F (..., 3, 3) with unit reference fibre directions ``fibre`` (..., 3), MPa.
 
         ``order`` 0 computes W only, 1 adds P (the others are None).
         """
         if fibre is None:
-            raise FieldError("fibre", "the transversely isotropic law needs the fibre (yarn tangent) direction")
+            raise FieldError(
+                "fibre", "the transversely isotropic law needs the fibre (yarn tangent) direction"
+            )
         c = self.constants
         return invariant_law(F, fibre, c["mu"], c["lam"], c["alpha"], c["beta"], c["gamma"], order=order)
 
     @classmethod
-    def from_yarn(cls, yarn: Yarn) -> "TransverseIsotropic":
+    def from_yarn(cls, yarn: Yarn) -> TransverseIsotropic:
         """Model with the yarn's moduli and knitted radius."""
         return cls(**cls._common(yarn), E_transverse=yarn.E_transverse, G_axial=yarn.G_axial)
 

@@ -19,8 +19,14 @@ def snapshot(folder: Path) -> set[str]:
     return {str(p.relative_to(folder)) + ("/" if p.is_dir() else "") for p in folder.rglob("*")}
 
 
-def assert_refused(proc: subprocess.CompletedProcess, field: str, *, code: int = 2,
-                   before: set[str] | None = None, folder: Path | None = None) -> None:
+def assert_refused(
+    proc: subprocess.CompletedProcess,
+    field: str,
+    *,
+    code: int = 2,
+    before: set[str] | None = None,
+    folder: Path | None = None,
+) -> None:
     """One line on stderr naming ``field``, exit ``code``, no traceback, and (when given) ``folder`` unchanged."""
     lines = [line for line in proc.stderr.splitlines() if line.strip()]
     assert proc.returncode == code, (proc.returncode, proc.stderr)
@@ -36,11 +42,22 @@ def assert_refused(proc: subprocess.CompletedProcess, field: str, *, code: int =
 def knit(tmp_path):
     """Run the ``knitframe`` CLI in a subprocess in ``tmp_path`` (or ``cwd``); returns CompletedProcess."""
 
-    def run(*args: str, cwd: Path | None = None, env: dict | None = None, timeout: float = 300,
-            stdin: str | None = None) -> subprocess.CompletedProcess:
-        return subprocess.run([sys.executable, "-m", "knitframe", *map(str, args)], capture_output=True, text=True,
-                              cwd=cwd or tmp_path, env={**os.environ, **(env or {})}, timeout=timeout,
-                              input=stdin)
+    def run(
+        *args: str,
+        cwd: Path | None = None,
+        env: dict | None = None,
+        timeout: float = 300,
+        stdin: str | None = None,
+    ) -> subprocess.CompletedProcess:
+        return subprocess.run(
+            [sys.executable, "-m", "knitframe", *map(str, args)],
+            capture_output=True,
+            text=True,
+            cwd=cwd or tmp_path,
+            env={**os.environ, **(env or {})},
+            timeout=timeout,
+            input=stdin,
+        )
 
     return run
 

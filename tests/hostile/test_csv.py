@@ -26,7 +26,7 @@ RIB_Y = DATA / "cotton-rib-y.csv"
 
 #: a smooth course test in the generic format: 11 points to 40 % strain
 GENERIC_HEADER = "strain,transverse_strain,tension_N_per_mm"
-GENERIC_ROWS = [f"{e:.2f},{-0.3 * e:.4f},{0.1 * e + 0.5 * e ** 3:.6f}" for e in (0.04 * i for i in range(11))]
+GENERIC_ROWS = [f"{e:.2f},{-0.3 * e:.4f},{0.1 * e + 0.5 * e**3:.6f}" for e in (0.04 * i for i in range(11))]
 GENERIC = "# direction = course\n" + GENERIC_HEADER + "\n" + "\n".join(GENERIC_ROWS) + "\n"
 
 
@@ -44,10 +44,12 @@ def singal_with(cell: callable) -> str:
 
 def scaled(column: int, factor: float, digits: int = 6):
     """A cell rewriter multiplying one column by ``factor``."""
+
     def cell(_i, c):
         c = list(c)
         c[column] = f"{float(c[column]) * factor:.{digits}f}"
         return c
+
     return cell
 
 
@@ -79,16 +81,36 @@ def no_width_comment(text: str) -> str:
 #: (id, file name, content (str or bytes, None: nothing written), words the error line must hold)
 FILES = [
     ("semicolon", "semi.csv", "strain;tension_N_per_mm\n0.0;0.0\n0.1;0.05\n", ["';'", "not commas"]),
-    ("semicolon-decimal-comma", "semi-dc.csv", "# direction = course\nstrain;tension_N_per_mm\n0,0;0,0\n0,1;0,05\n",
-     ["';'", "decimal commas"]),
+    (
+        "semicolon-decimal-comma",
+        "semi-dc.csv",
+        "# direction = course\nstrain;tension_N_per_mm\n0,0;0,0\n0,1;0,05\n",
+        ["';'", "decimal commas"],
+    ),
     ("tab", "tab.csv", "strain\ttension_N_per_mm\n0.0\t0.0\n0.1\t0.05\n", ["tabs"]),
     ("pipe", "pipe.csv", "strain|tension_N_per_mm\n0.0|0.0\n0.1|0.05\n", ["'|'"]),
-    ("decimal-comma", "dc.csv", "# direction = course\nstrain,tension_N_per_mm\n0,0,0,0\n0,1,0,05\n",
-     ["line 3", "decimal commas"]),
-    ("decimal-comma-quoted", "dcq.csv", '# direction = course\nstrain,tension_N_per_mm\n"0,0","0,0"\n',
-     ["column 'strain'", "decimal comma"]),
-    ("unknown-header", "mine.csv", "time_s,force,extension_mm\n0,0,0\n1,2,3\n",
-     ["no reader knows the header (time_s, force, extension_mm)", "singal2024: video, frame", "generic: strain or stretch"]),
+    (
+        "decimal-comma",
+        "dc.csv",
+        "# direction = course\nstrain,tension_N_per_mm\n0,0,0,0\n0,1,0,05\n",
+        ["line 3", "decimal commas"],
+    ),
+    (
+        "decimal-comma-quoted",
+        "dcq.csv",
+        '# direction = course\nstrain,tension_N_per_mm\n"0,0","0,0"\n',
+        ["column 'strain'", "decimal comma"],
+    ),
+    (
+        "unknown-header",
+        "mine.csv",
+        "time_s,force,extension_mm\n0,0,0\n1,2,3\n",
+        [
+            "no reader knows the header (time_s, force, extension_mm)",
+            "singal2024: video, frame",
+            "generic: strain or stretch",
+        ],
+    ),
     ("one-column", "one.csv", "strain\n0.1\n0.2\n", ["no reader knows the header (strain)"]),
     ("toml-as-data", "cfg.csv", '[data]\nfiles = ["x.csv"]\n', ["no reader knows the header"]),
     ("empty", "empty.csv", "", ["empty file"]),
@@ -96,67 +118,181 @@ FILES = [
     ("comments-only", "comments.csv", "# direction = course\n# nothing else\n", ["empty file"]),
     ("header-only-generic", "hdr.csv", "# direction = course\n" + GENERIC_HEADER + "\n", ["no data rows"]),
     ("header-only-singal", "hdr-y.csv", "\n".join(singal_lines()[:3]) + "\n", ["no data rows"]),
-    ("text-cell", "text.csv", bad_row(3, "abc,-0.036,0.01"), ["line 6", "column 'strain'", "expected a number"]),
-    ("text-cell-singal", "txt-y.csv", singal_with(lambda i, c: c[:4] + ["n/a"] if i == 5 else c),
-     ["line 9", "column 'tension_N_per_mm'", "'n/a'"]),
-    ("empty-cell", "ecell.csv", bad_row(2, "0.08,,0.01"), ["column 'transverse_strain'", "the cell is empty"]),
+    (
+        "text-cell",
+        "text.csv",
+        bad_row(3, "abc,-0.036,0.01"),
+        ["line 6", "column 'strain'", "expected a number"],
+    ),
+    (
+        "text-cell-singal",
+        "txt-y.csv",
+        singal_with(lambda i, c: c[:4] + ["n/a"] if i == 5 else c),
+        ["line 9", "column 'tension_N_per_mm'", "'n/a'"],
+    ),
+    (
+        "empty-cell",
+        "ecell.csv",
+        bad_row(2, "0.08,,0.01"),
+        ["column 'transverse_strain'", "the cell is empty"],
+    ),
     ("nan-cell", "nan.csv", bad_row(4, "0.16,-0.048,nan"), ["column 'tension_n_per_mm'", "finite number"]),
     ("inf-cell", "inf.csv", bad_row(4, "inf,-0.048,0.02"), ["column 'strain'", "finite number"]),
-    ("minus-inf-cell", "minf.csv", bad_row(4, "0.16,-inf,0.02"), ["column 'transverse_strain'", "finite number"]),
-    ("overflow-cell", "ovf.csv", bad_row(4, "0.16,-0.048,1e999"), ["column 'tension_n_per_mm'", "finite number"]),
+    (
+        "minus-inf-cell",
+        "minf.csv",
+        bad_row(4, "0.16,-inf,0.02"),
+        ["column 'transverse_strain'", "finite number"],
+    ),
+    (
+        "overflow-cell",
+        "ovf.csv",
+        bad_row(4, "0.16,-0.048,1e999"),
+        ["column 'tension_n_per_mm'", "finite number"],
+    ),
     ("ragged-short", "short.csv", bad_row(6, "0.24,-0.072"), ["line 9", "expected 3 cells, got 2"]),
     ("ragged-long", "long.csv", bad_row(6, "0.24,-0.072,0.03,9"), ["line 9", "expected 3 cells, got 4"]),
     ("duplicate-column", "dup.csv", "strain,strain,tension_N_per_mm\n0,0,0\n", ["column 'strain'", "twice"]),
-    ("duplicate-column-case", "dupc.csv", "Strain,tension_N_per_mm,strain\n0,0,0\n", ["column 'strain'", "twice"]),
+    (
+        "duplicate-column-case",
+        "dupc.csv",
+        "Strain,tension_N_per_mm,strain\n0,0,0\n",
+        ["column 'strain'", "twice"],
+    ),
     ("binary-garbage", "garbage.csv", bytes(range(256)) * 8, ["binary file"]),
     ("png-renamed", "plot.csv", b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR" + bytes(64), ["binary file"]),
     ("xlsx-renamed", "sheet.csv", b"PK\x03\x04\x14\x00\x06\x00\x08\x00" + bytes(40), ["binary file"]),
     ("utf16", "u16.csv", GENERIC.encode("utf-16"), ["UTF-16"]),
-    ("latin1", "latin.csv", ("# direction = course\n# température 23 °C\n" + GENERIC_HEADER + "\n0,0,0\n").encode("latin-1"),
-     ["not UTF-8", "line 2"]),
+    (
+        "latin1",
+        "latin.csv",
+        ("# direction = course\n# température 23 °C\n" + GENERIC_HEADER + "\n0,0,0\n").encode("latin-1"),
+        ["not UTF-8", "line 2"],
+    ),
     ("directory", "folder.csv", None, ["is a directory"]),
     ("missing", "nope.csv", None, ["file not found"]),
-    ("negative-stretch", "neg.csv", "# direction = wale\nstretch,tension_N_per_mm\n1.0,0\n1.1,0.1\n-0.2,0.2\n",
-     ["line 5", "column 'stretch'", "non-positive stretch"]),
-    ("zero-stretch", "zero.csv", "# direction = wale\nstretch,tension_N_per_mm\n1.0,0\n0,0.1\n",
-     ["line 4", "non-positive stretch"]),
+    (
+        "negative-stretch",
+        "neg.csv",
+        "# direction = wale\nstretch,tension_N_per_mm\n1.0,0\n1.1,0.1\n-0.2,0.2\n",
+        ["line 5", "column 'stretch'", "non-positive stretch"],
+    ),
+    (
+        "zero-stretch",
+        "zero.csv",
+        "# direction = wale\nstretch,tension_N_per_mm\n1.0,0\n0,0.1\n",
+        ["line 4", "non-positive stretch"],
+    ),
     ("strain-below-minus-one", "m1.csv", bad_row(1, "-1.5,0.0,0.01"), ["line 4", "non-positive stretch"]),
-    ("singal-strain-below-minus-one", "m1-y.csv", singal_with(lambda i, c: [c[0], c[1], "-2.0"] + c[3:] if i == 7 else c),
-     ["line 11", "column 'strain_axial'", "non-positive stretch"]),
+    (
+        "singal-strain-below-minus-one",
+        "m1-y.csv",
+        singal_with(lambda i, c: [c[0], c[1], "-2.0"] + c[3:] if i == 7 else c),
+        ["line 11", "column 'strain_axial'", "non-positive stretch"],
+    ),
     ("unloading-branch", "unload.csv", unloading(), ["line 14", "unloading branch"]),
-    ("singal-unloading-branch", "unload-y.csv", singal_unloading(), ["column 'strain_axial'", "unloading branch"]),
-    ("newtons-generic", "newtons.csv", "# direction = course\nstrain,tension_N_per_mm\n0,0\n0.2,12.5\n0.4,31.0\n",
-     ["column 'tension_n_per_mm'", "force in N", "width_mm"]),
-    ("newtons-singal-no-width", "newtons-y.csv", no_width_comment(singal_with(scaled(4, 90.52, 4))),
-     ["column 'tension_N_per_mm'", "force in N", "width at clamp"]),
-    ("force-without-width", "force.csv", "# direction = course\nstrain,force_N\n0,0\n0.2,3\n",
-     ["column 'force_n'", "needs the specimen width"]),
-    ("negative-width", "wneg.csv", "# direction = course\n# width_mm = -25\nstrain,force_N\n0,0\n0.2,3\n",
-     ["'# width_mm' must be a number > 0"]),
-    ("zero-width-column", "wcol.csv", "# direction = course\nstrain,force_N,width_mm\n0,0,25\n0.2,3,0\n",
-     ["line 4", "column 'width_mm'", "width must be > 0"]),
-    ("stress-without-thickness", "mpa.csv", "# direction = course\nstrain,stress_MPa\n0,0\n0.2,0.3\n",
-     ["needs a thickness"]),
-    ("thickness-not-a-number", "thick.csv", "# direction = course\n# thickness_mm = thin\nstrain,stress_MPa\n0,0\n0.2,0.3\n",
-     ["'# thickness_mm' must be a number > 0"]),
-    ("strain-and-stretch", "both.csv", "# direction = course\nstrain,stretch,tension_N_per_mm\n0,1,0\n0.1,1.1,0.1\n",
-     ["only one of the columns strain, stretch"]),
-    ("unknown-direction", "bias.csv", "direction,strain,tension_N_per_mm\ncourse,0,0\nbias,0.1,0.1\n",
-     ["line 3", "column 'direction'", "course or wale"]),
-    ("no-direction", "nodir.csv", GENERIC_HEADER + "\n" + "\n".join(GENERIC_ROWS) + "\n", ["cannot tell the direction"]),
-    ("zero-tension", "zeroT.csv", "# direction = course\nstrain,tension_N_per_mm\n0,0\n0.1,0\n0.2,0\n",
-     ["column 'tension_n_per_mm'", "zero on every row"]),
-    ("negative-tension", "negT.csv", "# direction = course\nstrain,tension_N_per_mm\n0,0\n0.1,-0.1\n0.2,-0.3\n",
-     ["negative on every row"]),
-    ("zero-tension-one-direction", "zeroW.csv",
-     "direction,strain,tension_N_per_mm\ncourse,0,0\ncourse,0.2,0.1\nwale,0,0\nwale,0.2,0\n",
-     ["zero on every row of the wale rows"]),
-    ("transverse-in-percent-only", "mixed.csv", "# direction = course\n" + GENERIC_HEADER + "\n0,0,0\n0.2,-12,0.05\n0.4,-25,0.2\n",
-     ["line 5", "column 'transverse_strain'", "same unit"]),
-    ("singal-no-direction", "cotton-rib.csv", "\n".join(singal_lines()[2:]) + "\n", ["-x (course) or -y (wale)"]),
-    ("repeats-without-overlap", "apart.csv",
-     "# direction = course\nsample,strain,tension_N_per_mm\n1,0,0\n1,0.1,0.1\n2,0.2,0.2\n2,0.3,0.3\n",
-     ["share no strain range"]),
+    (
+        "singal-unloading-branch",
+        "unload-y.csv",
+        singal_unloading(),
+        ["column 'strain_axial'", "unloading branch"],
+    ),
+    (
+        "newtons-generic",
+        "newtons.csv",
+        "# direction = course\nstrain,tension_N_per_mm\n0,0\n0.2,12.5\n0.4,31.0\n",
+        ["column 'tension_n_per_mm'", "force in N", "width_mm"],
+    ),
+    (
+        "newtons-singal-no-width",
+        "newtons-y.csv",
+        no_width_comment(singal_with(scaled(4, 90.52, 4))),
+        ["column 'tension_N_per_mm'", "force in N", "width at clamp"],
+    ),
+    (
+        "force-without-width",
+        "force.csv",
+        "# direction = course\nstrain,force_N\n0,0\n0.2,3\n",
+        ["column 'force_n'", "needs the specimen width"],
+    ),
+    (
+        "negative-width",
+        "wneg.csv",
+        "# direction = course\n# width_mm = -25\nstrain,force_N\n0,0\n0.2,3\n",
+        ["'# width_mm' must be a number > 0"],
+    ),
+    (
+        "zero-width-column",
+        "wcol.csv",
+        "# direction = course\nstrain,force_N,width_mm\n0,0,25\n0.2,3,0\n",
+        ["line 4", "column 'width_mm'", "width must be > 0"],
+    ),
+    (
+        "stress-without-thickness",
+        "mpa.csv",
+        "# direction = course\nstrain,stress_MPa\n0,0\n0.2,0.3\n",
+        ["needs a thickness"],
+    ),
+    (
+        "thickness-not-a-number",
+        "thick.csv",
+        "# direction = course\n# thickness_mm = thin\nstrain,stress_MPa\n0,0\n0.2,0.3\n",
+        ["'# thickness_mm' must be a number > 0"],
+    ),
+    (
+        "strain-and-stretch",
+        "both.csv",
+        "# direction = course\nstrain,stretch,tension_N_per_mm\n0,1,0\n0.1,1.1,0.1\n",
+        ["only one of the columns strain, stretch"],
+    ),
+    (
+        "unknown-direction",
+        "bias.csv",
+        "direction,strain,tension_N_per_mm\ncourse,0,0\nbias,0.1,0.1\n",
+        ["line 3", "column 'direction'", "course or wale"],
+    ),
+    (
+        "no-direction",
+        "nodir.csv",
+        GENERIC_HEADER + "\n" + "\n".join(GENERIC_ROWS) + "\n",
+        ["cannot tell the direction"],
+    ),
+    (
+        "zero-tension",
+        "zeroT.csv",
+        "# direction = course\nstrain,tension_N_per_mm\n0,0\n0.1,0\n0.2,0\n",
+        ["column 'tension_n_per_mm'", "zero on every row"],
+    ),
+    (
+        "negative-tension",
+        "negT.csv",
+        "# direction = course\nstrain,tension_N_per_mm\n0,0\n0.1,-0.1\n0.2,-0.3\n",
+        ["negative on every row"],
+    ),
+    (
+        "zero-tension-one-direction",
+        "zeroW.csv",
+        "direction,strain,tension_N_per_mm\ncourse,0,0\ncourse,0.2,0.1\nwale,0,0\nwale,0.2,0\n",
+        ["zero on every row of the wale rows"],
+    ),
+    (
+        "transverse-in-percent-only",
+        "mixed.csv",
+        "# direction = course\n" + GENERIC_HEADER + "\n0,0,0\n0.2,-12,0.05\n0.4,-25,0.2\n",
+        ["line 5", "column 'transverse_strain'", "same unit"],
+    ),
+    (
+        "singal-no-direction",
+        "cotton-rib.csv",
+        "\n".join(singal_lines()[2:]) + "\n",
+        ["-x (course) or -y (wale)"],
+    ),
+    (
+        "repeats-without-overlap",
+        "apart.csv",
+        "# direction = course\nsample,strain,tension_N_per_mm\n1,0,0\n1,0.1,0.1\n2,0.2,0.2\n2,0.3,0.3\n",
+        ["share no strain range"],
+    ),
 ]
 
 
@@ -187,12 +323,26 @@ def test_bad_data_file_is_refused(knit_here, tmp_path, case, name, content, word
 
 #: (id, extra arguments, data: "singal" | "generic" | "both", words the error line must hold)
 ARGS = [
-    ("unknown-reader", ["--reader", "excel"], "singal", ["--reader", "unknown reader 'excel'", "auto, generic, singal2024"]),
+    (
+        "unknown-reader",
+        ["--reader", "excel"],
+        "singal",
+        ["--reader", "unknown reader 'excel'", "auto, generic, singal2024"],
+    ),
     ("unknown-model", ["--model", "neo-hooke"], "singal", ["--model", "unknown homogenizer 'neo-hooke'"]),
     ("unknown-fitter", ["--fitter", "adam"], "singal", ["--fitter", "unknown fitter 'adam'"]),
-    ("generic-reader-on-singal-file", ["--reader", "generic"], "singal",
-     ["cotton-rib-y.csv", "missing column for the loaded strain", "strain_axial"]),
-    ("singal-reader-on-generic-file", ["--reader", "singal2024"], "generic", ["g.csv", "missing column 'video'"]),
+    (
+        "generic-reader-on-singal-file",
+        ["--reader", "generic"],
+        "singal",
+        ["cotton-rib-y.csv", "missing column for the loaded strain", "strain_axial"],
+    ),
+    (
+        "singal-reader-on-generic-file",
+        ["--reader", "singal2024"],
+        "generic",
+        ["g.csv", "missing column 'video'"],
+    ),
     ("good-then-bad-file", [], "both", ["bad.csv", "line 3", "finite number"]),
 ]
 
@@ -200,8 +350,11 @@ ARGS = [
 @pytest.mark.parametrize("case, extra, data, words", ARGS, ids=[a[0] for a in ARGS])
 def test_bad_fit_arguments_are_refused(knit_here, tmp_path, case, extra, data, words):
     """Unknown plugins, the wrong reader and a bad file after a good one are one line, with nothing created."""
-    files = {"singal": [RIB_Y], "generic": [make(tmp_path, "g.csv", GENERIC)],
-             "both": [RIB_Y, make(tmp_path, "bad.csv", bad_row(0, "nan,0,0"))]}[data]
+    files = {
+        "singal": [RIB_Y],
+        "generic": [make(tmp_path, "g.csv", GENERIC)],
+        "both": [RIB_Y, make(tmp_path, "bad.csv", bad_row(0, "nan,0,0"))],
+    }[data]
     before = snapshot(tmp_path)
     proc = knit_here("fit", *files, *extra, "--out", tmp_path / "out", cwd=tmp_path)
     assert_refused(proc, words[0], before=before, folder=tmp_path)
@@ -226,14 +379,18 @@ def test_refusal_in_a_subprocess(knit, tmp_path, case):
 
 def strict_json(path: Path) -> dict:
     """params.json parsed with NaN and Infinity refused."""
+
     def refuse(name):
         raise AssertionError(f"{path.name} holds {name}")
+
     return json.loads(path.read_text(encoding="utf-8"), parse_constant=refuse)
 
 
 def percent_singal() -> str:
     """The Singal file with both strain columns in percent."""
-    return singal_with(lambda i, c: [c[0], c[1], f"{float(c[2]) * 100:.3f}", f"{float(c[3]) * 100:.3f}", c[4]])
+    return singal_with(
+        lambda i, c: [c[0], c[1], f"{float(c[2]) * 100:.3f}", f"{float(c[3]) * 100:.3f}", c[4]]
+    )
 
 
 #: (id, relative path, content, extra arguments, words of each expected warning line (empty: no warning))
@@ -242,20 +399,67 @@ READABLE = [
     ("crlf", "crlf-y.csv", RIB_Y.read_text().replace("\n", "\r\n"), [], []),
     ("spaces-in-path", "my tests/cotton rib-y.csv", RIB_Y.read_text(), [], []),
     ("non-ascii-path", "données/tricot côte-y.csv", RIB_Y.read_text(), [], []),
-    ("percent-strain", "pct-y.csv", percent_singal(), [],
-     [["pct-y.csv", "column 'strain_axial'", "percent", "divided 'strain_axial', 'strain_transverse' by 100"]]),
-    ("newtons-with-clamp-width", "n-y.csv", singal_with(scaled(4, 90.52, 4)), [],
-     [["n-y.csv", "column 'tension_N_per_mm'", "force in N", "90.52 mm"]]),
-    ("newtons-with-width-line", "nw.csv", "# direction = course\n# width_mm = 150\n" + GENERIC_HEADER + "\n" + "\n".join(
-        f"{e:.2f},{-0.3 * e:.4f},{150 * (0.2 * e + 2 * e ** 3):.5f}" for e in (0.04 * i for i in range(11))) + "\n",
-     [], [["nw.csv", "force in N", "150 mm"]]),
-    ("force-column-with-width", "f.csv", "# direction = course\n# width_mm = 50\nstrain,force_N\n" + "\n".join(
-        f"{e:.2f},{50 * (0.1 * e + 0.5 * e ** 3):.5f}" for e in (0.04 * i for i in range(11))) + "\n", [], []),
-    ("percent-stretch", "ps.csv", "# direction = wale\nstretch,tension_N_per_mm\n" + "\n".join(
-        f"{100 + 4 * i},{0.1 * 0.04 * i + 0.5 * (0.04 * i) ** 3:.6f}" for i in range(11)) + "\n", [],
-     [["ps.csv", "column 'stretch'", "percent, not stretch"]]),
-    ("whitespace-and-trailing-blank-lines", "ws.csv", "# direction = course\n strain , tension_N_per_mm \n" + "\n".join(
-        f" {e:.2f} , {0.1 * e + 0.5 * e ** 3:.6f} " for e in (0.04 * i for i in range(11))) + "\n\n\n", [], []),
+    (
+        "percent-strain",
+        "pct-y.csv",
+        percent_singal(),
+        [],
+        [
+            [
+                "pct-y.csv",
+                "column 'strain_axial'",
+                "percent",
+                "divided 'strain_axial', 'strain_transverse' by 100",
+            ]
+        ],
+    ),
+    (
+        "newtons-with-clamp-width",
+        "n-y.csv",
+        singal_with(scaled(4, 90.52, 4)),
+        [],
+        [["n-y.csv", "column 'tension_N_per_mm'", "force in N", "90.52 mm"]],
+    ),
+    (
+        "newtons-with-width-line",
+        "nw.csv",
+        "# direction = course\n# width_mm = 150\n"
+        + GENERIC_HEADER
+        + "\n"
+        + "\n".join(
+            f"{e:.2f},{-0.3 * e:.4f},{150 * (0.2 * e + 2 * e**3):.5f}" for e in (0.04 * i for i in range(11))
+        )
+        + "\n",
+        [],
+        [["nw.csv", "force in N", "150 mm"]],
+    ),
+    (
+        "force-column-with-width",
+        "f.csv",
+        "# direction = course\n# width_mm = 50\nstrain,force_N\n"
+        + "\n".join(f"{e:.2f},{50 * (0.1 * e + 0.5 * e**3):.5f}" for e in (0.04 * i for i in range(11)))
+        + "\n",
+        [],
+        [],
+    ),
+    (
+        "percent-stretch",
+        "ps.csv",
+        "# direction = wale\nstretch,tension_N_per_mm\n"
+        + "\n".join(f"{100 + 4 * i},{0.1 * 0.04 * i + 0.5 * (0.04 * i) ** 3:.6f}" for i in range(11))
+        + "\n",
+        [],
+        [["ps.csv", "column 'stretch'", "percent, not stretch"]],
+    ),
+    (
+        "whitespace-and-trailing-blank-lines",
+        "ws.csv",
+        "# direction = course\n strain , tension_N_per_mm \n"
+        + "\n".join(f" {e:.2f} , {0.1 * e + 0.5 * e**3:.6f} " for e in (0.04 * i for i in range(11)))
+        + "\n\n\n",
+        [],
+        [],
+    ),
 ]
 
 

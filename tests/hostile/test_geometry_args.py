@@ -78,7 +78,8 @@ def test_impossible_geometry_request_in_a_real_process(tmp_path, knit, case):
 
 def test_a_feasible_request_still_writes_its_files(tmp_path, knit_here):
     """The limits leave real fabrics alone: a loose pet garter at 20 mm per stitch (112 dk) is built and written."""
-    proc = knit_here("geometry", "garter", "--arc-length", "20", "--yarn", "pet", "--out", tmp_path / "geo",
-                     cwd=tmp_path)
+    proc = knit_here(
+        "geometry", "garter", "--arc-length", "20", "--yarn", "pet", "--out", tmp_path / "geo", cwd=tmp_path
+    )
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / "geo" / "geometry.json").is_file()

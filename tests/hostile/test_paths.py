@@ -92,7 +92,11 @@ ARGS = [
     ("fit-data-missing", ["fit", "missing.csv", "--out", "o"], "missing.csv"),
     ("fit-data-is-a-folder", ["fit", "results", "--out", "o"], "results"),
     ("geometry-segments-not-int", ["geometry", "jersey", "--segments", "many"], "--segments"),
-    ("geometry-stitch-length-not-number", ["geometry", "jersey", "--stitch-length", "eleven"], "--stitch-length"),
+    (
+        "geometry-stitch-length-not-number",
+        ["geometry", "jersey", "--stitch-length", "eleven"],
+        "--stitch-length",
+    ),
     ("out-without-value", ["run", "cfg.toml", "--out"], "--out"),
 ]
 
@@ -159,8 +163,10 @@ def test_overwrite_never_replaces_a_file_no_run_wrote(knit_here, home):
     before = snapshot(root)
     proc = knit_here("run", "cfg.toml", "--out", "results", "--overwrite", cwd=here)
     assert_refused(proc, "--out", before=before, folder=root)
-    assert "responses.csv" in proc.stderr and (here / "results" / "responses.csv").read_text() == \
-        "the user's own table\n"
+    assert (
+        "responses.csv" in proc.stderr
+        and (here / "results" / "responses.csv").read_text() == "the user's own table\n"
+    )
 
 
 def test_locked_folder_is_refused_at_once(knit_here, home):
@@ -168,9 +174,17 @@ def test_locked_folder_is_refused_at_once(knit_here, home):
     root, here = home
     (here / "o" / ".knitframe").mkdir(parents=True)
     holder = subprocess.Popen(
-        [sys.executable, "-c", "import sys, filelock; lock = filelock.FileLock(sys.argv[1], timeout=0); "
-         "lock.acquire(); print('held', flush=True); sys.stdin.read()", str(here / "o" / ".knitframe" / "lock")],
-        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        [
+            sys.executable,
+            "-c",
+            "import sys, filelock; lock = filelock.FileLock(sys.argv[1], timeout=0); "
+            "lock.acquire(); print('held', flush=True); sys.stdin.read()",
+            str(here / "o" / ".knitframe" / "lock"),
+        ],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     try:
         assert holder.stdout.readline().strip() == "held"
         before = snapshot(root)
@@ -202,7 +216,8 @@ def test_unusual_but_valid_out_works(knit_here, home, command, case, out):
     folder = target if target.is_absolute() else here / target
     summary = json.loads((folder / "summary.json").read_text())
     assert sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file()) == sorted(
-        summary["outputs"] + ["summary.json"])
+        summary["outputs"] + ["summary.json"]
+    )
     assert (root / "keep.txt").exists() and (here / "keep.txt").exists()
 
 
@@ -212,8 +227,9 @@ def test_config_with_bom_crlf_spaces_and_non_ascii_path_runs(knit_here, home):
     folder = here / "my configs é"
     folder.mkdir()
     shutil.copy(DATA, folder / "données brutes-x.csv")
-    (folder / "ma config.toml").write_bytes(b"\xef\xbb\xbf" + '[data]\r\nfiles = ["données brutes-x.csv"]\r\n'
-                                            .encode("utf-8"))
+    (folder / "ma config.toml").write_bytes(
+        b"\xef\xbb\xbf" + '[data]\r\nfiles = ["données brutes-x.csv"]\r\n'.encode()
+    )
     proc = knit_here("run", str(folder / "ma config.toml"), "--out", "sortie é", "--quiet", cwd=here)
     assert proc.returncode == 0, proc.stderr
     assert (here / "sortie é" / "responses.csv").exists()

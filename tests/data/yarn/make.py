@@ -28,10 +28,36 @@ HERE = Path(__file__).resolve().parent
 
 #: name -> parameters of the synthetic tests (values near the library's cotton and nylon)
 CASES = {
-    "cotton": dict(d0=0.445, dk=0.444, E_axial=1200.0, failure_strain=0.08, slack=0.4, gauge_length=50.0,
-                   E_transverse=0.12, nu=0.3, precompression=0.002, yarns=10, plate_length=25.0, noise=0.01, seed=1),
-    "nylon": dict(d0=0.951, dk=0.334, E_axial=40.0, failure_strain=1.2, slack=1.5, gauge_length=50.0,
-                  E_transverse=0.004, nu=0.3, precompression=0.0004, yarns=10, plate_length=25.0, noise=0.01, seed=2),
+    "cotton": dict(
+        d0=0.445,
+        dk=0.444,
+        E_axial=1200.0,
+        failure_strain=0.08,
+        slack=0.4,
+        gauge_length=50.0,
+        E_transverse=0.12,
+        nu=0.3,
+        precompression=0.002,
+        yarns=10,
+        plate_length=25.0,
+        noise=0.01,
+        seed=1,
+    ),
+    "nylon": dict(
+        d0=0.951,
+        dk=0.334,
+        E_axial=40.0,
+        failure_strain=1.2,
+        slack=1.5,
+        gauge_length=50.0,
+        E_transverse=0.004,
+        nu=0.3,
+        precompression=0.0004,
+        yarns=10,
+        plate_length=25.0,
+        noise=0.01,
+        seed=2,
+    ),
 }
 
 
@@ -54,7 +80,9 @@ def compression(p: dict, n: int = 150) -> tuple[np.ndarray, np.ndarray]:
     uk = p["d0"] - p["dk"]
     u = np.linspace(0.0, uk + 0.3 * p["dk"], n)
     pre = p["precompression"] * (u / uk) ** 2 if uk > 0 else np.zeros(n)
-    post = p["precompression"] + line_contact_load(0.5 * (u - uk), 0.5 * p["dk"], p["E_transverse"], p["nu"], rigid_partner=True)
+    post = p["precompression"] + line_contact_load(
+        0.5 * (u - uk), 0.5 * p["dk"], p["E_transverse"], p["nu"], rigid_partner=True
+    )
     f = np.where(u <= uk, pre, post)
     F = f * p["yarns"] * p["plate_length"]
     F = F + 0.5 * p["noise"] * F.max() * rng.standard_normal(n)
