@@ -37,8 +37,8 @@ def setup(order: int, seed: float, shrink: float):
     from knitframe_solvers.volumetric import contact_surface
 
     from knitframe.geometry import unit_cell
-    from knitframe.mesh import cell_mesh
-    from knitframe.periodic import Lattice
+    from knitframe.numerics.mesh import cell_mesh
+    from knitframe.numerics.periodic import Lattice
     from knitframe.plugins import get_registry
     from knitframe.records import Fabric
 
@@ -79,7 +79,7 @@ def rel(a, b) -> str:
 
 def projection_time(m: int, repeat: int) -> None:
     """Time ``project_p2`` on m random bowed quadratic facets, and its start search (the 28-point lattice) alone."""
-    from knitframe_contact import solid_geometry as sg
+    from knitframe.numerics import solid_contact as sg
 
     rng = np.random.default_rng(0)
     c = rng.normal(size=(m, 3, 3)) * 0.1 + np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]])

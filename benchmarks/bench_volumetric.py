@@ -50,7 +50,7 @@ def scene(steps: int, friction: bool = False):
 
 def bench_mesh(args) -> list[dict]:
     from knitframe.geometry import unit_cell
-    from knitframe.mesh import cell_mesh, mesh_quality
+    from knitframe.numerics.mesh import cell_mesh, mesh_quality
 
     cell = unit_cell(fabric())
     rows = []

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import skfem
-from knitframe_contact.solid_geometry import SolidSurface
 from knitframe_linsolvers.direct import direct
 from knitframe_solvers.volumetric_material import SolidForms, YarnLaw
 from knitframe_yarns.isotropic import Isotropic
 
-from knitframe.contact_search import SegmentTopology
-from knitframe.mesh import surface_facets
-from knitframe.newton import NewtonOptions, minimise
+from knitframe.numerics.contact_search import SegmentTopology
+from knitframe.numerics.mesh import surface_facets
+from knitframe.numerics.newton import NewtonOptions, minimise
+from knitframe.numerics.solid_contact import SolidSurface
 
 
 def join(meshes: list, order: int):
@@ -199,11 +199,11 @@ def image_blocks():
     (the gap has kinks there). Returns (X, surface, n_nodes).
     """
     import skfem
-    from knitframe_contact.solid_geometry import SolidSurface
 
-    from knitframe.contact_search import SegmentTopology
-    from knitframe.mesh import surface_facets
-    from knitframe.periodic import Lattice
+    from knitframe.numerics.contact_search import SegmentTopology
+    from knitframe.numerics.mesh import surface_facets
+    from knitframe.numerics.periodic import Lattice
+    from knitframe.numerics.solid_contact import SolidSurface
 
     a = skfem.MeshTet1.init_tensor(np.linspace(0.5, 1, 3), np.linspace(0.2, 0.8, 4), np.linspace(0.1, 0.4, 3))
     b = skfem.MeshTet1.init_tensor(np.linspace(0, 0.4, 3), np.linspace(0, 1, 5), np.linspace(0, 0.5, 4))

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from knitframe.contact_search import SegmentTopology, closest_points, find_pairs
-from knitframe.periodic import Lattice, macro_index
+from knitframe.numerics.contact_search import SegmentTopology, closest_points, find_pairs
+from knitframe.numerics.periodic import Lattice, macro_index
 
 
 def brute(p0, p1, q0, q1, n=201):

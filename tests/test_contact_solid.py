@@ -18,7 +18,12 @@ from contact_solid_helpers import (
 )
 from knitframe_contact.mortar import SolidMortar
 from knitframe_contact.penalty import SolidPenalty
-from knitframe_contact.solid_geometry import (
+from knitframe_solvers.volumetric_material import SolidForms
+from knitframe_yarns.law import line_contact_approach
+
+from knitframe.geometry import Centerline, UnitCell
+from knitframe.numerics.mesh import cell_mesh
+from knitframe.numerics.solid_contact import (
     chain_facet_derivatives,
     facet_gap,
     nagata_facets,
@@ -31,11 +36,6 @@ from knitframe_contact.solid_geometry import (
     project_p2,
     select_pairs,
 )
-from knitframe_solvers.volumetric_material import SolidForms
-from knitframe_yarns.law import line_contact_approach
-
-from knitframe.geometry import Centerline, UnitCell
-from knitframe.mesh import cell_mesh
 from knitframe.plugins import get_registry
 
 

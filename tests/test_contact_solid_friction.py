@@ -17,8 +17,9 @@ from contact_solid_helpers import (
 )
 from knitframe_contact.mortar import SolidMortar
 from knitframe_contact.penalty import SolidPenalty
-from knitframe_contact.solid_geometry import friction_potential
 from knitframe_solvers.volumetric_material import SolidForms
+
+from knitframe.numerics.solid_contact import friction_potential
 
 LAWS = [SolidPenalty(friction=0.4, slip=0.05), SolidMortar(friction=0.4, slip=0.05)]
 IDS = ["penalty", "mortar"]

@@ -16,7 +16,7 @@ def test_retained_memory_is_reused_without_page_faults():
     code = """
 import resource, sys
 import numpy as np
-from knitframe.memory import retain_freed_memory
+from knitframe.numerics.memory import retain_freed_memory
 applied = retain_freed_memory() and retain_freed_memory() if sys.argv[1] == "on" else False  # (idempotent)
 faults = []
 for _ in range(4):

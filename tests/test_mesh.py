@@ -1,4 +1,4 @@
-"""Swept tetrahedral tube meshes of yarn centerlines (knitframe.mesh)."""
+"""Swept tetrahedral tube meshes of yarn centerlines (knitframe.numerics.mesh)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from scipy.spatial import cKDTree
 
 from knitframe.errors import GeometryError
 from knitframe.geometry import Centerline, UnitCell
-from knitframe.mesh import cell_mesh, mesh_quality, section_mesh
+from knitframe.numerics.mesh import cell_mesh, mesh_quality, section_mesh
 
 
 def helix_cell(R: float = 2.0, c: float = 1.0, r: float = 0.3) -> UnitCell:

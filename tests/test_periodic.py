@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from knitframe.errors import GeometryError
-from knitframe.periodic import N_MACRO, Lattice, PointMap, macro_index, periodic_transform
+from knitframe.numerics.periodic import N_MACRO, Lattice, PointMap, macro_index, periodic_transform
 
 LAT = Lattice([2.0, 0.0, 0.0], [0.3, 1.5, 0.0])
 

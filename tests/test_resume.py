@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 import knitframe
-from knitframe.newton import StepCheckpoints
-from knitframe.stepfiles import StepSeries
+from knitframe.numerics.newton import StepCheckpoints
+from knitframe.numerics.stepfiles import StepSeries
 
 CONFIG = """\
 [solver]

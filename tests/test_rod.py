@@ -11,8 +11,8 @@ from knitframe_solvers.rod_model import RodEnergy, from_cell, open_rods
 from scipy.integrate import solve_bvp
 
 from knitframe.geometry import Centerline, UnitCell
-from knitframe.newton import NewtonOptions, continuation, minimise
-from knitframe.periodic import Lattice
+from knitframe.numerics.newton import NewtonOptions, continuation, minimise
+from knitframe.numerics.periodic import Lattice
 
 EA, EI = 50.0, 0.05
 

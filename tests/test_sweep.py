@@ -212,7 +212,7 @@ def test_cache_key_changes_with_a_solver_option_and_covers_the_solver_code(tmp_p
         "knitframe_patterns.jersey",
         "knitframe_homogenizers.hgo",
         "knitframe_fitters.lbfgs",
-        "knitframe.newton",
+        "knitframe.numerics.newton",
         "knitframe.geometry",
     ):
         assert mod in sources, mod

@@ -236,7 +236,7 @@ def test_undersized_curved_tube_is_stress_free(order):
     """A curved tube shrunk across its fibre to s·r is stress-free under the pre-stress eigenstrain at s."""
     from test_mesh import helix_cell
 
-    from knitframe.mesh import cell_mesh
+    from knitframe.numerics.mesh import cell_mesh
 
     cm = cell_mesh(helix_cell(R=0.8, c=0.5, r=0.3), seed=0.5, order=order)
     forms = SolidForms(cm.mesh, ti(1000.0, 0.1), cm.node_tangent, node_offset=cm.node_offset)
@@ -343,7 +343,7 @@ def test_threaded_chunks_give_the_serial_result(order):
     inverted element raises the same error."""
     from test_mesh import helix_cell
 
-    from knitframe.mesh import cell_mesh
+    from knitframe.numerics.mesh import cell_mesh
 
     cm = cell_mesh(helix_cell(R=0.8, c=0.5, r=0.3), seed=0.5, order=order)
     law = ti(1000.0, 0.1)

@@ -85,7 +85,7 @@ def test_solver_is_registered_with_its_effects():
 @pytest.mark.parametrize("order", [1, 2])
 def test_course_tension_of_straight_yarns(order):
     """Stretching straight yarns along the course gives T1 = 2 E_A ε π r² / |L2| (two yarns per wale period)."""
-    from knitframe.mesh import cell_mesh, mesh_quality
+    from knitframe.numerics.mesh import cell_mesh, mesh_quality
 
     r = VolumetricSolver(order=order, seed=0.75).simulate(FABRIC, STRETCH)
     eps = r.lambda1 - 1.0
@@ -220,7 +220,7 @@ def test_overlapping_yarns_without_prestress_stop_with_a_diagnostic():
 def test_pipeline_resume_after_a_kill(tmp_path, monkeypatch):
     """``knitframe.run(..., resume=True)`` (the API twin of ``knitframe run --resume``) finishes a killed run identically."""
     import knitframe
-    from knitframe.newton import StepCheckpoints
+    from knitframe.numerics.newton import StepCheckpoints
 
     config = {
         "solver": {"kind": "volumetric", "order": 1, "seed": 0.75},
@@ -292,7 +292,7 @@ def test_friction_is_frozen_per_increment_only_when_asked(monkeypatch):
 def test_contact_search_once_per_newton_iteration(monkeypatch, search):
     """contact_search = "iteration": the broad-phase contact search runs at the Hessian evaluations only
     (one per Newton iterate), its candidates held through the line search; "evaluation" searches every time."""
-    from knitframe_contact.solid_geometry import SolidSurface
+    from knitframe.numerics.solid_contact import SolidSurface
 
     calls = count_calls(monkeypatch, SolidSurface, "candidates")
     # a stretch large enough for the Poisson contraction to need Newton iterations with line searches

@@ -16,7 +16,7 @@ the largest fraction of a Newton step along which no primitives cross). The Hess
 pair is projected to positive semi-definite (``psd``), as in IPC's projected Newton.
 
 Periodic cell. The cell's surface and its periodic images (the shifts F̄·S_k of
-:mod:`knitframe.periodic`, S_k = k1 L1 + k2 L2) form one collision mesh whose vertices are
+:mod:`knitframe.numerics.periodic`, S_k = k1 L1 + k2 L2) form one collision mesh whose vertices are
 (node, image) pairs; a tube's end nodes are their matched start nodes of the next image, so the
 yarns run on across the seams without a cut. The energy of the cell counts each periodic class
 of pairs once: a point–triangle pair is kept in the translate whose point lies in the central
@@ -59,7 +59,7 @@ import scipy.sparse as sp
 from knitframe import hookimpl
 from knitframe import validators as v
 from knitframe.errors import NumericalError
-from knitframe.periodic import N_MACRO, macro_index
+from knitframe.numerics.periodic import N_MACRO, macro_index
 
 #: halvings of a step whose collision check ran out of memory before the check gives up
 CCD_HALVINGS = 6
@@ -198,7 +198,7 @@ class PeriodicCollisionMesh:
         the surface's ``exclusion`` along it never collide (None when nothing is excluded).
 
         A vertex (node n, image k) lies on strand copy (strand, k₂, base) at unrolled arc a
-        (:meth:`knitframe.contact_search.SegmentTopology.unrolled`). ipctk filters by vertex patches
+        (:meth:`knitframe.numerics.contact_search.SegmentTopology.unrolled`). ipctk filters by vertex patches
         (equivalence classes), so the exclusion is ``n_bins`` staggered binnings of a into bins of
         length ℓ = exclusion, offset by ℓ/n_bins: a pair is excluded when its two vertices share a bin
         in any binning. A pair |Δa| < (1 − 1/n_bins)·ℓ apart shares one (its interval holds at most

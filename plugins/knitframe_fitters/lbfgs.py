@@ -20,7 +20,7 @@ from knitframe import hookimpl
 from knitframe import validators as v
 from knitframe.errors import NumericalError
 from knitframe.fitting import FitProblem, FitResult, UnitBox, finish, start_design
-from knitframe.parallel import one_blas_thread
+from knitframe.numerics.parallel import one_blas_thread
 from knitframe.records import Response
 
 

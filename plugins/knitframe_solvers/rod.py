@@ -7,7 +7,7 @@ stretching EA and bending EI from the yarn model (straight rest shape, no twist:
 current F̄ and (with ``self_contact``) themselves through a rod contact-law plugin, whose energy
 density is integrated over both centerlines (:mod:`knitframe_solvers.rod_contact`) and scaled
 so that two parallel yarns have the yarn model's transverse line-contact stiffness
-(:func:`rod_stiffness`). F̄ enters through the macro DOFs of :mod:`knitframe.periodic`; the
+(:func:`rod_stiffness`). F̄ enters through the macro DOFs of :mod:`knitframe.numerics.periodic`; the
 course and wale tensions per unit width are the macro reactions divided by the cell area.
 
 A run is
@@ -25,10 +25,10 @@ A run is
    equilibria. The stretches of the load path are measured from this relaxed lattice;
 3. the scene's load path: equibiaxial, uniaxial with the other side free (its macro DOF is
    solved for, so its tension is zero) or a general λ1(t), λ2(t), in the scene's steps, each cut
-   back adaptively on failure (:func:`knitframe.newton.continuation`); each increment starts
+   back adaptively on failure (:func:`knitframe.numerics.newton.continuation`); each increment starts
    from the previous state mapped affinely by the change of F̄.
 
-Every step is solved by Newton with an Armijo line search (:func:`knitframe.newton.minimise`);
+Every step is solved by Newton with an Armijo line search (:func:`knitframe.numerics.newton.minimise`);
 the rigid modes of yarns that no contact holds yet are stabilised by a Hessian shift, which does
 not change the converged state. One node is pinned to remove the cell's free translation.
 Every converged step (pre-stress, relaxed lattice, load) is checkpointed with what a resumed
@@ -74,11 +74,11 @@ from knitframe import validators as v
 from knitframe.config import instantiate
 from knitframe.errors import ConfigError, FieldError, KnitframeWarning, NumericalError
 from knitframe.geometry import unit_cell
-from knitframe.newton import NewtonOptions, StepCheckpoints, continuation, minimise
-from knitframe.periodic import macro_index
+from knitframe.numerics.newton import NewtonOptions, StepCheckpoints, continuation, minimise
+from knitframe.numerics.periodic import macro_index
+from knitframe.numerics.stepfiles import StepSeries
 from knitframe.plugins import get_registry
 from knitframe.records import Fabric, Provenance, Response, Scene
-from knitframe.stepfiles import StepSeries
 from knitframe.yarns import yarn_model
 from knitframe_solvers.rod_contact import line_energy
 from knitframe_solvers.rod_model import RodEnergy, RodModel, from_cell

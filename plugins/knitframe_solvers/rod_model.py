@@ -1,7 +1,7 @@
 """Rod discretisation of yarn centerlines and the total energy with its gradient and sparse Hessian.
 
 DOFs: ``q = [u (3 N), h (6)]`` — node displacements (mm) and the macro DOFs of
-:mod:`knitframe.periodic` (H = F̄ − I). An element point is a node at a periodic image, so an
+:mod:`knitframe.numerics.periodic` (H = F̄ − I). An element point is a node at a periodic image, so an
 edge that crosses the cell boundary joins the last node of yarn i to the first node of its
 paired yarn j at image (1, 0), and contact with images is contact between points whose image
 shifts depend on F̄.
@@ -21,8 +21,8 @@ import attrs
 import numpy as np
 import scipy.sparse as sp
 
-from knitframe.contact_search import SegmentTopology, find_pairs
-from knitframe.periodic import N_MACRO, Lattice, PointMap
+from knitframe.numerics.contact_search import SegmentTopology, find_pairs
+from knitframe.numerics.periodic import N_MACRO, Lattice, PointMap
 from knitframe_solvers.rod_contact import friction_energy, gauss_points, pair_weights, quadrature_contact
 from knitframe_solvers.rod_terms import bend, stretch
 
@@ -220,7 +220,7 @@ class FrictionLag:
 
 @attrs.define(eq=False, slots=False)
 class RodEnergy:
-    """Total energy of a :class:`RodModel`: ``energy(q, order) -> (E, g, H, info)`` for :func:`knitframe.newton.minimise`.
+    """Total energy of a :class:`RodModel`: ``energy(q, order) -> (E, g, H, info)`` for :func:`knitframe.numerics.newton.minimise`.
 
     ``dk`` (the contact distance) is mutable for the pre-stress step; with ``dk_full`` set, the
     contact stiffnesses are scaled by (dk_full/dk)², which keeps the line load of two yarns at a

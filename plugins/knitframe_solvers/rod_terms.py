@@ -2,7 +2,7 @@
 
 Each function takes element point positions and returns the energy per element (m,), the
 gradient with respect to the points (m, k, 3) and the Hessian (m, k, 3, k, 3); the caller scatters
-them with :class:`knitframe.periodic.PointMap`.
+them with :class:`knitframe.numerics.periodic.PointMap`.
 
 Stretching (edge x0–x1, rest length l0, axial stiffness EA in N)::
 

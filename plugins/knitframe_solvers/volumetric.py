@@ -1,7 +1,7 @@
 """Solver ``volumetric``: the paper's ABAQUS unit-cell model rebuilt on scikit-fem.
 
 The high-fidelity rung of the accuracy ladder. Every yarn of the pattern's periodic 2x2 cell is
-a swept tetrahedral tube (:mod:`knitframe.mesh`, P1 or isoparametric P2, seed r/3 by default)
+a swept tetrahedral tube (:mod:`knitframe.numerics.mesh`, P1 or isoparametric P2, seed r/3 by default)
 made of the yarn model's hyperelastic law in total-Lagrangian large deformation, with the fibre
 along the centerline (:mod:`knitframe_solvers.volumetric_material`). Yarns touch each other,
 their periodic images under the current F̄ and (with ``self_contact``) distant parts of
@@ -12,7 +12,7 @@ scene effect ``friction`` the contact pairs of the start of each increment are f
 force, master material point or tangent basis) and the law adds its regularised Coulomb
 friction on the slip from there.
 
-Periodicity is the shared macro-DOF mechanism of :mod:`knitframe.periodic`: the end faces of
+Periodicity is the shared macro-DOF mechanism of :mod:`knitframe.numerics.periodic`: the end faces of
 each yarn at the course boundary are images of the start faces of their paired yarn,
 u_end = u_start + (F̄ − I)·L1, folded into u = T·[u_independent, h]. The reaction conjugate to the
 macro DOFs h divided by the cell area gives the course and wale tensions per unit width.
@@ -24,9 +24,9 @@ A run is
    Fθ = I + (s − 1)(I − a⊗a) with s growing from s₀ to 1 restores the knitted diameter dk at
    constant length, against contact (this resolves the geometry's initial interference);
 2. the scene's load path (equibiaxial, uniaxial with a free side, or general) in the scene's
-   steps, each cut back adaptively on failure (:func:`knitframe.newton.continuation`).
+   steps, each cut back adaptively on failure (:func:`knitframe.numerics.newton.continuation`).
 
-Each increment is solved by the shared Newton driver (:func:`knitframe.newton.minimise`) with a
+Each increment is solved by the shared Newton driver (:func:`knitframe.numerics.newton.minimise`) with a
 linear-solver plugin, whose wall time is kept next to the assembly times (provenance
 ``timings_s``). The yarn's tangent is indefinite where fibres are compressed, so by default
 (``tangent = "projected"``) Newton uses the tangent projected to its PSD part at every
@@ -50,20 +50,20 @@ from typing import Any, ClassVar, Literal
 import attrs
 import numpy as np
 import scipy.sparse as sp
-from knitframe_contact.solid_geometry import SolidSurface
 
 from knitframe import hookimpl
 from knitframe import validators as v
 from knitframe.config import instantiate
-from knitframe.contact_search import SegmentTopology
 from knitframe.errors import ConfigError, FieldError, KnitframeWarning, NumericalError
 from knitframe.geometry import unit_cell
-from knitframe.memory import retain_freed_memory
-from knitframe.newton import NewtonOptions, StepCheckpoints, continuation, minimise
-from knitframe.periodic import N_MACRO, Lattice, macro_index, periodic_transform
+from knitframe.numerics.contact_search import SegmentTopology
+from knitframe.numerics.memory import retain_freed_memory
+from knitframe.numerics.newton import NewtonOptions, StepCheckpoints, continuation, minimise
+from knitframe.numerics.periodic import N_MACRO, Lattice, macro_index, periodic_transform
+from knitframe.numerics.solid_contact import SolidSurface
+from knitframe.numerics.stepfiles import StepSeries
 from knitframe.plugins import get_registry
 from knitframe.records import Fabric, Provenance, Response, Scene
-from knitframe.stepfiles import StepSeries
 from knitframe.yarns import yarn_model
 from knitframe_solvers.volumetric_material import SolidForms, YarnLaw
 
@@ -274,7 +274,7 @@ class VolumetricSolver:
 
     def setup(self, fabric: Fabric, scene: Scene, registry=None) -> VolumetricModel:
         """Mesh, material forms, periodic map and contact of a fabric's cell for the effects of a scene."""
-        from knitframe.mesh import cell_mesh
+        from knitframe.numerics.mesh import cell_mesh
 
         registry = registry or get_registry()
         cell = unit_cell(fabric, registry)

@@ -43,7 +43,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from knitframe.errors import NumericalError
-from knitframe.parallel import one_blas_thread
+from knitframe.numerics.parallel import one_blas_thread
 
 __all__ = ["YarnLaw", "SolidForms", "fibre_at_quadrature", "psd_project"]
 

@@ -13,12 +13,12 @@ of the projection).
 
 Candidate pairs come from a KD-tree broad phase between groups of query points (the quadrature
 points of a slave facet, or single nodes) and the master elements' centroids, including the
-periodic images k1 L1 + k2 L2 placed under the current F̄ (:class:`knitframe.periodic.Lattice`);
+periodic images k1 L1 + k2 L2 placed under the current F̄ (:class:`knitframe.numerics.periodic.Lattice`);
 each pair is kept only when a bounding sphere of the element lies within the search reach of the
 point. Pairs of a yarn with a piece of itself closer than an exclusion length along the strand
-are dropped with the strand bookkeeping of :class:`knitframe.contact_search.SegmentTopology`.
+are dropped with the strand bookkeeping of :class:`knitframe.numerics.contact_search.SegmentTopology`.
 Element gradients and Hessians are scattered to q = [u (3N), h (6)] with
-:class:`knitframe.periodic.PointMap`.
+:class:`knitframe.numerics.periodic.PointMap`.
 
 Friction (:class:`FrictionState`, :func:`friction_terms`) is the lagged, regularised Coulomb law
 shared by both solid laws: the pairs in contact at the last converged state are frozen with their
@@ -32,9 +32,9 @@ import attrs
 import numpy as np
 from scipy.spatial import cKDTree
 
-from knitframe.contact_search import IMAGES, SegmentTopology
 from knitframe.errors import NumericalError
-from knitframe.periodic import Lattice, PointMap
+from knitframe.numerics.contact_search import IMAGES, SegmentTopology
+from knitframe.numerics.periodic import Lattice, PointMap
 
 __all__ = [
     "plane_gap",
@@ -287,7 +287,7 @@ class SolidSurface:
     ``slave`` / ``master`` select which of them act on each side (the same set for two-pass
     self-contact of yarns). ``triangles`` are the facets split into linear triangles (a quadratic
     facet gives four). Nodes carry a strand topology (see
-    :class:`knitframe.contact_search.SegmentTopology`, here one entry per node): pairs on one
+    :class:`knitframe.numerics.contact_search.SegmentTopology`, here one entry per node): pairs on one
     strand copy closer than ``exclusion`` along it are the yarn's own material, not contacts.
     Bodies that are not yarns use their own strand with ``cycle`` 0 and arc 0, so they never
     contact themselves. Build with :meth:`build`.
@@ -337,7 +337,7 @@ class SolidSurface:
         edges (a periodic mesh's end nodes → their matched start nodes), so that an edge on a
         periodic seam, continued by the image's facets, is not an open boundary.
         """
-        from knitframe.mesh import split_facets
+        from knitframe.numerics.mesh import split_facets
 
         facets = np.asarray(facets, np.int64)
         F = len(facets)
@@ -1171,7 +1171,7 @@ def assemble(
     """Global (E, gradient (n_dof,), Hessian CSR) of element terms ``(nodes, images, grad, hess)``.
 
     Each term has m elements of k points: nodes (m, k), images (m, k, 2), grad (m, k, 3) and
-    hess (m, k, 3, k, 3). The gradient is scattered through :class:`knitframe.periodic.PointMap`
+    hess (m, k, 3, k, 3). The gradient is scattered through :class:`knitframe.numerics.periodic.PointMap`
     (u_a and, at a periodic image, h through the reference shift S of the point: p = x + F̄·S).
     The Hessian is assembled in 3×3 node blocks: an element with a point at an image gets the
     six macro DOFs h as two more "nodes" (n_nodes, n_nodes + 1, matching the DOF order

@@ -17,7 +17,7 @@ import attrs
 import numpy as np
 from scipy.spatial import cKDTree
 
-from knitframe.periodic import Lattice
+from knitframe.numerics.periodic import Lattice
 
 __all__ = ["closest_points", "SegmentTopology", "Pairs", "find_pairs", "IMAGES"]
 
