@@ -56,7 +56,8 @@ def load_toml(path: str | Path) -> dict[str, Any]:
 class PluginSpec:
     """A plugin chosen by name with its option table, as written in a config."""
 
-    kind: str  #: registry name of the implementation
+    #: registry name of the implementation
+    kind: str
     options: dict[str, Any] = attrs.Factory(dict)
 
     @classmethod

@@ -41,11 +41,16 @@ SAME = 1e-12
 class Richardson:
     """The result of :func:`richardson` (every value float64; None where there is no order)."""
 
-    order: float | None  #: the observed order p
-    extrapolated: float | None  #: f₀, the mesh-converged estimate
-    error_finest: float | None  #: |f₁ − f₀| / |f₀|, the estimated relative error of the finest mesh
-    gci_finest: float | None  #: Roache's grid-convergence index of the finest mesh (safety factor 1.25)
-    behaviour: str  #: "converging", "converged", "oscillating" or "diverging"
+    #: the observed order p
+    order: float | None
+    #: f₀, the mesh-converged estimate
+    extrapolated: float | None
+    #: |f₁ − f₀| / |f₀|, the estimated relative error of the finest mesh
+    error_finest: float | None
+    #: Roache's grid-convergence index of the finest mesh (safety factor 1.25)
+    gci_finest: float | None
+    #: "converging", "converged", "oscillating" or "diverging"
+    behaviour: str
 
 
 def _ratio(p: float, h1: float, h2: float, h3: float) -> float:

@@ -35,7 +35,7 @@ CONFIG_KINDS = (
 
 
 def field_docs(cls: type) -> dict[str, str]:
-    """``{field: text}`` from the ``#:`` comments after each field of an attrs class."""
+    """``{field: text}`` from the ``#:`` comment block above each field of an attrs class (Sphinx's style)."""
     try:
         src = textwrap.dedent(inspect.getsource(cls))
     except (OSError, TypeError):
@@ -46,9 +46,13 @@ def field_docs(cls: type) -> dict[str, str]:
     body = tree.body[0].body if tree.body and isinstance(tree.body[0], ast.ClassDef) else []
     for node in body:
         if isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
-            line = lines[node.end_lineno - 1]
-            if "#:" in line:
-                docs[node.target.id] = line.split("#:", 1)[1].strip()
+            block: list[str] = []
+            i = node.lineno - 2
+            while i >= 0 and lines[i].strip().startswith("#:"):
+                block.insert(0, lines[i].strip()[2:].strip())
+                i -= 1
+            if block:
+                docs[node.target.id] = " ".join(block)
     return docs
 
 

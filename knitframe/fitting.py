@@ -434,26 +434,29 @@ class FitProblem:
 class FitResult:
     """A fitted reduced model: the model, its parameters (radians inside) and how well it fits."""
 
-    model: Any  #: the homogenizer instance (with its options)
-    params: np.ndarray = attrs.field(
-        converter=lambda p: np.array(p, dtype=np.float64)
-    )  #: ordered as param_names
-    nrmse: dict[str, float] = attrs.Factory(dict)  #: tension NRMSE: course, wale, overall
-    nrmse_transverse: dict[str, float] = attrs.Factory(dict)  #: transverse-strain NRMSE (lateral models)
+    #: the homogenizer instance (with its options)
+    model: Any
+    #: ordered as param_names
+    params: np.ndarray = attrs.field(converter=lambda p: np.array(p, dtype=np.float64))
+    #: tension NRMSE: course, wale, overall
+    nrmse: dict[str, float] = attrs.Factory(dict)
+    #: transverse-strain NRMSE (lateral models)
+    nrmse_transverse: dict[str, float] = attrs.Factory(dict)
     objective: float = 0.0
-    n_evals: int = 0  #: objective evaluations
-    wall_time: float = 0.0  #: seconds
+    #: objective evaluations
+    n_evals: int = 0
+    #: seconds
+    wall_time: float = 0.0
     fitter: str = ""
     converged: bool = True
     message: str = ""
-    labels: tuple[str, ...] = ()  #: labels of the fitted Responses
+    #: labels of the fitted Responses
+    labels: tuple[str, ...] = ()
     diagnostics: dict[str, Any] = attrs.Factory(dict)
-    at_bound: tuple[
-        str, ...
-    ] = ()  #: parameters (as named in params.json) that ended at a bound of the model's box
-    warnings: tuple[
-        str, ...
-    ] = ()  #: why the result is suspect: unit conversions of its data, parameters at a bound
+    #: parameters (as named in params.json) that ended at a bound of the model's box
+    at_bound: tuple[str, ...] = ()
+    #: why the result is suspect: unit conversions of its data, parameters at a bound
+    warnings: tuple[str, ...] = ()
 
     @property
     def param_names(self) -> tuple[str, ...]:

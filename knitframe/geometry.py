@@ -124,12 +124,16 @@ class Centerline:
     ``t (n,) -> (n, 3)`` in mm and mm per unit t. ``period`` is r(t1) - r(t0).
     """
 
-    name: str  #: e.g. "row0"
-    position: Callable[[np.ndarray], np.ndarray]  #: t (n,) -> (n, 3), mm
-    derivative: Callable[[np.ndarray], np.ndarray]  #: t (n,) -> (n, 3) exact dr/dt, mm
+    #: e.g. "row0"
+    name: str
+    #: t (n,) -> (n, 3), mm
+    position: Callable[[np.ndarray], np.ndarray]
+    #: t (n,) -> (n, 3) exact dr/dt, mm
+    derivative: Callable[[np.ndarray], np.ndarray]
     t0: float
     t1: float
-    period: np.ndarray = attrs.field(converter=_vec3)  #: (3,) r(t1) - r(t0), mm
+    #: (3,) r(t1) - r(t0), mm
+    period: np.ndarray = attrs.field(converter=_vec3)
 
     def sample(self, n: int, *, endpoint: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``n`` uniformly spaced parameters with positions and unit tangents.
@@ -173,16 +177,26 @@ class UnitCell:
     """The 2x2 stitch cell of a pattern: centerlines, lattice, end pairing and knit/purl layout."""
 
     pattern: str
-    yarns: tuple[Centerline, ...]  #: one yarn per course row, each spanning the two stitches of the row
-    L1: np.ndarray = attrs.field(converter=_vec3)  #: (3,) course lattice vector (2 x course pitch), mm
-    L2: np.ndarray = attrs.field(converter=_vec3)  #: (3,) wale lattice vector (2 x wale pitch), mm
-    radius: float  #: knitted yarn radius dk/2, mm
-    end_pairs: tuple[tuple[int, int], ...]  #: (i, j): end of yarn i at t1 continues as start of yarn j + L1
-    layout: tuple[tuple[str, ...], ...]  #: rows x columns of "k" / "p"
-    arc_length_per_stitch: float  #: mm
-    course_pitch: float  #: mm
-    wale_pitch: float  #: mm
-    info: dict[str, Any] = attrs.Factory(dict)  #: pattern-specific shape parameters, for reports
+    #: one yarn per course row, each spanning the two stitches of the row
+    yarns: tuple[Centerline, ...]
+    #: (3,) course lattice vector (2 x course pitch), mm
+    L1: np.ndarray = attrs.field(converter=_vec3)
+    #: (3,) wale lattice vector (2 x wale pitch), mm
+    L2: np.ndarray = attrs.field(converter=_vec3)
+    #: knitted yarn radius dk/2, mm
+    radius: float
+    #: (i, j): end of yarn i at t1 continues as start of yarn j + L1
+    end_pairs: tuple[tuple[int, int], ...]
+    #: rows x columns of "k" / "p"
+    layout: tuple[tuple[str, ...], ...]
+    #: mm
+    arc_length_per_stitch: float
+    #: mm
+    course_pitch: float
+    #: mm
+    wale_pitch: float
+    #: pattern-specific shape parameters, for reports
+    info: dict[str, Any] = attrs.Factory(dict)
 
     def __attrs_post_init__(self) -> None:
         n = len(self.yarns)
@@ -352,11 +366,16 @@ def course_cell(
 class Frames:
     """Rotation-minimising frame along one yarn at ``n + 1`` parameters from t0 to t1 inclusive."""
 
-    t: np.ndarray  #: (n+1,)
-    x: np.ndarray  #: (n+1, 3) positions, mm
-    tangent: np.ndarray  #: (n+1, 3) unit tangents
-    normal: np.ndarray  #: (n+1, 3) unit normals, ⟂ tangent
-    binormal: np.ndarray  #: (n+1, 3) tangent x normal
+    #: (n+1,)
+    t: np.ndarray
+    #: (n+1, 3) positions, mm
+    x: np.ndarray
+    #: (n+1, 3) unit tangents
+    tangent: np.ndarray
+    #: (n+1, 3) unit normals, ⟂ tangent
+    normal: np.ndarray
+    #: (n+1, 3) tangent x normal
+    binormal: np.ndarray
 
 
 def _householder(v: np.ndarray) -> np.ndarray:
@@ -447,11 +466,16 @@ def _perpendicular(t: np.ndarray) -> np.ndarray:
 class Contact:
     """A local minimum of the distance between two centerlines (a yarn and an image of one)."""
 
-    yarns: tuple[int, int]  #: yarn indices (a, b)
-    image: tuple[int, int]  #: (k1, k2): b is shifted by k1 L1 + k2 L2
-    t: tuple[float, float]  #: parameters on a and b
-    point: tuple[float, float, float]  #: midpoint of the closest pair, mm
-    distance: float  #: centerline-to-centerline distance, mm
+    #: yarn indices (a, b)
+    yarns: tuple[int, int]
+    #: (k1, k2): b is shifted by k1 L1 + k2 L2
+    image: tuple[int, int]
+    #: parameters on a and b
+    t: tuple[float, float]
+    #: midpoint of the closest pair, mm
+    point: tuple[float, float, float]
+    #: centerline-to-centerline distance, mm
+    distance: float
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data dict for JSON."""
@@ -462,12 +486,17 @@ class Contact:
 class Clearance:
     """Minimum centerline-to-centerline distance of a cell and the places closer than dk."""
 
-    minimum: float  #: mm
+    #: mm
+    minimum: float
     closest: Contact
-    overlaps: tuple[Contact, ...]  #: local minima with distance < dk, closest first
-    dk: float  #: knitted diameter used as the overlap threshold, mm
-    self_exclusion: float  #: pairs on one strand closer than this along it are ignored, mm
-    spacing: float  #: sampling spacing along the yarn before refinement, mm
+    #: local minima with distance < dk, closest first
+    overlaps: tuple[Contact, ...]
+    #: knitted diameter used as the overlap threshold, mm
+    dk: float
+    #: pairs on one strand closer than this along it are ignored, mm
+    self_exclusion: float
+    #: sampling spacing along the yarn before refinement, mm
+    spacing: float
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data dict for JSON."""
@@ -486,16 +515,26 @@ class Clearance:
 class _Samples:
     """Dense samples of every yarn with strand bookkeeping for the exclusion rule."""
 
-    yarn: np.ndarray  #: (m,) yarn index
-    index: np.ndarray  #: (m,) sample index within the yarn
-    t: np.ndarray  #: (m,)
-    x: np.ndarray  #: (m, 3)
-    strand: np.ndarray  #: (m,) strand number
-    S: np.ndarray  #: (m,) arc coordinate unrolled along the strand, mm
-    length: np.ndarray  #: (n_strands,) strand length Λ per cell crossing, mm
-    cycle: np.ndarray  #: (n_strands,) yarns per strand
-    pos: np.ndarray  #: (n_yarns,) position of each yarn in its strand
-    tables: list = attrs.Factory(list)  #: per yarn (t grid, s) arc tables
+    #: (m,) yarn index
+    yarn: np.ndarray
+    #: (m,) sample index within the yarn
+    index: np.ndarray
+    #: (m,)
+    t: np.ndarray
+    #: (m, 3)
+    x: np.ndarray
+    #: (m,) strand number
+    strand: np.ndarray
+    #: (m,) arc coordinate unrolled along the strand, mm
+    S: np.ndarray
+    #: (n_strands,) strand length Λ per cell crossing, mm
+    length: np.ndarray
+    #: (n_strands,) yarns per strand
+    cycle: np.ndarray
+    #: (n_yarns,) position of each yarn in its strand
+    pos: np.ndarray
+    #: per yarn (t grid, s) arc tables
+    tables: list = attrs.Factory(list)
 
 
 def _samples(cell: UnitCell, spacing: float) -> _Samples:

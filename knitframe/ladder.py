@@ -65,11 +65,16 @@ __all__ = [
 class Rung:
     """One rung of the ladder: a solver with the options that make its fidelity."""
 
-    name: str  #: what ``--rungs`` and ``[ladder] rungs`` call it
-    solver: str  #: solver plugin
-    options: Mapping[str, Any]  #: the solver options that define the rung
-    family: str  #: the cost model's solver family (time and memory fitted per family)
-    default: bool  #: run when no rungs are named
+    #: what ``--rungs`` and ``[ladder] rungs`` call it
+    name: str
+    #: solver plugin
+    solver: str
+    #: the solver options that define the rung
+    options: Mapping[str, Any]
+    #: the cost model's solver family (time and memory fitted per family)
+    family: str
+    #: run when no rungs are named
+    default: bool
     description: str
 
     @property
@@ -226,10 +231,12 @@ class TimingPoint:
 
     family: str
     dofs: int
-    increments: int  #: load steps plus pre-stress steps
+    #: load steps plus pre-stress steps
+    increments: int
     wall_time_s: float
     peak_rss_mb: float | None
-    source: str  #: "run" (this ladder), "given" (a timings file named in the config) or "shipped"
+    #: "run" (this ladder), "given" (a timings file named in the config) or "shipped"
+    source: str
     rung: str = ""
 
 
@@ -239,7 +246,8 @@ class Estimate:
 
     seconds: float
     rss_mb: float | None
-    basis: str  #: e.g. "2 timings of this run" or "3 timings shipped"
+    #: e.g. "2 timings of this run" or "3 timings shipped"
+    basis: str
 
     def text(self) -> str:
         mem = "" if self.rss_mb is None else f", {format_memory(self.rss_mb)}"
@@ -969,11 +977,16 @@ def plot_curves(
 class LadderResult:
     """What a ladder run gives back: a row per rung (as in ``ladder.csv``) and the curves."""
 
-    rows: list[dict[str, Any]]  #: one dict per rung, keys as :data:`CSV_COLUMNS`
-    curves: dict[str, Response]  #: each finished rung's Response, by rung name
-    measured: list[Response]  #: the measured curves compared against
-    reference: str | None  #: the best rung that ran
-    table: str  #: the Markdown table
+    #: one dict per rung, keys as :data:`CSV_COLUMNS`
+    rows: list[dict[str, Any]]
+    #: each finished rung's Response, by rung name
+    curves: dict[str, Response]
+    #: the measured curves compared against
+    measured: list[Response]
+    #: the best rung that ran
+    reference: str | None
+    #: the Markdown table
+    table: str
     out: Path | None = None
 
     def row(self, rung: str) -> dict[str, Any]:

@@ -52,8 +52,10 @@ class ResponseCurve:
     last point the last segment is extended linearly (and flagged by :meth:`extrapolated`).
     """
 
-    lam: np.ndarray  #: (n,) stretch, increasing
-    T: np.ndarray  #: (n,) tension, non-decreasing, N/mm
+    #: (n,) stretch, increasing
+    lam: np.ndarray
+    #: (n,) tension, non-decreasing, N/mm
+    T: np.ndarray
     label: str = ""
 
     @classmethod
@@ -225,16 +227,22 @@ def as_curve(source: Any, direction: str | int = "course", lateral: str = "free"
 class PatchworkResult:
     """Response of a patchwork along the load; arrays have one row per load step."""
 
-    strain: np.ndarray  #: (s,) engineering strain of the whole patchwork along the load, -
-    tension: np.ndarray  #: (s,) mean tension = force / total width, N/mm
-    force: np.ndarray  #: (s,) total force, N
-    row_tension: np.ndarray  #: (s, rows) tension carried by each row (series chain), N/mm
-    stretch: np.ndarray  #: (s, rows, cols) stretch of every region along the load, -
-    interface_displacement: (
-        np.ndarray
-    )  #: (s, rows, cols − 1) displacement of each interface from the fixed end, mm
-    widths: np.ndarray  #: (rows,) mm
-    lengths: np.ndarray  #: (rows, cols) mm
+    #: (s,) engineering strain of the whole patchwork along the load, -
+    strain: np.ndarray
+    #: (s,) mean tension = force / total width, N/mm
+    tension: np.ndarray
+    #: (s,) total force, N
+    force: np.ndarray
+    #: (s, rows) tension carried by each row (series chain), N/mm
+    row_tension: np.ndarray
+    #: (s, rows, cols) stretch of every region along the load, -
+    stretch: np.ndarray
+    #: (s, rows, cols − 1) displacement of each interface from the fixed end, mm
+    interface_displacement: np.ndarray
+    #: (rows,) mm
+    widths: np.ndarray
+    #: (rows, cols) mm
+    lengths: np.ndarray
     mode: str = "grid"
 
     def to_response(self, direction: str | int = "course", label: str = "") -> Response:

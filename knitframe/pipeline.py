@@ -47,9 +47,12 @@ class BuildContext:
     """What a stage needs while validating its config."""
 
     registry: Registry
-    base_dir: Path  #: relative paths in the config are resolved against this directory
-    source: str | None = None  #: config file name, shown in error messages
-    tables: frozenset[str] = frozenset()  #: top-level tables present in the config
+    #: relative paths in the config are resolved against this directory
+    base_dir: Path
+    #: config file name, shown in error messages
+    source: str | None = None
+    #: top-level tables present in the config
+    tables: frozenset[str] = frozenset()
 
     def path(self, value: str | Path, key: str, *, must_exist: bool = True) -> Path:
         """Resolve a config path; a missing file is a ConfigError at ``key``."""
@@ -66,17 +69,27 @@ class RunContext:
     """Shared state of a running pipeline; stages read from and add to it."""
 
     registry: Registry
-    out: Path  #: directory the stage writes into (the run's staging area until it succeeds)
-    checkpoints: Path | None = None  #: root of the stages' checkpoint folders (kept for ``--resume``)
-    responses: list[Response] = attrs.Factory(list)  #: measured or simulated curves
-    models: list[Any] = attrs.Factory(list)  #: fitted reduced models
-    objects: dict[str, Any] = attrs.Factory(dict)  #: rich results by stage label (a Design, …), for the API
-    results: dict[str, Any] = attrs.Factory(dict)  #: per-stage results, by stage name
-    outputs: list[str] = attrs.Factory(list)  #: files written, relative to ``out``
-    plugins: dict[str, dict[str, str]] = attrs.Factory(dict)  #: "kind:name" → {package, version}
-    resume: bool = False  #: continue from checkpoints left by a killed run
+    #: directory the stage writes into (the run's staging area until it succeeds)
+    out: Path
+    #: root of the stages' checkpoint folders (kept for ``--resume``)
+    checkpoints: Path | None = None
+    #: measured or simulated curves
+    responses: list[Response] = attrs.Factory(list)
+    #: fitted reduced models
+    models: list[Any] = attrs.Factory(list)
+    #: rich results by stage label (a Design, …), for the API
+    objects: dict[str, Any] = attrs.Factory(dict)
+    #: per-stage results, by stage name
+    results: dict[str, Any] = attrs.Factory(dict)
+    #: files written, relative to ``out``
+    outputs: list[str] = attrs.Factory(list)
+    #: "kind:name" → {package, version}
+    plugins: dict[str, dict[str, str]] = attrs.Factory(dict)
+    #: continue from checkpoints left by a killed run
+    resume: bool = False
     quiet: bool = False
-    no_cache: bool = False  #: executors neither read nor keep cached job results (``--no-cache``)
+    #: executors neither read nor keep cached job results (``--no-cache``)
+    no_cache: bool = False
 
     def output(self, name: str) -> Path:
         """Path of an output file; records it for the summary."""
@@ -106,7 +119,8 @@ class PipelineResult:
     models: list[Any]
     results: dict[str, Any]
     summary: dict[str, Any]
-    objects: dict[str, Any] = attrs.Factory(dict)  #: rich results by stage label (a Design, …)
+    #: rich results by stage label (a Design, …)
+    objects: dict[str, Any] = attrs.Factory(dict)
 
 
 class Pipeline:

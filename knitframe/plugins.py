@@ -82,9 +82,12 @@ class Entry:
     name: str
     obj: Any
     description: str
-    plugin: str  #: module (or object) name the hook implementation lives in
-    package: str  #: distribution that provides it
-    version: str  #: distribution version
+    #: module (or object) name the hook implementation lives in
+    plugin: str
+    #: distribution that provides it
+    package: str
+    #: distribution version
+    version: str
 
     @property
     def builtin(self) -> bool:

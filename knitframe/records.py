@@ -87,25 +87,28 @@ class Yarn(Record):
     monofilament is isotropic (``E_transverse == E_axial``).
     """
 
-    name: str  #: library key, e.g. "cotton"
-    d0: float = attrs.field(validator=_DIAMETER)  #: free (relaxed) diameter, mm
-    dk: float = attrs.field(validator=_DIAMETER)  #: knitted (compressed) diameter, mm
-    E_axial: float = attrs.field(validator=_MODULUS)  #: axial Young's modulus, MPa
-    E_transverse: float = attrs.field(validator=_MODULUS)  #: transverse Young's modulus, MPa
-    G_axial: float | None = attrs.field(
-        default=None, validator=v.optional(_MODULUS)
-    )  #: axial shear modulus, MPa
-    nu: float = attrs.field(
-        default=0.3, validator=v.in_range(-1.0, 0.5, lo_open=True, hi_open=True)
-    )  #: Poisson ratio, -
-    failure_strain: float | None = attrs.field(
-        default=None, validator=v.optional(v.positive)
-    )  #: axial strain at failure, -
-    bending_stiffness: float | None = attrs.field(
-        default=None, validator=v.optional(v.positive)
-    )  #: measured EI, N·mm²; unset: solid section E_axial·π·dk⁴/64
-    model: str = "transverse_isotropic"  #: yarn-model plugin name
-    source: str = ""  #: where the numbers come from
+    #: library key, e.g. "cotton"
+    name: str
+    #: free (relaxed) diameter, mm
+    d0: float = attrs.field(validator=_DIAMETER)
+    #: knitted (compressed) diameter, mm
+    dk: float = attrs.field(validator=_DIAMETER)
+    #: axial Young's modulus, MPa
+    E_axial: float = attrs.field(validator=_MODULUS)
+    #: transverse Young's modulus, MPa
+    E_transverse: float = attrs.field(validator=_MODULUS)
+    #: axial shear modulus, MPa
+    G_axial: float | None = attrs.field(default=None, validator=v.optional(_MODULUS))
+    #: Poisson ratio, -
+    nu: float = attrs.field(default=0.3, validator=v.in_range(-1.0, 0.5, lo_open=True, hi_open=True))
+    #: axial strain at failure, -
+    failure_strain: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: measured EI, N·mm²; unset: solid section E_axial·π·dk⁴/64
+    bending_stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: yarn-model plugin name
+    model: str = "transverse_isotropic"
+    #: where the numbers come from
+    source: str = ""
 
     def __attrs_post_init__(self) -> None:
         if self.dk > self.d0 * (1 + 1e-12):
@@ -137,23 +140,20 @@ class Fabric(Record):
     the arc length of yarn per stitch (``arc_length`` in mm); pattern plugins map one to the other.
     """
 
-    pattern: str  #: pattern plugin name, e.g. "jersey"
-    yarn: Yarn  #: yarn record, or in a config a yarn-library name
-    stitch_length: float | None = attrs.field(
-        default=None, validator=v.optional(v.positive)
-    )  #: machine setting, -
-    arc_length: float | None = attrs.field(
-        default=None, validator=v.optional(v.positive)
-    )  #: yarn per stitch, mm
-    course_pitch: float | None = attrs.field(
-        default=None, validator=v.optional(v.positive)
-    )  #: stitch width, mm
-    wale_pitch: float | None = attrs.field(
-        default=None, validator=v.optional(v.positive)
-    )  #: stitch height, mm
-    pattern_options: dict[str, Any] = attrs.Factory(
-        dict
-    )  #: options of the pattern plugin, e.g. stitch_lengths
+    #: pattern plugin name, e.g. "jersey"
+    pattern: str
+    #: yarn record, or in a config a yarn-library name
+    yarn: Yarn
+    #: machine setting, -
+    stitch_length: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: yarn per stitch, mm
+    arc_length: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: stitch width, mm
+    course_pitch: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: stitch height, mm
+    wale_pitch: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: options of the pattern plugin, e.g. stitch_lengths
+    pattern_options: dict[str, Any] = attrs.Factory(dict)
 
     def __attrs_post_init__(self) -> None:
         if self.stitch_length is None and self.arc_length is None:
@@ -175,14 +175,18 @@ class LoadPath(Record):
     side free (its tension is zero). ``general``: λ1(t), λ2(t) given point by point.
     """
 
-    kind: Literal["equibiaxial", "uniaxial", "general"] = "equibiaxial"  #: load-path type
-    max_strain: float = attrs.field(
-        default=0.3, validator=v.in_range(0.0, 5.0, lo_open=True)
-    )  #: engineering strain, -
-    steps: int = attrs.field(default=10, validator=v.in_range(1, MAX_LOAD_POINTS))  #: load increments, -
-    direction: Literal["course", "wale"] = "course"  #: loaded direction for ``uniaxial``
-    lambda1: tuple[float, ...] = ()  #: course stretch path for ``general``, -
-    lambda2: tuple[float, ...] = ()  #: wale stretch path for ``general``, -
+    #: load-path type
+    kind: Literal["equibiaxial", "uniaxial", "general"] = "equibiaxial"
+    #: engineering strain, -
+    max_strain: float = attrs.field(default=0.3, validator=v.in_range(0.0, 5.0, lo_open=True))
+    #: load increments, -
+    steps: int = attrs.field(default=10, validator=v.in_range(1, MAX_LOAD_POINTS))
+    #: loaded direction for ``uniaxial``
+    direction: Literal["course", "wale"] = "course"
+    #: course stretch path for ``general``, -
+    lambda1: tuple[float, ...] = ()
+    #: wale stretch path for ``general``, -
+    lambda2: tuple[float, ...] = ()
 
     def __attrs_post_init__(self) -> None:
         if self.kind == "general":
@@ -224,17 +228,20 @@ class LoadPath(Record):
 class Scene(Record):
     """What to simulate: a load path, the effects to include, and the outputs wanted."""
 
-    load: LoadPath = attrs.Factory(LoadPath)  #: macroscopic load path
+    #: macroscopic load path
+    load: LoadPath = attrs.Factory(LoadPath)
+    #: names from :data:`EFFECTS`
     effects: frozenset[str] = attrs.field(
         default=frozenset({"large_deformation", "bending", "contact"}),
         converter=frozenset,
         validator=v.subset_of(EFFECTS),
-    )  #: names from :data:`EFFECTS`
+    )
+    #: what to write besides the Response
     outputs: frozenset[str] = attrs.field(
         default=frozenset({"response"}),
         converter=frozenset,
         validator=v.subset_of(("response", "vtu", "checkpoints")),
-    )  #: what to write besides the Response
+    )
 
     def __attrs_post_init__(self) -> None:
         if "friction" in self.effects and "contact" not in self.effects:
@@ -245,14 +252,22 @@ class Scene(Record):
 class Provenance(Record):
     """Where a Response came from."""
 
-    kind: Literal["experiment", "simulation", "model"] = "experiment"  #: what produced the curve
-    source: str = ""  #: file name, solver name or model description
-    solver: str | None = None  #: solver plugin name, for simulations
-    mesh: str | None = None  #: mesh summary, for simulations
-    wall_time: float | None = None  #: seconds
-    converged: bool = True  #: false if a solver stopped early
-    notes: str = ""  #: free text
-    extra: dict[str, Any] = attrs.Factory(dict)  #: plugin versions, options …
+    #: what produced the curve
+    kind: Literal["experiment", "simulation", "model"] = "experiment"
+    #: file name, solver name or model description
+    source: str = ""
+    #: solver plugin name, for simulations
+    solver: str | None = None
+    #: mesh summary, for simulations
+    mesh: str | None = None
+    #: seconds
+    wall_time: float | None = None
+    #: false if a solver stopped early
+    converged: bool = True
+    #: free text
+    notes: str = ""
+    #: plugin versions, options …
+    extra: dict[str, Any] = attrs.Factory(dict)
 
 
 LoadKind = Literal["equibiaxial", "uniaxial-course", "uniaxial-wale", "general"]
@@ -268,26 +283,30 @@ class Response(Record):
     are one standard deviation over ``n_samples`` repeats. All arrays have shape (n,).
     """
 
-    lambda1: np.ndarray = attrs.field(converter=_f64, validator=v.finite_array)  #: course stretch, -
-    lambda2: np.ndarray = attrs.field(converter=_f64, validator=v.finite_array)  #: wale stretch, -
-    T1: np.ndarray = attrs.field(converter=_f64, validator=v.finite_array)  #: course tension, N/mm
-    T2: np.ndarray = attrs.field(converter=_f64, validator=v.finite_array)  #: wale tension, N/mm
-    load: LoadKind = "equibiaxial"  #: which sides are loaded and which are free
-    label: str = ""  #: curve name
-    n_samples: int = attrs.field(default=1, validator=v.in_range(1, 10**9))  #: repeats behind the mean
-    T1_sd: np.ndarray | None = attrs.field(
-        default=None, converter=_f64_opt, validator=v.finite_array
-    )  #: N/mm
-    T2_sd: np.ndarray | None = attrs.field(
-        default=None, converter=_f64_opt, validator=v.finite_array
-    )  #: N/mm
-    lambda1_sd: np.ndarray | None = attrs.field(
-        default=None, converter=_f64_opt, validator=v.finite_array
-    )  #: -
-    lambda2_sd: np.ndarray | None = attrs.field(
-        default=None, converter=_f64_opt, validator=v.finite_array
-    )  #: -
-    provenance: Provenance = attrs.Factory(Provenance)  #: origin of the curve
+    #: course stretch, -
+    lambda1: np.ndarray = attrs.field(converter=_f64, validator=v.finite_array)
+    #: wale stretch, -
+    lambda2: np.ndarray = attrs.field(converter=_f64, validator=v.finite_array)
+    #: course tension, N/mm
+    T1: np.ndarray = attrs.field(converter=_f64, validator=v.finite_array)
+    #: wale tension, N/mm
+    T2: np.ndarray = attrs.field(converter=_f64, validator=v.finite_array)
+    #: which sides are loaded and which are free
+    load: LoadKind = "equibiaxial"
+    #: curve name
+    label: str = ""
+    #: repeats behind the mean
+    n_samples: int = attrs.field(default=1, validator=v.in_range(1, 10**9))
+    #: N/mm
+    T1_sd: np.ndarray | None = attrs.field(default=None, converter=_f64_opt, validator=v.finite_array)
+    #: N/mm
+    T2_sd: np.ndarray | None = attrs.field(default=None, converter=_f64_opt, validator=v.finite_array)
+    #: -
+    lambda1_sd: np.ndarray | None = attrs.field(default=None, converter=_f64_opt, validator=v.finite_array)
+    #: -
+    lambda2_sd: np.ndarray | None = attrs.field(default=None, converter=_f64_opt, validator=v.finite_array)
+    #: origin of the curve
+    provenance: Provenance = attrs.Factory(Provenance)
 
     _ARRAYS: ClassVar[tuple[str, ...]] = (
         "lambda1",

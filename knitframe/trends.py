@@ -56,13 +56,20 @@ VERDICTS = (REPRODUCED, NOT_REPRODUCED, UNDETERMINED)
 class Trend:
     """One of the paper's trends, judged on a sweep."""
 
-    key: str  #: stitch_b, pattern_theta, yarn_ab or jersey_theta
-    claim: str  #: the paper's claim in words
-    verdict: str  #: reproduced, not reproduced or undetermined
-    summary: str  #: one line: the count the verdict rests on
-    columns: tuple[str, ...]  #: the headers of ``table``
-    table: tuple[tuple[str, ...], ...]  #: the numbers, one row per comparison (formatted)
-    notes: tuple[str, ...] = ()  #: what was left out and why (fits at a bound, failed points)
+    #: stitch_b, pattern_theta, yarn_ab or jersey_theta
+    key: str
+    #: the paper's claim in words
+    claim: str
+    #: reproduced, not reproduced or undetermined
+    verdict: str
+    #: one line: the count the verdict rests on
+    summary: str
+    #: the headers of ``table``
+    columns: tuple[str, ...]
+    #: the numbers, one row per comparison (formatted)
+    table: tuple[tuple[str, ...], ...]
+    #: what was left out and why (fits at a bound, failed points)
+    notes: tuple[str, ...] = ()
 
 
 # ------------------------------------------------------------------------------------------ rows
@@ -73,7 +80,8 @@ class _Fit:
     sl: float
     a: float | None
     b: float | None
-    theta: float | None  #: degrees
+    #: degrees
+    theta: float | None
     bound: frozenset[str]
 
     @property

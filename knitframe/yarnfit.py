@@ -152,12 +152,18 @@ def _meta_number(table, meta: dict[str, str], key: str, given: float | None) -> 
 class TensionFit:
     """Result of :func:`fit_tension`."""
 
-    E_axial: float  #: MPa
-    failure_strain: float  #: -
-    slack: float  #: displacement before the yarn carries load, mm
-    stiffness: float  #: k = EA / L0, N/mm
-    points: int  #: points in the linear window
-    rmse: float  #: force residual in the window, N
+    #: MPa
+    E_axial: float
+    #: -
+    failure_strain: float
+    #: displacement before the yarn carries load, mm
+    slack: float
+    #: k = EA / L0, N/mm
+    stiffness: float
+    #: points in the linear window
+    points: int
+    #: force residual in the window, N
+    rmse: float
     file: str
 
 
@@ -165,11 +171,16 @@ class TensionFit:
 class CompressionFit:
     """Result of :func:`fit_compression`."""
 
-    E_transverse: float  #: MPa
-    precompression: float  #: line load per yarn that brings d0 to dk, N/mm
-    pressure: float  #: precompression / dk, MPa
-    points: int  #: points in the fitted window
-    rmse: float  #: displacement residual in the window, mm
+    #: MPa
+    E_transverse: float
+    #: line load per yarn that brings d0 to dk, N/mm
+    precompression: float
+    #: precompression / dk, MPa
+    pressure: float
+    #: points in the fitted window
+    points: int
+    #: displacement residual in the window, mm
+    rmse: float
     file: str
 
 

@@ -49,22 +49,36 @@ def compression_class(p: float) -> str:
 class Design:
     """A designed garment: the fabric of every element and the fields it gives on the limb."""
 
-    limb: Any  #: the Limb
-    library: Any  #: the FabricLibrary
-    objective: Any  #: the objective plugin instance
-    tube: Tube  #: the tube as made (needles filled in for knitting mode)
+    #: the Limb
+    limb: Any
+    #: the FabricLibrary
+    library: Any
+    #: the objective plugin instance
+    objective: Any
+    #: the tube as made (needles filled in for knitting mode)
+    tube: Tube
     method: str
     geometry: ElementGeometry
-    fabric: np.ndarray  #: (R, A) library index of every element
-    lam1: np.ndarray  #: (R, A) course stretch
-    lam2: np.ndarray  #: (R, A) wale stretch
-    T1: np.ndarray  #: (R, A) course tension, N/mm
-    T2: np.ndarray  #: (R, A) wale tension, N/mm
-    courses: np.ndarray  #: (R,) courses knitted in each element row
-    value: float  #: the objective of this design
-    guarantee: str  #: what the solver guarantees
-    baseline: dict[str, Any]  #: the single-fabric garment (the base fabric everywhere), for comparison
-    pressure_basis: str  #: which radius the pressure objective used: "equivalent" or "local"
+    #: (R, A) library index of every element
+    fabric: np.ndarray
+    #: (R, A) course stretch
+    lam1: np.ndarray
+    #: (R, A) wale stretch
+    lam2: np.ndarray
+    #: (R, A) course tension, N/mm
+    T1: np.ndarray
+    #: (R, A) wale tension, N/mm
+    T2: np.ndarray
+    #: (R,) courses knitted in each element row
+    courses: np.ndarray
+    #: the objective of this design
+    value: float
+    #: what the solver guarantees
+    guarantee: str
+    #: the single-fabric garment (the base fabric everywhere), for comparison
+    baseline: dict[str, Any]
+    #: which radius the pressure objective used: "equivalent" or "local"
+    pressure_basis: str
     wall_time: float = 0.0
     notes: tuple[str, ...] = ()
 

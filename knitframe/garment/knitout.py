@@ -165,7 +165,8 @@ class Band:
     fabric: str
     pattern: str
     yarn: str
-    stitch_length: float | None = None  #: machine setting, or None when the fabric has none
+    #: machine setting, or None when the fabric has none
+    stitch_length: float | None = None
 
     @property
     def courses(self) -> int:
@@ -441,8 +442,10 @@ class Plan:
 
     kmap: KnitMap
     spec: MachineSpec
-    carriers: dict[str, int]  #: yarn -> carrier
-    stitch_numbers: tuple[int, ...]  #: per band
+    #: yarn -> carrier
+    carriers: dict[str, int]
+    #: per band
+    stitch_numbers: tuple[int, ...]
 
     @property
     def band_carriers(self) -> list[int]:

@@ -326,37 +326,36 @@ class FabricEntry:
     builds the homogenizer once; :meth:`tensions` reuses it and the parameter array.
     """
 
-    name: str  #: unique in its library, e.g. "cotton-rib"
-    pattern: str  #: jersey | garter | rib | seed | a plugin pattern
-    yarn: str  #: yarn name
-    stitch_length: float | None = attrs.field(
-        converter=_float_or_keep
-    )  #: machine setting (e.g. 10, 11, 12), if known
-    arc_length: float | None = attrs.field(converter=_float_or_keep)  #: mm of yarn per stitch, if known
-    model: str  #: homogenizer plugin name ("hgo", "hgo2m")
-    params: dict[str, float] = attrs.field(
-        converter=_float_dict
-    )  #: as in a params.json: angles as "<name>_deg"
-    course_pitch: float = attrs.field(
-        converter=_float_or_keep
-    )  #: relaxed stitch width along the course, mm per wale column
-    wale_pitch: float = attrs.field(
-        converter=_float_or_keep
-    )  #: relaxed stitch height along the wale, mm per course
-    max_tension: float = attrs.field(
-        converter=_float_or_keep
-    )  #: N/mm: the largest course tension the fabric may carry
-    max_stretch: float | None = attrs.field(
-        default=None, converter=_float_or_keep
-    )  #: largest course stretch λ1, if known
-    source: str = ""  #: where the model and the limits came from
-    pitch_source: str = ""  #: where the pitches came from
-    model_options: dict[str, Any] = attrs.field(
-        factory=dict, converter=_plain_dict
-    )  #: the homogenizer's options
-    fit: dict[str, Any] = attrs.field(
-        factory=dict, converter=_plain_dict
-    )  #: how it was fitted (nrmse, fitter, ...)
+    #: unique in its library, e.g. "cotton-rib"
+    name: str
+    #: jersey | garter | rib | seed | a plugin pattern
+    pattern: str
+    #: yarn name
+    yarn: str
+    #: machine setting (e.g. 10, 11, 12), if known
+    stitch_length: float | None = attrs.field(converter=_float_or_keep)
+    #: mm of yarn per stitch, if known
+    arc_length: float | None = attrs.field(converter=_float_or_keep)
+    #: homogenizer plugin name ("hgo", "hgo2m")
+    model: str
+    #: as in a params.json: angles as "<name>_deg"
+    params: dict[str, float] = attrs.field(converter=_float_dict)
+    #: relaxed stitch width along the course, mm per wale column
+    course_pitch: float = attrs.field(converter=_float_or_keep)
+    #: relaxed stitch height along the wale, mm per course
+    wale_pitch: float = attrs.field(converter=_float_or_keep)
+    #: N/mm: the largest course tension the fabric may carry
+    max_tension: float = attrs.field(converter=_float_or_keep)
+    #: largest course stretch λ1, if known
+    max_stretch: float | None = attrs.field(default=None, converter=_float_or_keep)
+    #: where the model and the limits came from
+    source: str = ""
+    #: where the pitches came from
+    pitch_source: str = ""
+    #: the homogenizer's options
+    model_options: dict[str, Any] = attrs.field(factory=dict, converter=_plain_dict)
+    #: how it was fitted (nrmse, fitter, ...)
+    fit: dict[str, Any] = attrs.field(factory=dict, converter=_plain_dict)
     _homogenizer: Any = attrs.field(init=False, default=None, eq=False, repr=False)
     _params_array: Any = attrs.field(init=False, default=None, eq=False, repr=False)
 

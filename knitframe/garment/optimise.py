@@ -50,11 +50,16 @@ class NoAssignment(ValueError):
 class BandSolution:
     """Fabric index of each element row, the cost, and what the solver guarantees."""
 
-    rows: np.ndarray  #: (R,) fabric index per element row
-    cost: float  #: the minimised sum of row costs
-    method: str  #: "dynamic programming" or "MILP (HiGHS)"
-    gap: float = 0.0  #: relative optimality gap; 0 for a proven global optimum
-    level: float | None = None  #: τ of a relative objective
+    #: (R,) fabric index per element row
+    rows: np.ndarray
+    #: the minimised sum of row costs
+    cost: float
+    #: "dynamic programming" or "MILP (HiGHS)"
+    method: str
+    #: relative optimality gap; 0 for a proven global optimum
+    gap: float = 0.0
+    #: τ of a relative objective
+    level: float | None = None
 
     @property
     def guarantee(self) -> str:

@@ -41,14 +41,22 @@ MMHG_PER_MPA = 1e6 / 133.322
 class ElementGeometry:
     """Per-element geometry of the limb's quad grid (R rows along the limb, A columns around)."""
 
-    e1: np.ndarray  #: (R, A) element length around the limb (C/A of its stations), mm
-    e2: np.ndarray  #: (R, A) mean edge length along the limb, mm
-    area: np.ndarray  #: (R, A) element area, mm²
-    curvature: np.ndarray  #: (R, A) mean curvature of the section (1/mm; > 0 convex)
-    equivalent_radius: np.ndarray  #: (R,) circumference / 2π of the row (mean of its two stations), mm
-    position: np.ndarray  #: (R,) row centre along the limb as a fraction, 0 distal to 1 top
-    z: np.ndarray  #: (R,) row centre along the axis, mm
-    circumference: np.ndarray  #: (R,) mean of the two stations' circumferences, mm
+    #: (R, A) element length around the limb (C/A of its stations), mm
+    e1: np.ndarray
+    #: (R, A) mean edge length along the limb, mm
+    e2: np.ndarray
+    #: (R, A) element area, mm²
+    area: np.ndarray
+    #: (R, A) mean curvature of the section (1/mm; > 0 convex)
+    curvature: np.ndarray
+    #: (R,) circumference / 2π of the row (mean of its two stations), mm
+    equivalent_radius: np.ndarray
+    #: (R,) row centre along the limb as a fraction, 0 distal to 1 top
+    position: np.ndarray
+    #: (R,) row centre along the axis, mm
+    z: np.ndarray
+    #: (R,) mean of the two stations' circumferences, mm
+    circumference: np.ndarray
 
     @property
     def shape(self) -> tuple[int, int]:

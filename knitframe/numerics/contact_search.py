@@ -84,8 +84,10 @@ class SegmentTopology:
     arc: np.ndarray
     cycle: np.ndarray
     length: np.ndarray
-    prev: np.ndarray | None = None  #: (n,) previous segment along the yarn, −1 at an open end
-    prev_image: np.ndarray | None = None  #: (n, 2) image of the previous segment
+    #: (n,) previous segment along the yarn, −1 at an open end
+    prev: np.ndarray | None = None
+    #: (n, 2) image of the previous segment
+    prev_image: np.ndarray | None = None
 
     def unrolled(self, seg: np.ndarray, k1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(copy key, unrolled arc) of segments ``seg`` on the image shifted by k1 L1.
@@ -108,12 +110,18 @@ class SegmentTopology:
 class Pairs:
     """Segment pairs closer than the search cutoff: segment ``i`` (image 0) and segment ``j`` at image ``k``."""
 
-    i: np.ndarray  #: (m,)
-    j: np.ndarray  #: (m,)
-    k: np.ndarray  #: (m, 2) integer image of j
-    s: np.ndarray  #: (m,) closest-point parameter on i
-    t: np.ndarray  #: (m,) closest-point parameter on j
-    distance: np.ndarray  #: (m,) closest distance, mm
+    #: (m,)
+    i: np.ndarray
+    #: (m,)
+    j: np.ndarray
+    #: (m, 2) integer image of j
+    k: np.ndarray
+    #: (m,) closest-point parameter on i
+    s: np.ndarray
+    #: (m,) closest-point parameter on j
+    t: np.ndarray
+    #: (m,) closest distance, mm
+    distance: np.ndarray
 
     def __len__(self) -> int:
         return int(self.i.shape[0])

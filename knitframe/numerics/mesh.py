@@ -49,10 +49,14 @@ __all__ = [
 class Section:
     """Triangulated unit disc: the cross-section swept along every yarn."""
 
-    points: np.ndarray  #: (n, 2) coordinates in the unit disc, -
-    triangles: np.ndarray  #: (m, 3) vertex indices, counter-clockwise
-    boundary: np.ndarray  #: (n,) bool, vertex on the unit circle
-    boundary_edges: np.ndarray  #: (k, 2) sorted vertex pairs of the circle's edges
+    #: (n, 2) coordinates in the unit disc, -
+    points: np.ndarray
+    #: (m, 3) vertex indices, counter-clockwise
+    triangles: np.ndarray
+    #: (n,) bool, vertex on the unit circle
+    boundary: np.ndarray
+    #: (k, 2) sorted vertex pairs of the circle's edges
+    boundary_edges: np.ndarray
 
 
 @functools.lru_cache(maxsize=16)
@@ -156,25 +160,40 @@ class CellMesh:
     one point per edge for P2 (the order of ``skfem`` dofs, so vector dof ``3·node + k``).
     """
 
-    mesh: Any  #: skfem.MeshTet1 (order 1) or skfem.MeshTet2 (order 2)
-    order: int  #: polynomial order, 1 or 2
-    radius: float  #: tube radius, mm
-    seed: float  #: target element size as a fraction of the radius, -
-    names: tuple[str, ...]  #: yarn names
-    lengths: np.ndarray  #: (n_yarns,) centerline arc lengths, mm
-    nodes: np.ndarray  #: (N, 3) reference node coordinates, mm
-    node_body: np.ndarray  #: (N,) yarn index of each node
-    node_arc: np.ndarray  #: (N,) arc length of the node's section along its yarn, mm
-    node_tangent: np.ndarray  #: (N, 3) unit centerline tangent at the node's section
-    node_offset: np.ndarray  #: (N, 3) node minus centerline point (transverse offset), mm
-    element_body: np.ndarray  #: (n_elements,) yarn index of each tetrahedron
-    surface: np.ndarray  #: (M, 3) P1 or (M, 6) P2 node indices of the lateral-surface facets, outward
-    surface_body: np.ndarray  #: (M,) yarn index of each surface triangle
-    end_pairs: tuple[
-        tuple[np.ndarray, np.ndarray, np.ndarray], ...
-    ]  #: (end nodes, start nodes, shift (3,)): x_end = x_start + shift
-    clearance: Any = None  #: :class:`knitframe.geometry.Clearance` found before meshing (None if unchecked)
-    timings: dict[str, float] = attrs.Factory(dict)  #: seconds spent per meshing step
+    #: skfem.MeshTet1 (order 1) or skfem.MeshTet2 (order 2)
+    mesh: Any
+    #: polynomial order, 1 or 2
+    order: int
+    #: tube radius, mm
+    radius: float
+    #: target element size as a fraction of the radius, -
+    seed: float
+    #: yarn names
+    names: tuple[str, ...]
+    #: (n_yarns,) centerline arc lengths, mm
+    lengths: np.ndarray
+    #: (N, 3) reference node coordinates, mm
+    nodes: np.ndarray
+    #: (N,) yarn index of each node
+    node_body: np.ndarray
+    #: (N,) arc length of the node's section along its yarn, mm
+    node_arc: np.ndarray
+    #: (N, 3) unit centerline tangent at the node's section
+    node_tangent: np.ndarray
+    #: (N, 3) node minus centerline point (transverse offset), mm
+    node_offset: np.ndarray
+    #: (n_elements,) yarn index of each tetrahedron
+    element_body: np.ndarray
+    #: (M, 3) P1 or (M, 6) P2 node indices of the lateral-surface facets, outward
+    surface: np.ndarray
+    #: (M,) yarn index of each surface triangle
+    surface_body: np.ndarray
+    #: (end nodes, start nodes, shift (3,)): x_end = x_start + shift
+    end_pairs: tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]
+    #: :class:`knitframe.geometry.Clearance` found before meshing (None if unchecked)
+    clearance: Any = None
+    #: seconds spent per meshing step
+    timings: dict[str, float] = attrs.Factory(dict)
 
     @property
     def n_nodes(self) -> int:

@@ -156,9 +156,12 @@ class PointMap:
     nodes: np.ndarray
     images: np.ndarray
     lattice: Lattice | None = None
-    dofs: np.ndarray = attrs.field(init=False)  #: (m, k, 3, s) global DOF of each slot
-    weights: np.ndarray = attrs.field(init=False)  #: (m, k, 3, s) weights
-    imaged: np.ndarray = attrs.field(init=False)  #: (m,) elements with a point at a non-zero image
+    #: (m, k, 3, s) global DOF of each slot
+    dofs: np.ndarray = attrs.field(init=False)
+    #: (m, k, 3, s) weights
+    weights: np.ndarray = attrs.field(init=False)
+    #: (m,) elements with a point at a non-zero image
+    imaged: np.ndarray = attrs.field(init=False)
 
     def __attrs_post_init__(self) -> None:
         nodes = np.asarray(self.nodes, dtype=np.int64)

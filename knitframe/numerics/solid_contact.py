@@ -260,10 +260,14 @@ def chain_facet_derivatives(
 class Candidates:
     """Pairs (query point, master element at an image) found by the broad phase."""
 
-    point: np.ndarray  #: (m,) index into the query points
-    triangle: np.ndarray  #: (m,) master element (linear triangle, or facet with ``quadratic``)
-    image: np.ndarray  #: (m, 2) integer image of the master element
-    shift: np.ndarray  #: (m, 3) current image shift F̄·S_k, mm
+    #: (m,) index into the query points
+    point: np.ndarray
+    #: (m,) master element (linear triangle, or facet with ``quadratic``)
+    triangle: np.ndarray
+    #: (m, 2) integer image of the master element
+    image: np.ndarray
+    #: (m, 3) current image shift F̄·S_k, mm
+    shift: np.ndarray
 
 
 def _open_edges(corners: np.ndarray, master: np.ndarray) -> np.ndarray:
@@ -294,26 +298,38 @@ class SolidSurface:
     """
 
     n_nodes: int
-    X: np.ndarray  #: (N, 3) reference node coordinates, mm
-    facets: np.ndarray  #: (F, 3 or 6) node indices, normals outward
-    slave: np.ndarray  #: (Fs,) slave facets
-    master: np.ndarray  #: (Fm,) master facets
-    topology: SegmentTopology  #: per node
-    exclusion: float  #: arc length along a strand within which pairs are ignored, mm
-    lattice: Lattice | None  #: periodic lattice (None: no images)
-    triangles: np.ndarray  #: (T, 3) linear triangles of all facets
-    tri_slave: np.ndarray  #: triangles of the slave facets
-    tri_master: np.ndarray  #: triangles of the master facets
-    area: np.ndarray  #: (F,) reference facet areas, mm²
-    slave_nodes: np.ndarray  #: nodes of the slave facets
-    tributary: np.ndarray  #: (N,) reference slave area per node (a third of each slave triangle), mm²
-    open_facet: (
-        np.ndarray
-    )  #: (F, 3) master facets' edges (corners 01, 12, 20) on the master surface's open boundary
-    open_triangle: np.ndarray  #: (T, 3) the same for the linear triangles of the master facets
-    identify: np.ndarray | None = (
-        None  #: (N,) the node each node stands for across a periodic seam (None: itself)
-    )
+    #: (N, 3) reference node coordinates, mm
+    X: np.ndarray
+    #: (F, 3 or 6) node indices, normals outward
+    facets: np.ndarray
+    #: (Fs,) slave facets
+    slave: np.ndarray
+    #: (Fm,) master facets
+    master: np.ndarray
+    #: per node
+    topology: SegmentTopology
+    #: arc length along a strand within which pairs are ignored, mm
+    exclusion: float
+    #: periodic lattice (None: no images)
+    lattice: Lattice | None
+    #: (T, 3) linear triangles of all facets
+    triangles: np.ndarray
+    #: triangles of the slave facets
+    tri_slave: np.ndarray
+    #: triangles of the master facets
+    tri_master: np.ndarray
+    #: (F,) reference facet areas, mm²
+    area: np.ndarray
+    #: nodes of the slave facets
+    slave_nodes: np.ndarray
+    #: (N,) reference slave area per node (a third of each slave triangle), mm²
+    tributary: np.ndarray
+    #: (F, 3) master facets' edges (corners 01, 12, 20) on the master surface's open boundary
+    open_facet: np.ndarray
+    #: (T, 3) the same for the linear triangles of the master facets
+    open_triangle: np.ndarray
+    #: (N,) the node each node stands for across a periodic seam (None: itself)
+    identify: np.ndarray | None = None
 
     def open_rim(self, element: np.ndarray, quadratic: bool) -> np.ndarray:
         """(m, 3) open-boundary flags of the edges of master elements (facets with ``quadratic``, else triangles)."""
@@ -511,9 +527,12 @@ OPPOSING = 0.5
 class Selection:
     """The master element chosen for each query point (see :func:`select_pairs`)."""
 
-    rows: np.ndarray  #: (s,) rows of the candidates, one per point that has an opposing element within reach
-    g: np.ndarray  #: (s,) signed gap, mm
-    projection: P2Projection | None  #: closest points on quadratic facets (rows), else None
+    #: (s,) rows of the candidates, one per point that has an opposing element within reach
+    rows: np.ndarray
+    #: (s,) signed gap, mm
+    g: np.ndarray
+    #: closest points on quadratic facets (rows), else None
+    projection: P2Projection | None
 
 
 def select_pairs(
@@ -725,14 +744,22 @@ def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 class P2Projection:
     """Closest points of points p on quadratic facets (see :func:`project_p2`)."""
 
-    xi: np.ndarray  #: (m, 2) parametric point ξ* in the reference triangle
-    x: np.ndarray  #: (m, 3) facet point x(ξ*), mm
-    xs: np.ndarray  #: (m, 3) tangent ∂x/∂ξ1 at ξ*, mm
-    xt: np.ndarray  #: (m, 3) tangent ∂x/∂ξ2 at ξ*, mm
-    n: np.ndarray  #: (m, 3) unit normal xs × xt / |xs × xt| (orientation of the corner order)
-    g: np.ndarray  #: (m,) gap n·(p − x), mm
-    dist: np.ndarray  #: (m,) |p − x|, mm
-    interior: np.ndarray  #: (m,) ξ* is an unclipped stationary point (p − x ⟂ the facet)
+    #: (m, 2) parametric point ξ* in the reference triangle
+    xi: np.ndarray
+    #: (m, 3) facet point x(ξ*), mm
+    x: np.ndarray
+    #: (m, 3) tangent ∂x/∂ξ1 at ξ*, mm
+    xs: np.ndarray
+    #: (m, 3) tangent ∂x/∂ξ2 at ξ*, mm
+    xt: np.ndarray
+    #: (m, 3) unit normal xs × xt / |xs × xt| (orientation of the corner order)
+    n: np.ndarray
+    #: (m,) gap n·(p − x), mm
+    g: np.ndarray
+    #: (m,) |p − x|, mm
+    dist: np.ndarray
+    #: (m,) ξ* is an unclipped stationary point (p − x ⟂ the facet)
+    interior: np.ndarray
 
 
 def project_p2(
@@ -1260,18 +1287,30 @@ class FrictionState:
     frozen parametric point ``xi``. ``offset`` is c at the frozen state.
     """
 
-    slave: np.ndarray  #: (m,) slave node (penalty) or slave facet (mortar)
-    point: np.ndarray  #: (m,) quadrature point on the slave facet (mortar), −1 for a node
-    master: np.ndarray  #: (m,) master element: linear triangle, or facet on quadratic mortar surfaces
-    image: np.ndarray  #: (m, 2) integer image of the master element
-    xi: np.ndarray  #: (m, 2) parametric point of the projection on the master element, -
-    force: np.ndarray  #: (m,) normal force λ = ε·w·⟨−g⟩ of the pair at the frozen state, N
-    normal: np.ndarray  #: (m, 3) unit master normal at the projection
-    size: np.ndarray  #: (m,) reference size of the slave element, mm
-    nodes: np.ndarray  #: (m, k) nodes of the pair: slave side, then master side
-    images: np.ndarray  #: (m, k, 2) images of those nodes
-    weights: np.ndarray  #: (m, k) c = Σ_a w_a p_a, slave point minus master material point
-    offset: np.ndarray  #: (m, 3) c at the frozen state, mm
+    #: (m,) slave node (penalty) or slave facet (mortar)
+    slave: np.ndarray
+    #: (m,) quadrature point on the slave facet (mortar), −1 for a node
+    point: np.ndarray
+    #: (m,) master element: linear triangle, or facet on quadratic mortar surfaces
+    master: np.ndarray
+    #: (m, 2) integer image of the master element
+    image: np.ndarray
+    #: (m, 2) parametric point of the projection on the master element, -
+    xi: np.ndarray
+    #: (m,) normal force λ = ε·w·⟨−g⟩ of the pair at the frozen state, N
+    force: np.ndarray
+    #: (m, 3) unit master normal at the projection
+    normal: np.ndarray
+    #: (m,) reference size of the slave element, mm
+    size: np.ndarray
+    #: (m, k) nodes of the pair: slave side, then master side
+    nodes: np.ndarray
+    #: (m, k, 2) images of those nodes
+    images: np.ndarray
+    #: (m, k) c = Σ_a w_a p_a, slave point minus master material point
+    weights: np.ndarray
+    #: (m, 3) c at the frozen state, mm
+    offset: np.ndarray
 
     def __len__(self) -> int:
         return int(self.force.shape[0])

@@ -326,28 +326,26 @@ class SolidIPC:
     )
     discretisation: ClassVar[str] = "solid"
 
-    stiffness: float | None = attrs.field(
-        default=None, validator=v.optional(v.positive)
-    )  #: ε, N/mm³; default factor·E/h
-    factor: float = attrs.field(
-        default=10.0, validator=v.positive
-    )  #: ε = factor · E / h when stiffness is not given, -
-    dhat: float = attrs.field(
-        default=0.1, validator=v.in_range(1e-4, 1.0)
-    )  #: activation distance d̂ / mean surface edge length, -
-    friction: float = attrs.field(
-        default=0.3, validator=v.in_range(0.0, 10.0)
-    )  #: Coulomb coefficient μ (used only with a friction state), -
-    slip: float = attrs.field(
-        default=0.05, validator=v.positive
-    )  #: friction regularisation ε_v / mean surface edge length, -
-    psd: bool = True  #: project each pair's Hessian to positive semi-definite (IPC's projected Newton)
-    reuse: float = attrs.field(
-        default=0.5, validator=v.in_range(0.0, 10.0)
-    )  #: broad-phase candidates are kept while no vertex has moved over reuse·d̂ since the search, which inflates each box by (½ + reuse)·d̂ (exact: a pair now within d̂ was then within d̂ + 2·reuse·d̂); 0 searches at every evaluation, -
-    ccd: str = attrs.field(
-        default="additive", validator=v.one_of(("additive", "tight-inclusion"))
-    )  #: narrow-phase CCD of the line search: "additive" (ACCD, Li et al. 2021: iterative, no interval lists; fast when pairs sit far inside d̂) or "tight-inclusion" (Wang et al. 2021: interval subdivision, ipctk's default; on the tight SL10 cell, 5e-8 mm gaps, one check took 60-70 s and 1.7 GB), -
+    #: ε, N/mm³; default factor·E/h
+    stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: ε = factor · E / h when stiffness is not given, -
+    factor: float = attrs.field(default=10.0, validator=v.positive)
+    #: activation distance d̂ / mean surface edge length, -
+    dhat: float = attrs.field(default=0.1, validator=v.in_range(1e-4, 1.0))
+    #: Coulomb coefficient μ (used only with a friction state), -
+    friction: float = attrs.field(default=0.3, validator=v.in_range(0.0, 10.0))
+    #: friction regularisation ε_v / mean surface edge length, -
+    slip: float = attrs.field(default=0.05, validator=v.positive)
+    #: project each pair's Hessian to positive semi-definite (IPC's projected Newton)
+    psd: bool = True
+    #: broad-phase candidates are kept while no vertex has moved over reuse·d̂ since the search, which
+    #: inflates each box by (½ + reuse)·d̂ (exact: a pair now within d̂ was then within d̂ + 2·reuse·d̂); 0
+    #: searches at every evaluation, -
+    reuse: float = attrs.field(default=0.5, validator=v.in_range(0.0, 10.0))
+    #: narrow-phase CCD of the line search: "additive" (ACCD, Li et al. 2021: iterative, no interval lists;
+    #: fast when pairs sit far inside d̂) or "tight-inclusion" (Wang et al. 2021: interval subdivision,
+    #: ipctk's default; on the tight SL10 cell, 5e-8 mm gaps, one check took 60-70 s and 1.7 GB), -
+    ccd: str = attrs.field(default="additive", validator=v.one_of(("additive", "tight-inclusion")))
 
     def penalty(self, modulus: float, size: float) -> float:
         """Penalty stiffness ε (N/mm³): ``stiffness``, else ``factor`` · E / h (converted to κ per surface)."""

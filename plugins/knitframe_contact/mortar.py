@@ -90,9 +90,8 @@ class SolidMortar(SolidContactLaw):
         "segment-to-segment penalty contact integrated over the slave surface (solid)"
     )
 
-    quadrature: int = attrs.field(
-        default=4, validator=v.in_range(1, 19)
-    )  #: polynomial order of the slave-triangle rule, -
+    #: polynomial order of the slave-triangle rule, -
+    quadrature: int = attrs.field(default=4, validator=v.in_range(1, 19))
 
     def _pairs(
         self,

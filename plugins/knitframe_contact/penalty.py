@@ -71,24 +71,19 @@ class SolidContactLaw:
     #: asking for more is refused before any work (VolumetricSolver.check_law_reach)
     finishes_strain: ClassVar[float | None] = 0.10
 
-    stiffness: float | None = attrs.field(
-        default=None, validator=v.optional(v.positive)
-    )  #: ε, N/mm³; default factor·E/h
-    factor: float = attrs.field(
-        default=10.0, validator=v.positive
-    )  #: ε = factor · E / h when stiffness is not given, -
-    friction: float = attrs.field(
-        default=0.3, validator=v.in_range(0.0, 10.0)
-    )  #: Coulomb coefficient μ (used only with a friction state), -
-    slip: float = attrs.field(
-        default=0.05, validator=v.positive
-    )  #: regularisation slip ε_s / slave facet size (mean corner-edge length), -
-    fade: float = attrs.field(
-        default=0.5, validator=v.in_range(0.0, 1.0, lo_open=True)
-    )  #: penetration / reach from which the penalty fades out, reaching zero force at the reach (1: no fade), -
-    smoothing: str = attrs.field(
-        default="nagata", validator=v.one_of(("none", "nagata"))
-    )  #: master surface of linear (P1) meshes: "none" (flat facets) or "nagata" (quadratic patches through the nodal normals), -
+    #: ε, N/mm³; default factor·E/h
+    stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: ε = factor · E / h when stiffness is not given, -
+    factor: float = attrs.field(default=10.0, validator=v.positive)
+    #: Coulomb coefficient μ (used only with a friction state), -
+    friction: float = attrs.field(default=0.3, validator=v.in_range(0.0, 10.0))
+    #: regularisation slip ε_s / slave facet size (mean corner-edge length), -
+    slip: float = attrs.field(default=0.05, validator=v.positive)
+    #: penetration / reach from which the penalty fades out, reaching zero force at the reach (1: no fade), -
+    fade: float = attrs.field(default=0.5, validator=v.in_range(0.0, 1.0, lo_open=True))
+    #: master surface of linear (P1) meshes: "none" (flat facets) or "nagata" (quadratic patches through the
+    #: nodal normals), -
+    smoothing: str = attrs.field(default="nagata", validator=v.one_of(("none", "nagata")))
 
     def band(self, reach: float) -> tuple[float, float] | None:
         """The fade band (d1, d2) of the penetration, mm (see :func:`~knitframe.numerics.solid_contact.penalty_depth`).

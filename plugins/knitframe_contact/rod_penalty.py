@@ -49,17 +49,16 @@ class RodPenalty:
     )
     discretisation: ClassVar[str] = "rod"
 
-    stiffness: float | None = attrs.field(
-        default=None, validator=v.optional(v.positive)
-    )  #: line contact stiffness of two parallel yarns at 5 % flattening, N/mm²; default: the yarn model's
-    smoothing: float = attrs.field(default=0.05, validator=v.in_range(1e-3, 1.0))  #: ε/dk, -
-    core: float = attrs.field(
-        default=0.5, validator=v.in_range(0.0, 1.0, hi_open=True)
-    )  #: smallest centre distance / dk (0: no barrier), -
-    friction: float = attrs.field(default=0.3, validator=v.in_range(0.0, 10.0))  #: Coulomb coefficient μ, -
-    slip: float = attrs.field(
-        default=0.01, validator=v.in_range(0.0, 1.0, lo_open=True)
-    )  #: regularisation slip ε_s / dk, -
+    #: line contact stiffness of two parallel yarns at 5 % flattening, N/mm²; default: the yarn model's
+    stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: ε/dk, -
+    smoothing: float = attrs.field(default=0.05, validator=v.in_range(1e-3, 1.0))
+    #: smallest centre distance / dk (0: no barrier), -
+    core: float = attrs.field(default=0.5, validator=v.in_range(0.0, 1.0, hi_open=True))
+    #: Coulomb coefficient μ, -
+    friction: float = attrs.field(default=0.3, validator=v.in_range(0.0, 10.0))
+    #: regularisation slip ε_s / dk, -
+    slip: float = attrs.field(default=0.01, validator=v.in_range(0.0, 1.0, lo_open=True))
 
     def normal(
         self, d: np.ndarray, dk: float, k: float, k_core: float | None = None

@@ -74,21 +74,20 @@ class DaskExecutor:
     name: ClassVar[str] = "dask"
     description: ClassVar[str] = "jobs on a dask.distributed cluster (LocalCluster or scheduler address)"
 
-    workers: int = attrs.field(default=2, validator=v.in_range(1, 4096))  #: LocalCluster worker processes
-    threads_per_worker: int = attrs.field(
-        default=1, validator=v.in_range(1, 1024)
-    )  #: LocalCluster threads per worker (jobs running at once in each)
-    memory_limit: str = attrs.field(
-        default="auto", validator=_check_memory_limit
-    )  #: LocalCluster memory per worker, e.g. "4GB"; "auto" shares the machine's
-    address: str | None = attrs.field(
-        default=None, validator=_check_address
-    )  #: scheduler address of an existing cluster, e.g. "tcp://10.0.0.5:8786"; unset: a LocalCluster
-    dashboard_address: str = (
-        ":8787"  #: LocalCluster dashboard (Dask takes another port when it is busy; ":0" any free port)
-    )
-    retries: int = attrs.field(default=0, validator=v.in_range(0, 100))  #: Dask retries of a task that raised
-    cache_dir: str | None = None  #: where finished results are kept; None disables the cache
+    #: LocalCluster worker processes
+    workers: int = attrs.field(default=2, validator=v.in_range(1, 4096))
+    #: LocalCluster threads per worker (jobs running at once in each)
+    threads_per_worker: int = attrs.field(default=1, validator=v.in_range(1, 1024))
+    #: LocalCluster memory per worker, e.g. "4GB"; "auto" shares the machine's
+    memory_limit: str = attrs.field(default="auto", validator=_check_memory_limit)
+    #: scheduler address of an existing cluster, e.g. "tcp://10.0.0.5:8786"; unset: a LocalCluster
+    address: str | None = attrs.field(default=None, validator=_check_address)
+    #: LocalCluster dashboard (Dask takes another port when it is busy; ":0" any free port)
+    dashboard_address: str = ":8787"
+    #: Dask retries of a task that raised
+    retries: int = attrs.field(default=0, validator=v.in_range(0, 100))
+    #: where finished results are kept; None disables the cache
+    cache_dir: str | None = None
 
     def _client(self):
         try:

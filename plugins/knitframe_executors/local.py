@@ -26,10 +26,10 @@ class LocalExecutor:
     name: ClassVar[str] = "local"
     description: ClassVar[str] = "jobs in this process or a local process pool, cached by job hash"
 
-    workers: int = attrs.field(
-        default=1, validator=v.in_range(1, 1024)
-    )  #: processes; 1 runs the jobs in this process
-    cache_dir: str | None = None  #: where finished results are kept; None disables the cache
+    #: processes; 1 runs the jobs in this process
+    workers: int = attrs.field(default=1, validator=v.in_range(1, 1024))
+    #: where finished results are kept; None disables the cache
+    cache_dir: str | None = None
 
     def map(
         self,

@@ -31,16 +31,14 @@ class LBFGSFitter:
     name: ClassVar[str] = "lbfgs"
     description: ClassVar[str] = "scipy L-BFGS-B with analytic gradient, multi-start from a Halton screen"
 
-    starts: int = attrs.field(
-        default=4, validator=v.in_range(1, 1000)
-    )  #: local runs from the best screened points
-    screen: int = attrs.field(
-        default=64, validator=v.in_range(0, 100000)
-    )  #: Halton points screened for starts
-    max_iter: int = attrs.field(default=500, validator=v.in_range(1, 10**6))  #: L-BFGS-B iterations per start
-    transverse_weight: float = attrs.field(
-        default=1.0, validator=v.non_negative
-    )  #: weight of transverse-strain NRMSE²
+    #: local runs from the best screened points
+    starts: int = attrs.field(default=4, validator=v.in_range(1, 1000))
+    #: Halton points screened for starts
+    screen: int = attrs.field(default=64, validator=v.in_range(0, 100000))
+    #: L-BFGS-B iterations per start
+    max_iter: int = attrs.field(default=500, validator=v.in_range(1, 10**6))
+    #: weight of transverse-strain NRMSE²
+    transverse_weight: float = attrs.field(default=1.0, validator=v.non_negative)
 
     def fit(self, model, responses: Iterable[Response]) -> FitResult:
         from scipy.optimize import minimize

@@ -36,14 +36,14 @@ class MADSFitter:
     name: ClassVar[str] = "mads"
     description: ClassVar[str] = "NOMAD 4 mesh adaptive direct search (PyNomadBBO), as in the paper"
 
-    max_evals: int = attrs.field(default=1500, validator=v.in_range(1, 10**7))  #: NOMAD MAX_BB_EVAL
-    screen: int = attrs.field(
-        default=64, validator=v.in_range(0, 100000)
-    )  #: Halton points screened for the start
-    seed: int = attrs.field(default=1, validator=v.in_range(0, 2**31 - 1))  #: NOMAD SEED
-    transverse_weight: float = attrs.field(
-        default=1.0, validator=v.non_negative
-    )  #: weight of transverse-strain NRMSE²
+    #: NOMAD MAX_BB_EVAL
+    max_evals: int = attrs.field(default=1500, validator=v.in_range(1, 10**7))
+    #: Halton points screened for the start
+    screen: int = attrs.field(default=64, validator=v.in_range(0, 100000))
+    #: NOMAD SEED
+    seed: int = attrs.field(default=1, validator=v.in_range(0, 2**31 - 1))
+    #: weight of transverse-strain NRMSE²
+    transverse_weight: float = attrs.field(default=1.0, validator=v.non_negative)
 
     def fit(self, model, responses: Iterable[Response]) -> FitResult:
         PyNomad = _import_nomad()

@@ -86,12 +86,18 @@ def _positive(name: str, value: float) -> float:
 class FibreSolid:
     """The paper's membrane as a Holzapfel solid of reference thickness ``thickness`` (mm)."""
 
-    a: float  #: N/mm
-    b: float  #: -
-    theta_deg: float  #: degrees from the course towards the wale, as stored in params.json
-    thickness: float = 1.0  #: t0, mm
-    matrix_fraction: float = 1e-4  #: C10 = matrix_fraction · k1/2
-    bulk_ratio: float = 1e5  #: initial bulk modulus 2/D = bulk_ratio · k1
+    #: N/mm
+    a: float
+    #: -
+    b: float
+    #: degrees from the course towards the wale, as stored in params.json
+    theta_deg: float
+    #: t0, mm
+    thickness: float = 1.0
+    #: C10 = matrix_fraction · k1/2
+    matrix_fraction: float = 1e-4
+    #: initial bulk modulus 2/D = bulk_ratio · k1
+    bulk_ratio: float = 1e5
 
     def __attrs_post_init__(self):
         _positive("a", self.a)

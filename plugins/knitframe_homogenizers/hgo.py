@@ -243,7 +243,8 @@ class HGO:
     #: formats :meth:`card` writes (see :mod:`knitframe.export`)
     card_formats: ClassVar[tuple[str, ...]] = ("abaqus", "calculix", "calculix-deck", "febio")
 
-    compression_fibre: bool = True  #: keep the fibre stress for I4 < 1 (paper); false drops it
+    #: keep the fibre stress for I4 < 1 (paper); false drops it
+    compression_fibre: bool = True
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Parameter box used by the fitters: a in [1e-6, 1e2] N/mm, b in [1e-4, 1e3], θ in [0, π/2]."""

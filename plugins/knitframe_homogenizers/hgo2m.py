@@ -73,7 +73,8 @@ class HGO2M:
         "FEBio Holzapfel-Gasser-Ogden is an isotropic solid; fit 'hgo' for a card"
     )
 
-    compression_fibre: bool = False  #: keep the fibre stress in compression (false: tension-only fibres)
+    #: keep the fibre stress in compression (false: tension-only fibres)
+    compression_fibre: bool = False
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """μ1, μ2, K, a1, a2 in [1e-6, 1e2] N/mm; b1, b2 in [1e-4, 1e3]."""

@@ -31,9 +31,12 @@ class PressureProfile:
     )
     quantity: ClassVar[str] = "pressure"
 
-    target_mmHg: float = 25.0  #: target pressure at the distal end (wrist or ankle), mmHg (RAL class II)
-    at: list[float] = attrs.Factory(lambda: [0.0, 1.0])  #: positions along the limb, 0 distal to 1 top
-    ratios: list[float] = attrs.Factory(lambda: [1.0, 0.6])  #: target / target_mmHg at those positions
+    #: target pressure at the distal end (wrist or ankle), mmHg (RAL class II)
+    target_mmHg: float = 25.0
+    #: positions along the limb, 0 distal to 1 top
+    at: list[float] = attrs.Factory(lambda: [0.0, 1.0])
+    #: target / target_mmHg at those positions
+    ratios: list[float] = attrs.Factory(lambda: [1.0, 0.6])
 
     def __attrs_post_init__(self) -> None:
         if not (np.isfinite(self.target_mmHg) and self.target_mmHg > 0):

@@ -50,9 +50,8 @@ class PressureUniformity:
     description: ClassVar[str] = "uniform (or target) interface pressure p = T/r by Laplace's law"
     quantity: ClassVar[str] = "pressure"
 
-    target_mmHg: float | None = attrs.field(
-        default=None, validator=v.optional(v.positive)
-    )  #: target pressure, mmHg
+    #: target pressure, mmHg
+    target_mmHg: float | None = attrs.field(default=None, validator=v.optional(v.positive))
 
     @property
     def relative(self) -> bool:

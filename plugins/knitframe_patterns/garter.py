@@ -22,9 +22,8 @@ class Garter(KnitLoopPattern):
     # Garter is shorter along the wale than jersey (knit and purl rows nest). 6.5 keeps the loop
     # height near Crane's 0.89 wale pitches at SL11 and every SL10-12 cell interlocked: a
     # modelling default, not a measurement.
-    Kc: float = attrs.field(
-        default=6.5, validator=v.positive
-    )  #: course constant for garter (jersey's 5.3 x ~1.2), -
+    #: course constant for garter (jersey's 5.3 x ~1.2), -
+    Kc: float = attrs.field(default=6.5, validator=v.positive)
 
 
 @hookimpl

@@ -70,14 +70,22 @@ SIGN = {"k": 1.0, "p": -1.0}
 class LoopRow:
     """One row of loops (two stitches per 4π of t); evaluates r(t) and dr/dt exactly."""
 
-    course_pitch: float  #: p_c, mm
-    y0: float  #: row offset r·p_w, mm
-    height: float  #: H, mm
-    roundness: float  #: a, -
-    depth: float  #: D, mm
-    own: tuple[float, float]  #: σ of this row's two stitches
-    up: tuple[float, float]  #: σ of the two stitches of the row above
-    sharpness: float  #: κ, -
+    #: p_c, mm
+    course_pitch: float
+    #: row offset r·p_w, mm
+    y0: float
+    #: H, mm
+    height: float
+    #: a, -
+    roundness: float
+    #: D, mm
+    depth: float
+    #: σ of this row's two stitches
+    own: tuple[float, float]
+    #: σ of the two stitches of the row above
+    up: tuple[float, float]
+    #: κ, -
+    sharpness: float
 
     def _g(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         s1, ds1 = _step(np.cos(t), self.sharpness)
@@ -147,20 +155,20 @@ class KnitLoopPattern:
     description: ClassVar[str] = ""
     layout: ClassVar[tuple[tuple[str, str], tuple[str, str]]] = (("k", "k"), ("k", "k"))
 
+    #: machine setting -> yarn length per stitch, mm
     stitch_lengths: dict[str, float] = attrs.field(
         factory=lambda: dict(STITCH_LENGTHS), validator=_check_table
-    )  #: machine setting -> yarn length per stitch, mm
-    Kc: float = attrs.field(
-        default=KC, validator=_MUNDEN
-    )  #: Munden course constant (courses/cm = Kc/ℓ[cm]), -
-    Kw: float = attrs.field(default=KW, validator=_MUNDEN)  #: Munden wale constant (wales/cm = Kw/ℓ[cm]), -
-    roundness: float = attrs.field(default=1.5, validator=v.in_range(0.0, 10.0))  #: Crane's a, -
-    depth: float = attrs.field(
-        default=0.625, validator=_DEPTH
-    )  #: out-of-plane amplitude D / dk (Crane: 1/1.6), -
-    sharpness: float = attrs.field(
-        default=3.0, validator=v.in_range(0.0, 50.0, lo_open=True)
-    )  #: knit/purl blend κ, -
+    )
+    #: Munden course constant (courses/cm = Kc/ℓ[cm]), -
+    Kc: float = attrs.field(default=KC, validator=_MUNDEN)
+    #: Munden wale constant (wales/cm = Kw/ℓ[cm]), -
+    Kw: float = attrs.field(default=KW, validator=_MUNDEN)
+    #: Crane's a, -
+    roundness: float = attrs.field(default=1.5, validator=v.in_range(0.0, 10.0))
+    #: out-of-plane amplitude D / dk (Crane: 1/1.6), -
+    depth: float = attrs.field(default=0.625, validator=_DEPTH)
+    #: knit/purl blend κ, -
+    sharpness: float = attrs.field(default=3.0, validator=v.in_range(0.0, 50.0, lo_open=True))
 
     def pitches(self, arc: float, fabric: Fabric) -> tuple[float, float]:
         """(course, wale) pitch in mm: the fabric's if given, else Munden's ℓ/Kw and ℓ/Kc."""

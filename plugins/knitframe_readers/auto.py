@@ -34,12 +34,10 @@ class AutoReader:
         "detect the reader from the file's header (singal2024, generic, or an installed one)"
     )
 
-    average: bool = (
-        True  #: passed to the chosen reader: one mean ± sd Response per curve; false: one per repeat
-    )
-    points: int | None = attrs.field(
-        default=None, validator=v.optional(v.in_range(2, 100000))
-    )  #: passed to the chosen reader (its default if unset)
+    #: passed to the chosen reader: one mean ± sd Response per curve; false: one per repeat
+    average: bool = True
+    #: passed to the chosen reader (its default if unset)
+    points: int | None = attrs.field(default=None, validator=v.optional(v.in_range(2, 100000)))
 
     def detect(self, path: Path) -> str:
         """Name of the reader for ``path``; a header no reader accepts is a DataError listing what each expects."""

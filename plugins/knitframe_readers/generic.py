@@ -132,20 +132,18 @@ class GenericReader:
         "direction, transverse_strain or transverse_stretch, thickness_mm, width_mm)"
     )
 
-    average: bool = True  #: one mean ± sd Response per direction; false gives one Response per sample
-    points: int = attrs.field(default=50, validator=v.in_range(2, 100000))  #: grid size when averaging
-    direction: str | None = attrs.field(
-        default=None, validator=v.optional(v.one_of(tuple(_DIRECTIONS)))
-    )  #: default direction
-    thickness_mm: float | None = attrs.field(
-        default=None, validator=v.optional(v.positive)
-    )  #: default thickness, mm
-    width_mm: float | None = attrs.field(
-        default=None, validator=v.optional(v.positive)
-    )  #: default specimen width, mm
-    max_tension: float = attrs.field(
-        default=FORCE_TENSION, validator=v.positive
-    )  #: N/mm; beyond it a tension reads as a force in N
+    #: one mean ± sd Response per direction; false gives one Response per sample
+    average: bool = True
+    #: grid size when averaging
+    points: int = attrs.field(default=50, validator=v.in_range(2, 100000))
+    #: default direction
+    direction: str | None = attrs.field(default=None, validator=v.optional(v.one_of(tuple(_DIRECTIONS))))
+    #: default thickness, mm
+    thickness_mm: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: default specimen width, mm
+    width_mm: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: N/mm; beyond it a tension reads as a force in N
+    max_tension: float = attrs.field(default=FORCE_TENSION, validator=v.positive)
 
     @classmethod
     def accepts(cls, header: list[str]) -> bool:

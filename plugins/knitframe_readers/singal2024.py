@@ -48,8 +48,10 @@ class Singal2024Reader:
         "Singal et al. 2024 uniaxial knit tests (video, strain_axial, strain_transverse, N/mm)"
     )
 
-    average: bool = True  #: one mean ± sd Response per file; false gives one Response per repeat
-    points: int = attrs.field(default=40, validator=v.in_range(2, 100000))  #: grid size when averaging
+    #: one mean ± sd Response per file; false gives one Response per repeat
+    average: bool = True
+    #: grid size when averaging
+    points: int = attrs.field(default=40, validator=v.in_range(2, 100000))
     #: the header this reader expects, for the auto reader's message when no reader matches
     expects: ClassVar[str] = ", ".join(COLUMNS)
 

@@ -51,13 +51,12 @@ class ReducedSolver:
     #: cheap enough for the conformance kit to simulate with default options
     conformance_simulate: ClassVar[bool] = True
 
-    model: str | dict[str, Any] = "hgo"  #: homogenizer name, or a table with ``kind`` and its options
-    params: dict[str, float] = attrs.Factory(
-        dict
-    )  #: parameters by name, angles as ``<name>_deg``; empty: the model's defaults
-    params_file: str | None = (
-        None  #: params.json of a fit (relative to the working directory); overrides ``model``/``params``
-    )
+    #: homogenizer name, or a table with ``kind`` and its options
+    model: str | dict[str, Any] = "hgo"
+    #: parameters by name, angles as ``<name>_deg``; empty: the model's defaults
+    params: dict[str, float] = attrs.Factory(dict)
+    #: params.json of a fit (relative to the working directory); overrides ``model``/``params``
+    params_file: str | None = None
 
     def __attrs_post_init__(self) -> None:
         self.resolved("")  # fail at configuration time, not in the middle of a run (paths below [solver])

@@ -232,58 +232,50 @@ class RodSolver:
         {"equibiaxial", "uniaxial-course", "uniaxial-wale", "general"}
     )
 
-    segments_per_stitch: int | None = attrs.field(
-        default=None, validator=v.optional(v.in_range(4, 1000))
-    )  #: rod segments per stitch of yarn; unset: segments no longer than dk/2 (at least 16), -
-    linear_solver: str | dict[str, Any] = "direct"  #: linear-solver plugin name or table with ``kind``
-    contact_law: str | dict[str, Any] = "rod_penalty"  #: rod contact-law plugin name or table with ``kind``
-    prestress_steps: int = attrs.field(
-        default=8, validator=v.in_range(1, 1000)
-    )  #: steps growing the contact radius, -
-    prestress_start: Literal["auto", "straight", "knitted"] = (
-        "auto"  #: yarn rest shape during the pre-stress: straight throughout, or the knitted shape released to straight; "auto" tries straight, then knitted
-    )
-    starts: int | Literal["auto"] = attrs.field(
-        default="auto", validator=start_count
-    )  #: pre-stress starts explored, the first n of nominal, other rest shape (straight/knitted), 1.5x the pre-stress steps, loop depth x0.5, x1.5; the load continues from the lowest relaxed energy, or from the next if that load path fails; "auto": the first 3
-    follow_branch: bool = True  #: under a uniaxial load, cut back a step whose free side jumps so the path follows its branch; a jump left at the smallest increment is flagged with where it happened
-    initial_radius: float = attrs.field(
-        default=0.7, validator=v.in_range(0.0, 1.0, lo_open=True)
-    )  #: largest start of the pre-stress radius / (dk/2), -
-    self_contact_exclusion: float = attrs.field(
-        default=np.pi, validator=v.positive
-    )  #: same-strand pairs closer than this × dk along the yarn are neighbours, -
-    tolerance: float = attrs.field(default=1e-9, validator=v.positive)  #: Newton residual tolerance / EA, -
-    stabilisation: float = attrs.field(
-        default=1e-6, validator=v.non_negative
-    )  #: relative Hessian shift while a strand has no contact, -
-    max_step: float = attrs.field(
-        default=0.2, validator=v.positive
-    )  #: largest node move per Newton step / max(current contact distance, dk/2), -
-    min_step_fraction: float = attrs.field(
-        default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True)
-    )  #: smallest cut-back increment / load step, -
-    max_iterations: int = attrs.field(
-        default=100, validator=v.in_range(1, 10000)
-    )  #: Newton iterations per increment, -
-    relax: bool = (
-        True  #: after pre-stress, let the lattice contract or expand to zero tension and load from there
-    )
-    on_failure: Literal["raise", "truncate"] = (
-        "raise"  #: "truncate" returns the converged steps (converged = false)
-    )
-    EA: float | None = attrs.field(
-        default=None, validator=v.optional(v.positive)
-    )  #: override axial stiffness, N
-    EI: float | None = attrs.field(
-        default=None, validator=v.optional(v.positive)
-    )  #: override bending stiffness, N·mm²
-    contact_stiffness: float | None = attrs.field(
-        default=None, validator=v.optional(v.positive)
-    )  #: override the line contact stiffness at 5 % flattening, N/mm²
-    contact_quadrature: int = attrs.field(
-        default=4, validator=v.in_range(1, 16)
-    )  #: Gauss points per segment (each way) of the contact integral, -
+    #: rod segments per stitch of yarn; unset: segments no longer than dk/2 (at least 16), -
+    segments_per_stitch: int | None = attrs.field(default=None, validator=v.optional(v.in_range(4, 1000)))
+    #: linear-solver plugin name or table with ``kind``
+    linear_solver: str | dict[str, Any] = "direct"
+    #: rod contact-law plugin name or table with ``kind``
+    contact_law: str | dict[str, Any] = "rod_penalty"
+    #: steps growing the contact radius, -
+    prestress_steps: int = attrs.field(default=8, validator=v.in_range(1, 1000))
+    #: yarn rest shape during the pre-stress: straight throughout, or the knitted shape released to straight;
+    #: "auto" tries straight, then knitted
+    prestress_start: Literal["auto", "straight", "knitted"] = "auto"
+    #: pre-stress starts explored, the first n of nominal, other rest shape (straight/knitted), 1.5x the
+    #: pre-stress steps, loop depth x0.5, x1.5; the load continues from the lowest relaxed energy, or from the
+    #: next if that load path fails; "auto": the first 3
+    starts: int | Literal["auto"] = attrs.field(default="auto", validator=start_count)
+    #: under a uniaxial load, cut back a step whose free side jumps so the path follows its branch; a jump
+    #: left at the smallest increment is flagged with where it happened
+    follow_branch: bool = True
+    #: largest start of the pre-stress radius / (dk/2), -
+    initial_radius: float = attrs.field(default=0.7, validator=v.in_range(0.0, 1.0, lo_open=True))
+    #: same-strand pairs closer than this × dk along the yarn are neighbours, -
+    self_contact_exclusion: float = attrs.field(default=np.pi, validator=v.positive)
+    #: Newton residual tolerance / EA, -
+    tolerance: float = attrs.field(default=1e-9, validator=v.positive)
+    #: relative Hessian shift while a strand has no contact, -
+    stabilisation: float = attrs.field(default=1e-6, validator=v.non_negative)
+    #: largest node move per Newton step / max(current contact distance, dk/2), -
+    max_step: float = attrs.field(default=0.2, validator=v.positive)
+    #: smallest cut-back increment / load step, -
+    min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))
+    #: Newton iterations per increment, -
+    max_iterations: int = attrs.field(default=100, validator=v.in_range(1, 10000))
+    #: after pre-stress, let the lattice contract or expand to zero tension and load from there
+    relax: bool = True
+    #: "truncate" returns the converged steps (converged = false)
+    on_failure: Literal["raise", "truncate"] = "raise"
+    #: override axial stiffness, N
+    EA: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: override bending stiffness, N·mm²
+    EI: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: override the line contact stiffness at 5 % flattening, N/mm²
+    contact_stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: Gauss points per segment (each way) of the contact integral, -
+    contact_quadrature: int = attrs.field(default=4, validator=v.in_range(1, 16))
 
     # ------------------------------------------------------------------------------------- setup
     def validate(self, fabric: Fabric, scene: Scene, registry=None) -> None:

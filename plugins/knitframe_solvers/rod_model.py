@@ -33,15 +33,24 @@ __all__ = ["RodModel", "RodEnergy", "from_cell", "open_rods"]
 class RodModel:
     """Nodes, edges and bending triplets of a set of rods, possibly periodic."""
 
-    X: np.ndarray  #: (N, 3) reference node positions, mm
-    edges: np.ndarray  #: (E, 2) node indices
-    edge_images: np.ndarray  #: (E, 2, 2) periodic image of each edge point
-    triplets: np.ndarray  #: (B, 3) node indices (previous, vertex, next)
-    triplet_images: np.ndarray  #: (B, 3, 2)
-    l0: np.ndarray  #: (E,) rest lengths, mm
-    lbar: np.ndarray  #: (B,) Voronoi lengths, mm
-    topology: SegmentTopology  #: strand bookkeeping per edge
-    yarn: np.ndarray  #: (N,) yarn index of each node
+    #: (N, 3) reference node positions, mm
+    X: np.ndarray
+    #: (E, 2) node indices
+    edges: np.ndarray
+    #: (E, 2, 2) periodic image of each edge point
+    edge_images: np.ndarray
+    #: (B, 3) node indices (previous, vertex, next)
+    triplets: np.ndarray
+    #: (B, 3, 2)
+    triplet_images: np.ndarray
+    #: (E,) rest lengths, mm
+    l0: np.ndarray
+    #: (B,) Voronoi lengths, mm
+    lbar: np.ndarray
+    #: strand bookkeeping per edge
+    topology: SegmentTopology
+    #: (N,) yarn index of each node
+    yarn: np.ndarray
     lattice: Lattice | None = None
 
     @property
@@ -208,14 +217,22 @@ def from_cell(cell: Any, segments_per_stitch: int) -> RodModel:
 class FrictionLag:
     """Contacting point pairs of the last converged state, whose normal force and normal friction uses."""
 
-    i: np.ndarray  #: (m,) segment
-    j: np.ndarray  #: (m,) segment at image k
-    k: np.ndarray  #: (m, 2)
-    s: np.ndarray  #: (m,) quadrature parameter on i
-    t: np.ndarray  #: (m,) quadrature parameter on j
-    c: np.ndarray  #: (m, 3) c = J x at the lag
-    normal: np.ndarray  #: (m, 3)
-    lam: np.ndarray  #: (m,) normal force of the point pair, N
+    #: (m,) segment
+    i: np.ndarray
+    #: (m,) segment at image k
+    j: np.ndarray
+    #: (m, 2)
+    k: np.ndarray
+    #: (m,) quadrature parameter on i
+    s: np.ndarray
+    #: (m,) quadrature parameter on j
+    t: np.ndarray
+    #: (m, 3) c = J x at the lag
+    c: np.ndarray
+    #: (m, 3)
+    normal: np.ndarray
+    #: (m,) normal force of the point pair, N
+    lam: np.ndarray
 
 
 @attrs.define(eq=False, slots=False)
@@ -236,21 +253,32 @@ class RodEnergy:
     """
 
     model: RodModel
-    EA: float  #: N
-    EI: float  #: N·mm²
+    #: N
+    EA: float
+    #: N·mm²
+    EI: float
     bending: bool = True
     law: Any = None
-    dk: float = 0.0  #: contact distance, mm
-    k_contact: float = 0.0  #: penalty stiffness of the contact density, N/mm³
-    k_core: float | None = None  #: core (barrier) stiffness of the contact density, N/mm³
+    #: contact distance, mm
+    dk: float = 0.0
+    #: penalty stiffness of the contact density, N/mm³
+    k_contact: float = 0.0
+    #: core (barrier) stiffness of the contact density, N/mm³
+    k_core: float | None = None
     self_contact: bool = False
-    exclusion: float = 0.0  #: mm
+    #: mm
+    exclusion: float = 0.0
     friction: bool = False
-    quadrature: int = 4  #: Gauss points per segment in each direction of the contact integral
-    k_line: float | None = None  #: line contact stiffness the density was scaled to, N/mm² (reported only)
-    dk_full: float | None = None  #: contact distance at which k_contact and k_core hold, mm (None: any dk)
-    kappa0: np.ndarray | None = None  #: (B,) rest curvature magnitude of each vertex, - (None: straight)
-    external: np.ndarray | None = None  #: (n_dof,) generalised forces, N (and N·mm on h)
+    #: Gauss points per segment in each direction of the contact integral
+    quadrature: int = 4
+    #: line contact stiffness the density was scaled to, N/mm² (reported only)
+    k_line: float | None = None
+    #: contact distance at which k_contact and k_core hold, mm (None: any dk)
+    dk_full: float | None = None
+    #: (B,) rest curvature magnitude of each vertex, - (None: straight)
+    kappa0: np.ndarray | None = None
+    #: (n_dof,) generalised forces, N (and N·mm on h)
+    external: np.ndarray | None = None
     lag: FrictionLag | None = None
     calls: Counter = attrs.Factory(Counter)
 

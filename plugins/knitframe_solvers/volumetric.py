@@ -165,104 +165,109 @@ class VolumetricSolver:
         {"equibiaxial", "uniaxial-course", "uniaxial-wale", "general"}
     )
 
-    order: int = attrs.field(
-        default=2, validator=v.in_range(1, 2)
-    )  #: polynomial order of the tetrahedra (1 or 2), -
-    seed: float = attrs.field(
-        default=1.0 / 3.0, validator=v.in_range(0.05, 1.5)
-    )  #: element size / yarn radius, -
-    contact_law: str | dict[str, Any] = (
-        "ipc"  #: solid contact-law plugin name or table with ``kind`` (ipc: barrier, the default; mortar, penalty), -
-    )
-    linear_solver: str | dict[str, Any] = "direct"  #: linear-solver plugin name or table with ``kind``
-    contact_modulus: float | None = attrs.field(
-        default=None, validator=v.optional(v.positive)
-    )  #: modulus scaling the penalty, MPa; default the yarn's E_transverse
-    reach: float = attrs.field(default=0.5, validator=v.positive)  #: contact search distance / yarn radius, -
-    self_contact_exclusion: float = attrs.field(
-        default=np.pi, validator=v.positive
-    )  #: same-strand pairs closer than this × dk along the yarn are the yarn itself (the ipc law: all pairs within 0.75 × this, none beyond it), -
-    prestress_steps: int = attrs.field(
-        default=8, validator=v.in_range(1, 1000)
-    )  #: steps of the radial pre-stress, -
-    initial_radius: float = attrs.field(
-        default=0.9, validator=v.in_range(0.05, 1.0)
-    )  #: largest start radius of the pre-stress / r, -
-    min_clearance: float = attrs.field(
-        default=0.25, validator=v.in_range(0.05, 2.0)
-    )  #: with pre-stress, closest centerline distance / r below which a cell is refused (the pre-stress starts at 0.95 of half of it; without pre-stress the limit is r), -
-    tolerance: float = attrs.field(
-        default=1e-3, validator=v.positive
-    )  #: Newton residual tolerance (largest nodal force) / (E_transverse r²), -
-    flux_tolerance: float = attrs.field(
-        default=5e-3, validator=v.non_negative
-    )  #: also converged at a residual ≤ this × the average nodal force flux (ABAQUS's R_n; 0: off), -
-    late_flux_tolerance: float = attrs.field(
-        default=2e-2, validator=v.non_negative
-    )  #: the flux ratio after 9 iterations (ABAQUS's R_P; 0: flux_tolerance throughout), -
-    correction_tolerance: float = attrs.field(
-        default=1e-2, validator=v.positive
-    )  #: ... when the last Newton correction ≤ this × the increment's displacement (ABAQUS's C_n), -
-    path_tolerance_factor: float = attrs.field(
-        default=10.0, validator=v.in_range(1.0, 1e6)
-    )  #: tolerances (residual, flux, step) of the intermediate pre-stress states / the final ones, -
-    max_step: float = attrs.field(
-        default=0.25, validator=v.positive
-    )  #: largest node move per Newton step / yarn radius (at most reach / 2 with contact_search = "iteration"), -
+    #: polynomial order of the tetrahedra (1 or 2), -
+    order: int = attrs.field(default=2, validator=v.in_range(1, 2))
+    #: element size / yarn radius, -
+    seed: float = attrs.field(default=1.0 / 3.0, validator=v.in_range(0.05, 1.5))
+    #: solid contact-law plugin name or table with ``kind`` (ipc: barrier, the default; mortar, penalty), -
+    contact_law: str | dict[str, Any] = "ipc"
+    #: linear-solver plugin name or table with ``kind``
+    linear_solver: str | dict[str, Any] = "direct"
+    #: modulus scaling the penalty, MPa; default the yarn's E_transverse
+    contact_modulus: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: contact search distance / yarn radius, -
+    reach: float = attrs.field(default=0.5, validator=v.positive)
+    #: same-strand pairs closer than this × dk along the yarn are the yarn itself (the ipc law: all pairs
+    #: within 0.75 × this, none beyond it), -
+    self_contact_exclusion: float = attrs.field(default=np.pi, validator=v.positive)
+    #: steps of the radial pre-stress, -
+    prestress_steps: int = attrs.field(default=8, validator=v.in_range(1, 1000))
+    #: largest start radius of the pre-stress / r, -
+    initial_radius: float = attrs.field(default=0.9, validator=v.in_range(0.05, 1.0))
+    #: with pre-stress, closest centerline distance / r below which a cell is refused (the pre-stress starts
+    #: at 0.95 of half of it; without pre-stress the limit is r), -
+    min_clearance: float = attrs.field(default=0.25, validator=v.in_range(0.05, 2.0))
+    #: Newton residual tolerance (largest nodal force) / (E_transverse r²), -
+    tolerance: float = attrs.field(default=1e-3, validator=v.positive)
+    #: also converged at a residual ≤ this × the average nodal force flux (ABAQUS's R_n; 0: off), -
+    flux_tolerance: float = attrs.field(default=5e-3, validator=v.non_negative)
+    #: the flux ratio after 9 iterations (ABAQUS's R_P; 0: flux_tolerance throughout), -
+    late_flux_tolerance: float = attrs.field(default=2e-2, validator=v.non_negative)
+    #: ... when the last Newton correction ≤ this × the increment's displacement (ABAQUS's C_n), -
+    correction_tolerance: float = attrs.field(default=1e-2, validator=v.positive)
+    #: tolerances (residual, flux, step) of the intermediate pre-stress states / the final ones, -
+    path_tolerance_factor: float = attrs.field(default=10.0, validator=v.in_range(1.0, 1e6))
+    #: largest node move per Newton step / yarn radius (at most reach / 2 with contact_search = "iteration"),
+    #: -
+    max_step: float = attrs.field(default=0.25, validator=v.positive)
+    #: Newton's Hessian: its PSD projection per quadrature point (projected Newton), the exact tangent, or the
+    #: projection while exact steps fail ("adaptive": projected far from the solution, exact near it)
     tangent: Literal["adaptive", "exact", "projected"] = attrs.field(
         default="projected", validator=v.one_of(("adaptive", "exact", "projected"))
-    )  #: Newton's Hessian: its PSD projection per quadrature point (projected Newton), the exact tangent, or the projection while exact steps fail ("adaptive": projected far from the solution, exact near it)
-    start_projected: bool = attrs.field(
-        default=False, validator=v.boolean
-    )  #: with tangent = "adaptive", start every increment on the projected tangent (an increment's first exact step mostly fails: this saves its evaluation and factorisation)
-    step_tolerance: float = attrs.field(
-        default=0.01, validator=v.non_negative
-    )  #: also converged when the exact Newton step moves no node more than this × r (IPC's test; 0: off), -
+    )
+    #: with tangent = "adaptive", start every increment on the projected tangent (an increment's first exact
+    #: step mostly fails: this saves its evaluation and factorisation)
+    start_projected: bool = attrs.field(default=False, validator=v.boolean)
+    #: also converged when the exact Newton step moves no node more than this × r (IPC's test; 0: off), -
+    step_tolerance: float = attrs.field(default=0.01, validator=v.non_negative)
+    #: start of a load increment: the affine map of the macro step, plus ("secant") the yarns' fluctuation and
+    #: free macro DOFs extrapolated from the last two converged increments (with a barrier, its crossing-free
+    #: part; taken only if it lowers the energy)
     predictor: Literal["affine", "secant"] = attrs.field(
         default="affine", validator=v.one_of(("affine", "secant"))
-    )  #: start of a load increment: the affine map of the macro step, plus ("secant") the yarns' fluctuation and free macro DOFs extrapolated from the last two converged increments (with a barrier, its crossing-free part; taken only if it lowers the energy)
+    )
+    #: the projected tangent's negative eigenvalues: set to zero at each quadrature point ("clamp", the
+    #: closest PSD matrix), to their absolute value there ("abs": a compressed fibre's mode keeps its
+    #: stiffness's size), or set to zero in each element matrix ("element", IPC's projection; a 30 × 30
+    #: eigenproblem per P2 element)
     eigenvalue_filter: Literal["clamp", "abs", "element"] = attrs.field(
         default="clamp", validator=v.one_of(("clamp", "abs", "element"))
-    )  #: the projected tangent's negative eigenvalues: set to zero at each quadrature point ("clamp", the closest PSD matrix), to their absolute value there ("abs": a compressed fibre's mode keeps its stiffness's size), or set to zero in each element matrix ("element", IPC's projection; a 30 × 30 eigenproblem per P2 element)
-    chord: bool = attrs.field(
-        default=True, validator=v.boolean
-    )  #: with barrier contact, after a Newton step the CCD bound shortened, chord steps on its factorisation (−H⁻¹ at the new gradients) while they lower the energy at least as fast per second (a gradient and a back-substitution instead of a Hessian and a factorisation; needs a linear solver that factorises)
-    chord_after_full_steps: bool = attrs.field(
-        default=True, validator=v.boolean
-    )  #: with chord, chord steps also after a full Newton step (α = 1), while they lower the energy as fast per second: the tails of the load increments, where projected Newton's full steps converge only linearly
-    halve_reversals: bool = attrs.field(
-        default=True, validator=v.boolean
-    )  #: halve a full Newton step that reverses the last one where it moves most, when that lowers the energy (a node group flipping between two states across a kink of the energy, e.g. friction's stick-slip switch: in the P2 r/3 pre-stress it ended a 2-cycle that had held the step test from iteration 13 to 32: 20 iterations instead of 33)
-    extrapolation: float = attrs.field(
-        default=1.0, validator=v.in_range(1.0, 1e3)
-    )  #: after a full Newton or chord step, a longer one (up to this × it, within max_step and the CCD bound) at the minimum of the energy's quadratic along it, if that lowers the energy further (projected Newton steps short along soft modes near a solution: 8 saves a third of the Hessians of P1 cells, but slowed the P2 r/3 cell by 10 %; 1: off), -
-    cap_shift: float = attrs.field(
-        default=0.0, validator=v.non_negative
-    )  #: a Newton step over this × max_step raises the Levenberg shift (damping a near-singular mode, e.g. a yarn only contact holds) instead of being scaled down whole (0: off), -
-    min_step_fraction: float = attrs.field(
-        default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True)
-    )  #: smallest cut-back increment / step, -
-    max_iterations: int | None = attrs.field(
-        default=None, validator=v.optional(v.in_range(1, 10000))
-    )  #: Newton iterations per increment (default 40; 200 with barrier contact, whose CCD-bounded steps are short while contacts engage), -
-    stall_iterations: int = attrs.field(
-        default=10, validator=v.in_range(0, 10000)
-    )  #: cut back once the residual has not improved in this many Newton iterations (0: only after max_iterations; barrier contact never: its residual rises while contacts engage and the energy falls), -
-    intorder: int = attrs.field(
-        default=2, validator=v.in_range(1, 6)
-    )  #: quadrature order of the solid (2: 4 points), -
-    stabilisation: float = attrs.field(
-        default=1e-4, validator=v.in_range(0.0, 1.0)
-    )  #: weak foundation on each increment's displacement / (E_transverse / h²), -
+    )
+    #: with barrier contact, after a Newton step the CCD bound shortened, chord steps on its factorisation
+    #: (−H⁻¹ at the new gradients) while they lower the energy at least as fast per second (a gradient and a
+    #: back-substitution instead of a Hessian and a factorisation; needs a linear solver that factorises)
+    chord: bool = attrs.field(default=True, validator=v.boolean)
+    #: with chord, chord steps also after a full Newton step (α = 1), while they lower the energy as fast per
+    #: second: the tails of the load increments, where projected Newton's full steps converge only linearly
+    chord_after_full_steps: bool = attrs.field(default=True, validator=v.boolean)
+    #: halve a full Newton step that reverses the last one where it moves most, when that lowers the energy (a
+    #: node group flipping between two states across a kink of the energy, e.g. friction's stick-slip switch:
+    #: in the P2 r/3 pre-stress it ended a 2-cycle that had held the step test from iteration 13 to 32: 20
+    #: iterations instead of 33)
+    halve_reversals: bool = attrs.field(default=True, validator=v.boolean)
+    #: after a full Newton or chord step, a longer one (up to this × it, within max_step and the CCD bound) at
+    #: the minimum of the energy's quadratic along it, if that lowers the energy further (projected Newton
+    #: steps short along soft modes near a solution: 8 saves a third of the Hessians of P1 cells, but slowed
+    #: the P2 r/3 cell by 10 %; 1: off), -
+    extrapolation: float = attrs.field(default=1.0, validator=v.in_range(1.0, 1e3))
+    #: a Newton step over this × max_step raises the Levenberg shift (damping a near-singular mode, e.g. a
+    #: yarn only contact holds) instead of being scaled down whole (0: off), -
+    cap_shift: float = attrs.field(default=0.0, validator=v.non_negative)
+    #: smallest cut-back increment / step, -
+    min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))
+    #: Newton iterations per increment (default 40; 200 with barrier contact, whose CCD-bounded steps are
+    #: short while contacts engage), -
+    max_iterations: int | None = attrs.field(default=None, validator=v.optional(v.in_range(1, 10000)))
+    #: cut back once the residual has not improved in this many Newton iterations (0: only after
+    #: max_iterations; barrier contact never: its residual rises while contacts engage and the energy falls),
+    #: -
+    stall_iterations: int = attrs.field(default=10, validator=v.in_range(0, 10000))
+    #: quadrature order of the solid (2: 4 points), -
+    intorder: int = attrs.field(default=2, validator=v.in_range(1, 6))
+    #: weak foundation on each increment's displacement / (E_transverse / h²), -
+    stabilisation: float = attrs.field(default=1e-4, validator=v.in_range(0.0, 1.0))
+    #: when the broad-phase contact search runs: once per Newton iteration, its candidates held through the
+    #: line search ("iteration"), or at every energy evaluation, -
     contact_search: Literal["iteration", "evaluation"] = attrs.field(
         default="iteration", validator=v.one_of(("iteration", "evaluation"))
-    )  #: when the broad-phase contact search runs: once per Newton iteration, its candidates held through the line search ("iteration"), or at every energy evaluation, -
-    on_failure: Literal["raise", "truncate"] = (
-        "raise"  #: "truncate" returns the converged steps (converged = false)
     )
-    retain_freed_memory: bool = attrs.field(
-        default=True, validator=v.boolean
-    )  #: keep freed memory in the process for the run (glibc: large blocks from the heap, never trimmed), so that the factors and tangents of each Newton iteration reuse pages instead of faulting them in afresh (in one P2 r/3 run: 135 million page faults, 13 % of the CPU time); the process keeps its peak heap until it exits
+    #: "truncate" returns the converged steps (converged = false)
+    on_failure: Literal["raise", "truncate"] = "raise"
+    #: keep freed memory in the process for the run (glibc: large blocks from the heap, never trimmed), so
+    #: that the factors and tangents of each Newton iteration reuse pages instead of faulting them in afresh
+    #: (in one P2 r/3 run: 135 million page faults, 13 % of the CPU time); the process keeps its peak heap
+    #: until it exits
+    retain_freed_memory: bool = attrs.field(default=True, validator=v.boolean)
 
     def _key(self, fabric: Fabric, scene: Scene, law: Any = None) -> str:
         """Checkpoint key: the inputs, the solver options and the resolved contact law (its defaults included)."""

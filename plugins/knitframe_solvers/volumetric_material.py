@@ -84,7 +84,8 @@ class YarnLaw:
     states instead of raising, so line searches can back off.
     """
 
-    model: Any  #: yarn model plugin instance with ``evaluate``
+    #: yarn model plugin instance with ``evaluate``
+    model: Any
     #: whether ``model.evaluate`` takes ``order`` (read once from its signature, not per call)
     takes_order: bool = attrs.field(
         init=False, default=attrs.Factory(lambda self: _accepts_order(self.model), takes_self=True)

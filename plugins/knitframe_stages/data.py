@@ -27,10 +27,10 @@ from knitframe.schema import build
 class DataTable:
     """Schema of the ``[data]`` table."""
 
-    files: list[str]  #: data files, relative to the config file
-    reader: str | dict[str, Any] = (
-        "auto"  #: reader plugin name ("auto": chosen from each file's header), or a table with ``kind`` and options
-    )
+    #: data files, relative to the config file
+    files: list[str]
+    #: reader plugin name ("auto": chosen from each file's header), or a table with ``kind`` and options
+    reader: str | dict[str, Any] = "auto"
 
     def __attrs_post_init__(self) -> None:
         if not self.files:
@@ -49,7 +49,8 @@ class DataStage:
 
     reader_name: str
     responses: tuple[Response, ...]
-    chosen: tuple[str, ...] = ()  #: the readers the ``auto`` reader chose, one per file
+    #: the readers the ``auto`` reader chose, one per file
+    chosen: tuple[str, ...] = ()
 
     @classmethod
     def from_config(cls, config, ctx) -> DataStage:

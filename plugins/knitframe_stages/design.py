@@ -47,40 +47,36 @@ from knitframe.schema import build
 class TubeTable:
     """Schema of ``[design.tube]``."""
 
-    mode: Literal["paper", "knitting"] = (
-        "knitting"  #: "paper": wrist cylinder mapped element for element; "knitting": needles × courses
-    )
-    circumference: float | None = attrs.field(
-        default=None, validator=v.optional(v.positive)
-    )  #: paper mode: tube circumference, mm (default: the wrist's)
-    length: float | None = attrs.field(
-        default=None, validator=v.optional(v.positive)
-    )  #: paper mode: tube length, mm (default: the limb's)
-    needles: int | None = attrs.field(
-        default=None, validator=v.optional(v.in_range(4, 10000))
-    )  #: knitting mode: stitches per course (default: searched)
-    axial_stretch: float = attrs.field(
-        default=1.0, validator=v.in_range(0.5, 2.0)
-    )  #: knitting mode: target wale stretch on the limb
+    #: "paper": wrist cylinder mapped element for element; "knitting": needles × courses
+    mode: Literal["paper", "knitting"] = "knitting"
+    #: paper mode: tube circumference, mm (default: the wrist's)
+    circumference: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: paper mode: tube length, mm (default: the limb's)
+    length: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: knitting mode: stitches per course (default: searched)
+    needles: int | None = attrs.field(default=None, validator=v.optional(v.in_range(4, 10000)))
+    #: knitting mode: target wale stretch on the limb
+    axial_stretch: float = attrs.field(default=1.0, validator=v.in_range(0.5, 2.0))
 
 
 @attrs.frozen
 class MachineTable:
     """Schema of ``[design.machine]``: knit the sleeve on a V-bed machine (knitframe.garment.knitout)."""
 
-    machine: str = "SWG091N2"  #: knitout ;;Machine: (the model knitout-interpreter simulates)
-    gauge: int = 15  #: needles per inch of the machine; the tube is knitted at half gauge
-    width: int | None = None  #: needles per bed the program may use (default: the machine's, 540)
-    carriers: dict[str, int] = attrs.Factory(
-        dict
-    )  #: yarn -> carrier number (default: the lowest free, in the order the tube uses the yarns)
-    stitch_numbers: dict[str, int] = attrs.Factory(
-        dict
-    )  #: stitch length ("11") or "default" -> x-stitch-number, over the built-in table
-    dat: bool = False  #: also write sleeve.dat (Shima DAT) through knitout-to-dat-python
-    check: bool = (
-        True  #: run sleeve.k through knitout-interpreter before writing it (about 25 s for the example)
-    )
+    #: knitout ;;Machine: (the model knitout-interpreter simulates)
+    machine: str = "SWG091N2"
+    #: needles per inch of the machine; the tube is knitted at half gauge
+    gauge: int = 15
+    #: needles per bed the program may use (default: the machine's, 540)
+    width: int | None = None
+    #: yarn -> carrier number (default: the lowest free, in the order the tube uses the yarns)
+    carriers: dict[str, int] = attrs.Factory(dict)
+    #: stitch length ("11") or "default" -> x-stitch-number, over the built-in table
+    stitch_numbers: dict[str, int] = attrs.Factory(dict)
+    #: also write sleeve.dat (Shima DAT) through knitout-to-dat-python
+    dat: bool = False
+    #: run sleeve.k through knitout-interpreter before writing it (about 25 s for the example)
+    check: bool = True
 
     def __attrs_post_init__(self) -> None:
         self.spec()  # every field checked; a FieldError names it
@@ -98,31 +94,32 @@ class MachineTable:
 class DesignTable:
     """Schema of the ``[design]`` table."""
 
-    limb: str | dict[str, Any] = (
-        "example"  #: "example", a scan file (STL, OBJ, PLY), or {positions_mm, circumferences_mm, ellipticity}
-    )
-    library: str = "builtin"  #: "builtin" or a library.json file
-    objective: str | dict[str, Any] = (
-        "pressure_profile"  #: objective plugin name, or a table with kind and options
-    )
-    method: Literal["optimal", "paper"] = (
-        "optimal"  #: exact course bands, or the paper's per-element procedure
-    )
-    pressure: Literal["equivalent", "local"] = "equivalent"  #: the radius the pressure objectives use
-    min_courses: float = attrs.field(
-        default=10.0, validator=v.in_range(0.0, 1e5)
-    )  #: least courses in each region
-    max_fabrics: int | None = attrs.field(
-        default=None, validator=v.optional(v.in_range(1, 1000))
-    )  #: at most this many distinct fabrics
-    base: str | None = None  #: the single fabric to compare with (default: the library's first cotton)
-    stations: int = attrs.field(default=41, validator=v.in_range(3, 2000))  #: stations along the limb
-    around: int = attrs.field(default=64, validator=v.in_range(8, 2000))  #: points around each section
-    axis: list[float] | None = None  #: a scan's axis direction (default: its longest principal axis)
-    tube: TubeTable = attrs.Factory(TubeTable)  #: how the tube is made
-    machine: MachineTable | None = (
-        None  #: knit it on a V-bed machine: sleeve.k, sleeve-chart.png (and sleeve.dat)
-    )
+    #: "example", a scan file (STL, OBJ, PLY), or {positions_mm, circumferences_mm, ellipticity}
+    limb: str | dict[str, Any] = "example"
+    #: "builtin" or a library.json file
+    library: str = "builtin"
+    #: objective plugin name, or a table with kind and options
+    objective: str | dict[str, Any] = "pressure_profile"
+    #: exact course bands, or the paper's per-element procedure
+    method: Literal["optimal", "paper"] = "optimal"
+    #: the radius the pressure objectives use
+    pressure: Literal["equivalent", "local"] = "equivalent"
+    #: least courses in each region
+    min_courses: float = attrs.field(default=10.0, validator=v.in_range(0.0, 1e5))
+    #: at most this many distinct fabrics
+    max_fabrics: int | None = attrs.field(default=None, validator=v.optional(v.in_range(1, 1000)))
+    #: the single fabric to compare with (default: the library's first cotton)
+    base: str | None = None
+    #: stations along the limb
+    stations: int = attrs.field(default=41, validator=v.in_range(3, 2000))
+    #: points around each section
+    around: int = attrs.field(default=64, validator=v.in_range(8, 2000))
+    #: a scan's axis direction (default: its longest principal axis)
+    axis: list[float] | None = None
+    #: how the tube is made
+    tube: TubeTable = attrs.Factory(TubeTable)
+    #: knit it on a V-bed machine: sleeve.k, sleeve-chart.png (and sleeve.dat)
+    machine: MachineTable | None = None
 
     def __attrs_post_init__(self) -> None:
         if self.axis is not None and len(self.axis) != 3:

@@ -41,19 +41,20 @@ from knitframe.schema import build
 class FitTable:
     """Schema of the ``[fit]`` table."""
 
-    model: str | dict[str, Any] = "hgo"  #: homogenizer name, or a table with ``kind`` and options
-    fitter: str | dict[str, Any] = "lbfgs"  #: fitter name, or a table with ``kind`` and options
-    labels: list[str] = attrs.Factory(list)  #: fit only these Responses (by label); empty: all
-    kinds: list[Literal["experiment", "simulation", "model"]] = attrs.Factory(
-        list
-    )  #: fit only Responses of these provenance kinds; empty: all
-    name: str = ""  #: name of this fit when several [[fit]] tables are given; prefixes its output files
-    export: list[Literal["abaqus", "calculix", "calculix-deck", "febio"]] = attrs.Factory(
-        list
-    )  #: material cards of the fitted model to write next to params.json (docs/export.md)
-    export_thickness: float = attrs.field(
-        default=1.0, validator=v.positive
-    )  #: reference thickness t0 (mm) of the solid the export cards describe: k1 = 2a/t0
+    #: homogenizer name, or a table with ``kind`` and options
+    model: str | dict[str, Any] = "hgo"
+    #: fitter name, or a table with ``kind`` and options
+    fitter: str | dict[str, Any] = "lbfgs"
+    #: fit only these Responses (by label); empty: all
+    labels: list[str] = attrs.Factory(list)
+    #: fit only Responses of these provenance kinds; empty: all
+    kinds: list[Literal["experiment", "simulation", "model"]] = attrs.Factory(list)
+    #: name of this fit when several [[fit]] tables are given; prefixes its output files
+    name: str = ""
+    #: material cards of the fitted model to write next to params.json (docs/export.md)
+    export: list[Literal["abaqus", "calculix", "calculix-deck", "febio"]] = attrs.Factory(list)
+    #: reference thickness t0 (mm) of the solid the export cards describe: k1 = 2a/t0
+    export_thickness: float = attrs.field(default=1.0, validator=v.positive)
 
 
 @attrs.frozen

@@ -90,32 +90,32 @@ MAX_ATTEMPTS = 20
 class LadderTable:
     """Schema of the ``[ladder]`` table."""
 
-    rungs: list[str] = attrs.Factory(
-        lambda: list(DEFAULT_RUNGS)
-    )  #: rung names (docs/ladder.md): those listed there, or rod:N, volumetric:p1:r/X, volumetric:p2:r/X at any resolution; default: reduced, rod:8, rod:16, rod:32, volumetric:p1:coarse, volumetric:p1:r/3, volumetric:p2:r/1.67
-    max_time: float | None = attrs.field(
-        default=None, validator=v.optional(v.positive)
-    )  #: skip the rungs whose estimated wall time is over this, s; unset: run them all
-    executor: str | dict[str, Any] = (
-        "local"  #: executor plugin name, or a table with ``kind`` and its options; the rungs of a wave go through its ``map``
-    )
-    cache: bool = True  #: keep finished rungs in the executor's cache and reuse them
-    cache_dir: str | None = (
-        None  #: where the finished rungs are kept; unset: the executors' cache, which `knitframe cache clear` empties ($KNITFRAME_CACHE_DIR, else knitframe/jobs in $XDG_CACHE_HOME or ~/.cache)
-    )
-    timings: list[str] = attrs.Factory(
-        list
-    )  #: measured timings for the cost model: ladder.csv files of earlier ladders, or JSON files like the shipped one
-    shipped_timings: bool = True  #: let the cost model use the timings shipped with knitframe
-    solver_options: dict[str, Any] = attrs.Factory(
-        dict
-    )  #: solver options for every rung of a solver, by solver name: ``{ volumetric = { contact_modulus = 1.2 } }``
-    reduced_model: str | dict[str, Any] = (
-        "auto"  #: the reduced rung's homogenizer; "auto": hgo, or hgo2m when the load leaves a side free
-    )
-    reduced_fitter: str | dict[str, Any] = (
-        "lbfgs"  #: the reduced rung's fitter name, or a table with ``kind`` and options
-    )
+    #: rung names (docs/ladder.md): those listed there, or rod:N, volumetric:p1:r/X, volumetric:p2:r/X at any
+    #: resolution; default: reduced, rod:8, rod:16, rod:32, volumetric:p1:coarse, volumetric:p1:r/3,
+    #: volumetric:p2:r/1.67
+    rungs: list[str] = attrs.Factory(lambda: list(DEFAULT_RUNGS))
+    #: skip the rungs whose estimated wall time is over this, s; unset: run them all
+    max_time: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: executor plugin name, or a table with ``kind`` and its options; the rungs of a wave go through its
+    #: ``map``
+    executor: str | dict[str, Any] = "local"
+    #: keep finished rungs in the executor's cache and reuse them
+    cache: bool = True
+    #: where the finished rungs are kept; unset: the executors' cache, which `knitframe cache clear` empties
+    #: ($KNITFRAME_CACHE_DIR, else knitframe/jobs in $XDG_CACHE_HOME or ~/.cache)
+    cache_dir: str | None = None
+    #: measured timings for the cost model: ladder.csv files of earlier ladders, or JSON files like the
+    #: shipped one
+    timings: list[str] = attrs.Factory(list)
+    #: let the cost model use the timings shipped with knitframe
+    shipped_timings: bool = True
+    #: solver options for every rung of a solver, by solver name: ``{ volumetric = { contact_modulus = 1.2 }
+    #: }``
+    solver_options: dict[str, Any] = attrs.Factory(dict)
+    #: the reduced rung's homogenizer; "auto": hgo, or hgo2m when the load leaves a side free
+    reduced_model: str | dict[str, Any] = "auto"
+    #: the reduced rung's fitter name, or a table with ``kind`` and options
+    reduced_fitter: str | dict[str, Any] = "lbfgs"
 
 
 def default_cache_dir() -> Path:
@@ -154,11 +154,16 @@ class LadderStage:
     uses: ClassVar[tuple[str, ...]] = ("fabric", "scene", "yarns", "executor")
     schema: ClassVar[type] = LadderTable
 
-    settings: LadderTable  #: the validated [ladder] table
-    rungs: tuple[str, ...]  #: in the order of fidelity (Rung.fidelity)
-    stages: dict[str, Any]  #: each simulated rung's validated simulate stage (solver, fabric, scene)
-    jobs: dict[str, dict[str, Any]]  #: each simulated rung's executor job (plain data)
-    reduced: dict[str, Any] | None  #: the reduced rung's job without its reference curve
+    #: the validated [ladder] table
+    settings: LadderTable
+    #: in the order of fidelity (Rung.fidelity)
+    rungs: tuple[str, ...]
+    #: each simulated rung's validated simulate stage (solver, fabric, scene)
+    stages: dict[str, Any]
+    #: each simulated rung's executor job (plain data)
+    jobs: dict[str, dict[str, Any]]
+    #: the reduced rung's job without its reference curve
+    reduced: dict[str, Any] | None
     scene: Scene
     executor: Any
     executor_name: str

@@ -51,9 +51,12 @@ class Region:
     """One region of the patchwork."""
 
     name: str
-    source: str  #: "fit", "fit:<i>", "response:<label>" or "file:<params.json>"
-    length: float = attrs.field(default=1.0, validator=v.positive)  #: along the load, mm
-    width: float = attrs.field(default=1.0, validator=v.positive)  #: across the load, mm
+    #: "fit", "fit:<i>", "response:<label>" or "file:<params.json>"
+    source: str
+    #: along the load, mm
+    length: float = attrs.field(default=1.0, validator=v.positive)
+    #: across the load, mm
+    width: float = attrs.field(default=1.0, validator=v.positive)
 
     def __attrs_post_init__(self) -> None:
         kind = self.source.split(":", 1)[0]
@@ -71,18 +74,23 @@ class Region:
 class PatchworkTable:
     """Schema of the ``[patchwork]`` table."""
 
-    regions: list[
-        Region
-    ]  #: tables with name, source ("fit", "fit:<i>", "response:<label>", "file:<params.json>"), length and width in mm
-    mode: Literal["series", "parallel", "grid"] = "series"  #: how the regions are combined
-    direction: Literal["course", "wale"] = "course"  #: load direction for model regions
-    lateral: Literal["free", "fixed"] = "free"  #: model regions: free side (P = 0) or fixed (λ = 1)
-    max_strain: float = attrs.field(
-        default=0.3, validator=v.in_range(0.0, 5.0, lo_open=True)
-    )  #: engineering strain of the whole patchwork, -
-    steps: int = attrs.field(default=30, validator=v.in_range(1, 100000))  #: load steps
-    layout: list[list[str]] = attrs.Factory(list)  #: grid: region names, rows across the load
-    row_widths: list[float] = attrs.Factory(list)  #: grid: width of each row, mm
+    #: tables with name, source ("fit", "fit:<i>", "response:<label>", "file:<params.json>"), length and width
+    #: in mm
+    regions: list[Region]
+    #: how the regions are combined
+    mode: Literal["series", "parallel", "grid"] = "series"
+    #: load direction for model regions
+    direction: Literal["course", "wale"] = "course"
+    #: model regions: free side (P = 0) or fixed (λ = 1)
+    lateral: Literal["free", "fixed"] = "free"
+    #: engineering strain of the whole patchwork, -
+    max_strain: float = attrs.field(default=0.3, validator=v.in_range(0.0, 5.0, lo_open=True))
+    #: load steps
+    steps: int = attrs.field(default=30, validator=v.in_range(1, 100000))
+    #: grid: region names, rows across the load
+    layout: list[list[str]] = attrs.Factory(list)
+    #: grid: width of each row, mm
+    row_widths: list[float] = attrs.Factory(list)
 
     def __attrs_post_init__(self) -> None:
         if not self.regions:
@@ -114,7 +122,8 @@ class PatchworkStage:
     schema: ClassVar[type] = PatchworkTable
 
     spec: PatchworkTable
-    files: dict[str, FitResult]  #: regions read from params.json files, by region name
+    #: regions read from params.json files, by region name
+    files: dict[str, FitResult]
     source: str | None = None
 
     @classmethod

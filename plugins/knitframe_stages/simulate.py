@@ -45,7 +45,8 @@ from knitframe.yarns import config_yarns, resolve_yarn
 class SolverTable:
     """Schema of the ``[solver]`` table: ``kind`` names the solver plugin; every other key is one of its options."""
 
-    kind: str = "rod"  #: solver plugin name (see "Plugin options" → solver)
+    #: solver plugin name (see "Plugin options" → solver)
+    kind: str = "rod"
 
 
 def _accepts(fn, name: str) -> bool:
@@ -69,8 +70,10 @@ class SimulateStage:
     solver_name: str
     solver: Any
     fabric: Fabric
-    scene: Scene  #: the first (or only) scene
-    scenes: tuple[Scene, ...] = ()  #: every scene, one per load of ``scene.load = [...]``
+    #: the first (or only) scene
+    scene: Scene
+    #: every scene, one per load of ``scene.load = [...]``
+    scenes: tuple[Scene, ...] = ()
 
     @classmethod
     def from_config(cls, config, ctx) -> SimulateStage:

@@ -130,21 +130,24 @@ SHOWN_FAILURES = 10
 class SweepFit:
     """Schema of ``[sweep.fit]``."""
 
-    model: str | dict[str, Any] = "hgo"  #: homogenizer name, or a table with ``kind`` and options
-    fitter: str | dict[str, Any] = "lbfgs"  #: fitter name, or a table with ``kind`` and options
+    #: homogenizer name, or a table with ``kind`` and options
+    model: str | dict[str, Any] = "hgo"
+    #: fitter name, or a table with ``kind`` and options
+    fitter: str | dict[str, Any] = "lbfgs"
 
 
 @attrs.frozen
 class MeasuredTable:
     """Schema of a point's ``measured`` table: the tests the point is simulated as and compared with."""
 
-    files: list[
-        str
-    ]  #: test files, relative to the config file: uniaxial tests with free sides, at most one per direction
-    reader: str | dict[str, Any] = "auto"  #: reader plugin name, or a table with ``kind`` and options
+    #: test files, relative to the config file: uniaxial tests with free sides, at most one per direction
+    files: list[str]
+    #: reader plugin name, or a table with ``kind`` and options
+    reader: str | dict[str, Any] = "auto"
+    #: simulate at most to this strain; unset: to the end of each test
     max_strain: float | None = attrs.field(
         default=None, validator=v.optional(v.in_range(0.0, 5.0, lo_open=True))
-    )  #: simulate at most to this strain; unset: to the end of each test
+    )
 
     def __attrs_post_init__(self) -> None:
         if not self.files:
@@ -155,19 +158,22 @@ class MeasuredTable:
 class SweepTable:
     """Schema of the ``[sweep]`` table."""
 
-    name: str = "sweep"  #: the fabric library's name (library.json) and the sweep's label
-    grid: dict[str, list[Any]] = attrs.Factory(
-        dict
-    )  #: lists of values whose product gives the points: [fabric] keys, load, effects, solver (tables of options), solver options by name, or measured
-    points: list[dict[str, Any]] = attrs.Factory(
-        list
-    )  #: the points as tables of the same keys, plus an optional ``name``; ``measured = { files = [...], reader = "singal2024", max_strain = 0.6 }`` simulates the tests' own loads and compares (docs/sweeps.md)
-    solver: dict[str, Any] = attrs.Factory(
-        lambda: {"kind": "rod"}
-    )  #: the [solver] table of every point (``kind`` and options)
-    fabric: dict[str, Any] = attrs.Factory(dict)  #: [fabric] keys common to every point
-    scene: dict[str, Any] = attrs.Factory(dict)  #: the [scene] table of every point
-    fit: SweepFit = attrs.Factory(SweepFit)  #: the reduced model and fitter for every point
+    #: the fabric library's name (library.json) and the sweep's label
+    name: str = "sweep"
+    #: lists of values whose product gives the points: [fabric] keys, load, effects, solver (tables of
+    #: options), solver options by name, or measured
+    grid: dict[str, list[Any]] = attrs.Factory(dict)
+    #: the points as tables of the same keys, plus an optional ``name``; ``measured = { files = [...], reader
+    #: = "singal2024", max_strain = 0.6 }`` simulates the tests' own loads and compares (docs/sweeps.md)
+    points: list[dict[str, Any]] = attrs.Factory(list)
+    #: the [solver] table of every point (``kind`` and options)
+    solver: dict[str, Any] = attrs.Factory(lambda: {"kind": "rod"})
+    #: [fabric] keys common to every point
+    fabric: dict[str, Any] = attrs.Factory(dict)
+    #: the [scene] table of every point
+    scene: dict[str, Any] = attrs.Factory(dict)
+    #: the reduced model and fitter for every point
+    fit: SweepFit = attrs.Factory(SweepFit)
 
 
 # ------------------------------------------------------------------------------------------ points
@@ -177,13 +183,20 @@ class Point:
 
     index: int
     name: str
-    label: str  #: e.g. "jersey SL11 cotton"
-    solver_table: dict[str, Any]  #: [solver] as merged from the config
-    stage: Any  #: the simulate stage built from the point's tables (validated)
-    arc_length: float  #: yarn per stitch of the knitted cell, mm
-    cell_pitches: tuple[float, float]  #: the knitted cell's course and wale pitches, mm
-    measured: tuple[Response, ...] = ()  #: the measured tests the point is compared with, one per load
-    measured_files: tuple[str, ...] = ()  #: their files, as the config gives them
+    #: e.g. "jersey SL11 cotton"
+    label: str
+    #: [solver] as merged from the config
+    solver_table: dict[str, Any]
+    #: the simulate stage built from the point's tables (validated)
+    stage: Any
+    #: yarn per stitch of the knitted cell, mm
+    arc_length: float
+    #: the knitted cell's course and wale pitches, mm
+    cell_pitches: tuple[float, float]
+    #: the measured tests the point is compared with, one per load
+    measured: tuple[Response, ...] = ()
+    #: their files, as the config gives them
+    measured_files: tuple[str, ...] = ()
 
 
 def _is_table(value: Any) -> bool:

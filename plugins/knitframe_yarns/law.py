@@ -171,14 +171,14 @@ class YarnModelBase:
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""
 
-    E_axial: float = attrs.field(validator=v.positive)  #: axial Young's modulus, MPa
-    radius: float = attrs.field(validator=v.positive)  #: knitted radius dk/2, mm
-    nu: float = attrs.field(
-        default=0.3, validator=v.in_range(-1.0, 0.5, lo_open=True, hi_open=True)
-    )  #: Poisson ratio, -
-    bending_modulus: float | None = attrs.field(
-        default=None, validator=v.optional(v.positive)
-    )  #: fitted EI, N·mm²
+    #: axial Young's modulus, MPa
+    E_axial: float = attrs.field(validator=v.positive)
+    #: knitted radius dk/2, mm
+    radius: float = attrs.field(validator=v.positive)
+    #: Poisson ratio, -
+    nu: float = attrs.field(default=0.3, validator=v.in_range(-1.0, 0.5, lo_open=True, hi_open=True))
+    #: fitted EI, N·mm²
+    bending_modulus: float | None = attrs.field(default=None, validator=v.optional(v.positive))
 
     @property
     def transverse_modulus(self) -> float:

@@ -28,10 +28,10 @@ class TransverseIsotropic(YarnModelBase):
         "transversely isotropic hyperelastic yarn (Bonet-Burton), fibre = yarn tangent"
     )
 
-    E_transverse: float = attrs.field(kw_only=True, validator=v.positive)  #: transverse Young's modulus, MPa
-    G_axial: float | None = attrs.field(
-        default=None, kw_only=True, validator=v.optional(v.positive)
-    )  #: axial shear modulus, MPa
+    #: transverse Young's modulus, MPa
+    E_transverse: float = attrs.field(kw_only=True, validator=v.positive)
+    #: axial shear modulus, MPa
+    G_axial: float | None = attrs.field(default=None, kw_only=True, validator=v.optional(v.positive))
 
     def __attrs_post_init__(self) -> None:
         if self.E_transverse > self.E_axial:

@@ -40,25 +40,16 @@ class ForceExtensionReader:
         lam = 1.0 + ext / self.gauge_length
         if np.any(lam <= 0):
             i = int(np.flatnonzero(lam <= 0)[0])
-            raise DataError(
-                path,
-                f"extension {ext[i]} mm gives a non-positive stretch",
-                line=table.lines[i],
-                column="extension_mm",
-            )
+            raise DataError(path, f"extension {ext[i]} mm gives a non-positive stretch", line=table.lines[i],
+                            column="extension_mm")
         tension = force / self.width
         ones, zero = np.ones_like(lam), np.zeros_like(lam)
-        prov = knitframe.Provenance(
-            kind="experiment", source=Path(path).name, notes="lateral stretch not measured (set to 1)"
-        )
+        prov = knitframe.Provenance(kind="experiment", source=Path(path).name,
+                                    notes="lateral stretch not measured (set to 1)")
         if self.direction == "course":
-            r = knitframe.Response(
-                lam, ones, tension, zero, load="uniaxial-course", label=Path(path).stem, provenance=prov
-            )
+            r = knitframe.Response(lam, ones, tension, zero, load="uniaxial-course", label=Path(path).stem, provenance=prov)
         else:
-            r = knitframe.Response(
-                ones, lam, zero, tension, load="uniaxial-wale", label=Path(path).stem, provenance=prov
-            )
+            r = knitframe.Response(ones, lam, zero, tension, load="uniaxial-wale", label=Path(path).stem, provenance=prov)
         return [r]
 
 

@@ -147,28 +147,18 @@ class Tuck:
     """
 
     name: ClassVar[str] = "tuck"
-    description: ClassVar[str] = (
-        "1x1 cross tuck: knit and tuck alternate by needle and course (example plugin)"
-    )
+    description: ClassVar[str] = "1x1 cross tuck: knit and tuck alternate by needle and course (example plugin)"
 
     stitch_lengths: dict[str, float] = attrs.field(
         factory=lambda: dict(STITCH_LENGTHS), validator=check_stitch_lengths
     )  #: machine setting -> yarn length per stitch, mm
     Kc: float = attrs.field(default=8.5, validator=v.positive)  #: courses/cm = Kc/ℓ[cm] (jersey: 5.3), -
     Kw: float = attrs.field(default=3.6, validator=v.positive)  #: wales/cm = Kw/ℓ[cm] (jersey: 4.0), -
-    roundness: float = attrs.field(
-        default=1.8, validator=v.in_range(0.0, 10.0)
-    )  #: Crane's a of the knit loops, -
-    tuck_roundness: float = attrs.field(
-        default=0.35, validator=v.in_range(0.0, 10.0)
-    )  #: a of the tuck loops, -
-    tuck_spread: float = attrs.field(
-        default=0.7, validator=v.in_range(0.0, 1.0)
-    )  #: b: how wide the tuck loops open, -
+    roundness: float = attrs.field(default=1.8, validator=v.in_range(0.0, 10.0))  #: Crane's a of the knit loops, -
+    tuck_roundness: float = attrs.field(default=0.35, validator=v.in_range(0.0, 10.0))  #: a of the tuck loops, -
+    tuck_spread: float = attrs.field(default=0.7, validator=v.in_range(0.0, 1.0))  #: b: how wide the tuck loops open, -
     depth: float = attrs.field(default=0.7, validator=v.positive)  #: out-of-plane amplitude D / dk, -
-    tuck_depth: float = attrs.field(
-        default=0.65, validator=v.positive
-    )  #: tuck head behind the mid-plane / D, -
+    tuck_depth: float = attrs.field(default=0.65, validator=v.positive)  #: tuck head behind the mid-plane / D, -
     tuck_drop: float = attrs.field(
         default=0.15, validator=v.in_range(0.0, 1.0, hi_open=True)
     )  #: tuck head below the held loop's head / (2H - p_w), -
