@@ -78,7 +78,8 @@ def rel(a, b) -> str:
 
 
 def projection_time(m: int, repeat: int) -> None:
-    """Time ``project_p2`` on m random bowed quadratic facets, and its start search (the 28-point lattice) alone."""
+    """Time ``project_p2`` on m random bowed quadratic facets, and its start search (the 28-point lattice)
+    alone."""
     from knitframe.numerics import solid_contact as sg
 
     rng = np.random.default_rng(0)

@@ -76,7 +76,8 @@ def solve(
     reach: float,
     friction_state=None,
 ):
-    """Equilibrium of elasticity + contact (+ lagged friction) by the shared Newton driver; returns (u, contact info)."""
+    """Equilibrium of elasticity + contact (+ lagged friction) by the shared Newton driver; returns (u,
+    contact info)."""
     X = nodes(forms.mesh)
     n = forms.ndof
 
@@ -223,7 +224,8 @@ def image_blocks():
 
 
 def assert_derivatives(f, u, du, n):
-    """Central differences of ``f(v, order) -> (E, g, H, info)`` along du match g·du and H·du on the n node DOFs."""
+    """Central differences of ``f(v, order) -> (E, g, H, info)`` along du match g·du and H·du on the n node
+    DOFs."""
     E, g, H, info = f(u, 2)
     h = 1e-7
     fd_g = (f(u + h * du, 0)[0] - f(u - h * du, 0)[0]) / (2 * h)

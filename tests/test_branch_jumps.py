@@ -45,7 +45,8 @@ def test_equibiaxial_paths_have_no_free_side_to_watch():
 
 
 def test_a_tension_that_falls_while_its_stretch_grows_is_a_snap():
-    """Equibiaxial: a step whose tension falls by more than 10 % (and 1 % of the largest) is flagged; smooth curves are not."""
+    """Equibiaxial: a step whose tension falls by more than 10 % (and 1 % of the largest) is flagged; smooth
+    curves are not."""
     from knitframe_solvers.rod import tension_drops
 
     lam = 1.0 + np.linspace(0.05, 0.5, 10)

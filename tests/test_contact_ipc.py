@@ -37,7 +37,8 @@ def cylinder(request):
 
 
 def test_ipc_derivatives_match_finite_differences(cylinder):
-    """Barrier gradient = FD of the energy, Hessian (unprojected) = FD of the gradient, on P1 and split P2 facets."""
+    """Barrier gradient = FD of the energy, Hessian (unprojected) = FD of the gradient, on P1 and split P2
+    facets."""
     mesh, body, surf = cylinder
     law = SolidIPC(psd=False)
     X = nodes(mesh)
@@ -61,7 +62,8 @@ def test_ipc_derivatives_match_finite_differences(cylinder):
 
 
 def test_ipc_projected_hessian_is_positive_semidefinite(cylinder):
-    """With ``psd`` (the default) every pair's Hessian is clamped: the assembled contact Hessian has no negative eigenvalue."""
+    """With ``psd`` (the default) every pair's Hessian is clamped: the assembled contact Hessian has no
+    negative eigenvalue."""
     mesh, body, surf = cylinder
     law = SolidIPC()
     X = nodes(mesh)
@@ -271,7 +273,8 @@ def test_energy_stays_continuous_where_the_pair_types_switch():
 
 
 def _facing_blocks(arc_b: float, strand_b: int, exclusion: float):
-    """Two blocks 0.02 apart across z = 0.5 (no lattice); block 1's nodes at arc ``arc_b`` on strand ``strand_b``."""
+    """Two blocks 0.02 apart across z = 0.5 (no lattice); block 1's nodes at arc ``arc_b`` on strand
+    ``strand_b``."""
     lower = skfem.MeshTet1.init_tensor(np.linspace(0, 1, 4), np.linspace(0, 1, 4), np.linspace(0, 0.49, 3))
     upper = skfem.MeshTet1.init_tensor(np.linspace(0, 1, 3), np.linspace(0, 1, 3), np.linspace(0.51, 1.0, 3))
     m, body = join([lower, upper], 1)
@@ -301,7 +304,8 @@ def _facing_blocks(arc_b: float, strand_b: int, exclusion: float):
     ],
 )
 def test_pairs_of_a_yarn_with_its_own_material_are_excluded(arc_b, strand_b, exclusion, pairs):
-    """Surfaces 0.02 apart, within d̂: barrier pairs form unless both lie on one strand copy within its exclusion."""
+    """Surfaces 0.02 apart, within d̂: barrier pairs form unless both lie on one strand copy within its
+    exclusion."""
     law = SolidIPC(dhat=0.5)
     X, surf = _facing_blocks(arc_b, strand_b, exclusion)
     assert _dhat(law, surf) > 0.02

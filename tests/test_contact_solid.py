@@ -1,4 +1,5 @@
-"""Solid contact laws ``penalty`` (node-to-surface) and ``mortar`` (segment-to-segment): derivatives, Hertz, patch test, images."""
+"""Solid contact laws ``penalty`` (node-to-surface) and ``mortar`` (segment-to-segment): derivatives, Hertz,
+patch test, images."""
 
 from __future__ import annotations
 
@@ -64,7 +65,8 @@ def test_plane_gap_derivatives():
 
 
 def test_quadratic_facet_gap_derivatives():
-    """The gap to a curved quadratic facet has the gradient n, −N_i n of its closest point and the exact Hessian."""
+    """The gap to a curved quadratic facet has the gradient n, −N_i n of its closest point and the exact
+    Hessian."""
     rng = np.random.default_rng(1)
     corners = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]])
     mids = 0.5 * (corners[[0, 1, 2]] + corners[[1, 2, 0]]) + np.array([0, 0, 0.05])
@@ -254,7 +256,8 @@ def test_nagata_patch_rebuilds_a_circle_and_keeps_a_plane():
 
 
 def test_nagata_gap_derivatives_through_the_corners():
-    """The gap to a patch, chained to the triangle's corners for fixed normals, has the exact gradient and Hessian."""
+    """The gap to a patch, chained to the triangle's corners for fixed normals, has the exact gradient and
+    Hessian."""
     rng = np.random.default_rng(3)
     X, tri = prism(9)
     nrm = node_normals(X, tri)
@@ -370,7 +373,8 @@ def cylinder(request):
 
 
 def pressed(cylinder, seed: int):
-    """Nodes X, DOF count n, a random generator and the displacement u pressing the cylinder 0.01 into the flat."""
+    """Nodes X, DOF count n, a random generator and the displacement u pressing the cylinder 0.01 into the
+    flat."""
     mesh, body, surf = cylinder
     X = nodes(mesh)
     n = 3 * len(X)
@@ -563,7 +567,8 @@ def test_held_candidates_follow_the_macro_dofs():
 
 
 def _one_facet_gap(p, X6, order=2):
-    """Gap of point p to the single quadratic facet X6 (6, 3) as the contact laws measure it, with derivatives."""
+    """Gap of point p to the single quadratic facet X6 (6, 3) as the contact laws measure it, with
+    derivatives."""
     sel = select_pairs(
         p[None],
         np.zeros(1, np.int64),

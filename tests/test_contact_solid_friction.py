@@ -26,7 +26,8 @@ IDS = ["penalty", "mortar"]
 
 
 def test_friction_potential_force_reaches_coulomb():
-    """|∇D| = μλ(2y − y²) below the regularisation slip and μλ beyond, with the exact Hessian; zero slip is finite."""
+    """|∇D| = μλ(2y − y²) below the regularisation slip and μλ beyond, with the exact Hessian; zero slip is
+    finite."""
     rng = np.random.default_rng(0)
     u = rng.normal(size=(200, 3))
     u[0] = 0.0
@@ -57,7 +58,8 @@ def cylinder(request):
 
 @pytest.mark.parametrize("law", LAWS, ids=IDS)
 def test_friction_derivatives_match_finite_differences(cylinder, law):
-    """With a friction state, gradient = FD of the energy and Hessian = FD of the gradient, sticking and slipping pairs."""
+    """With a friction state, gradient = FD of the energy and Hessian = FD of the gradient, sticking and
+    slipping pairs."""
     mesh, body, surf = cylinder
     X = nodes(mesh)
     n = 3 * len(X)

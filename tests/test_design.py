@@ -78,7 +78,8 @@ def test_cylinder_with_one_fabric_gives_uniform_strain_tension_and_p_equal_T_ove
 
 
 def test_cone_design_matches_the_hand_computed_two_fabric_optimum():
-    """On a cone, the graduated design picks per row the fabric whose pressure is nearer the target, as by hand."""
+    """On a cone, the graduated design picks per row the fabric whose pressure is nearer the target, as by
+    hand."""
     C0, C1, L, Ct = 160.0, 300.0, 400.0, 150.0
     limb = Limb.from_measurements([0.0, L], [C0, C1], n_stations=41, n_around=32)
     stiff, soft = (0.04, 1.0, 35.0), (0.004, 0.5, 40.0)
@@ -154,7 +155,8 @@ def test_knitting_mode_a_looser_stitch_knits_a_wider_tube():
 )
 @pytest.mark.parametrize("mode", ["knitting", "paper"])
 def test_every_design_respects_its_constraints(name, options, mode):
-    """For each objective and tube mode on the example arm, regions are contiguous bands, large enough, and within limits."""
+    """For each objective and tube mode on the example arm, regions are contiguous bands, large enough, and
+    within limits."""
     d = design(example_arm(), builtin_library(), objective(name, **options), tube=Tube(mode), min_courses=12)
     assert_valid(d, 12)
     assert np.isfinite(d.value) and d.value <= (d.baseline["objective"] or np.inf) + 1e-12
@@ -175,7 +177,8 @@ def test_max_fabrics_is_respected_and_reported():
 
 
 def test_papers_scenario_cotton_over_its_limit_is_switched_and_the_stress_cv_falls(capsys):
-    """On the example arm (upper arm ≈ 2× wrist) all cotton exceeds its limit; the design fixes that and lowers the stress CV."""
+    """On the example arm (upper arm ≈ 2× wrist) all cotton exceeds its limit; the design fixes that and
+    lowers the stress CV."""
     arm = example_arm()
     assert arm.circumference[-1] / arm.circumference[0] == pytest.approx(2.0, rel=0.05)
     lib = builtin_library()

@@ -155,7 +155,8 @@ def test_validation_errors_name_the_json_path(change, message):
 
 
 def test_load_names_the_file(tmp_path):
-    """A bad library file is refused in one line naming the file and the JSON path; broken JSON names the line."""
+    """A bad library file is refused in one line naming the file and the JSON path; broken JSON names the
+    line."""
     data = _library(_entry(params={"a": math.nan, "b": 1.0, "theta_deg": 45.0}))
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps(data))  # NaN is what a careless writer puts there
@@ -181,7 +182,8 @@ def test_direct_construction_is_checked():
 
 # ----------------------------------------------------------------------------------------- model
 def test_tensions_equal_the_homogenizer_stress():
-    """tensions() is the registered homogenizer's stress at the entry's parameters, vectorised with broadcasting."""
+    """tensions() is the registered homogenizer's stress at the entry's parameters, vectorised with
+    broadcasting."""
     reg = knitframe.get_registry()
     lam1 = np.linspace(0.9, 1.6, 7)[:, None]
     lam2 = np.linspace(0.8, 1.3, 5)[None, :]
@@ -269,7 +271,8 @@ def test_acrylic_stiffer_than_cotton_at_20_percent_course_strain():
 
 
 def test_builtin_data_attribution_and_package_data():
-    """The 16 CSVs and their attribution README ship with the package, and pyproject's package data covers them."""
+    """The 16 CSVs and their attribution README ship with the package, and pyproject's package data covers
+    them."""
     readme = (BUILTIN_DATA / "README.md").read_text()
     for text in ("Singal", "doi:10.1038/s41467-024-46498-z", "MIT licence", "Copyright (c) 2023 sabetta"):
         assert text in readme
@@ -286,7 +289,8 @@ def test_builtin_data_attribution_and_package_data():
 
 @pytest.mark.slow
 def test_builtin_rebuild_reproduces_shipped(tmp_path):
-    """`knitframe library build-builtin` refits the shipped library: same entries, parameters within 1e-6 relative."""
+    """`knitframe library build-builtin` refits the shipped library: same entries, parameters within 1e-6
+    relative."""
     assert cli(["library", "build-builtin", "--out", str(tmp_path / "b"), "--quiet"]) == 0
     rebuilt = FabricLibrary.load(tmp_path / "b" / "library.json")
     shipped = builtin_library()
@@ -459,7 +463,8 @@ def test_library_build_bad_input_refused_in_one_line(fitted, tmp_path, capsys):
 
 
 def test_library_show_builtin_prints_eight_rows(capsys):
-    """`knitframe library show builtin` prints one table row per built-in fabric, with its parameters and limits."""
+    """`knitframe library show builtin` prints one table row per built-in fabric, with its parameters and
+    limits."""
     assert cli(["library", "show", "builtin"]) == 0
     out = capsys.readouterr().out
     names = builtin_library().names

@@ -72,7 +72,8 @@ def raises_data_error(path, match: str, **kwargs) -> DataError:
 
 @pytest.mark.parametrize("flip", [False, True], ids=["upright", "upside-down"])
 def test_scanned_cylinder(tmp_path, flip):
-    """A rotated, translated STL cylinder of radius R gives 2πR to 0.5 %, curvature radius R to 1 %, its axis and equal station steps."""
+    """A rotated, translated STL cylinder of radius R gives 2πR to 0.5 %, curvature radius R to 1 %, its axis
+    and equal station steps."""
     tf = rigid(3, flip)
     mesh = trimesh.creation.cylinder(radius=R, height=H, sections=100, transform=tf)
     limb = Limb.from_scan(save(mesh, tmp_path / "cyl.stl"), n_stations=21, n_around=64)
@@ -100,7 +101,8 @@ def test_scanned_cylinder(tmp_path, flip):
 
 @pytest.mark.parametrize("small_end_up", [False, True])
 def test_scanned_cone_linear_and_small_end_first(tmp_path, small_end_up):
-    """A truncated cone gives circumferences linear along the axis, and station 0 (distal) is its small end whichever way it lies."""
+    """A truncated cone gives circumferences linear along the axis, and station 0 (distal) is its small end
+    whichever way it lies."""
     r0, r1 = (60.0, 30.0) if small_end_up else (30.0, 60.0)
     tf = rigid(7)
     mesh = frustum(r0, r1)
@@ -118,7 +120,8 @@ def test_scanned_cone_linear_and_small_end_first(tmp_path, small_end_up):
 
 
 def test_scan_of_the_example_arm_gives_back_its_shape(tmp_path):
-    """An open-ended, noisy triangulated scan of the example arm, rotated, gives back its circumferences (0.5 %) with the wrist first."""
+    """An open-ended, noisy triangulated scan of the example arm, rotated, gives back its circumferences (0.5
+    %) with the wrist first."""
     fine = example_arm(n_stations=211, n_around=128)
     quads = fine.quads()
     tris = np.concatenate((quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]))
@@ -137,7 +140,8 @@ def test_scan_of_the_example_arm_gives_back_its_shape(tmp_path):
 
 
 def test_axis_and_reference_arguments_override_the_detection(tmp_path):
-    """axis= is taken as the distal -> proximal direction as given, and reference= sets the azimuth of point 0."""
+    """axis= is taken as the distal -> proximal direction as given, and reference= sets the azimuth of point
+    0."""
     tf = rigid(8)
     mesh = frustum(30.0, 60.0)
     mesh.apply_transform(tf)
@@ -184,7 +188,8 @@ def test_meshio_format_is_read(tmp_path):
 
 
 def test_metres_scan_is_converted_with_a_notice_and_a_warning(tmp_path):
-    """A cylinder 0.3 long (metres) is scaled by 1000 with a one-line notice and a KnitframeWarning; units= forces the scale."""
+    """A cylinder 0.3 long (metres) is scaled by 1000 with a one-line notice and a KnitframeWarning; units=
+    forces the scale."""
     mesh = trimesh.creation.cylinder(radius=R / 1000, height=H / 1000, sections=128)
     path = save(mesh, tmp_path / "arm_m.stl")
     with pytest.warns(KnitframeWarning, match="converted from metres"):
@@ -209,7 +214,8 @@ def test_metres_scan_is_converted_with_a_notice_and_a_warning(tmp_path):
 
 
 def test_elliptic_cylinder_curvature_matches_the_analytic_radius(tmp_path):
-    """An elliptic cylinder (a = 60, b = 36 mm) has ρ = (a²sin²t + b²cos²t)^{3/2}/(ab) to 2 %, and point 0 sits on its major axis."""
+    """An elliptic cylinder (a = 60, b = 36 mm) has ρ = (a²sin²t + b²cos²t)^{3/2}/(ab) to 2 %, and point 0
+    sits on its major axis."""
     a, b = 60.0, 36.0
     mesh = trimesh.creation.cylinder(radius=1.0, height=400.0, sections=256)
     mesh.apply_scale([a, b, 1.0])
@@ -230,7 +236,8 @@ def test_elliptic_cylinder_curvature_matches_the_analytic_radius(tmp_path):
 
 
 def test_curvature_radius_is_signed_convex_positive_concave_negative():
-    """A section with a dent has negative curvature radius in the dent and positive elsewhere; a circle gives R exactly."""
+    """A section with a dent has negative curvature radius in the dent and positive elsewhere; a circle gives
+    R exactly."""
     n = 128
     th = 2 * np.pi * np.arange(4096) / 4096
     r = 40.0 * (1 - 0.25 * np.exp(-(((th - np.pi) / 0.3) ** 2)))
@@ -252,7 +259,8 @@ def test_curvature_radius_is_signed_convex_positive_concave_negative():
 
 
 def test_limb_record_checks_its_contract():
-    """The Limb constructor refuses clockwise loops, loops off their station plane and non-increasing stations."""
+    """The Limb constructor refuses clockwise loops, loops off their station plane and non-increasing
+    stations."""
     good = Limb.from_measurements([0, 100], [160, 200], n_stations=3, n_around=16)
     with pytest.raises(GeometryError, match="clockwise"):
         Limb("x", good.sections[:, ::-1], good.axis_origin, good.axis_direction)
@@ -273,7 +281,8 @@ def test_limb_record_checks_its_contract():
 
 
 def test_to_vtu_writes_the_quad_surface_with_cell_data(tmp_path):
-    """to_vtu writes (n_stations-1)·n_around outward quads on the section points with per-quad fields; a wrong-length field writes nothing."""
+    """to_vtu writes (n_stations-1)·n_around outward quads on the section points with per-quad fields; a
+    wrong-length field writes nothing."""
     limb = example_arm(n_stations=9, n_around=16)
     field = np.arange(8 * 16, dtype=np.float64)
     limb.to_vtu(tmp_path / "arm.vtu", cell_data={"pressure": field})
@@ -297,7 +306,8 @@ def test_to_vtu_writes_the_quad_surface_with_cell_data(tmp_path):
 
 
 def test_from_measurements_reproduces_circumferences_exactly():
-    """Measured circumferences are reproduced at their positions with exact ellipse perimeters, and PCHIP stays monotone between them."""
+    """Measured circumferences are reproduced at their positions with exact ellipse perimeters, and PCHIP
+    stays monotone between them."""
     pos = [0.0, 90.0, 190.0, 270.0, 420.0]
     circ = [160.0, 205.0, 250.0, 245.0, 315.0]
     ratio = [0.6, 0.75, 0.85, 0.9, 1.0]
@@ -329,7 +339,8 @@ def test_from_measurements_reproduces_circumferences_exactly():
 
 
 def test_from_measurements_refuses_bad_input():
-    """Measurements out of order, non-positive, mismatched or too close for the station spacing are refused with the key named."""
+    """Measurements out of order, non-positive, mismatched or too close for the station spacing are refused
+    with the key named."""
     cases = [
         (([0, 100, 90], [1, 2, 3]), {}, "positions_mm: must be strictly increasing"),
         (([0, 100], [160, -1]), {}, "circumferences_mm: must be > 0"),
@@ -347,7 +358,8 @@ def test_from_measurements_refuses_bad_input():
 
 
 def test_example_arm_is_a_typical_adult_arm():
-    """The example arm runs wrist to upper arm with the upper arm about twice the wrist and increasing positions."""
+    """The example arm runs wrist to upper arm with the upper arm about twice the wrist and increasing
+    positions."""
     arm = example_arm()
     c = arm.circumference
     assert arm.sections.shape == (41, 64, 3)
@@ -373,7 +385,8 @@ def test_example_arm_is_a_typical_adult_arm():
 
 
 def test_empty_or_unreadable_files_are_refused(tmp_path):
-    """A zero-byte file, random bytes, text in an .obj, a PLY named .stl, a missing file and a folder each give one line naming the file."""
+    """A zero-byte file, random bytes, text in an .obj, a PLY named .stl, a missing file and a folder each
+    give one line naming the file."""
     (tmp_path / "empty.stl").write_bytes(b"")
     raises_data_error(tmp_path / "empty.stl", "empty file (0 bytes)")
     (tmp_path / "noise.stl").write_bytes(np.random.default_rng(0).bytes(2000))
@@ -415,7 +428,8 @@ def test_non_finite_coordinates_are_refused(tmp_path):
 
 
 def test_outer_shell_around_inner_shells_is_chosen_with_a_notice(tmp_path):
-    """Skin around two bones (three shells, the outer enclosing both) gives the outer limb and says so; a small debris fragment is ignored with a notice."""
+    """Skin around two bones (three shells, the outer enclosing both) gives the outer limb and says so; a
+    small debris fragment is ignored with a notice."""
     skin = trimesh.creation.cylinder(radius=R, height=H, sections=128)
     bones = [
         trimesh.creation.cylinder(
@@ -487,7 +501,8 @@ def test_non_tubular_scans_are_refused(tmp_path, shape, match):
 
 
 def test_a_section_with_two_loops_is_refused_naming_the_station(tmp_path):
-    """A ring stretched into a long loop (two tubes side by side, joined at the ends) is refused naming a station whose section has 2 loops."""
+    """A ring stretched into a long loop (two tubes side by side, joined at the ends) is refused naming a
+    station whose section has 2 loops."""
     ring = trimesh.creation.torus(major_radius=60.0, minor_radius=15.0, major_sections=96, minor_sections=24)
     ring.apply_scale([3.0, 1.0, 1.0])
     err = raises_data_error(save(ring, tmp_path / "ring.stl"), "section has 2 loops")

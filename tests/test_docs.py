@@ -15,7 +15,8 @@ def test_configuration_md_is_up_to_date():
 
 
 def test_readme_has_the_two_setup_commands_and_ci_runs_the_test_one():
-    """The README's two bash blocks install+run the example and install+run the tests; .ci/run calls the latter."""
+    """The README's two bash blocks install+run the example and install+run the tests; .ci/run calls the
+    latter."""
     blocks = re.findall(r"```bash\n(.*?)\n```", (ROOT / "README.md").read_text(), re.S)
     setup = [b for b in blocks if b.startswith("python3 -m venv")]
     assert len(setup) == 2

@@ -90,7 +90,8 @@ def _table(rows, title):
 @needs_ccx
 @pytest.mark.parametrize("source", ["fit", "other"])
 def test_calculix_matches_knitframe_at_five_stretches_in_two_load_cases(fitted, source):
-    """CalculiX's tensions per unit width equal knitframe's hgo to 1 % at 5 stretches, equibiaxial and strip-biaxial."""
+    """CalculiX's tensions per unit width equal knitframe's hgo to 1 % at 5 stretches, equibiaxial and
+    strip-biaxial."""
     data = _params(fitted) if source == "fit" else OTHER
     rows = calculix_check(data)
     model, params = _model_and_params(data)
@@ -144,7 +145,8 @@ def test_calculix_compression_branch_is_matrix_only_as_the_header_says(fitted):
 
 @needs_ccx
 def test_calculix_deck_written_by_the_fit_runs_as_is(fitted, tmp_path):
-    """The params.calculix-check.inp a [fit] stage wrote runs with `ccx -i` and prints the totals its header announces."""
+    """The params.calculix-check.inp a [fit] stage wrote runs with `ccx -i` and prints the totals its header
+    announces."""
     from knitframe.export import read_dat_totals
 
     deck = (fitted / "params.calculix-check.inp").read_text()
@@ -202,7 +204,8 @@ def _calculix_constants(text: str) -> dict:
 
 
 def test_abaqus_and_febio_cards_match_the_calculix_deck_value_by_value(fitted):
-    """Parsed back, the ABAQUS and FEBio cards hold the CalculiX deck's k1, k2, direction, C10 and D (in their forms)."""
+    """Parsed back, the ABAQUS and FEBio cards hold the CalculiX deck's k1, k2, direction, C10 and D (in their
+    forms)."""
     data = _params(fitted)
     deck = _calculix_constants((fitted / "params.calculix-check.inp").read_text())
     assert deck == _calculix_constants((fitted / "params.calculix.inp").read_text())
@@ -267,7 +270,8 @@ def _isochoric_energies(F, ccx, febio):
 
 
 def test_febio_card_has_the_calculix_energy_under_shear_too(fitted):
-    """FEBio's two coincident families (gamma = 0) give the CalculiX card's energy at random isochoric deformations."""
+    """FEBio's two coincident families (gamma = 0) give the CalculiX card's energy at random isochoric
+    deformations."""
     ccx = _calculix_constants((fitted / "params.calculix.inp").read_text())
     root = ET.fromstring((fitted / "params.febio.xml").read_text())
     febio = {t: float(root.findtext(t)) for t in ("c", "k1", "k2", "gamma", "kappa")}
@@ -291,7 +295,8 @@ def test_febio_card_has_the_calculix_energy_under_shear_too(fitted):
 # ---------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("fmt", list(FORMATS))
 def test_every_card_header_states_units_angles_and_the_four_differences(fitted, fmt):
-    """Each card's header names units, θ in degrees as stored, the Macaulay bracket, isochoric invariants, matrix and bulk."""
+    """Each card's header names units, θ in degrees as stored, the Macaulay bracket, isochoric invariants,
+    matrix and bulk."""
     path = fitted / f"params.{FORMATS[fmt]}"
     text = path.read_text()
     assert is_knitframe_card(path)
@@ -508,7 +513,8 @@ def test_export_command_runs_as_a_subprocess(cli, tmp_path, fitted):
 # the [fit] stage option
 # ---------------------------------------------------------------------------------------------
 def test_fit_stage_export_writes_the_cards_and_lists_them_in_summary(fitted):
-    """[fit] export = [...] writes params.<format suffix> next to params.json, as `knitframe export` would, listed in summary.json."""
+    """[fit] export = [...] writes params.<format suffix> next to params.json, as `knitframe export` would,
+    listed in summary.json."""
     summary = json.loads((fitted / "summary.json").read_text())
     cards = [f"params.{s}" for s in FORMATS.values()]
     assert set(cards) <= set(summary["outputs"])
@@ -545,7 +551,8 @@ def test_fit_stage_refuses_an_impossible_export_before_any_work(tmp_path):
 
 
 def test_ci_installs_calculix_before_the_test_command(tmp_path):
-    """.ci/run installs calculix-ccx when apt-get exists and ccx is missing, and a failed install does not stop CI."""
+    """.ci/run installs calculix-ccx when apt-get exists and ccx is missing, and a failed install does not
+    stop CI."""
     text = (ROOT / ".ci" / "run").read_text()
     assert text.index("apt-get install") < text.index(".venv/bin/python -m pytest")
     block = text[text.index("if ! command -v ccx") : text.index("\nfi\n") + 4]

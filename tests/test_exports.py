@@ -73,7 +73,8 @@ def test_abaqus_card_divides_by_thickness():
 
 
 def test_febio_block_reproduces_the_fibre_energy():
-    """The FEBio fiber-exp-pow parsed back (ξ = 2a, α = b, β = 2) gives hgo's energy along the fibre in tension."""
+    """The FEBio fiber-exp-pow parsed back (ξ = 2a, α = b, β = 2) gives hgo's energy along the fibre in
+    tension."""
     m = get_registry()["homogenizer"]["hgo"]()
     a, b, th = 0.05, 3.0, math.radians(30)
     root = ET.fromstring(m.febio(np.array([a, b, th])))

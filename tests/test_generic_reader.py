@@ -123,7 +123,8 @@ def test_bad_cells_name_file_line_and_column(tmp_path, text, match, line, column
     ],
 )
 def test_file_level_errors(tmp_path, text, match):
-    """Empty files, missing or doubled columns, a stress without thickness and no direction are one-line errors."""
+    """Empty files, missing or doubled columns, a stress without thickness and no direction are one-line
+    errors."""
     p = write(tmp_path, text, "f.csv")
     with pytest.raises(DataError, match=match) as e:
         reader().read(p)

@@ -96,7 +96,8 @@ def test_layouts_alternate_as_the_patterns_say():
 
 
 def test_purl_is_the_knit_loop_mirrored():
-    """In garter the purl row is the knit row mirrored through the fabric plane (z -> -z) and shifted by a wale."""
+    """In garter the purl row is the knit row mirrored through the fabric plane (z -> -z) and shifted by a
+    wale."""
     cell = cell_of("garter")
     t = np.linspace(-np.pi, 3 * np.pi, 101)
     k, p = cell.yarns[0].position(t), cell.yarns[1].position(t)
@@ -274,7 +275,8 @@ def helix_cell() -> UnitCell:
 
 
 def test_two_yarn_strand_frames_and_clearance():
-    """A strand of two yarns gets closed frames; its neighbours across the cut are not contacts, its L1 copy is."""
+    """A strand of two yarns gets closed frames; its neighbours across the cut are not contacts, its L1 copy
+    is."""
     cell = helix_cell()
     assert strands(cell) == [[0, 1]]
     fr = frames(cell, 100)

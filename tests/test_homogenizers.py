@@ -87,7 +87,8 @@ def test_hgo_small_b_limit(b):
 
 
 def test_hgo_b_1e3_at_100_percent_stretch_is_finite_and_monotone():
-    """b = 1e3 at 100 % stretch (b(I4 − 1)² = 9000 ≫ 709) gives huge but finite, increasing values and no warning."""
+    """b = 1e3 at 100 % stretch (b(I4 − 1)² = 9000 ≫ 709) gives huge but finite, increasing values and no
+    warning."""
     m = hgo()
     p = np.array([1.0, 1e3, 0.0])
     lam = np.linspace(1.0, 2.0, 201)
@@ -124,7 +125,8 @@ def test_non_finite_stretch_is_refused():
 
 
 def test_hgo_uniaxial_limitation():
-    """With free sides hgo keeps I4 = 1 and carries no tension until λ1 = 1/cos θ, then the free side collapses."""
+    """With free sides hgo keeps I4 = 1 and carries no tension until λ1 = 1/cos θ, then the free side
+    collapses."""
     th = math.radians(45)
     p = np.array([0.1, 2.0, th])
     lam = np.array([1.1, 1.2, 1.4, 1.5, 1.8])
@@ -138,7 +140,8 @@ def test_hgo_uniaxial_limitation():
 
 
 def test_hgo2m_small_strain_poisson_ratio():
-    """hgo2m's uniaxial contraction at small strain is ν12 = K/(2μ2 + K) (course) and ν21 = K/(2μ1 + K) (wale)."""
+    """hgo2m's uniaxial contraction at small strain is ν12 = K/(2μ2 + K) (course) and ν21 = K/(2μ1 + K)
+    (wale)."""
     p = np.array([0.03, 0.01, 0.04, 0.05, 1.0, 0.08, 2.0])
     eps = 1e-6
     lf, _ = hgo2m().solve_uniaxial(p, np.array([1 + eps]), "course")
@@ -149,7 +152,8 @@ def test_hgo2m_small_strain_poisson_ratio():
 
 @pytest.mark.parametrize("direction", ["course", "wale"])
 def test_hgo2m_free_side_root_is_unique_and_solved(direction):
-    """The free side of hgo2m has one root of P_free = 0, found to round-off for large and compressive strains."""
+    """The free side of hgo2m has one root of P_free = 0, found to round-off for large and compressive
+    strains."""
     m = hgo2m()
     p = np.array([0.02, 0.05, 0.03, 0.01, 3.0, 0.2, 0.5])
     lam = np.linspace(0.7, 3.0, 50)

@@ -61,7 +61,8 @@ def test_every_hook_has_a_test(hook):
 
 
 def _check_hook(kind: str) -> None:
-    """A plugin implementing only this hook lands in this kind with provenance; built-ins are there and conform."""
+    """A plugin implementing only this hook lands in this kind with provenance; built-ins are there and
+    conform."""
     hook = KINDS[kind]
 
     @attrs.frozen

@@ -99,7 +99,8 @@ def run_program(lines: list[str]):
 def check_knitted(
     lines: list[str], needles: int, bands: list[tuple[int, int, str, str]], carriers: dict[str, int]
 ):
-    """Cast-on, then each course of the map with one loop per needle, each band in its yarn's carrier; no loop left."""
+    """Cast-on, then each course of the map with one loop per needle, each band in its yarn's carrier; no loop
+    left."""
     machine, graph = run_program(lines)
     courses = graph.get_courses()
     total = bands[-1][1]
@@ -243,7 +244,8 @@ def test_two_yarn_stripes_change_carrier_between_courses(tmp_path, knit_here):
 
 
 def test_the_check_refuses_a_program_that_does_not_knit_the_design():
-    """verify() fails a program whose stripe is knitted by the wrong carrier, or that knits on an empty needle."""
+    """verify() fails a program whose stripe is knitted by the wrong carrier, or that knits on an empty
+    needle."""
     from knitframe.garment.knitout import MachineOutputError, verify
 
     km = KnitMap(
@@ -292,7 +294,8 @@ def test_dat_file_carries_the_stitch_numbers_or_is_refused_in_one_line(tmp_path,
 
 
 def test_unknit_patterns_are_left_out_of_the_library_when_machine_output_is_asked(tmp_path):
-    """A library fabric whose pattern the machine output cannot knit is kept out of the design, with a warning."""
+    """A library fabric whose pattern the machine output cannot knit is kept out of the design, with a
+    warning."""
     from knitframe_patterns.jersey import Jersey
 
     from knitframe.errors import KnitframeWarning

@@ -48,7 +48,8 @@ def write_toml(path: Path, config: dict) -> Path:
 
 
 def test_ladder_writes_every_output_with_the_measured_data(tmp_path):
-    """A small ladder writes the CSV, table, Pareto plot and curves, with errors against the best rung and the measurement."""
+    """A small ladder writes the CSV, table, Pareto plot and curves, with errors against the best rung and the
+    measurement."""
     result = knitframe.ladder(
         singal_config(tmp_path), out=tmp_path / "out", rungs=["reduced", "rod:8", "rod:16"]
     )
@@ -89,7 +90,8 @@ def test_a_rungs_peak_memory_is_its_own_not_its_parents(tmp_path):
 
 
 def test_tension_errors_are_nrmse_between_with_both_sides_loaded_and_the_loaded_side_otherwise():
-    """With both directions loaded the overall error is nrmse_between; under a uniaxial load it is the loaded direction's."""
+    """With both directions loaded the overall error is nrmse_between; under a uniaxial load it is the loaded
+    direction's."""
     lam = np.linspace(1.05, 1.3, 6)
     ref = Response(lam, lam, 2 * (lam - 1), 3 * (lam - 1), load="equibiaxial")
     r = Response(lam, lam, 2.2 * (lam - 1), 2.7 * (lam - 1), load="equibiaxial")
@@ -152,7 +154,8 @@ def test_cost_model_takes_the_scale_from_this_run_and_the_slope_from_the_shipped
 
 
 def test_cost_model_scales_a_family_without_rungs_in_this_run_by_its_sibling():
-    """A P2 estimate from shipped timings (one size: P1's exponent) is scaled as this run's P1 rung compares with its own."""
+    """A P2 estimate from shipped timings (one size: P1's exponent) is scaled as this run's P1 rung compares
+    with its own."""
     from knitframe.ladder import TimingPoint
 
     model = CostModel(
@@ -247,7 +250,8 @@ def test_cached_rungs_are_not_recomputed(tmp_path, capsys):
 
 
 def test_a_configs_executor_table_runs_the_rungs_of_a_wave_side_by_side(tmp_path):
-    """With [executor] kind = "local", workers = 2, the two rod rungs of one wave run at the same time, in their own processes."""
+    """With [executor] kind = "local", workers = 2, the two rod rungs of one wave run at the same time, in
+    their own processes."""
     config = singal_config(tmp_path)
     config["executor"] = {"kind": "local", "workers": 2, "cache_dir": str(tmp_path / "jobs")}
     result = knitframe.ladder(config, rungs=["rod:8", "rod:16"])
@@ -304,7 +308,8 @@ def test_any_resolution_can_be_named_and_is_ordered_by_fidelity():
 
 @pytest.mark.slow
 def test_rungs_of_a_wave_run_in_parallel_on_dask_and_a_volumetric_rung_is_the_best(tmp_path):
-    """On a Dask LocalCluster the two rod rungs of one wave run at the same time; the coarse P1 rung is the reference."""
+    """On a Dask LocalCluster the two rod rungs of one wave run at the same time; the coarse P1 rung is the
+    reference."""
     config = singal_config(tmp_path, executor={"kind": "dask", "workers": 2})
     config["scene"]["load"] = {"kind": "uniaxial", "direction": "course", "max_strain": 0.1, "steps": 1}
     result = knitframe.ladder(
@@ -321,7 +326,8 @@ def test_rungs_of_a_wave_run_in_parallel_on_dask_and_a_volumetric_rung_is_the_be
 
 @pytest.mark.slow
 def test_three_seeds_of_one_order_give_a_mesh_convergence_table(tmp_path):
-    """Three P1 seeds on a one-step path: convergence.csv and the ladder.md section, with an order or a named behaviour."""
+    """Three P1 seeds on a one-step path: convergence.csv and the ladder.md section, with an order or a named
+    behaviour."""
     config = singal_config(tmp_path)
     config["scene"]["load"] = {"kind": "uniaxial", "direction": "course", "max_strain": 0.05, "steps": 1}
     rungs = ["volumetric:p1:r/1", "volumetric:p1:r/1.2", "volumetric:p1:r/1.4"]

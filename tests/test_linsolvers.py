@@ -195,7 +195,8 @@ def test_refinement_takes_a_backward_stable_solution_whose_residual_is_at_the_co
 
 
 def test_upper_triangle_is_scipys_triu():
-    """upper(A) = scipy's triu(A) (diagonal included), with sorted indices, also from unsorted or empty-row input."""
+    """upper(A) = scipy's triu(A) (diagonal included), with sorted indices, also from unsorted or empty-row
+    input."""
     from knitframe_linsolvers.direct import upper
 
     rng = np.random.default_rng(4)

@@ -115,7 +115,8 @@ def kinked(x, order=2):
 
 
 def test_flux_test_converges_where_the_residual_has_a_floor():
-    """max|g| ≤ R_n·q̃ with a small last correction is converged (ABAQUS's R_n, C_n); without it the kink stalls."""
+    """max|g| ≤ R_n·q̃ with a small last correction is converged (ABAQUS's R_n, C_n); without it the kink
+    stalls."""
     with pytest.raises(NumericalError, match="no convergence|no descent") as failed:
         minimise(kinked, np.zeros(1), np.ones(1, bool), solve=direct(), options=NewtonOptions(max_iter=30))
     history = failed.value.history  # the whole history travels with the error, for traces
@@ -225,7 +226,8 @@ def test_continuation_cuts_back_and_reaches_every_target():
 
 
 def test_continuation_carries_the_increment_into_the_next_target():
-    """After a target reached with small increments, the next one starts from twice that increment, not its span."""
+    """After a target reached with small increments, the next one starts from twice that increment, not its
+    span."""
     attempts = []
 
     def solve_at(t, x):
@@ -460,7 +462,8 @@ def test_step_tolerance_applies_to_the_projected_step():
 
 
 def test_each_iteration_is_reported_as_it_completes():
-    """``on_iteration`` gets every history entry (wall time included) as it is made, also when the solve fails."""
+    """``on_iteration`` gets every history entry (wall time included) as it is made, also when the solve
+    fails."""
     seen = []
     res = minimise(
         quartic,
@@ -739,7 +742,8 @@ def test_extrapolation_backs_off_where_the_energy_rises_beyond_the_full_step():
 
 
 class _StaleFactors:
-    """A linear solver whose kept factorisations go stale: after the Newton step, their steps are 10⁴ times too long."""
+    """A linear solver whose kept factorisations go stale: after the Newton step, their steps are 10⁴ times
+    too long."""
 
     def __init__(self):
         self.backend = direct()

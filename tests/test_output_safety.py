@@ -145,7 +145,8 @@ def test_two_runs_started_together_one_wins_and_its_files_are_all_there(tmp_path
 
 @pytest.mark.parametrize("target", ["a-file", ".", "read-only"])
 def test_out_file_dot_or_unwritable_is_refused_and_leaves_nothing(tmp_path, target):
-    """--out naming a file, '.', or a place that cannot be made is one line, exit 2, and no .partial or work folder."""
+    """--out naming a file, '.', or a place that cannot be made is one line, exit 2, and no .partial or work
+    folder."""
     cfg = data_config(tmp_path)
     (tmp_path / "a-file").write_text("a user's file")
     out = {"a-file": "a-file", ".": ".", "read-only": "/proc/knitframe-out/x"}[target]
@@ -174,7 +175,8 @@ def test_fit_and_geometry_follow_the_same_rules(tmp_path):
 
 
 def test_a_run_that_fails_mid_way_keeps_the_earlier_outputs_and_removes_its_own(tmp_path, monkeypatch):
-    """With --overwrite, a run that fails after writing some outputs leaves the earlier run's files as they were."""
+    """With --overwrite, a run that fails after writing some outputs leaves the earlier run's files as they
+    were."""
     from knitframe.report import plot_responses
 
     cfg = {"data": {"files": [str(DATA / "cotton-rib-x.csv")]}, "fit": {"model": "hgo"}}

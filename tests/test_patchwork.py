@@ -22,7 +22,8 @@ def linear(k, label="", lam_max=2.0):
 
 
 def test_series_of_linear_springs_matches_closed_form():
-    """Springs in series carry T = u / Σ(L_j/k_j); each interface moves by the strain of the regions before it."""
+    """Springs in series carry T = u / Σ(L_j/k_j); each interface moves by the strain of the regions before
+    it."""
     eps = np.linspace(0, 0.5, 6)
     res = series([linear(2.0), linear(1.0), linear(4.0)], [10.0, 20.0, 5.0], eps)
     T = eps * 35.0 / (10 / 2 + 20 / 1 + 5 / 4)
@@ -130,7 +131,8 @@ def test_grid_input_errors(bad, match):
 
 
 def test_patchwork_stage_after_fit(tmp_path, singal_file):
-    """A config with [data], [fit] and a series [patchwork] writes the chain's tension and interface displacement."""
+    """A config with [data], [fit] and a series [patchwork] writes the chain's tension and interface
+    displacement."""
     cfg = {
         "data": {
             "files": [
@@ -158,7 +160,8 @@ def test_patchwork_stage_after_fit(tmp_path, singal_file):
 
 
 def test_patchwork_stage_config_errors(tmp_path):
-    """Unknown region sources and grid layouts naming missing regions fail before any work, at their TOML path."""
+    """Unknown region sources and grid layouts naming missing regions fail before any work, at their TOML
+    path."""
     from knitframe.errors import ConfigError
 
     with pytest.raises(ConfigError, match=r"patchwork.regions\[0\].source"):

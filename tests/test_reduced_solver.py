@@ -48,7 +48,8 @@ def test_uniaxial_free_side_with_hgo2m():
 
 
 def test_uniaxial_hgo_reports_the_collapse():
-    """The paper's model under free sides is slack up to 1/cos θ and then collapses laterally; the Response says so."""
+    """The paper's model under free sides is slack up to 1/cos θ and then collapses laterally; the Response
+    says so."""
     s = solver(model="hgo", params={"a": 0.1, "b": 2.0, "theta_deg": 45.0})
     r = s.simulate(None, Scene(load=LoadPath("uniaxial", 0.8, 8), effects=EFFECTS))
     slack = r.lambda1 < math.sqrt(2)
@@ -95,7 +96,8 @@ def test_params_file_round_trip(tmp_path):
 
 
 def test_simulate_then_fit_recovers_the_parameters(tmp_path):
-    """The simulate stage with the reduced solver feeds the fit stage, which recovers the parameters it was given."""
+    """The simulate stage with the reduced solver feeds the fit stage, which recovers the parameters it was
+    given."""
     cfg = {
         "solver": {"kind": "reduced", "model": "hgo", "params": {"a": 0.03, "b": 4.0, "theta_deg": 65.0}},
         "fabric": {"pattern": "jersey", "stitch_length": 10, "yarn": "cotton"},

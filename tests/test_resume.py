@@ -89,7 +89,8 @@ MOMENTS = {
 
 @pytest.mark.parametrize("moment", sorted(MOMENTS))
 def test_killed_and_resumed_run_has_every_step_file(tmp_path, monkeypatch, reference, moment):
-    """Killed at a moment, then resumed: the same curve, a VTU file for every step and a .pvd listing all of them."""
+    """Killed at a moment, then resumed: the same curve, a VTU file for every step and a .pvd listing all of
+    them."""
     (tmp_path / "rod.toml").write_text(CONFIG.format(steps=6))
     cls, name, at = MOMENTS[moment]
     calls = []
@@ -125,7 +126,8 @@ def test_killed_and_resumed_run_has_every_step_file(tmp_path, monkeypatch, refer
 
 
 def test_sigkilled_cli_run_resumes_with_its_files_and_says_so(tmp_path, reference):
-    """`knitframe run` killed by SIGKILL mid-load and resumed prints one resume line and has every step's files."""
+    """`knitframe run` killed by SIGKILL mid-load and resumed prints one resume line and has every step's
+    files."""
     (tmp_path / "rod.toml").write_text(CONFIG.format(steps=6))
     env = {**os.environ, "MPLBACKEND": "Agg"}
     cmd = [sys.executable, "-m", "knitframe", "run", "rod.toml", "--out", "out"]
@@ -173,7 +175,8 @@ def test_ctrl_c_is_one_line_and_exit_130(tmp_path):
 
 
 def test_progress_lines_on_a_non_terminal(tmp_path):
-    """Piped to a log, a run prints a progress line at the set interval with the step, elapsed time and time left."""
+    """Piped to a log, a run prints a progress line at the set interval with the step, elapsed time and time
+    left."""
     (tmp_path / "rod.toml").write_text(CONFIG.format(steps=6))
     done = subprocess.run(
         [sys.executable, "-m", "knitframe", "run", "rod.toml", "--out", "out"],

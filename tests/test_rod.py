@@ -103,7 +103,8 @@ def stress(model, res):
 
 # ---------------------------------------------------------------------------------------- derivatives
 def test_total_gradient_and_hessian_match_finite_differences():
-    """The assembled analytic gradient and sparse Hessian (rods with rest curvature, contact with images, friction, macro DOFs) match FD."""
+    """The assembled analytic gradient and sparse Hessian (rods with rest curvature, contact with images,
+    friction, macro DOFs) match FD."""
     model, en = cell_energy(wavy_cell(), segments=5, friction=True)
     rng = np.random.default_rng(0)
     q = np.zeros(model.n_dof)
@@ -168,7 +169,8 @@ def crossing_rods(n=40, span=4.0, z0=0.5):
 
 
 def test_crossing_rods_pressed_together_follow_the_contact_law():
-    """Pressing a simply supported rod onto a crossing one: the reaction is 2π d φ(d) and the beam deflects F L³/48EI."""
+    """Pressing a simply supported rod onto a crossing one: the reaction is 2π d φ(d) and the beam deflects F
+    L³/48EI."""
     law = RodPenalty(core=0.0)
     dk, k, EIb, span, z0, drop = 0.4, 50.0, 2.0, 4.0, 0.41, 0.06
     model = crossing_rods(span=span, z0=z0)
@@ -229,7 +231,8 @@ def test_parallel_yarns_carry_the_line_load_of_the_contact_law():
 
 
 def test_contact_energy_has_no_jumps_when_a_rod_slides_through_a_bend():
-    """A straight rod sliding through the inside of a kinked one sees a smooth energy: E(s) integrates its own slope dE/ds."""
+    """A straight rod sliding through the inside of a kinked one sees a smooth energy: E(s) integrates its own
+    slope dE/ds."""
     ang = np.radians(20)
     s = np.linspace(-1.2, 1.2, 7)
     t = np.linspace(-1.0, 1.0, 9)
@@ -249,7 +252,8 @@ def test_contact_energy_has_no_jumps_when_a_rod_slides_through_a_bend():
 
 
 def test_friction_resists_sliding_with_mu_times_normal_force():
-    """Sliding pressed crossing rods past each other by ≫ ε_s needs μ times the normal force of each contacting point pair."""
+    """Sliding pressed crossing rods past each other by ≫ ε_s needs μ times the normal force of each
+    contacting point pair."""
     law = RodPenalty(core=0.0, friction=0.3, slip=0.001)
     dk, k = 0.4, 50.0
     model = crossing_rods(z0=0.36)
@@ -382,7 +386,8 @@ def test_stabilisation_does_not_change_the_converged_answer(monkeypatch):
 
 
 def test_knitted_rest_curvature_makes_the_generated_cell_stress_free():
-    """With its own curvature as rest shape (where the pre-stress starts) a jersey cell stores no energy and feels no force."""
+    """With its own curvature as rest shape (where the pre-stress starts) a jersey cell stores no energy and
+    feels no force."""
     from knitframe import get_registry
     from knitframe.geometry import unit_cell
     from knitframe.records import Fabric

@@ -62,7 +62,8 @@ CASES = [
     "case", CASES, ids=["SL10-tight", "100-percent", "stiff-PET", "rib-curling", "garter-curling"]
 )
 def test_hard_case_converges_or_stops_with_a_diagnostic(case):
-    """SL10 interference, 100 % stretch, stiff PET and curling rib/garter end converged (and physical) or with a NumericalError."""
+    """SL10 interference, 100 % stretch, stiff PET and curling rib/garter end converged (and physical) or with
+    a NumericalError."""
     r = outcome(*case)
     if r is not None:
         assert r.provenance.converged and len(r) == case[3].steps
@@ -70,7 +71,8 @@ def test_hard_case_converges_or_stops_with_a_diagnostic(case):
 
 
 def test_a_run_that_cannot_converge_stops_with_a_diagnostic_or_returns_its_converged_steps():
-    """Starved of iterations the solver raises a one-run diagnostic; with on_failure = "truncate" it keeps what converged."""
+    """Starved of iterations the solver raises a one-run diagnostic; with on_failure = "truncate" it keeps
+    what converged."""
     load = LoadPath(kind="equibiaxial", max_strain=0.3, steps=10)
     with pytest.raises(NumericalError, match=r"rod solver \(jersey, cotton\): .*Newton"):
         get_registry()["solver"]["rod"](max_iterations=3, min_step_fraction=0.5).simulate(
@@ -95,7 +97,8 @@ def test_a_run_that_cannot_converge_stops_with_a_diagnostic_or_returns_its_conve
 
 
 def test_auto_prestress_tries_the_knitted_start_after_the_straight_one_fails():
-    """With prestress_start = "auto" a failed pre-stress from the straight yarn is tried again from the knitted shape."""
+    """With prestress_start = "auto" a failed pre-stress from the straight yarn is tried again from the
+    knitted shape."""
     reg = get_registry()
     fabric = Fabric(pattern="jersey", yarn=reg["yarn"]["cotton"], stitch_length=10)
     scene = Scene(load=LoadPath(kind="equibiaxial", max_strain=0.05, steps=1), effects=EFFECTS)

@@ -35,7 +35,8 @@ def simulate(fabric: Fabric, load: LoadPath, **options):
 
 @pytest.fixture(scope="module")
 def jersey_two_starts():
-    """Jersey SL11 cotton, one equibiaxial step of 3 %, from the nominal start alone and from the first two starts."""
+    """Jersey SL11 cotton, one equibiaxial step of 3 %, from the nominal start alone and from the first two
+    starts."""
     fab = Fabric(pattern="jersey", yarn=get_registry()["yarn"]["cotton"], stitch_length=11)
     load = LoadPath(kind="equibiaxial", max_strain=0.03, steps=1)
     return simulate(fab, load, starts=1), simulate(fab, load, starts=2)

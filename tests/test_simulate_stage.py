@@ -1,4 +1,5 @@
-"""The ``[solver]`` stage with the rod solver: resume after a killed run, progress bar, fitted model at the end."""
+"""The ``[solver]`` stage with the rod solver: resume after a killed run, progress bar, fitted model at the
+end."""
 
 from __future__ import annotations
 
@@ -73,7 +74,8 @@ class Killed(BaseException):
 
 @pytest.mark.parametrize("kill_after", [3, 11], ids=["during-prestress", "during-load"])
 def test_interrupted_run_resumes_to_the_same_curve(tmp_path, monkeypatch, kill_after):
-    """A run stopped after its k-th checkpoint and continued by `knitframe run --resume` ends with the uninterrupted curve."""
+    """A run stopped after its k-th checkpoint and continued by `knitframe run --resume` ends with the
+    uninterrupted curve."""
     config = write_config(tmp_path)
     full = run(config, tmp_path / "full")
     reference = read_curve(full.out / "simulated.csv")
@@ -108,7 +110,8 @@ def test_interrupted_run_resumes_to_the_same_curve(tmp_path, monkeypatch, kill_a
 
 
 def test_sigkilled_cli_run_resumes_from_its_checkpoints(tmp_path):
-    """`knitframe run` killed with SIGKILL once its first load step is checkpointed resumes to the uninterrupted curve."""
+    """`knitframe run` killed with SIGKILL once its first load step is checkpointed resumes to the
+    uninterrupted curve."""
     config = write_config(tmp_path, steps=30)
     proc = subprocess.Popen(
         [sys.executable, "-m", "knitframe", "run", str(config), "--out", "out", "--quiet"],
@@ -142,7 +145,8 @@ def test_sigkilled_cli_run_resumes_from_its_checkpoints(tmp_path):
 
 
 def test_rod_run_shows_a_progress_bar_and_ends_with_a_fitted_model(tmp_path):
-    """On a terminal `knitframe run` redraws a progress bar per converged step; a [fit] table fits hgo to the simulated curve."""
+    """On a terminal `knitframe run` redraws a progress bar per converged step; a [fit] table fits hgo to the
+    simulated curve."""
     import pty
 
     config = write_config(tmp_path, extra=FIT)

@@ -45,7 +45,8 @@ def strict(path):
 
 
 def test_fit_at_a_bound_is_printed_recorded_and_plotted(cli, tmp_path):
-    """`knitframe fit` on data that push b to its lower bound prints one warning and records it in params.json and fit.png."""
+    """`knitframe fit` on data that push b to its lower bound prints one warning and records it in params.json
+    and fit.png."""
     from PIL import Image
 
     out = tmp_path / "out"
@@ -89,7 +90,8 @@ def test_at_bound_names_both_ends_but_not_symmetry_planes():
 
 
 def test_fit_png_shows_the_warnings(tmp_path):
-    """fit.png of a result with warnings carries them in red and in its metadata; without them it has no red text."""
+    """fit.png of a result with warnings carries them in red and in its metadata; without them it has no red
+    text."""
     from PIL import Image
 
     m = model("hgo")
@@ -116,7 +118,8 @@ def test_fit_png_shows_the_warnings(tmp_path):
 
 
 def test_non_finite_metrics_are_written_as_null_with_a_flag(tmp_path):
-    """A result holding NaN and Infinity is written as strict JSON: null values, their keys in non_finite, and a warning."""
+    """A result holding NaN and Infinity is written as strict JSON: null values, their keys in non_finite, and
+    a warning."""
     m = model("hgo")
     lam = np.linspace(1, 1.3, 5)
     r = Response(lam, lam, 0.2 * (lam - 1), 0.1 * (lam - 1), load="equibiaxial")
@@ -211,7 +214,8 @@ def test_patchwork_region_that_stays_slack_warns():
 
 
 def test_default_patchwork_refuses_hgo_with_a_free_side(tmp_path, singal_file):
-    """[fit] with its default model and a default (free-side) [patchwork] are refused in one line before any work."""
+    """[fit] with its default model and a default (free-side) [patchwork] are refused in one line before any
+    work."""
     cfg = {
         "data": {"files": [str(singal_file("cotton-stockinette-x.csv"))]},
         "fit": {},

@@ -73,7 +73,8 @@ def square_or_fail(job):
 
 # --------------------------------------------------------------------------- Dask against local
 def test_dask_sweep_of_4_fabrics_equals_the_local_sweep_bit_for_bit(tmp_path):
-    """A 4-fabric rod sweep on a 2-worker LocalCluster gives the same fitted parameters, bit for bit, as in this process."""
+    """A 4-fabric rod sweep on a 2-worker LocalCluster gives the same fitted parameters, bit for bit, as in
+    this process."""
     runs = {}
     for kind, executor in (
         ("local", 'kind = "local"'),
@@ -128,7 +129,8 @@ def _write_module(folder: Path, name: str, body: str) -> None:
 
 
 def test_cache_key_changes_when_the_job_function_or_a_module_it_imports_changes(tmp_path, monkeypatch):
-    """Editing the job function's code, or a module its package imports, gives a new key, so a rerun computes afresh."""
+    """Editing the job function's code, or a module its package imports, gives a new key, so a rerun computes
+    afresh."""
     from knitframe_executors.local import LocalExecutor
 
     pkg = tmp_path / "sweepjobs_pkg"
@@ -183,7 +185,8 @@ def test_cache_key_changes_when_the_job_function_or_a_module_it_imports_changes(
 
 
 def test_cache_key_changes_with_a_solver_option_and_covers_the_solver_code(tmp_path):
-    """A changed solver option gives new keys; the key hashes the rod solver's modules (and what they import) and knitframe's version."""
+    """A changed solver option gives new keys; the key hashes the rod solver's modules (and what they import)
+    and knitframe's version."""
     from knitframe_stages.sweep import point_modules, run_point
 
     def keys(segments: int) -> list[str]:
@@ -224,7 +227,8 @@ def test_cache_key_changes_with_a_solver_option_and_covers_the_solver_code(tmp_p
 def test_a_failed_point_is_recorded_the_rest_finish_and_the_cache_serves_a_rerun(
     tmp_path, monkeypatch, capsys
 ):
-    """A point that raises is 'failed' with a one-line reason, the others finish and are cached; a rerun reuses them, --no-cache does not."""
+    """A point that raises is 'failed' with a one-line reason, the others finish and are cached; a rerun
+    reuses them, --no-cache does not."""
     monkeypatch.setenv("KNITFRAME_PROGRESS_INTERVAL", "0.05")
     cfg = write_config(tmp_path, POINTS3, 'kind = "local"')
     res = run(cfg, tmp_path / "out1", quiet=False)
@@ -303,7 +307,8 @@ def test_outputs_are_written_and_library_json_drives_design(tmp_path):
 
 
 def test_a_point_with_an_array_of_loads_is_fitted_to_all_its_curves(tmp_path):
-    """A point whose load is an array (course and wale pulls) simulates each and fits the model to both jointly."""
+    """A point whose load is an array (course and wale pulls) simulates each and fits the model to both
+    jointly."""
     points = """points = [{ pattern = "jersey", stitch_length = 12, yarn = "cotton", load = [
   { kind = "uniaxial", direction = "course", max_strain = 0.2, steps = 3 },
   { kind = "uniaxial", direction = "wale", max_strain = 0.2, steps = 3 }] }]"""
@@ -324,7 +329,8 @@ def test_a_point_with_an_array_of_loads_is_fitted_to_all_its_curves(tmp_path):
 # --------------------------------------------------------------------------- executors directly
 @pytest.mark.parametrize("kind", ["local", "local-pool", "dask"])
 def test_executors_keep_failures_and_report_progress(kind, tmp_path):
-    """Each executor puts a one-line JobFailure where a job raised (never cached), keeps the rest, and reports done/failed/running."""
+    """Each executor puts a one-line JobFailure where a job raised (never cached), keeps the rest, and reports
+    done/failed/running."""
     from knitframe_executors.dask import DaskExecutor
     from knitframe_executors.local import LocalExecutor
 
@@ -409,7 +415,8 @@ BAD = [
 
 @pytest.mark.parametrize("case,points,executor,message", BAD, ids=[b[0] for b in BAD])
 def test_config_errors_are_one_line_before_any_work(case, points, executor, message, tmp_path, cli):
-    """A bad point, grid, fit or executor key is one line naming it, exit code 2, and nothing is computed or written."""
+    """A bad point, grid, fit or executor key is one line naming it, exit code 2, and nothing is computed or
+    written."""
     cfg = write_config(tmp_path, points, executor)
     proc = cli("run", str(cfg), "--out", str(tmp_path / "out"))
     assert proc.returncode == 2, proc.stderr

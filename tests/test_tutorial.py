@@ -1,4 +1,5 @@
-"""The pattern-plugin tutorial end to end: its package installs, passes the kit, builds a tuck cell and matches the docs."""
+"""The pattern-plugin tutorial end to end: its package installs, passes the kit, builds a tuck cell and
+matches the docs."""
 
 from __future__ import annotations
 
@@ -44,7 +45,8 @@ def test_tuck_passes_the_conformance_kit(installed_plugin):
 
 
 def test_geometry_command_builds_the_tuck_cell(installed_plugin, cli, tmp_path):
-    """`knitframe geometry tuck --stitch-length 11 --yarn cotton` writes the files and a geometry.json at 4.7 mm/stitch."""
+    """`knitframe geometry tuck --stitch-length 11 --yarn cotton` writes the files and a geometry.json at 4.7
+    mm/stitch."""
     proc = cli("geometry", "tuck", "--stitch-length", "11", "--yarn", "cotton", "--out", "geo", env=EXTERNAL)
     assert proc.returncode == 0, proc.stderr
     out = tmp_path / "geo"
@@ -69,7 +71,8 @@ def test_impossible_tuck_request_is_one_line_error(installed_plugin, cli):
 
 @pytest.mark.parametrize("sl, arc", [(10, 3.9), (11, 4.7), (12, 5.9)])
 def test_tuck_cell_is_a_periodic_cross_tuck(tuck, sl, arc):
-    """At SL10-12 the cell hits the arc length, is periodic to 1e-9 and every loop links as a cross tuck should."""
+    """At SL10-12 the cell hits the arc length, is periodic to 1e-9 and every loop links as a cross tuck
+    should."""
     from knitframe.testing.patterns import check_periodicity
 
     cell = tuck.Tuck().cell(Fabric(pattern="tuck", yarn=get_registry()["yarn"]["cotton"], stitch_length=sl))
@@ -87,14 +90,16 @@ def test_tuck_cell_is_a_periodic_cross_tuck(tuck, sl, arc):
 
 
 def test_tuck_rejects_a_structure_that_does_not_interlock(tuck):
-    """A wale pitch so large that a knit loop no longer reaches through the tuck loop below raises GeometryError."""
+    """A wale pitch so large that a knit loop no longer reaches through the tuck loop below raises
+    GeometryError."""
     fabric = Fabric(pattern="tuck", yarn=get_registry()["yarn"]["cotton"], arc_length=4.7, wale_pitch=1.0)
     with pytest.raises(GeometryError, match="knit stitch of course 0 crosses the course below as ''"):
         tuck.Tuck().cell(fabric)
 
 
 def test_rod_config_simulates_the_tuck_cell(installed_plugin, cli, tmp_path):
-    """The tutorial's config (`[fabric] pattern = "tuck"`, rod solver) runs to 30 % equibiaxial stretch and credits the package."""
+    """The tutorial's config (`[fabric] pattern = "tuck"`, rod solver) runs to 30 % equibiaxial stretch and
+    credits the package."""
     proc = cli("run", str(PLUGIN_DIR / "examples" / "rod-tuck.toml"), "--out", "o", env=EXTERNAL)
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
@@ -111,7 +116,8 @@ def _code_lines(text: str) -> list[str]:
 
 
 def test_tutorial_code_is_the_shipped_code():
-    """The tutorial's code blocks that name a file, joined in order, are that file line for line (blank lines aside)."""
+    """The tutorial's code blocks that name a file, joined in order, are that file line for line (blank lines
+    aside)."""
     blocks: dict[str, str] = {}
     for _, path, body in BLOCK.findall(TUTORIAL.read_text(encoding="utf-8")):
         blocks[path] = blocks.get(path, "") + body

@@ -69,7 +69,8 @@ def uniaxial(load: str, strain, lateral, tension) -> Response:
 
 
 def test_validate_uniaxial_on_curves_with_known_answers():
-    """Twice the measured tension gives ratio 2 and NRMSE rms(e/2)/max T; the lateral strains are read at 20 %."""
+    """Twice the measured tension gives ratio 2 and NRMSE rms(e/2)/max T; the lateral strains are read at 20
+    %."""
     e = np.linspace(0.0, 0.4, 41)
     mea = uniaxial("uniaxial-wale", e, -0.3 * e, 0.5 * e)
     s = e[5::5]  # 5 % to 40 %: the simulated path starts from the relaxed cell, zero tension at zero strain
@@ -221,7 +222,8 @@ def test_params_png_leaves_out_a_done_point_without_a_fit(tmp_path):
     ],
 )
 def test_bad_measured_tests_are_one_line_exit_2_and_no_output(tmp_path, singal_file, capsys, case, field):
-    """A bad measured table is refused before any work: one line naming the field, exit code 2, nothing written."""
+    """A bad measured table is refused before any work: one line naming the field, exit code 2, nothing
+    written."""
     x, y = (singal_file(f) for f in JERSEY)
     value = {
         "missing": measured([x, tmp_path / "nope.csv"]),

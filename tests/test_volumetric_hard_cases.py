@@ -1,4 +1,5 @@
-"""Hard cases of the volumetric solver on the jersey cell: converge, or stop with a one-line diagnostic; never NaN."""
+"""Hard cases of the volumetric solver on the jersey cell: converge, or stop with a one-line diagnostic; never
+NaN."""
 
 from __future__ import annotations
 

@@ -59,7 +59,8 @@ def newton(
 @pytest.mark.parametrize("order", [1, 2])
 @pytest.mark.parametrize("s", [1.0, 0.8])
 def test_tangent_matches_finite_differences(order, s):
-    """K·δu equals the central difference of the residual, and R·δu that of the energy, with and without eigenstrain."""
+    """K·δu equals the central difference of the residual, and R·δu that of the energy, with and without
+    eigenstrain."""
     mesh = block(order)
     rng = np.random.default_rng(0)
     n = nodes_of(mesh).shape[0]
@@ -115,7 +116,8 @@ def test_model_without_order_keyword_still_works():
 
 @pytest.mark.parametrize("order", [1, 2])
 def test_patch_test_large_strain(order):
-    """An affine displacement on the boundary gives the same affine field inside and the uniform stress's tractions."""
+    """An affine displacement on the boundary gives the same affine field inside and the uniform stress's
+    tractions."""
     mesh = block(order)
     X = nodes_of(mesh)
     H = np.array([[0.15, 0.05, 0.0], [-0.02, -0.08, 0.03], [0.01, 0.04, 0.1]])
@@ -246,7 +248,8 @@ def test_undersized_curved_tube_is_stress_free(order):
 
 
 def test_force_flux_does_not_cancel_at_equilibrium():
-    """The flux Σ_e |R_e| bounds |R|, stays positive where the assembled R cancels, and scales with the stress."""
+    """The flux Σ_e |R_e| bounds |R|, stays positive where the assembled R cancels, and scales with the
+    stress."""
     mesh = block(1)
     X = nodes_of(mesh)
     fibre = np.tile(np.array([0.0, 0.0, 1.0]), (X.shape[0], 1))

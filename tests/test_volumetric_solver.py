@@ -115,7 +115,8 @@ def test_vtu_output_per_step(tmp_path):
 
 
 def test_killed_run_resumes_to_the_same_result(tmp_path):
-    """A run stopped after its first step resumes from the checkpoint and ends where an uninterrupted run ends."""
+    """A run stopped after its first step resumes from the checkpoint and ends where an uninterrupted run
+    ends."""
     solver = VolumetricSolver(order=1, seed=0.75)
     full = solver.simulate(FABRIC, STRETCH)
 
@@ -143,7 +144,8 @@ def test_killed_run_resumes_to_the_same_result(tmp_path):
 
 
 def test_trace_records_every_newton_solve():
-    """``trace`` gets one record per Newton solve with its iteration history; the last residual is the converged one."""
+    """``trace`` gets one record per Newton solve with its iteration history; the last residual is the
+    converged one."""
     records = []
     resp = VolumetricSolver(order=1, seed=0.75).simulate(FABRIC, STRETCH, trace=records.append)
     loads = [r for r in records if r["phase"] == "load" and r["record"] == "solve"]
@@ -169,7 +171,8 @@ def test_trace_records_every_newton_solve():
 
 
 def test_held_contact_search_needs_steps_below_half_the_reach():
-    """A Newton step cap over half the contact reach would let held candidates miss a contact: refused in one line."""
+    """A Newton step cap over half the contact reach would let held candidates miss a contact: refused in one
+    line."""
     from knitframe.errors import ConfigError
 
     scene = attrs.evolve(STRETCH, effects=frozenset({"large_deformation", "anisotropy", "contact"}))
@@ -218,7 +221,8 @@ def test_overlapping_yarns_without_prestress_stop_with_a_diagnostic():
 
 
 def test_pipeline_resume_after_a_kill(tmp_path, monkeypatch):
-    """``knitframe.run(..., resume=True)`` (the API twin of ``knitframe run --resume``) finishes a killed run identically."""
+    """``knitframe.run(..., resume=True)`` (the API twin of ``knitframe run --resume``) finishes a killed run
+    identically."""
     import knitframe
     from knitframe.numerics.newton import StepCheckpoints
 
@@ -484,7 +488,8 @@ def test_p1_with_bending_warns_that_linear_tetrahedra_lock():
 
 @pytest.mark.parametrize("law", ["penalty", "mortar"])
 def test_signed_gap_laws_are_refused_past_the_strain_they_finish_before_any_work(law):
-    """penalty and mortar past 10 % strain on a contact scene: a ConfigError naming solver.contact_law at validation."""
+    """penalty and mortar past 10 % strain on a contact scene: a ConfigError naming solver.contact_law at
+    validation."""
     from knitframe.errors import ConfigError
 
     solver = VolumetricSolver(order=1, seed=0.75, contact_law=law)

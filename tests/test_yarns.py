@@ -28,7 +28,8 @@ _spec.loader.exec_module(make)
 
 
 def test_library_has_the_papers_yarns_with_sources():
-    """cotton, nylon and pet carry the paper's diameters, a 1e-4 transverse ratio (cotton, nylon) and a source."""
+    """cotton, nylon and pet carry the paper's diameters, a 1e-4 transverse ratio (cotton, nylon) and a
+    source."""
     yarns = get_registry()["yarn"]
     assert (yarns["cotton"].d0, yarns["cotton"].dk) == (0.445, 0.444)
     assert (yarns["nylon"].d0, yarns["nylon"].dk) == (0.951, 0.334)

@@ -27,7 +27,8 @@ def assert_refused(
     before: set[str] | None = None,
     folder: Path | None = None,
 ) -> None:
-    """One line on stderr naming ``field``, exit ``code``, no traceback, and (when given) ``folder`` unchanged."""
+    """One line on stderr naming ``field``, exit ``code``, no traceback, and (when given) ``folder``
+    unchanged."""
     lines = [line for line in proc.stderr.splitlines() if line.strip()]
     assert proc.returncode == code, (proc.returncode, proc.stderr)
     assert "Traceback" not in proc.stderr and "Traceback" not in proc.stdout, proc.stderr

@@ -69,7 +69,8 @@ def test_the_cases_are_distinct():
 
 @pytest.mark.parametrize("case", ["arc-length-1e9", "arc-length-0.01", "course-pitch-1e-9"])
 def test_impossible_geometry_request_in_a_real_process(tmp_path, knit, case):
-    """In a real process the request that once tried to allocate 336 GiB, and its kin, end in one line and exit 2."""
+    """In a real process the request that once tried to allocate 336 GiB, and its kin, end in one line and
+    exit 2."""
     _, args, option = next(c for c in CASES if c[0] == case)
     before = snapshot(tmp_path)
     proc = knit("geometry", *args, "--out", "geo", cwd=tmp_path, timeout=60)
@@ -77,7 +78,8 @@ def test_impossible_geometry_request_in_a_real_process(tmp_path, knit, case):
 
 
 def test_a_feasible_request_still_writes_its_files(tmp_path, knit_here):
-    """The limits leave real fabrics alone: a loose pet garter at 20 mm per stitch (112 dk) is built and written."""
+    """The limits leave real fabrics alone: a loose pet garter at 20 mm per stitch (112 dk) is built and
+    written."""
     proc = knit_here(
         "geometry", "garter", "--arc-length", "20", "--yarn", "pet", "--out", tmp_path / "geo", cwd=tmp_path
     )

@@ -157,7 +157,8 @@ def test_resume_of_a_finished_run_of_another_config_is_refused(knit_here, home):
 
 
 def test_overwrite_never_replaces_a_file_no_run_wrote(knit_here, home):
-    """--overwrite into a user's folder that already has a file named like an output refuses and moves nothing."""
+    """--overwrite into a user's folder that already has a file named like an output refuses and moves
+    nothing."""
     root, here = home
     (here / "results" / "responses.csv").write_text("the user's own table\n")
     before = snapshot(root)
