@@ -35,7 +35,11 @@ CONFIG_KINDS = (
 
 
 def field_docs(cls: type) -> dict[str, str]:
-    """``{field: text}`` from the ``#:`` comment block above each field of an attrs class (Sphinx's style)."""
+    """``{field: text}`` from the ``#:`` comment block above each field of an attrs class (Sphinx's style).
+
+    A ``#:`` comment at the end of the field's line (the older style, still used by third-party plugins) is
+    read when there is no block above the field.
+    """
     try:
         src = textwrap.dedent(inspect.getsource(cls))
     except (OSError, TypeError):
@@ -51,8 +55,12 @@ def field_docs(cls: type) -> dict[str, str]:
             while i >= 0 and lines[i].strip().startswith("#:"):
                 block.insert(0, lines[i].strip()[2:].strip())
                 i -= 1
+            # a third-party plugin may still put the text at the end of the field's line
+            trailing = [ln for ln in lines[node.lineno - 1 : node.end_lineno] if "#:" in ln]
             if block:
                 docs[node.target.id] = " ".join(block)
+            elif trailing:
+                docs[node.target.id] = trailing[-1].split("#:", 1)[1].strip()
     return docs
 
 
