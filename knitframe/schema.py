@@ -67,31 +67,19 @@ def _hints(cls: type) -> dict[str, Any]:
     return typing.get_type_hints(cls, include_extras=False)
 
 
+def _mismatch(value: Any, expected: str, path: str, source: str | None) -> ConfigError:
+    """The ConfigError at ``path`` for a ``value`` that is not the ``expected`` kind."""
+    what = value if not isinstance(value, (dict, list)) else type(value).__name__
+    return ConfigError(path, f"expected {expected}, got {shown(what)}", source=source)
+
+
 def _coerce(value: Any, tp: Any, path: str, source: str | None) -> Any:
     """Check ``value`` against annotation ``tp`` and convert it; raise ConfigError at ``path``."""
-
-    def fail(expected: str) -> ConfigError:
-        what = value if not isinstance(value, (dict, list)) else type(value).__name__
-        return ConfigError(path, f"expected {expected}, got {shown(what)}", source=source)
-
     origin = get_origin(tp)
     if tp is Any:
         return value
     if origin in (typing.Union, types.UnionType):
-        args = get_args(tp)
-        if value is None and _NoneType in args:
-            return None
-        errors = []
-        for arg in args:
-            if arg is _NoneType:
-                continue
-            try:
-                return _coerce(value, arg, path, source)
-            except ConfigError as e:
-                errors.append(e)
-        if len(errors) == 1:
-            raise errors[0]
-        raise fail(type_name(tp))
+        return _coerce_union(value, tp, path, source)
     if origin is Literal:
         if value not in get_args(tp):
             raise ConfigError(
@@ -100,60 +88,93 @@ def _coerce(value: Any, tp: Any, path: str, source: str | None) -> Any:
                 source=source,
             )
         return value
+    if tp is bool or tp is int or tp is float or tp is str or tp is Path or tp is np.ndarray:
+        return _coerce_scalar(value, tp, path, source)
+    if origin in (list, tuple, frozenset, set) or origin is dict:
+        return _coerce_collection(value, tp, origin, path, source)
+    if isinstance(tp, type) and attrs.has(tp):
+        if isinstance(value, tp):
+            return value
+        if not isinstance(value, dict):
+            raise _mismatch(value, "a table", path, source)
+        return build(tp, value, path, source=source)
+    if isinstance(tp, type):
+        if not isinstance(value, tp):
+            raise _mismatch(value, type_name(tp), path, source)
+        return value
+    return value
+
+
+def _coerce_union(value: Any, tp: Any, path: str, source: str | None) -> Any:
+    """``X | Y | None``: None if allowed, else the first member that accepts ``value``.
+
+    When a single member is tried its own error is raised, else one naming the whole union.
+    """
+    args = get_args(tp)
+    if value is None and _NoneType in args:
+        return None
+    errors = []
+    for arg in args:
+        if arg is _NoneType:
+            continue
+        try:
+            return _coerce(value, arg, path, source)
+        except ConfigError as e:
+            errors.append(e)
+    if len(errors) == 1:
+        raise errors[0]
+    raise _mismatch(value, type_name(tp), path, source)
+
+
+def _coerce_scalar(value: Any, tp: Any, path: str, source: str | None) -> Any:
+    """``bool``, ``int`` (integral floats accepted), finite ``float``, ``str``, ``Path`` and
+    ``numpy.ndarray`` (numbers → finite float64 array)."""
     if tp is bool:
         if not isinstance(value, bool):
-            raise fail("true or false")
+            raise _mismatch(value, "true or false", path, source)
         return value
     if tp is int:
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
             if isinstance(value, float) and value.is_integer():
                 return int(value)
-            raise fail("an integer")
+            raise _mismatch(value, "an integer", path, source)
         return int(value)
     if tp is float:
         if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-            raise fail("a number")
+            raise _mismatch(value, "a number", path, source)
         if not math.isfinite(float(value)):
             raise ConfigError(path, f"must be finite, got {shown(value)}", source=source)
         return float(value)
     if tp is str:
         if not isinstance(value, str):
-            raise fail("a string")
+            raise _mismatch(value, "a string", path, source)
         return value
     if tp is Path:
         if not isinstance(value, (str, Path)):
-            raise fail("a path string")
+            raise _mismatch(value, "a path string", path, source)
         return Path(value)
-    if tp is np.ndarray:
-        try:
-            arr = np.asarray(value, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise fail("an array of numbers") from None
-        if not np.all(np.isfinite(arr)):
-            raise ConfigError(path, "must contain only finite numbers", source=source)
-        return arr
-    if origin in (list, tuple, frozenset, set):
-        if isinstance(value, (str, bytes, dict)) or not isinstance(value, (list, tuple, set, frozenset)):
-            raise fail(type_name(tp))
-        (item_tp, *_) = get_args(tp) or (Any,)
-        items = [_coerce(v, item_tp, f"{path}[{i}]", source) for i, v in enumerate(value)]
-        return origin(items) if origin is not set else frozenset(items)
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise _mismatch(value, "an array of numbers", path, source) from None
+    if not np.all(np.isfinite(arr)):
+        raise ConfigError(path, "must contain only finite numbers", source=source)
+    return arr
+
+
+def _coerce_collection(value: Any, tp: Any, origin: Any, path: str, source: str | None) -> Any:
+    """``list[X]``, ``tuple[X, ...]``, ``frozenset[X]`` / ``set[X]`` (both → frozenset) and
+    ``dict[str, X]``, each item coerced at ``path[i]`` or ``path.key``."""
     if origin is dict:
         if not isinstance(value, dict):
-            raise fail("a table")
+            raise _mismatch(value, "a table", path, source)
         _, val_tp = get_args(tp) or (str, Any)
         return {str(k): _coerce(v, val_tp, f"{path}.{k}", source) for k, v in value.items()}
-    if isinstance(tp, type) and attrs.has(tp):
-        if isinstance(value, tp):
-            return value
-        if not isinstance(value, dict):
-            raise fail("a table")
-        return build(tp, value, path, source=source)
-    if isinstance(tp, type):
-        if not isinstance(value, tp):
-            raise fail(type_name(tp))
-        return value
-    return value
+    if isinstance(value, (str, bytes, dict)) or not isinstance(value, (list, tuple, set, frozenset)):
+        raise _mismatch(value, type_name(tp), path, source)
+    (item_tp, *_) = get_args(tp) or (Any,)
+    items = [_coerce(v, item_tp, f"{path}[{i}]", source) for i, v in enumerate(value)]
+    return origin(items) if origin is not set else frozenset(items)
 
 
 def build(cls: type, table: dict[str, Any], path: str = "", *, source: str | None = None) -> Any:

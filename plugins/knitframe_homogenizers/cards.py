@@ -56,7 +56,8 @@ def _g(x: float) -> str:
 
 
 def _unit_direction(theta_deg: float) -> tuple[float, float]:
-    """(cos θ, sin θ), written exactly (:func:`_d`), nudged down by ulps until cx² + cy² <= 1 in floating point.
+    """(cos θ, sin θ), written exactly (:func:`_d`), nudged down by ulps until cx² + cy² <= 1 in
+    floating point.
 
     CalculiX computes the third cosine as sqrt(1 − cx² − cy²) and stops when the argument is
     negative; the nudge keeps that third cosine below about 1e-8, so the fibre stays in the plane.
@@ -141,11 +142,11 @@ class FibreSolid:
         J = l1 * l2 * l3
         r = J ** (-2.0 / 3.0)
         S = l1 * l1 + l2 * l2 + l3 * l3
-        Q = sum(li * li * ai for li, ai in zip(lam, a2))
+        Q = sum(li * li * ai for li, ai in zip(lam, a2, strict=True))
         x = r * Q - 1.0
         g = self.k1 * x * math.exp(min(self.k2 * x * x, 700.0)) if x > 0 else 0.0
         out = []
-        for li, ai in zip(lam, a2):
+        for li, ai in zip(lam, a2, strict=True):
             dI1 = r * (2.0 * li - 2.0 * S / (3.0 * li))
             dI4 = r * (2.0 * li * ai - 2.0 * Q / (3.0 * li))
             out.append(self.c10 * dI1 + 2.0 * (J - 1.0) / self.d * J / li + g * dI4)
@@ -204,12 +205,12 @@ _KEYWORDS = {
         "has no hybrid elements: C3D8I or C3D20R avoid volumetric locking.",
     ],
     "febio": [
-        "Keywords: FEBio User's Manual, material 'Holzapfel-Gasser-Ogden' (uncoupled: c, k1, k2, kappa, gamma "
-        "in degrees, k, with a mat_axis); paste the <material> element into the <Material> section of an FEBio "
-        "4 model.",
-        "FEBio's HGO has two fibre families at +-gamma about mat_axis a. Here a is the fibre and gamma = 0, so "
-        "both families lie on it and each takes half: k1 (FEBio) = a/t0 = k1/2; c = 2 C10 (FEBio's matrix is "
-        "c/2 (I1bar - 3)); k = 2/D.",
+        "Keywords: FEBio User's Manual, material 'Holzapfel-Gasser-Ogden' (uncoupled: c, k1, k2, kappa, "
+        "gamma in degrees, k, with a mat_axis); paste the <material> element into the <Material> section of "
+        "an FEBio 4 model.",
+        "FEBio's HGO has two fibre families at +-gamma about mat_axis a. Here a is the fibre and gamma = 0, "
+        "so both families lie on it and each takes half: k1 (FEBio) = a/t0 = k1/2; c = 2 C10 (FEBio's "
+        "matrix is c/2 (I1bar - 3)); k = 2/D.",
     ],
 }
 _KEYWORDS["calculix-deck"] = _KEYWORDS["calculix"]
@@ -256,19 +257,19 @@ def _header(
         "Units: mm, N, MPa (k1, C10 in MPa; D in 1/MPa); angles in degrees; axes x/1 = course, y/2 = wale, "
         "z/3 = thickness.",
         f"Mapping: a solid of reference thickness t0 = {_g(fs.thickness)} mm; k1 = 2a/t0 = {_g(fs.k1)} MPa, "
-        f"k2 = b = {_g(fs.k2)}, kappa = 0, fibre direction (cos theta, sin theta, 0) = ({_d(cx)}, {_d(cy)}, 0). "
-        "Tension per unit width (N/mm) = t0 x nominal stress (MPa).",
+        f"k2 = b = {_g(fs.k2)}, kappa = 0, fibre direction (cos theta, sin theta, 0) = "
+        f"({_d(cx)}, {_d(cy)}, 0). Tension per unit width (N/mm) = t0 x nominal stress (MPa).",
         f"How {host} differs from the paper's model:",
-        f"(1) Macaulay bracket: {host} gives the fibre no stress while it is shorter than at rest (I4bar < 1); "
-        f"the paper's model keeps the fibre's compressive stress and {keep}. Under compression only the matrix "
-        "and the bulk term carry load.",
-        "(2) Isochoric invariants: I4bar = J^(-2/3) I4 and I1bar = J^(-2/3) I1 replace I4 and I1. They equal the "
-        f"paper's I4 only at J = 1; the bulk term below keeps |J - 1| near {abs(jm1):.1e} at equibiaxial stretch "
-        f"{_g(top)}, and the thickness then follows lam3 = 1/(lam1 lam2).",
-        f"(3) Matrix: C10 (I1bar - 3) with C10 = {_g(fs.c10)} MPa ({_g(fs.matrix_fraction)} x k1/2), absent from "
-        "the paper's model. It gives the fabric some shear and compression stiffness and adds 2 C10 t0 (lam1 - "
-        "lam1^-3 lam2^-2) N/mm to the course tension (likewise the wale). At small strain that is, of the "
-        f"fibre's tension along the {'; '.join(shares)}; a smaller matrix_fraction lowers it.",
+        f"(1) Macaulay bracket: {host} gives the fibre no stress while it is shorter than at rest "
+        f"(I4bar < 1); the paper's model keeps the fibre's compressive stress and {keep}. Under compression "
+        "only the matrix and the bulk term carry load.",
+        "(2) Isochoric invariants: I4bar = J^(-2/3) I4 and I1bar = J^(-2/3) I1 replace I4 and I1. They "
+        f"equal the paper's I4 only at J = 1; the bulk term below keeps |J - 1| near {abs(jm1):.1e} at "
+        f"equibiaxial stretch {_g(top)}, and the thickness then follows lam3 = 1/(lam1 lam2).",
+        f"(3) Matrix: C10 (I1bar - 3) with C10 = {_g(fs.c10)} MPa ({_g(fs.matrix_fraction)} x k1/2), absent "
+        "from the paper's model. It gives the fabric some shear and compression stiffness and adds 2 C10 t0 "
+        "(lam1 - lam1^-3 lam2^-2) N/mm to the course tension (likewise the wale). At small strain that is, "
+        f"of the fibre's tension along the {'; '.join(shares)}; a smaller matrix_fraction lowers it.",
         f"(4) Bulk: {_BULK[fmt]} with D = {_g(fs.d)} 1/MPa (initial bulk modulus 2/D = {_g(2 / fs.d)} MPa = "
         f"{_g(fs.bulk_ratio)} x k1). The paper's membrane has no thickness; this term only holds J near 1.",
         *(line.format(name=name, ccx_name=_ccx_name(name)) for line in _KEYWORDS[fmt]),
@@ -373,18 +374,31 @@ def _deck(
         ("STRIP", "strip-biaxial", top, 1.0),
         ("COMP", "equibiaxial-compression", CHECK_COMPRESSION, CHECK_COMPRESSION),
     ]
-    t0 = fs.thickness
     lines = [header_line("hgo", "calculix-deck"), *_comments(head)]
-    lines += _comments(
+    lines += _deck_comments(fs, model, params_rad, cases, increments)
+    lines += ["*HEADING", f"knitframe check of the {_ccx_name(name)} card", "*NODE, NSET=NALL"]
+    lines += _deck_blocks(fs, name, cases)
+    lines += _deck_step(cases, increments)
+    return "\n".join(lines) + "\n"
+
+
+def _deck_comments(
+    fs: FibreSolid, model: Any, params_rad: np.ndarray, cases: list[tuple], increments: int
+) -> list[str]:
+    """The deck's comment lines: how to run it, its load cases, and the expected tensions per
+    increment from knitframe's fitted model and from the card's own energy solved exactly."""
+    t0 = fs.thickness
+    lines = _comments(
         [
-            "Check deck: one 1 mm x 1 mm x t0 C3D8 block per load case, in-plane displacements of every node "
-            "prescribed so that F = diag(lam1, lam2, lam3) with lam3 free (bottom face held in z), NLGEOM, the "
-            f"stretch ramped over {increments} equal increments. Run: ccx -i <this file without .inp>. The .dat "
-            "lists the total reaction of sets <case>_X1 (fx) and <case>_Y1 (fy): the faces are 1 mm wide, so these "
-            "are the tensions per unit width T1, T2 in N/mm, and the z displacement of <case>_TOP gives lam3.",
-            "Strip-biaxial: the lateral side is held (lam2 = 1). The compression case tests (1): its fibre is "
-            "slack, so CalculiX shows the matrix only, where knitframe's fit shows the fibre's compressive stress "
-            "when it kept it.",
+            "Check deck: one 1 mm x 1 mm x t0 C3D8 block per load case, in-plane displacements of every "
+            "node prescribed so that F = diag(lam1, lam2, lam3) with lam3 free (bottom face held in z), "
+            f"NLGEOM, the stretch ramped over {increments} equal increments. Run: ccx -i <this file without "
+            ".inp>. The .dat lists the total reaction of sets <case>_X1 (fx) and <case>_Y1 (fy): the faces "
+            "are 1 mm wide, so these are the tensions per unit width T1, T2 in N/mm, and the z displacement "
+            "of <case>_TOP gives lam3.",
+            "Strip-biaxial: the lateral side is held (lam2 = 1). The compression case tests (1): its fibre "
+            "is slack, so CalculiX shows the matrix only, where knitframe's fit shows the fibre's "
+            "compressive stress when it kept it.",
         ]
     )
     lines += [
@@ -408,7 +422,14 @@ def _deck(
                 f"** {c:<6}{l1:>9.5f}{l2:>9.5f}{float(P1[0]):>15.6g}{float(P2[0]):>13.6g}{T1:>13.6g}"
                 f"{T2:>13.6g}{l3:>11.6f}"
             )
-    lines += ["*HEADING", f"knitframe check of the {_ccx_name(name)} card", "*NODE, NSET=NALL"]
+    return lines
+
+
+def _deck_blocks(fs: FibreSolid, name: str, cases: list[tuple]) -> list[str]:
+    """Nodes, one C3D8 element and its face node sets per load case (blocks 3 mm apart along x),
+    the material and the solid sections."""
+    t0 = fs.thickness
+    lines = []
     corners = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]
     for e, _ in enumerate(cases):
         for k, (x, y, z) in enumerate(corners):
@@ -429,7 +450,13 @@ def _deck(
     lines += _calculix_material(fs, name)
     for c, *_rest in cases:
         lines.append(f"*SOLID SECTION, ELSET={c}, MATERIAL={_ccx_name(name)}")
-    lines += ["*STEP, NLGEOM, INC=1000", "*STATIC, DIRECT", f"{_g(1.0 / increments)}, 1.", "*BOUNDARY"]
+    return lines
+
+
+def _deck_step(cases: list[tuple], increments: int) -> list[str]:
+    """The NLGEOM step: prescribed face displacements per case and the printed reactions and
+    top-face displacements."""
+    lines = ["*STEP, NLGEOM, INC=1000", "*STATIC, DIRECT", f"{_g(1.0 / increments)}, 1.", "*BOUNDARY"]
     for c, _, l1, l2 in cases:
         lines += [
             f"{c}_X0, 1, 1, 0.",
@@ -448,7 +475,7 @@ def _deck(
             "U",
         ]
     lines.append("*END STEP")
-    return "\n".join(lines) + "\n"
+    return lines
 
 
 def write_card(

@@ -55,13 +55,10 @@ from knitframe.geometry import (
 )
 from knitframe.records import Fabric
 
-__all__ = ["STITCH_LENGTHS", "KC", "KW", "LoopRow", "KnitLoopPattern", "arc_length_for"]
+__all__ = ["LoopRow", "KnitLoopPattern"]
 
 # The stitch-length table, Munden's pitches, the smooth sign, the arc-length solve and the cell
-# assembly live in knitframe.geometry so that third-party patterns can use them; the old names
-# stay importable from here.
-KC, KW = MUNDEN_KC, MUNDEN_KW
-_step = smooth_sign
+# assembly live in knitframe.geometry so that third-party patterns can use them.
 
 SIGN = {"k": 1.0, "p": -1.0}
 
@@ -88,9 +85,9 @@ class LoopRow:
     sharpness: float
 
     def _g(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        s1, ds1 = _step(np.cos(t), self.sharpness)
+        s1, ds1 = smooth_sign(np.cos(t), self.sharpness)
         w, dw = 0.5 * (1.0 + s1), -0.5 * ds1 * np.sin(t)
-        s2, ds2 = _step(np.cos(0.5 * t), self.sharpness)
+        s2, ds2 = smooth_sign(np.cos(0.5 * t), self.sharpness)
         half = -0.5 * ds2 * np.sin(0.5 * t)
 
         def blend(sig):
@@ -136,7 +133,6 @@ class LoopRow:
         )
 
 
-_check_table = check_stitch_lengths
 #: Munden's constants of real knits lie near 4 to 9; outside [1, 20] the pitches are no knit's
 _MUNDEN = attrs.validators.and_(v.positive, v.in_range(1.0, 20.0))
 #: loops flatter than a tenth of dk pass through the yarns they hold, deeper than 10 dk they are no loops
@@ -157,12 +153,12 @@ class KnitLoopPattern:
 
     #: machine setting -> yarn length per stitch, mm
     stitch_lengths: dict[str, float] = attrs.field(
-        factory=lambda: dict(STITCH_LENGTHS), validator=_check_table
+        factory=lambda: dict(STITCH_LENGTHS), validator=check_stitch_lengths
     )
     #: Munden course constant (courses/cm = Kc/ℓ[cm]), -
-    Kc: float = attrs.field(default=KC, validator=_MUNDEN)
+    Kc: float = attrs.field(default=MUNDEN_KC, validator=_MUNDEN)
     #: Munden wale constant (wales/cm = Kw/ℓ[cm]), -
-    Kw: float = attrs.field(default=KW, validator=_MUNDEN)
+    Kw: float = attrs.field(default=MUNDEN_KW, validator=_MUNDEN)
     #: Crane's a, -
     roundness: float = attrs.field(default=1.5, validator=v.in_range(0.0, 10.0))
     #: out-of-plane amplitude D / dk (Crane: 1/1.6), -
@@ -242,6 +238,7 @@ def _check_interlock(cell: UnitCell, arc: float) -> None:
         counts = np.histogram([x[0] for x in cr], bins=edges)[0]
         if np.any(counts < 2):
             raise GeometryError(
-                f"{cell.pattern}: with arc length {arc:g} mm per stitch the loops do not reach through the row below "
-                f"at wale pitch {cell.wale_pitch:.4g} mm; give a smaller wale_pitch (or larger Kc) or a longer stitch"
+                f"{cell.pattern}: with arc length {arc:g} mm per stitch the loops do not reach through "
+                f"the row below at wale pitch {cell.wale_pitch:.4g} mm; give a smaller wale_pitch "
+                "(or larger Kc) or a longer stitch"
             )

@@ -130,6 +130,26 @@ def bend(
     g = np.stack([-Ga, Ga - Gb, Gb], axis=1)
     if order == 1:
         return E, g, None
+    return E, g, _bend_hessian(ah, bh, c, la, lb, ga, gb, f1, f2)
+
+
+def _bend_hessian(
+    ah: np.ndarray,
+    bh: np.ndarray,
+    c: np.ndarray,
+    la: np.ndarray,
+    lb: np.ndarray,
+    ga: np.ndarray,
+    gb: np.ndarray,
+    f1: np.ndarray,
+    f2: np.ndarray,
+) -> np.ndarray:
+    """Hessian (m, 3, 3, 3, 3) of the bending energy E(c) with respect to x0, x1, x2.
+
+    ``ah``, ``bh`` (m, 3) are the unit edges, ``la``, ``lb`` (m,) their lengths, ``ga``, ``gb``
+    (m, 3) the gradients ∇_a c, ∇_b c, and ``f1``, ``f2`` (m,) E′ and E″ in c (see :func:`bend`):
+    ∇²_aa E = E″ ∇_a c ∇_a cᵀ + E′ ∇²_aa c, likewise for bb and ab, then mapped to the points.
+    """
     eye = np.eye(3)
     aa = ah[:, :, None] * ah[:, None, :]
     bb = bh[:, :, None] * bh[:, None, :]
@@ -156,4 +176,4 @@ def bend(
     H[:, 2, :, 0, :] = -Eba
     H[:, 2, :, 1, :] = Eba - Ebb
     H[:, 2, :, 2, :] = Ebb
-    return E, g, H
+    return H

@@ -137,6 +137,28 @@ def invariant_law(
         raise NumericalError("yarn law: non-finite stress")
     if order == 1:
         return W, P, None
+    return W, P, _tangent(F, a if fibre else None, Ci, S, c1, lam, alpha, beta, gamma)
+
+
+def _tangent(
+    F: np.ndarray,
+    a: np.ndarray | None,
+    Ci: np.ndarray,
+    S: np.ndarray,
+    c1: np.ndarray,
+    lam: float,
+    alpha: float,
+    beta: float,
+    gamma: float,
+) -> np.ndarray:
+    """The tangent A_iJkL = δ_ik S_LJ + F_iI F_kK ℂ_IJKL of :func:`invariant_law` (..., 3, 3, 3, 3), MPa.
+
+    ``Ci`` is C⁻¹, ``S`` the second Piola stress and ``c1`` = μ − λ ln J − β (I4 − 1) as
+    computed there; ``a`` the fibre directions (..., 3), or None when the law has no fibre
+    terms. ℂ's dyads are pushed forward term by term, (FX)_iJ (FY)_kL, as in
+    :func:`invariant_law`'s docstring.
+    """
+    eye = np.broadcast_to(np.eye(3), S.shape)
     FC = F @ Ci  # (F C⁻¹)_iJ
     b = FC @ np.swapaxes(F, -1, -2)  # F C⁻¹ Fᵀ = I, kept general for round-off consistency
     A = lam * _outer(FC, FC)
@@ -147,7 +169,8 @@ def invariant_law(
     )
     # geometric term δ_ik S_LJ
     A = A + eye[..., :, None, :, None] * S[..., None, :, None, :]
-    if fibre:
+    if a is not None:
+        A_ = a[..., :, None] * a[..., None, :]
         Fa = np.einsum("...iI,...I->...i", F, a)
         FA = Fa[..., :, None] * a[..., None, :]  # (F A)_iJ = (Fa)_i a_J
         A = A + 2.0 * beta * (_outer(FC, FA) + _outer(FA, FC)) + 8.0 * gamma * _outer(FA, FA)
@@ -158,7 +181,7 @@ def invariant_law(
         t3 = FFt[..., :, None, :, None] * A_[..., None, :, None, :]
         t4 = F[..., :, None, None, :] * (a[..., :, None] * Fa[..., None, :])[..., None, :, :, None]
         A = A - alpha * (t1 + t2 + t3 + t4)
-    return W, P, A
+    return A
 
 
 @attrs.frozen
