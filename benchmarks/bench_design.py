@@ -67,7 +67,7 @@ def big_library(copies: int = 3):
 
 def main() -> int:
     import knitframe
-    from knitframe.garment import core
+    from knitframe.garment import assign
     from knitframe.garment.core import design
     from knitframe.garment.library import builtin_library
     from knitframe.garment.limb import Limb, example_arm
@@ -110,7 +110,7 @@ def main() -> int:
     lib = big_library()
     arm = example_arm(n_stations=201, n_around=64)
     geo = element_geometry(arm)
-    lam1, lam2, T1, T2, courses, feasible = core._fabric_fields(
+    lam1, lam2, T1, T2, courses, feasible = assign._fabric_fields(
         lib, Tube("knitting", needles=60), geo, float(arm.circumference[0]), None
     )
     timings = []
@@ -118,9 +118,9 @@ def main() -> int:
         ("pressure_profile (target)", profile),
         ("stress_variance (level searched)", reg["design_objective"]["stress_variance"]()),
     ):
-        V = core._evaluate(obj, T1, geo, "equivalent")
+        V = assign._evaluate(obj, T1, geo, "equivalent")
         t0 = time.perf_counter()
-        sol = core._solve_bands(obj, V, feasible, geo, courses, 10.0, None)
+        sol = assign._solve_bands(obj, V, feasible, geo, courses, 10.0, None)
         timings.append((name, time.perf_counter() - t0, len(np.unique(sol.rows))))
     cost = np.random.default_rng(0).random((200, 24))
     t0 = time.perf_counter()

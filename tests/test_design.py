@@ -133,7 +133,7 @@ def test_knitting_mode_a_looser_stitch_knits_a_wider_tube():
             entry("loose", 0.04, 1.0, 40.0, pitch=(1.25, 1.0)),
         ),
     )
-    from knitframe.garment.core import _fabric_fields
+    from knitframe.garment.assign import _fabric_fields
     from knitframe.garment.tube import element_geometry
 
     lam1, lam2, T1, _, courses, _ = _fabric_fields(

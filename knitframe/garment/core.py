@@ -21,10 +21,11 @@ from typing import Any
 
 import attrs
 import numpy as np
-from scipy import ndimage
 
 from knitframe.errors import ConfigError, KnitframeWarning
-from knitframe.garment.optimise import BandSolution, NoAssignment, check_options, solve_bands, solve_levels
+from knitframe.garment.assign import _assign, _evaluate
+from knitframe.garment.optimise import check_options
+from knitframe.garment.paper import _periodic_labels
 from knitframe.garment.tube import MMHG_PER_MPA, ElementGeometry, Tube, element_geometry
 
 __all__ = ["Design", "design", "compression_class", "CLASSES"]
@@ -238,151 +239,50 @@ def _cv(x: np.ndarray, w: np.ndarray) -> float:
     return float(np.sqrt(np.sum(w * (x - mean) ** 2) / np.sum(w)) / mean) if mean > 0 else float("inf")
 
 
-def _periodic_labels(fabric: np.ndarray) -> tuple[np.ndarray, int]:
-    """Connected regions of equal fabric on the tube (4-neighbours, joined across the seam)."""
-    labels = np.zeros(fabric.shape, dtype=np.int64)
-    n = 0
-    for f in np.unique(fabric):
-        lab, k = ndimage.label(fabric == f)
-        labels[lab > 0] = lab[lab > 0] + n
-        n += k
-    parent = np.arange(n + 1)
-
-    def root(a: int) -> int:
-        while parent[a] != a:
-            parent[a] = parent[parent[a]]
-            a = parent[a]
-        return a
-
-    seam = fabric[:, 0] == fabric[:, -1]
-    for a, b in zip(labels[seam, 0], labels[seam, -1]):
-        ra, rb = root(int(a)), root(int(b))
-        if ra != rb:
-            parent[max(ra, rb)] = min(ra, rb)
-    roots = np.array([root(i) for i in range(n + 1)])
-    _, dense = np.unique(roots, return_inverse=True)
-    return dense[labels], int(dense.max())
-
-
-def _evaluate(objective, T1: np.ndarray, geo: ElementGeometry, pressure_basis: str) -> np.ndarray:
-    """The objective's field for tensions T1 (any leading shape, last two (R, A))."""
-    if objective.quantity == "tension":
-        return T1
-    if pressure_basis == "local":
-        return T1 * np.maximum(geo.curvature, 0.0) * MMHG_PER_MPA
-    return T1 / geo.equivalent_radius[:, None] * MMHG_PER_MPA
-
-
-def _fabric_fields(library, tube: Tube, geo: ElementGeometry, distal: float, needles: int | None):
-    """λ1, λ2, T1, T2 of shape (F, R, A), courses (R, F) and the feasibility (F, R, A)."""
-    entries = library.entries
-    c = np.array([e.course_pitch for e in entries])
-    w = np.array([e.wale_pitch for e in entries])
-    lam1, lam2, courses = tube.stretches(geo, c, w, distal, needles)
-    T1 = np.empty(lam1.shape)
-    T2 = np.empty(lam1.shape)
-    for f, e in enumerate(entries):
-        t1, t2 = e.tensions(lam1[f], lam2[f])
-        T1[f], T2[f] = np.maximum(t1, 0.0), np.maximum(t2, 0.0)  # slack fabric carries no compression
-    tmax = np.array([e.max_tension for e in entries])[:, None, None]
-    smax = np.array([e.max_stretch or np.inf for e in entries])[:, None, None]
-    feasible = np.isfinite(T1) & (T1 <= tmax) & (lam1 <= smax)
-    return np.asarray(lam1), np.asarray(lam2), T1, T2, courses, feasible
-
-
-def _solve_bands(
-    objective,
-    V: np.ndarray,
-    feasible: np.ndarray,
-    geo: ElementGeometry,
-    courses: np.ndarray,
-    min_courses: float,
-    max_fabrics: int | None,
-) -> BandSolution:
-    """Exact course-band assignment for the objective's per-element field V (F, R, A)."""
-    area = geo.area[None]
-    pos = np.broadcast_to(geo.position[:, None], geo.shape)[None]
-    blocked = ~feasible.all(axis=2).T  # (R, F): a row in fabric f with any element over the limit
-
-    def row_cost(level: float | None) -> np.ndarray:
-        c = objective.element_cost(V, area, pos, level).sum(axis=2).T
-        return np.where(blocked, np.inf, c)
-
-    def evaluate(rows: np.ndarray) -> float:
-        v = V[rows, np.arange(len(rows))]
-        return objective.evaluate(v, geo.area, np.broadcast_to(geo.position[:, None], geo.shape))
-
-    if not objective.relative:
-        return solve_bands(row_cost(None), courses, min_courses, max_fabrics)
-    ok = V[feasible & (V > 0)]
-    if not len(ok):
-        raise NoAssignment("every fabric is slack or over its limit everywhere")
-    levels = np.geomspace(np.percentile(ok, 2), np.percentile(ok, 98), 24)
-    return solve_levels(row_cost, courses, levels, evaluate, min_courses=min_courses, max_fabrics=max_fabrics)
-
-
-def _no_fit_message(library, feasible: np.ndarray, lam1: np.ndarray, geo: ElementGeometry) -> str:
-    rows_ok = feasible.all(axis=2).any(axis=0)  # (R,): some fabric fits the whole row
-    if rows_ok.all():
-        return "no assignment meets the limits with regions of at least design.min_courses courses"
-    i = int(np.flatnonzero(~rows_ok)[0])
-    return (
-        f"no fabric in library '{library.name}' can be worn at {geo.z[i]:.0f} mm along the limb "
-        f"(circumference {geo.circumference[i]:.0f} mm, course stretch {lam1[:, i].min():.2f} to "
-        f"{lam1[:, i].max():.2f}): every one is over its limit; add a more compliant fabric or use more needles"
+def _check_design(library, tube: Tube, method: str, pressure: str, min_courses, max_fabrics, base) -> int:
+    """Refuse bad design options in one line; the index of the base fabric in the library."""
+    check_options(min_courses, max_fabrics, len(library.entries))
+    if method not in ("optimal", "paper"):
+        raise ConfigError("design.method", f"must be 'optimal' or 'paper', got {method!r}")
+    if pressure not in ("equivalent", "local"):
+        raise ConfigError("design.pressure", f"must be 'equivalent' or 'local', got {pressure!r}")
+    if method == "paper" and tube.mode != "paper":
+        raise ConfigError(
+            "design.method",
+            "the paper's per-element method needs tube.mode = 'paper' (its "
+            "2-D map needs intarsia; the knitting mode designs course bands)",
+        )
+    names = [e.name for e in library.entries]
+    if base is None:
+        return next((i for i, e in enumerate(library.entries) if "cotton" in e.yarn.lower()), 0)
+    if base in names:
+        return names.index(base)
+    raise ConfigError(
+        "design.base", f"no fabric '{base}' in library '{library.name}'; it has {', '.join(names)}"
     )
 
 
-def _paper_method(
-    objective,
-    library,
-    T1: np.ndarray,
-    feasible: np.ndarray,
-    geo: ElementGeometry,
-    base: int,
-    min_elements: int,
-) -> tuple[np.ndarray, list[str]]:
-    """The paper's per-element procedure (steps 5–7); returns the (R, A) assignment and notes."""
-    F = T1.shape[0]
-    fab = np.full(geo.shape, base)
-    over = ~feasible[base]
-    compliant = np.argmin(np.where(feasible, T1, np.inf), axis=0)  # the least tension that fits
-    fab[over] = compliant[over]
-    notes = [
-        f"{int(over.sum())} of {over.size} elements over the limit of "
-        f"{library.entries[base].name}: switched to the most compliant fabric that fits"
-    ]
-    for it in range(50):  # choose each element's fabric for the most uniform tension, to a fixed point
-        current = np.take_along_axis(T1, fab[None], 0)[0]
-        tau = float(np.sum(geo.area * current) / np.sum(geo.area))
-        new = np.argmin(np.where(feasible, np.abs(T1 - tau), np.inf), axis=0)
-        new = np.where(feasible[new, np.arange(geo.shape[0])[:, None], np.arange(geo.shape[1])], new, fab)
-        if np.array_equal(new, fab):
-            break
-        fab = new
-    notes.append(f"uniform-tension choice converged after {it + 1} passes")
-    merged = 0
-    while True:  # merge regions below the minimum size into the neighbour they share most boundary with
-        labels, n = _periodic_labels(fab)
-        sizes = np.bincount(labels.ravel(), minlength=n + 1)
-        small = [k for k in range(1, n + 1) if sizes[k] < min_elements]
-        if not small or n == 1:
-            break
-        k = min(small, key=lambda k: sizes[k])
-        mask = labels == k
-        ring = (
-            np.roll(mask, 1, 1)
-            | np.roll(mask, -1, 1)
-            | np.vstack([mask[1:], mask[-1:] & False])
-            | np.vstack([mask[:1] & False, mask[:-1]])
-        ) & ~mask
-        neighbours = fab[ring]
-        if not len(neighbours):
-            break
-        fab[mask] = np.bincount(neighbours, minlength=F).argmax()
-        merged += 1
-    notes.append(f"{merged} regions below {min_elements} elements merged into their neighbours")
-    return fab, notes
+def _baseline(
+    library, objective, T1b: np.ndarray, over: int, geo, base_i: int, pressure: str
+) -> dict[str, Any]:
+    """The one-fabric garment of the base fabric, for comparison: its stress CV, elements over the
+    limit, largest tension and objective (None, with a note, where the objective is undefined)."""
+    where = np.broadcast_to(geo.position[:, None], geo.shape)
+    baseline = {
+        "fabric": library.entries[base_i].name,
+        "stress_cv": _cv(T1b, geo.area),
+        "elements_over_limit": over,
+        "max_tension_N_per_mm": float(T1b.max()),
+        "limit_N_per_mm": library.entries[base_i].max_tension,
+    }
+    try:
+        baseline["objective"] = float(
+            objective.evaluate(_evaluate(objective, T1b, geo, pressure), geo.area, where)
+        )
+    except Exception as e:  # a uniform-stress objective is undefined for a slack garment
+        baseline["objective"] = None
+        baseline["objective_note"] = str(e)
+    return baseline
 
 
 def design(
@@ -423,71 +323,21 @@ def design(
     """
     t0 = time.perf_counter()
     tube = tube or Tube()
-    check_options(min_courses, max_fabrics, len(library.entries))
-    if method not in ("optimal", "paper"):
-        raise ConfigError("design.method", f"must be 'optimal' or 'paper', got {method!r}")
-    if pressure not in ("equivalent", "local"):
-        raise ConfigError("design.pressure", f"must be 'equivalent' or 'local', got {pressure!r}")
-    if method == "paper" and tube.mode != "paper":
-        raise ConfigError(
-            "design.method",
-            "the paper's per-element method needs tube.mode = 'paper' (its "
-            "2-D map needs intarsia; the knitting mode designs course bands)",
-        )
-    names = [e.name for e in library.entries]
-    if base is None:
-        base_i = next((i for i, e in enumerate(library.entries) if "cotton" in e.yarn.lower()), 0)
-    elif base in names:
-        base_i = names.index(base)
-    else:
-        raise ConfigError(
-            "design.base", f"no fabric '{base}' in library '{library.name}'; it has {', '.join(names)}"
-        )
+    base_i = _check_design(library, tube, method, pressure, min_courses, max_fabrics, base)
     geo = element_geometry(limb)
     distal = float(limb.circumference[0])
     notes: list[str] = list(limb.notes)
 
     where = np.broadcast_to(geo.position[:, None], geo.shape)
-
-    def solve(n: int | None):
-        lam1, lam2, T1, T2, courses, feasible = _fabric_fields(library, tube, geo, distal, n)
-        V = _evaluate(objective, T1, geo, pressure)
-        sol = _solve_bands(objective, V, feasible, geo, courses, min_courses, max_fabrics)
-        value = objective.evaluate(V[sol.rows, np.arange(len(sol.rows))], geo.area, where)
-        return sol, (lam1, lam2, T1, T2, courses, feasible, V), float(value)
-
-    if method == "paper":
-        lam1, lam2, T1, T2, courses, feasible = _fabric_fields(library, tube, geo, distal, None)
-        min_elements = max(1, int(np.ceil(min_courses / courses.mean())))
-        fab, more = _paper_method(objective, library, T1, feasible, geo, base_i, min_elements)
-        notes += more
-        guarantee = "none: the paper's per-element heuristic (steps 5–7)"
-        made = tube
-    else:
-        if tube.mode == "knitting" and tube.needles is None:
-            sol, fields, n = _search_needles(solve, library, geo, distal)
-            made = attrs.evolve(tube, needles=n)
-            notes.append(f"{n} needles chosen with the assignment")
-        else:
-            try:
-                sol, fields, _ = solve(None)
-            except NoAssignment:
-                lam1, _, _, _, _, feasible = _fabric_fields(library, tube, geo, distal, None)
-                raise ConfigError("design", _no_fit_message(library, feasible, lam1, geo)) from None
-            made = (
-                tube
-                if tube.mode == "knitting"
-                else attrs.evolve(
-                    tube,
-                    circumference=tube.circumference or distal,
-                    length=tube.length or float(geo.row_length.sum()),
-                )
-            )
-        lam1, lam2, T1, T2, courses, feasible, _ = fields
-        fab = np.repeat(sol.rows[:, None], geo.shape[1], axis=1)
-        guarantee = sol.guarantee + (
-            f"; level τ = {sol.level:.4g} searched on a grid and refined" if sol.level is not None else ""
-        )
+    options = {
+        "method": method,
+        "pressure": pressure,
+        "min_courses": min_courses,
+        "max_fabrics": max_fabrics,
+        "base_i": base_i,
+    }
+    fab, made, guarantee, fields = _assign(library, objective, tube, geo, distal, options, notes)
+    lam1, lam2, T1, T2, courses, feasible = fields
     if made.mode == "paper" and made.circumference is None:
         made = attrs.evolve(made, circumference=distal, length=float(geo.row_length.sum()))
     R, A = geo.shape
@@ -496,21 +346,8 @@ def design(
     T1d = pick(T1)
     value = objective.evaluate(_evaluate(objective, T1d, geo, pressure), geo.area, where)
     rows_courses = courses[np.arange(R), fab[:, 0]]  # the course count of the row's first element
-    T1b = T1[base_i]
-    baseline = {
-        "fabric": names[base_i],
-        "stress_cv": _cv(T1b, geo.area),
-        "elements_over_limit": int((~feasible[base_i]).sum()),
-        "max_tension_N_per_mm": float(T1b.max()),
-        "limit_N_per_mm": library.entries[base_i].max_tension,
-    }
-    try:
-        baseline["objective"] = float(
-            objective.evaluate(_evaluate(objective, T1b, geo, pressure), geo.area, where)
-        )
-    except Exception as e:  # a uniform-stress objective is undefined for a slack garment
-        baseline["objective"] = None
-        baseline["objective_note"] = str(e)
+    over = int((~feasible[base_i]).sum())
+    baseline = _baseline(library, objective, T1[base_i], over, geo, base_i, pressure)
     d = Design(
         limb,
         library,
@@ -557,53 +394,3 @@ def _suspect(d: Design) -> list[str]:
     if d.T1.max() == 0:
         out.append("every element is slack: the tube is wider than the limb everywhere")
     return out
-
-
-def _search_needles(solve, library, geo: ElementGeometry, distal: float):
-    """Knitting mode without a needle count: search N with the assignment (grid, then integer refinement).
-
-    Candidates stretch the distal section by 0–80 % in the median fabric's relaxed course pitch.
-    """
-    c_med = float(np.median([e.course_pitch for e in library.entries]))
-    lo, hi = max(4, int(np.floor(distal / (c_med * 1.8)))), max(5, int(np.ceil(distal / c_med)))
-    tried: dict[int, tuple[float, Any]] = {}
-
-    def score(n: int) -> float:
-        if n not in tried:
-            try:
-                sol, fields, value = solve(n)
-            except NoAssignment:
-                tried[n] = (np.inf, None)
-            else:
-                tried[n] = (value, (sol, fields))
-        return tried[n][0]
-
-    grid = np.unique(np.round(np.geomspace(lo, hi, 12)).astype(int))
-    for n in grid:
-        score(int(n))
-    best = min(tried, key=lambda n: tried[n][0])
-    step = max(1, int(np.ceil((hi - lo) / 12)))
-    while step >= 1:
-        for n in (best - step, best + step):
-            if lo <= n <= hi:
-                score(n)
-        new = min(tried, key=lambda n: tried[n][0])
-        if new == best:
-            step //= 2
-        best = new
-    if not np.isfinite(tried[best][0]):
-        raise ConfigError(
-            "design",
-            f"no needle count from {lo} to {hi} gives a garment within the fabrics' "
-            "limits; give design.tube.needles or a more compliant library",
-        )
-    sol, fields = tried[best][1]
-    if best in (lo, hi):
-        warnings.warn(
-            f"the best needle count, {best}, is at the end of the range searched ({lo}–{hi}: the "
-            "distal section stretched 80 % to 0 % in the median fabric); give design.tube.needles to go "
-            "beyond it",
-            KnitframeWarning,
-            stacklevel=3,
-        )
-    return sol, fields, best

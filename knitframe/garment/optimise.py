@@ -78,7 +78,7 @@ def runs(rows: np.ndarray) -> list[tuple[int, int, int]]:
     cut = np.flatnonzero(np.diff(rows)) + 1
     starts = np.concatenate([[0], cut])
     ends = np.concatenate([cut, [len(rows)]])
-    return [(int(s), int(e), int(rows[s])) for s, e in zip(starts, ends)]
+    return [(int(s), int(e), int(rows[s])) for s, e in zip(starts, ends, strict=False)]
 
 
 def _check(cost: np.ndarray, courses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

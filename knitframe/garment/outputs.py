@@ -1,4 +1,5 @@
-"""The files of a design: ``design.json``, ``knit-map.csv``, ``knit-map.png``, ``pressure.png`` and ``design.vtu``."""
+"""The files of a design: ``design.json``, ``knit-map.csv``, ``knit-map.png``, ``pressure.png`` and
+``design.vtu``."""
 
 from __future__ import annotations
 
@@ -166,7 +167,7 @@ def plot_pressure(d: Design, path: Path) -> None:
     ax1.set_title("interface pressure p = T/r (local curvature)")
     top = max(float(pl.max()), float(pe.max()), 50.0) * 1.08
     shades = ["#e8f4e8", "#d4ebd4", "#bfe0bf", "#a9d5a9"]
-    for (name, lo, hi), colour in zip(CLASSES, shades):
+    for (name, lo, hi), colour in zip(CLASSES, shades, strict=False):
         ax2.axvspan(lo, min(hi, top), color=colour, zorder=0)
         ax2.text(0.5 * (lo + min(hi, top)), g.z[-1], f"class {name}", ha="center", va="top", fontsize=8)
     ax2.fill_betweenx(

@@ -4,7 +4,8 @@
 
     [design]
     limb = "example"                 # the built-in arm; or a scan ("arm.stl", .obj, .ply); or measurements:
-    # limb = { positions_mm = [0, 100, 250, 420], circumferences_mm = [160, 250, 240, 310], ellipticity = 0.85 }
+    # limb = { positions_mm = [0, 100, 250, 420], circumferences_mm = [160, 250, 240, 310],
+    #          ellipticity = 0.85 }
     library = "builtin"              # or a library.json (knitframe library build, a sweep)
     objective = { kind = "pressure_profile", target_mmHg = 30, ratios = [1.0, 0.6] }
     method = "optimal"               # or "paper" (the paper's per-element procedure, tube.mode = "paper")
@@ -13,7 +14,7 @@
     # max_fabrics = 3                # at most this many distinct fabrics
 
     [design.tube]
-    mode = "knitting"                # or "paper": a cylinder of wrist circumference mapped element for element
+    mode = "knitting"                # or "paper": a wrist-circumference cylinder mapped element for element
     # needles = 120                  # stitches per course (knitting; searched when not given)
 
     [design.machine]                 # optional: also knit it on a V-bed machine (docs/machine-output.md)
