@@ -79,15 +79,15 @@ def rel(a, b) -> str:
 
 def projection_time(m: int, repeat: int) -> None:
     """Time ``project_p2`` on m random bowed quadratic facets, and its start search (the 28-point lattice) alone."""
-    from knitframe.numerics import solid_contact as sg
+    from knitframe.numerics.contact import barycentric, p2
 
     rng = np.random.default_rng(0)
     c = rng.normal(size=(m, 3, 3)) * 0.1 + np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]])
     mid = 0.5 * (c[:, [0, 1, 2]] + c[:, [1, 2, 0]]) + rng.normal(size=(m, 3, 3)) * 0.05
     X = np.concatenate([c, mid], axis=1)
     p = rng.uniform(-0.2, 0.8, size=(m, 3)) * [1, 1, 0.3]
-    a = sg.p2_coefficients(X)
-    xi = sg.barycentric(p, X[:, 0], X[:, 1], X[:, 2])[:, 1:].clip(0.0, 1.0)
+    a = p2.p2_coefficients(X)
+    xi = barycentric(p, X[:, 0], X[:, 1], X[:, 2])[:, 1:].clip(0.0, 1.0)
 
     def best(f):
         out = []
@@ -98,8 +98,8 @@ def projection_time(m: int, repeat: int) -> None:
         return min(out)
 
     print("| what | s |\n|---|---|")
-    print(f"| project_p2, {m} facets | {best(lambda: sg.project_p2(p, X)):.3f} |")
-    print(f"| of it the start search (28-point lattice) | {best(lambda: sg._best_start(p, *a, xi)):.3f} |")
+    print(f"| project_p2, {m} facets | {best(lambda: p2.project_p2(p, X)):.3f} |")
+    print(f"| of it the start search (28-point lattice) | {best(lambda: p2._best_start(p, *a, xi)):.3f} |")
 
 
 def main(argv=None) -> None:

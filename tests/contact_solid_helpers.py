@@ -11,7 +11,7 @@ from knitframe_yarns.isotropic import Isotropic
 from knitframe.numerics.contact_search import SegmentTopology
 from knitframe.numerics.mesh import surface_facets
 from knitframe.numerics.newton import NewtonOptions, minimise
-from knitframe.numerics.solid_contact import SolidSurface
+from knitframe.numerics.contact import SolidSurface
 
 
 def join(meshes: list, order: int):
@@ -203,7 +203,7 @@ def image_blocks():
     from knitframe.numerics.contact_search import SegmentTopology
     from knitframe.numerics.mesh import surface_facets
     from knitframe.numerics.periodic import Lattice
-    from knitframe.numerics.solid_contact import SolidSurface
+    from knitframe.numerics.contact import SolidSurface
 
     a = skfem.MeshTet1.init_tensor(np.linspace(0.5, 1, 3), np.linspace(0.2, 0.8, 4), np.linspace(0.1, 0.4, 3))
     b = skfem.MeshTet1.init_tensor(np.linspace(0, 0.4, 3), np.linspace(0, 1, 5), np.linspace(0, 0.5, 4))

@@ -16,7 +16,7 @@ from knitframe.numerics.contact_search import SegmentTopology
 from knitframe.numerics.mesh import surface_facets
 from knitframe.numerics.newton import NewtonOptions, minimise
 from knitframe.numerics.periodic import Lattice
-from knitframe.numerics.solid_contact import SolidSurface
+from knitframe.numerics.contact import SolidSurface
 from knitframe.plugins import get_registry
 
 

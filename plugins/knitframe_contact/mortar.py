@@ -14,14 +14,14 @@ consistently through the master's shape functions at the projection points. On l
 is the distance to the master triangle's plane; on quadratic facets it is the signed distance to
 the closest point x(ξ*) of the curved master facet, n·(x_q − x(ξ*)) inside it, so that it stays
 continuous where the nearest facet changes (beyond an open edge of the master surface, the
-facet's polynomial continuation; :func:`knitframe.numerics.solid_contact.select_pairs`). On
+facet's polynomial continuation; :func:`knitframe.numerics.contact.select_pairs`). On
 linear meshes the master surface is by default smoothed (``smoothing = "nagata"``): each master
 triangle becomes the quadratic patch through its corners' nodal normals
-(:func:`knitframe.numerics.solid_contact.nagata_facets`), with the normals frozen for the
+(:func:`knitframe.numerics.contact.nagata_facets`), with the normals frozen for the
 increment, so that the gap does not kink at facet edges. The gradient
 and Hessian are exact for the current pairing, including the second derivative of the
 closest-point projection on curved facets
-(:func:`knitframe.numerics.solid_contact.p2_gap_derivatives`; Gauss-Newton only where the
+(:func:`knitframe.numerics.contact.p2_gap_derivatives`; Gauss-Newton only where the
 continuation has no closest point near the facet). This is the Gauss-point-to-segment form of
 the penalty mortar method; the integration is by quadrature on the slave facets rather than by
 clipping against the master segments, which is exact for flat contact and converges with
@@ -37,7 +37,7 @@ normal n and the master's material point ξ* under them; :meth:`SolidMortar.eval
 
 (the slip of the slave point against the same material point of the master, x_m including the
 image shift F̄·S_k; ε_s = ``slip`` × the slave facet's size), whose tangential force rises
-smoothly to μ λ_q at the slip ε_s (:func:`knitframe.numerics.solid_contact.friction_terms`).
+smoothly to μ λ_q at the slip ε_s (:func:`knitframe.numerics.contact.friction_terms`).
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ import numpy as np
 
 from knitframe import hookimpl
 from knitframe import validators as v
-from knitframe.numerics.solid_contact import (
+from knitframe.numerics.contact import (
     Candidates,
     FrictionState,
     P2Projection,
