@@ -114,63 +114,43 @@ def project_p2(
     continues a flat triangle) and Newton runs unconstrained from ``start`` (m, 2); a row is
     ``interior`` when it converges to a minimum with ξ within 0.5 of the triangle.
     """
-    m = len(p)
-    a0, a1, a2, a3, a4, a5 = p2_coefficients(Xf)
+    a = p2_coefficients(Xf)
     if start is not None:
         xi = np.array(start, dtype=np.float64)
     else:
         if lam is None:
             lam = barycentric(p, Xf[:, 0], Xf[:, 1], Xf[:, 2])
         xi, _ = _clip_triangle(lam[:, 1:].copy())
-        xi = _best_start(p, a0, a1, a2, a3, a4, a5, xi)
+        xi = _best_start(p, *a, xi)
+    converged, failed = _newton(p, a, xi, iterations, tol, extend)
+    if extend:
+        inner = ~failed
+    else:
+        inner = (xi[:, 0] > 0.0) & (xi[:, 1] > 0.0) & (xi[:, 0] + xi[:, 1] < 1.0 - 1e-14)
+    return _projection(p, a, xi, converged & inner)
+
+
+def _newton(
+    p: np.ndarray, a: tuple[np.ndarray, ...], xi: np.ndarray, iterations: int, tol: float, extend: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """The Newton iteration of :func:`project_p2` from ξ (m, 2), updated in place; ``a`` the facets'
+    coefficients (:func:`p2_coefficients`). Returns which rows converged and which (with ``extend``)
+    have no minimum near the triangle."""
+    m = len(p)
     converged = np.zeros(m, bool)
     failed = np.zeros(m, bool)
     act = np.arange(m)
     for _ in range(iterations):
         if act.size == 0:
             break
-        s, t = xi[act, 0], xi[act, 1]
-        b0, b1, b2, b3, b4, b5, pa = a0[act], a1[act], a2[act], a3[act], a4[act], a5[act], p[act]
-        sc, tc = s[:, None], t[:, None]
-        xs = b1 + 2.0 * b3 * sc + b4 * tc
-        xt = b2 + b4 * sc + 2.0 * b5 * tc
-        r = pa - _p2_point((b0, b1, b2, b3, b4, b5), sc, tc)
-        G11, G12, G22 = dot(xs, xs), dot(xs, xt), dot(xt, xt)
-        H11, H12, H22 = G11 - 2.0 * dot(r, b3), G12 - dot(r, b4), G22 - 2.0 * dot(r, b5)
-        det = H11 * H22 - H12 * H12
-        gn = ~((H11 > 0) & (det > 1e-12 * G11 * G22))  # not positive definite: Gauss-Newton step
-        H11, H12, H22 = np.where(gn, G11, H11), np.where(gn, G12, H12), np.where(gn, G22, H22)
-        det = H11 * H22 - H12 * H12
-        f1, f2 = dot(r, xs), dot(r, xt)  # descent direction −∇f
-        ds = (H22 * f1 - H12 * f2) / det
-        dt = (H11 * f2 - H12 * f1) / det
-        if extend:
-            new = np.column_stack([s + ds, t + dt])
-            out = gn | (new.min(axis=1) < -0.5) | (new.sum(axis=1) > 1.5)  # no minimum near the triangle
-            failed[act[out]] = True
-        else:
-            # rim constraints the descent pushes against: s ≥ 0, t ≥ 0, s + t ≤ 1
-            bs, bt, bst = (s <= 0.0) & (f1 < 0), (t <= 0.0) & (f2 < 0), (s + t >= 1.0 - 1e-14) & (f1 + f2 > 0)
-            nb = bs.astype(np.int8) + bt + bst
-            # one held constraint: Newton along its edge, tangent τ = (0, 1), (1, 0) or (−1, 1)
-            ts = np.where(bs, 0.0, np.where(bt, 1.0, -1.0))
-            tt = np.where(bt, 0.0, 1.0)
-            curv = ts * ts * H11 + 2.0 * ts * tt * H12 + tt * tt * H22
-            curv = np.where(curv > 0, curv, ts * ts * G11 + 2.0 * ts * tt * G12 + tt * tt * G22)
-            step = (ts * f1 + tt * f2) / np.where(curv > 0, curv, 1.0)
-            edge = nb == 1
-            ds = np.where(edge, step * ts, np.where(nb > 1, 0.0, ds))
-            dt = np.where(edge, step * tt, np.where(nb > 1, 0.0, dt))
-            new, _ = _clip_triangle(np.column_stack([s + ds, t + dt]))
-            out = np.zeros(len(s), bool)
+        b, pa = tuple(c[act] for c in a), p[act]
+        step, new, out, f0 = _newton_step(pa, b, xi[act], extend)
+        failed[act[out]] = True
         # globalised: a step must not raise f (the step is halved otherwise, each trial clipped to the
         # triangle); a full step of the indefinite or Gauss-Newton model can leave the basin of the
         # closest point for a far local minimum on the rim, and the gap then jumps with p
-        f0 = 0.5 * dot(r, r)
         full = np.max(np.abs(new - xi[act]), axis=1)
-        new, stuck = _descend(
-            pa, b0, b1, b2, b3, b4, b5, xi[act], np.column_stack([ds, dt]), f0, ~out, clip=not extend
-        )
+        new, stuck = _descend(pa, *b, xi[act], step, f0, ~out, clip=not extend)
         # no point along a step longer than tol lowers f: not a minimum, so not converged
         out |= stuck & (full > tol)
         moved = np.max(np.abs(new - xi[act]), axis=1)
@@ -178,8 +158,80 @@ def project_p2(
         done = (moved <= tol) & ~out
         converged[act[done]] = True
         act = act[~(done | out)]
+    return converged, failed
+
+
+def _newton_step(
+    pa: np.ndarray, b: tuple[np.ndarray, ...], xi: np.ndarray, extend: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One step of :func:`project_p2` at ξ (k, 2) of points pa (k, 3) on facets of coefficients ``b``.
+
+    Returns the step Δξ (k, 2), the point after the full step (clipped to the triangle unless
+    ``extend``), the rows that (with ``extend``) have no minimum near the triangle, and
+    f(ξ) = ½|p − x(ξ)|² (k,).
+    """
+    _, b1, b2, b3, b4, b5 = b
+    s, t = xi[:, 0], xi[:, 1]
+    sc, tc = s[:, None], t[:, None]
+    xs = b1 + 2.0 * b3 * sc + b4 * tc
+    xt = b2 + b4 * sc + 2.0 * b5 * tc
+    r = pa - _p2_point(b, sc, tc)
+    G11, G12, G22 = dot(xs, xs), dot(xs, xt), dot(xt, xt)
+    H11, H12, H22 = G11 - 2.0 * dot(r, b3), G12 - dot(r, b4), G22 - 2.0 * dot(r, b5)
+    det = H11 * H22 - H12 * H12
+    gn = ~((H11 > 0) & (det > 1e-12 * G11 * G22))  # not positive definite: Gauss-Newton step
+    H11, H12, H22 = np.where(gn, G11, H11), np.where(gn, G12, H12), np.where(gn, G22, H22)
+    det = H11 * H22 - H12 * H12
+    f1, f2 = dot(r, xs), dot(r, xt)  # descent direction −∇f
+    ds = (H22 * f1 - H12 * f2) / det
+    dt = (H11 * f2 - H12 * f1) / det
+    if extend:
+        new = np.column_stack([s + ds, t + dt])
+        out = gn | (new.min(axis=1) < -0.5) | (new.sum(axis=1) > 1.5)  # no minimum near the triangle
+    else:
+        ds, dt = _rim_step(s, t, f1, f2, (H11, H12, H22), (G11, G12, G22), ds, dt)
+        new, _ = _clip_triangle(np.column_stack([s + ds, t + dt]))
+        out = np.zeros(len(s), bool)
+    return np.column_stack([ds, dt]), new, out, 0.5 * dot(r, r)
+
+
+def _rim_step(
+    s: np.ndarray,
+    t: np.ndarray,
+    f1: np.ndarray,
+    f2: np.ndarray,
+    H: tuple[np.ndarray, np.ndarray, np.ndarray],
+    G: tuple[np.ndarray, np.ndarray, np.ndarray],
+    ds: np.ndarray,
+    dt: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The step (ds, dt) with the rim constraints that the descent (f1, f2) pushes against held: along
+    an edge the Newton step of f restricted to the edge (curvature from H = (H11, H12, H22), or from the
+    Gauss-Newton G where that is not positive), at a corner none."""
+    H11, H12, H22 = H
+    G11, G12, G22 = G
+    # rim constraints the descent pushes against: s ≥ 0, t ≥ 0, s + t ≤ 1
+    bs, bt, bst = (s <= 0.0) & (f1 < 0), (t <= 0.0) & (f2 < 0), (s + t >= 1.0 - 1e-14) & (f1 + f2 > 0)
+    nb = bs.astype(np.int8) + bt + bst
+    # one held constraint: Newton along its edge, tangent τ = (0, 1), (1, 0) or (−1, 1)
+    ts = np.where(bs, 0.0, np.where(bt, 1.0, -1.0))
+    tt = np.where(bt, 0.0, 1.0)
+    curv = ts * ts * H11 + 2.0 * ts * tt * H12 + tt * tt * H22
+    curv = np.where(curv > 0, curv, ts * ts * G11 + 2.0 * ts * tt * G12 + tt * tt * G22)
+    step = (ts * f1 + tt * f2) / np.where(curv > 0, curv, 1.0)
+    edge = nb == 1
+    ds = np.where(edge, step * ts, np.where(nb > 1, 0.0, ds))
+    dt = np.where(edge, step * tt, np.where(nb > 1, 0.0, dt))
+    return ds, dt
+
+
+def _projection(
+    p: np.ndarray, a: tuple[np.ndarray, ...], xi: np.ndarray, interior: np.ndarray
+) -> P2Projection:
+    """The :class:`P2Projection` of points p at the parametric points ξ (m, 2) of facets of coefficients ``a``."""
+    a0, a1, a2, a3, a4, a5 = a
     s, t = xi[:, 0:1], xi[:, 1:2]
-    x = _p2_point((a0, a1, a2, a3, a4, a5), s, t)
+    x = _p2_point(a, s, t)
     xs = a1 + 2.0 * a3 * s + a4 * t
     xt = a2 + a4 * s + 2.0 * a5 * t
     nv = np.cross(xs, xt)
@@ -188,11 +240,7 @@ def project_p2(
         raise NumericalError("solid contact: a quadratic facet is degenerate (zero area element)")
     n = nv / nn[:, None]
     r = p - x
-    if extend:
-        inner = ~failed
-    else:
-        inner = (xi[:, 0] > 0.0) & (xi[:, 1] > 0.0) & (xi[:, 0] + xi[:, 1] < 1.0 - 1e-14)
-    return P2Projection(xi, x, xs, xt, n, dot(n, r), np.linalg.norm(r, axis=1), converged & inner)
+    return P2Projection(xi, x, xs, xt, n, dot(n, r), np.linalg.norm(r, axis=1), interior)
 
 
 def _p2_point(a, s, t):

@@ -201,41 +201,59 @@ class SolidSurface:
             if self.lattice is not None
             else np.zeros((1, 3))
         )
-        n_g = len(points) // group
-        pg = points.reshape(n_g, group, 3)
-        gc = pg.mean(axis=1)
-        g_rho = np.sqrt(np.max(np.sum((pg - gc[:, None, :]) ** 2, axis=2), axis=1, initial=0.0))
-        cut = reach + float(rho.max(initial=0.0)) + float(g_rho.max(initial=0.0))
-        # element images whose centroid is within the cut of the points' bounding box
         img = cen[None] + shifts[:, None]  # (n_img, n_e, 3)
-        if n_g:
-            lo, hi = gc.min(axis=0) - cut, gc.max(axis=0) + cut
-            k_img, e = np.nonzero(np.all((img >= lo) & (img <= hi), axis=2))
-        else:
-            k_img, e = np.zeros(0, np.int64), np.zeros(0, np.int64)
-        found = cKDTree(gc).sparse_distance_matrix(cKDTree(img[k_img, e]), cut, output_type="ndarray")
-        gi = found["i"].astype(np.int64)
-        j = found["j"].astype(np.int64)
-        close = found["v"] <= reach + g_rho[gi] + rho[e[j]]
-        gi, j = gi[close], j[close]
-        # expand the groups to their points, keep the points whose own sphere test passes
-        p = (gi[:, None] * group + np.arange(group)).ravel()
-        j = np.repeat(j, group)
-        ke, kk = e[j], k_img[j]
-        d2 = np.sum((points[p] - img[kk, ke]) ** 2, axis=1)
-        close = d2 <= (reach + rho[ke]) ** 2
-        p, ke, kk = p[close], ke[close], kk[close]
-        topo = self.topology
-        n_s = point_node[p]
-        n_m = elem[ke, 0]
-        same = (topo.strand[n_s] == topo.strand[n_m]) & (images[kk, 1] == 0)
-        s_idx = np.flatnonzero(same)
-        base_s, arc_s = topo.unrolled(n_s[s_idx], np.zeros(len(s_idx), np.int64))
-        base_m, arc_m = topo.unrolled(n_m[s_idx], images[kk[s_idx], 0])
-        keep = np.ones(len(p), bool)
-        keep[s_idx[(base_s == base_m) & (np.abs(arc_s - arc_m) < self.exclusion)]] = False
+        p, ke, kk = _sphere_pairs(points, group, img, rho, reach)
+        keep = self._not_own_material(point_node[p], elem[ke, 0], images[kk])
         p, ke, kk = p[keep], ke[keep], kk[keep]
         return Candidates(p, ids[ke], images[kk], shifts[kk])
+
+    def _not_own_material(self, n_s: np.ndarray, n_m: np.ndarray, image: np.ndarray) -> np.ndarray:
+        """Which pairs of slave nodes n_s (m,) and master nodes n_m (m,) at master images ``image`` (m, 2)
+        are not the yarn's own material: not on one strand copy closer than ``exclusion`` along it."""
+        topo = self.topology
+        same = (topo.strand[n_s] == topo.strand[n_m]) & (image[:, 1] == 0)
+        s_idx = np.flatnonzero(same)
+        base_s, arc_s = topo.unrolled(n_s[s_idx], np.zeros(len(s_idx), np.int64))
+        base_m, arc_m = topo.unrolled(n_m[s_idx], image[s_idx, 0])
+        keep = np.ones(len(n_s), bool)
+        keep[s_idx[(base_s == base_m) & (np.abs(arc_s - arc_m) < self.exclusion)]] = False
+        return keep
+
+
+def _sphere_pairs(
+    points: np.ndarray, group: int, img: np.ndarray, rho: np.ndarray, reach: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pairs of query points and element images within ``reach`` of the element's bounding sphere.
+
+    ``points`` (P, 3) come in consecutive groups of ``group``; ``img`` (n_img, n_e, 3) holds the
+    element centroids at each image and ``rho`` (n_e,) the radii of their bounding spheres. The KD-tree
+    search runs between the groups' centres and the element centroids, then expands to the points.
+    Returns the point rows, elements and image indices of the pairs (see
+    :meth:`SolidSurface.candidates`).
+    """
+    n_g = len(points) // group
+    pg = points.reshape(n_g, group, 3)
+    gc = pg.mean(axis=1)
+    g_rho = np.sqrt(np.max(np.sum((pg - gc[:, None, :]) ** 2, axis=2), axis=1, initial=0.0))
+    cut = reach + float(rho.max(initial=0.0)) + float(g_rho.max(initial=0.0))
+    # element images whose centroid is within the cut of the points' bounding box
+    if n_g:
+        lo, hi = gc.min(axis=0) - cut, gc.max(axis=0) + cut
+        k_img, e = np.nonzero(np.all((img >= lo) & (img <= hi), axis=2))
+    else:
+        k_img, e = np.zeros(0, np.int64), np.zeros(0, np.int64)
+    found = cKDTree(gc).sparse_distance_matrix(cKDTree(img[k_img, e]), cut, output_type="ndarray")
+    gi = found["i"].astype(np.int64)
+    j = found["j"].astype(np.int64)
+    close = found["v"] <= reach + g_rho[gi] + rho[e[j]]
+    gi, j = gi[close], j[close]
+    # expand the groups to their points, keep the points whose own sphere test passes
+    p = (gi[:, None] * group + np.arange(group)).ravel()
+    j = np.repeat(j, group)
+    ke, kk = e[j], k_img[j]
+    d2 = np.sum((points[p] - img[kk, ke]) ** 2, axis=1)
+    close = d2 <= (reach + rho[ke]) ** 2
+    return p[close], ke[close], kk[close]
 
 
 def bezier_points(Xf: np.ndarray) -> np.ndarray:
