@@ -8,10 +8,10 @@ from knitframe_linsolvers.direct import direct
 from knitframe_solvers.volumetric_material import SolidForms, YarnLaw
 from knitframe_yarns.isotropic import Isotropic
 
+from knitframe.numerics.contact import SolidSurface
 from knitframe.numerics.contact_search import SegmentTopology
 from knitframe.numerics.mesh import surface_facets
 from knitframe.numerics.newton import NewtonOptions, minimise
-from knitframe.numerics.contact import SolidSurface
 
 
 def join(meshes: list, order: int):
@@ -200,10 +200,10 @@ def image_blocks():
     """
     import skfem
 
+    from knitframe.numerics.contact import SolidSurface
     from knitframe.numerics.contact_search import SegmentTopology
     from knitframe.numerics.mesh import surface_facets
     from knitframe.numerics.periodic import Lattice
-    from knitframe.numerics.contact import SolidSurface
 
     a = skfem.MeshTet1.init_tensor(np.linspace(0.5, 1, 3), np.linspace(0.2, 0.8, 4), np.linspace(0.1, 0.4, 3))
     b = skfem.MeshTet1.init_tensor(np.linspace(0, 0.4, 3), np.linspace(0, 1, 5), np.linspace(0, 0.5, 4))

@@ -22,7 +22,6 @@ from knitframe_solvers.volumetric_material import SolidForms
 from knitframe_yarns.law import line_contact_approach
 
 from knitframe.geometry import Centerline, UnitCell
-from knitframe.numerics.mesh import cell_mesh
 from knitframe.numerics.contact import (
     chain_facet_derivatives,
     facet_gap,
@@ -36,6 +35,7 @@ from knitframe.numerics.contact import (
     project_p2,
     select_pairs,
 )
+from knitframe.numerics.mesh import cell_mesh
 from knitframe.plugins import get_registry
 
 

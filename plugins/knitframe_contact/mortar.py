@@ -207,7 +207,8 @@ class SolidMortar(SolidContactLaw):
         reach: float,
         normals: np.ndarray | None = None,
     ) -> FrictionState:
-        """Freeze the active quadrature-point pairs of the converged state x for the next increment's friction.
+        """Freeze the active quadrature-point pairs of the converged state x for the next increment's
+        friction.
 
         Each pair keeps its slave facet and quadrature point, master facet (linear triangle on
         P1 surfaces) and image, the master's parametric point ξ* of the projection, the normal

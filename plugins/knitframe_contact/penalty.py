@@ -86,7 +86,8 @@ class SolidContactLaw:
     smoothing: str = attrs.field(default="nagata", validator=v.one_of(("none", "nagata")))
 
     def band(self, reach: float) -> tuple[float, float] | None:
-        """The fade band (d1, d2) of the penetration, mm (see :func:`~knitframe.numerics.contact.penalty_depth`).
+        """The fade band (d1, d2) of the penetration, mm (see
+        :func:`~knitframe.numerics.contact.penalty_depth`).
 
         A pair is only kept up to the search reach; without the fade the energy would jump by
         ½ ε w reach² when a pair crosses it (a point that comes within reach of the far side
@@ -101,7 +102,8 @@ class SolidContactLaw:
         return 0.5 * stiffness * penalty_depth(g, self.band(reach))[1]
 
     def smoothed(self, surface: SolidSurface) -> bool:
-        """Whether the master surface is made of Nagata patches: linear (P1) facets and ``smoothing = "nagata"``."""
+        """Whether the master surface is made of Nagata patches: linear (P1) facets and
+        ``smoothing = "nagata"``."""
         return surface.facets.shape[1] == 3 and self.smoothing == "nagata"
 
     def master_normals(self, surface: SolidSurface, x: np.ndarray | None = None) -> np.ndarray | None:
@@ -154,7 +156,8 @@ class SolidContactLaw:
         order: int,
         normals: np.ndarray | None,
     ):
-        """Gap gradient and Hessian of pairs on patches, in (slave points, the triangles' corners Xt (m, 3, 3))."""
+        """Gap gradient and Hessian of pairs on patches, in (slave points, the triangles' corners
+        Xt (m, 3, 3))."""
         nodal = self._nodal(surface, normals)
         X6, A6 = nagata_facets(Xt, nodal[surface.triangles[triangle]])
         return chain_facet_derivatives(*p2_gap_derivatives(projection, X6, weights, order), A6)
@@ -252,7 +255,8 @@ class SolidPenalty(SolidContactLaw):
         normals: np.ndarray | None = None,
         held: Candidates | None = None,
     ):
-        """Active pairs: nodes (m, 4) and images (m, 4, 2) of (s, a, b, c), their points, gaps and derivatives."""
+        """Active pairs: nodes (m, 4) and images (m, 4, 2) of (s, a, b, c), their points, gaps and
+        derivatives."""
         pr = self.pairs(surface, x, h, reach, normals, held)
         tri = surface.triangles[pr["triangle"]]
         nodes = np.column_stack([pr["node"], tri])

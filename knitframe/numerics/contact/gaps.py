@@ -110,7 +110,8 @@ def barycentric(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> n
 
 
 def distance_bound(p: np.ndarray, Xe: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A lower bound (m,) of the distance from points p (m, 3) to triangles or quadratic facets Xe (m, 3 or 6, 3), mm.
+    """A lower bound (m,) of the distance from points p (m, 3) to triangles or quadratic facets Xe
+    (m, 3 or 6, 3), mm.
 
     The distance to the corners' flat triangle is at least √(g² + ℓ²), with g the distance to
     its plane and ℓ = max_i(−λ_i h_i, 0) the in-plane distance beyond the edge opposite corner i

@@ -73,7 +73,7 @@ def nagata_facets(
         A[:, c, c] = eye
     X6 = np.empty((m, 6, 3))
     X6[:, :3] = Xt
-    for k, (i, j) in zip((3, 4, 5), ((0, 1), (1, 2), (2, 0))):
+    for k, (i, j) in zip((3, 4, 5), ((0, 1), (1, 2), (2, 0)), strict=True):
         ni, nj = nt[:, i], nt[:, j]
         c = dot(ni, nj)
         a, det = 1.0 + regularisation, (1.0 + regularisation) ** 2 - c * c

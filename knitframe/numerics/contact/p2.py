@@ -107,8 +107,9 @@ def project_p2(
     closest point for a far local minimum on the rim, and the gap then jumps with p); a row that
     finds no lower f is not converged. Rows stop once |Δξ| ≤ ``tol`` (the convergence is
     quadratic, inside and along edges), at most ``iterations``. The point is ``interior`` when it
-    converged off the rim: there p − x is along n and the gap n·(p − x) is a smooth function of p and the nodes. ``lam`` (m, 3): the
-    barycentric coordinates of p on the corners' plane if already known (the start).
+    converged off the rim: there p − x is along n and the gap n·(p − x) is a smooth function of p
+    and the nodes. ``lam`` (m, 3): the barycentric coordinates of p on the corners' plane if
+    already known (the start).
 
     With ``extend`` the facet's polynomial map is continued beyond the triangle (as a plane
     continues a flat triangle) and Newton runs unconstrained from ``start`` (m, 2); a row is
@@ -228,7 +229,8 @@ def _rim_step(
 def _projection(
     p: np.ndarray, a: tuple[np.ndarray, ...], xi: np.ndarray, interior: np.ndarray
 ) -> P2Projection:
-    """The :class:`P2Projection` of points p at the parametric points ξ (m, 2) of facets of coefficients ``a``."""
+    """The :class:`P2Projection` of points p at the parametric points ξ (m, 2) of facets of
+    coefficients ``a``."""
     a0, a1, a2, a3, a4, a5 = a
     s, t = xi[:, 0:1], xi[:, 1:2]
     x = _p2_point(a, s, t)
@@ -244,7 +246,8 @@ def _projection(
 
 
 def _p2_point(a, s, t):
-    """x(ξ) = a0 + a1 s + a2 t + a3 s² + a4 s t + a5 t² of a quadratic facet's coefficients a (:func:`p2_coefficients`)."""
+    """x(ξ) = a0 + a1 s + a2 t + a3 s² + a4 s t + a5 t² of a quadratic facet's coefficients a
+    (:func:`p2_coefficients`)."""
     a0, a1, a2, a3, a4, a5 = a
     return a0 + (a1 + a3 * s + a4 * t) * s + (a2 + a5 * t) * t
 
@@ -307,5 +310,6 @@ def _clip_triangle(xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def rim_edges(xi: np.ndarray) -> np.ndarray:
-    """(m, 3) flags: the parametric point ξ (m, 2) lies on the triangle's edge 01 (t = 0), 12 (s + t = 1), 20 (s = 0)."""
+    """(m, 3) flags: the parametric point ξ (m, 2) lies on the triangle's edge 01 (t = 0),
+    12 (s + t = 1), 20 (s = 0)."""
     return np.column_stack([xi[:, 1] <= 0.0, xi.sum(axis=1) >= 1.0 - 1e-14, xi[:, 0] <= 0.0])

@@ -104,7 +104,8 @@ def _rim_gap_hessian(
     a4: np.ndarray,
     a5: np.ndarray,
 ) -> np.ndarray:
-    """∂²g (k, K, 3, K, 3) of the signed distance at closest points on the rim (see :func:`p2_gap_derivatives`)."""
+    """∂²g (k, K, 3, K, 3) of the signed distance at closest points on the rim (see
+    :func:`p2_gap_derivatives`)."""
     k, K = U.shape
     g, n = pr.g[rows], pr.n[rows]
     on = rim_edges(pr.xi[rows])

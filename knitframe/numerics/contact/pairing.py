@@ -17,7 +17,8 @@ from knitframe.numerics.contact.p2 import P2Projection, project_p2, rim_edges
 __all__ = ["OPPOSING", "Selection", "select_pairs", "nearest"]
 
 
-#: largest cosine between a master element's normal and a query point's own normal for a pair (60° off parallel)
+#: largest cosine between a master element's normal and a query point's own normal for a pair
+#: (60° off parallel)
 OPPOSING = 0.5
 
 
@@ -48,38 +49,37 @@ def select_pairs(
 ) -> Selection:
     """For every query point, the nearest opposing master element of its candidates.
 
-    A candidate (point p, element at its image, nodes Xe) qualifies when the element's normal at
-    the closest point is not turned the same way as the point's own ``normal`` (the cosine of
-    their angle below ``facing``, default :data:`OPPOSING` = 0.5: a pair is refused only when the
-    two normals are within 60° of parallel, where the element is the back of the other body; with
-    a bound at 0, the flank of a crossing yarn, whose normal stands at right angles to the
-    surface it presses into, flipped in and out of contact from one Newton iterate to the next)
-    and the distance is below ``reach``. Per point the rank is the distance (for flat triangles
-    plus 2·reach when the closest point is on the element's rim rather than a projection into
-    it: their gap is the plane's); equal ranks (an edge or corner shared by several elements, or
-    coplanar neighbours; equal within 1e-10·reach, so that round-off does not decide) go to the
-    element whose plane faces the point most (largest |g|), then to the lower ``element``.
-    The gap is the plane gap of a linear triangle (:func:`plane_gap`) or, on quadratic facets,
-    the signed distance g = ±|p − x(ξ*)| to the closest point ξ* (:func:`project_p2`), with the
-    sign of n·(p − x*); inside the facet (or on its rim with p − x* along n) that is n·(p − x*).
-    Where ξ* is on the rim otherwise, the unit vector ±(p − x*)/|p − x*| is returned as the
-    projection's normal n, the gap's gradient direction. Ranked by distance alone, the gap is the signed distance to the master surface and
-    stays continuous when the nearest facet changes, also between facets that share only a
-    corner (a pair switching between such facets made the energy jump when the gap beyond the
-    rim was measured to the facet's polynomial continuation). Only beyond an edge on the master
+    A candidate (point p, element at its image, nodes Xe) qualifies when the element's normal at the
+    closest point is not turned the same way as the point's own ``normal`` (the cosine of their
+    angle below ``facing``, default :data:`OPPOSING` = 0.5: a pair is refused only when the two
+    normals are within 60° of parallel, where the element is the back of the other body; with a
+    bound at 0, the flank of a crossing yarn, whose normal stands at right angles to the surface it
+    presses into, flipped in and out of contact from one Newton iterate to the next) and the
+    distance is below ``reach``. Per point the rank is the distance (for flat triangles plus 2·reach
+    when the closest point is on the element's rim rather than a projection into it: their gap is
+    the plane's); equal ranks (an edge or corner shared by several elements, or coplanar neighbours;
+    equal within 1e-10·reach, so that round-off does not decide) go to the element whose plane faces
+    the point most (largest |g|), then to the lower ``element``. The gap is the plane gap of a
+    linear triangle (:func:`plane_gap`) or, on quadratic facets, the signed distance
+    g = ±|p − x(ξ*)| to the closest point ξ* (:func:`project_p2`), with the sign of n·(p − x*);
+    inside the facet (or on its rim with p − x* along n) that is n·(p − x*). Where ξ* is on the rim
+    otherwise, the unit vector ±(p − x*)/|p − x*| is returned as the projection's normal n, the
+    gap's gradient direction. Ranked by distance alone, the gap is the signed distance to the master
+    surface and stays continuous when the nearest facet changes, also between facets that share only
+    a corner (a pair switching between such facets made the energy jump when the gap beyond the rim
+    was measured to the facet's polynomial continuation). Only beyond an edge on the master
     surface's open boundary (``open_rim`` (n, 3): the candidates' edges 01, 12, 20 that no other
-    master facet continues), the gap is measured to the facet's polynomial continuation, as a
-    plane continues a flat triangle, where that has a closest point within 0.5 of the triangle
-    whose normal stays within 60° of the corners' plane; the signed distance to an open edge
-    would count a point beside the surface as inside the body. The sign of a rim point's gap is
-    that of n·(p − x*) with the facet's own normal n, or, given ``corner_normals`` (n, 3, 3: the
-    nodal normals at the candidates' corners that shape Nagata patches), with the nodal normals
-    interpolated linearly to ξ*: on an edge that is the same vector from both facets sharing it
-    (an edge pseudo-normal), so the sign does not depend on which of them is chosen; with the
-    facet's own normal, a point in the tangent plane of a facet at its edge had n·(p − x*) ≈ 0
-    and its gap flipped between ±distance with round-off. A curved element whose normal at
-    the closest point is turned against its corners' plane (a strongly bowed facet folding over
-    near its rim) does not qualify.
+    master facet continues), the gap is measured to the facet's polynomial continuation, as a plane
+    continues a flat triangle, where that has a closest point within 0.5 of the triangle whose
+    normal stays within 60° of the corners' plane; the signed distance to an open edge would count a
+    point beside the surface as inside the body. The sign of a rim point's gap is that of n·(p − x*)
+    with the facet's own normal n, or, given ``corner_normals`` (n, 3, 3: the nodal normals at the
+    candidates' corners that shape Nagata patches), with the nodal normals interpolated linearly to
+    ξ*: on an edge that is the same vector from both facets sharing it (an edge pseudo-normal), so
+    the sign does not depend on which of them is chosen; with the facet's own normal, a point in the
+    tangent plane of a facet at its edge had n·(p − x*) ≈ 0 and its gap flipped between ±distance
+    with round-off. A curved element whose normal at the closest point is turned against its
+    corners' plane (a strongly bowed facet folding over near its rim) does not qualify.
 
     Distances are computed where needed only: first for the candidates into which the point
     projects (barycentric coordinates on the corners' plane ≥ −``prescreen``), then for the rest

@@ -39,7 +39,8 @@ class Candidates:
 
 
 def _open_edges(corners: np.ndarray, master: np.ndarray) -> np.ndarray:
-    """(E, 3) flags: edge (01, 12, 20) of element e is used by exactly one master element (all False off the master set)."""
+    """(E, 3) flags: edge (01, 12, 20) of element e is used by exactly one master element (all False
+    off the master set)."""
     out = np.zeros(corners.shape, bool)
     if len(master) == 0:
         return out
@@ -100,7 +101,8 @@ class SolidSurface:
     identify: np.ndarray | None = None
 
     def open_rim(self, element: np.ndarray, quadratic: bool) -> np.ndarray:
-        """(m, 3) open-boundary flags of the edges of master elements (facets with ``quadratic``, else triangles)."""
+        """(m, 3) open-boundary flags of the edges of master elements (facets with ``quadratic``,
+        else triangles)."""
         return (self.open_facet if quadratic else self.open_triangle)[element]
 
     @classmethod
@@ -257,12 +259,13 @@ def _sphere_pairs(
 
 
 def bezier_points(Xf: np.ndarray) -> np.ndarray:
-    """Bézier control points (m, 6, 3) of quadratic facets Xf (m, 6, 3): corners, and 2 x_ij − (x_i + x_j)/2 on edges.
+    """Bézier control points (m, 6, 3) of quadratic facets Xf (m, 6, 3): corners, and
+    2 x_ij − (x_i + x_j)/2 on edges.
 
     The curved facet lies in the convex hull of these points.
     """
     out = Xf.copy()
-    for e, (a, b) in zip((3, 4, 5), ((0, 1), (1, 2), (2, 0))):
+    for e, (a, b) in zip((3, 4, 5), ((0, 1), (1, 2), (2, 0)), strict=True):
         out[:, e] = 2.0 * Xf[:, e] - 0.5 * (Xf[:, a] + Xf[:, b])
     return out
 
