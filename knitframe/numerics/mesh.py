@@ -262,7 +262,8 @@ def _frames_at(cell: Any, ts: dict[int, np.ndarray], refine: int = 16) -> dict[i
 
 
 def _check_clearance(cell: Any, radius: float, min_distance: float | None, ts: dict[int, np.ndarray]) -> Any:
-    """Refuse centerlines that cross (closer than ``min_distance``, default r) or fold (curvature radius < r)."""
+    """Refuse centerlines that cross (closer than ``min_distance``, default r) or fold (curvature
+    radius < r)."""
     from knitframe.geometry import clearance
 
     for iy, t in ts.items():
@@ -283,8 +284,9 @@ def _check_clearance(cell: Any, radius: float, min_distance: float | None, ts: d
     if cl.minimum < limit:
         a, b = (cell.yarns[i].name for i in cl.closest.yarns)
         raise GeometryError(
-            f"centerlines of yarns '{a}' and '{b}' (image {cl.closest.image}) come {cl.minimum:.4g} mm close, "
-            f"under the limit {limit:.4g} mm: the tubes cross; loosen the stitch or reduce the yarn radius"
+            f"centerlines of yarns '{a}' and '{b}' (image {cl.closest.image}) come "
+            f"{cl.minimum:.4g} mm close, under the limit {limit:.4g} mm: the tubes cross; loosen the stitch "
+            "or reduce the yarn radius"
         )
     return cl
 
@@ -326,15 +328,7 @@ def cell_mesh(
     sec = section_mesh(float(seed))
     timings["section"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    n2d = sec.points.shape[0]
-    h = seed * radius
-    layers, ts, ss, lengths = [], {}, {}, []
-    for iy, y in enumerate(yarns):
-        _, s_probe = arc_length_samples(y, 64, resolution=16)
-        layers.append(max(int(np.ceil(s_probe[-1] / h)), 3))
-        t, s = arc_length_samples(y, 2 * layers[iy])
-        ts[iy], ss[iy] = t, s
-        lengths.append(s[-1])
+    layers, ts, ss, lengths = _layer_samples(yarns, seed * radius)
     timings["sampling"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     clear = _check_clearance(cell, radius, min_distance, ts) if check else None
@@ -343,11 +337,68 @@ def cell_mesh(
     frames = _frames_at(cell, ts)
     timings["frames"] = time.perf_counter() - t0
     t0 = time.perf_counter()
+    v = _sweep(sec, layers, frames, ss, radius)
+    mesh1 = skfem.MeshTet1(v["P"].T.copy(), v["tets"], sort_t=False)
+    if order == 2:
+        mid = _mid_edge_nodes(mesh1, sec, v, frames, ss, radius)
+        nodes = np.vstack([v["P"], mid["x"]])
+        arc, tang, offs, body = (np.concatenate([v[k], mid[k]]) for k in ("arc", "tang", "offs", "body"))
+        mesh = skfem.MeshTet2(nodes.T.copy(), v["tets"], sort_t=False)
+        lay_n = np.concatenate([v["lay"], 0.5 * mid["lmid2"]])
+    else:
+        mesh, nodes = mesh1, v["P"]
+        arc, tang, offs, body = v["arc"], v["tang"], v["offs"], v["body"]
+        lay_n = v["lay"].astype(float)
+    timings["sweep"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    tri = _lateral_surface(mesh1, mesh, sec, v)
+    pairs = _end_pairs(cell, end_pairs, nodes, body, lay_n, layers)
+    timings["surface_and_pairs"] = time.perf_counter() - t0
+    return CellMesh(
+        mesh=mesh,
+        order=order,
+        radius=float(radius),
+        seed=float(seed),
+        names=tuple(y.name for y in yarns),
+        lengths=np.asarray(lengths),
+        nodes=nodes,
+        node_body=body,
+        node_arc=arc,
+        node_tangent=tang,
+        node_offset=offs,
+        element_body=v["ebody"],
+        surface=tri,
+        surface_body=body[tri[:, 0]],
+        end_pairs=tuple(pairs),
+        clearance=clear,
+        timings=timings,
+    )
 
-    # vertices: layer-major, section index minor
+
+def _layer_samples(yarns: Any, h: float) -> tuple[list[int], dict, dict, list[float]]:
+    """Layers of every yarn (about ``h`` mm apart, at least 3) and the parameters t and arc lengths s of
+    twice as many samples (the layers and the half layers), with the yarns' arc lengths (mm)."""
+    layers, ts, ss, lengths = [], {}, {}, []
+    for iy, y in enumerate(yarns):
+        _, s_probe = arc_length_samples(y, 64, resolution=16)
+        layers.append(max(int(np.ceil(s_probe[-1] / h)), 3))
+        t, s = arc_length_samples(y, 2 * layers[iy])
+        ts[iy], ss[iy] = t, s
+        lengths.append(s[-1])
+    return layers, ts, ss, lengths
+
+
+def _sweep(sec: Section, layers: list[int], frames: dict, ss: dict, radius: float) -> dict[str, np.ndarray]:
+    """The swept vertices and tetrahedra of all yarns (vertices layer-major, section index minor).
+
+    Returns a dict of the vertices' positions ``P`` (V, 3), arc lengths ``arc``, centerline
+    tangents ``tang``, transverse offsets ``offs``, yarn ``body``, layer ``lay`` and section index
+    ``sidx``, the tetrahedra ``tets`` (4, n_el) and their yarn ``ebody``.
+    """
+    n2d = sec.points.shape[0]
     P, arc, tang, offs, body, ebody, tets, lay, sidx = [], [], [], [], [], [], [], [], []
     vstart = 0
-    for iy in range(len(yarns)):
+    for iy in range(len(layers)):
         x, T, N, B = frames[iy]
         xv, Tv, Nv, Bv = x[::2], T[::2], N[::2], B[::2]
         nl = layers[iy]
@@ -364,56 +415,77 @@ def cell_mesh(
         tets.append(_prism_tets(sec.triangles, n2d, nl) + vstart)
         ebody.append(np.full(3 * sec.triangles.shape[0] * nl, iy))
         vstart += (nl + 1) * n2d
-    P, arc, tang, offs, body, lay, sidx = (np.concatenate(a) for a in (P, arc, tang, offs, body, lay, sidx))
-    t_all, ebody = np.concatenate(tets, axis=1), np.concatenate(ebody)
-    mesh1 = skfem.MeshTet1(P.T.copy(), t_all, sort_t=False)
-    nv = P.shape[0]
-    if order == 2:
-        edges = mesh1.edges  # (2, n_edges)
-        ea, eb = edges
-        yb = body[ea]
-        lmid2 = lay[ea] + lay[eb]  # twice the half-layer index: index into the fine samples
-        xi = 0.5 * (sec.points[sidx[ea]] + sec.points[sidx[eb]])
-        same = sidx[ea] == sidx[eb]
-        key = np.sort(np.stack([sidx[ea], sidx[eb]], 1), axis=1)
-        bkey = sec.boundary_edges[:, 0] * n2d + sec.boundary_edges[:, 1]
-        on_circle = np.isin(key[:, 0] * n2d + key[:, 1], bkey) | (same & sec.boundary[sidx[ea]])
-        xi[on_circle] /= np.linalg.norm(xi[on_circle], axis=1, keepdims=True)
-        xm = np.empty((edges.shape[1], 3))
-        Tm = np.empty_like(xm)
-        om = np.empty_like(xm)
-        am = np.empty(edges.shape[1])
-        for iy in range(len(yarns)):  # per yarn, vectorised over its edges
-            sel = yb == iy
-            x, T, N, B = frames[iy]
-            k = lmid2[sel]
-            o = radius * (xi[sel, 0, None] * N[k] + xi[sel, 1, None] * B[k])
-            xm[sel] = x[k] + o
-            Tm[sel], om[sel], am[sel] = T[k], o, ss[iy][k]
-        nodes = np.vstack([P, xm])
-        arc = np.concatenate([arc, am])
-        tang = np.concatenate([tang, Tm])
-        offs = np.concatenate([offs, om])
-        body = np.concatenate([body, yb])
-        mesh = skfem.MeshTet2(nodes.T.copy(), t_all, sort_t=False)
-        lay_n = np.concatenate([lay, 0.5 * lmid2])
-    else:
-        mesh, nodes = mesh1, P
-        lay_n = lay.astype(float)
-    timings["sweep"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
+    out = {
+        k: np.concatenate(a)
+        for k, a in zip(
+            ("P", "arc", "tang", "offs", "body", "lay", "sidx"),
+            (P, arc, tang, offs, body, lay, sidx),
+            strict=True,
+        )
+    }
+    out["tets"], out["ebody"] = np.concatenate(tets, axis=1), np.concatenate(ebody)
+    return out
 
-    # lateral surface: boundary facets with all vertices on the circle, not lying in one end layer
+
+def _mid_edge_nodes(
+    mesh1: Any, sec: Section, v: dict[str, np.ndarray], frames: dict, ss: dict, radius: float
+) -> dict[str, np.ndarray]:
+    """The P2 mid-edge nodes of the swept mesh ``mesh1`` on the exact swept geometry: half-layer frames,
+    mid-section points pushed onto the circle on the lateral surface.
+
+    Returns a dict of their positions ``x`` (n_edges, 3), arc lengths ``arc``, tangents ``tang``,
+    offsets ``offs``, yarn ``body`` and twice their half-layer index ``lmid2``.
+    """
+    n2d = sec.points.shape[0]
+    sidx, lay, body = v["sidx"], v["lay"], v["body"]
+    edges = mesh1.edges  # (2, n_edges)
+    ea, eb = edges
+    yb = body[ea]
+    lmid2 = lay[ea] + lay[eb]  # twice the half-layer index: index into the fine samples
+    xi = 0.5 * (sec.points[sidx[ea]] + sec.points[sidx[eb]])
+    same = sidx[ea] == sidx[eb]
+    key = np.sort(np.stack([sidx[ea], sidx[eb]], 1), axis=1)
+    bkey = sec.boundary_edges[:, 0] * n2d + sec.boundary_edges[:, 1]
+    on_circle = np.isin(key[:, 0] * n2d + key[:, 1], bkey) | (same & sec.boundary[sidx[ea]])
+    xi[on_circle] /= np.linalg.norm(xi[on_circle], axis=1, keepdims=True)
+    xm = np.empty((edges.shape[1], 3))
+    Tm = np.empty_like(xm)
+    om = np.empty_like(xm)
+    am = np.empty(edges.shape[1])
+    for iy in range(len(ss)):  # per yarn, vectorised over its edges
+        sel = yb == iy
+        x, T, N, B = frames[iy]
+        k = lmid2[sel]
+        o = radius * (xi[sel, 0, None] * N[k] + xi[sel, 1, None] * B[k])
+        xm[sel] = x[k] + o
+        Tm[sel], om[sel], am[sel] = T[k], o, ss[iy][k]
+    return {"x": xm, "arc": am, "tang": Tm, "offs": om, "body": yb, "lmid2": lmid2}
+
+
+def _lateral_surface(mesh1: Any, mesh: Any, sec: Section, v: dict[str, np.ndarray]) -> np.ndarray:
+    """The lateral surface's facets (M, 3 or 6), outward: the boundary facets of ``mesh1`` with all
+    vertices on the circle, not lying in one end layer (node numbering of ``mesh``)."""
+    sidx, lay = v["sidx"], v["lay"]
     bf_idx = mesh1.boundary_facets()
     bf = mesh1.facets[:, bf_idx]
     onc = sec.boundary[sidx[bf]].all(axis=0)
     cap = (lay[bf] == lay[bf[0]]).all(axis=0)
-    tri = surface_facets(mesh, bf_idx[onc & ~cap])
-    sbody = body[tri[:, 0]]
+    return surface_facets(mesh, bf_idx[onc & ~cap])
 
-    # end faces: last layer of yarn i against first layer of yarn j, paired by KD-tree
+
+def _end_pairs(
+    cell: Any,
+    end_pairs: tuple[tuple[int, int], ...],
+    nodes: np.ndarray,
+    body: np.ndarray,
+    lay_n: np.ndarray,
+    layers: list[int],
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The end faces' node pairs: the last layer of yarn i against the first layer of yarn j (shifted
+    by L1) for every end pair (i, j), paired by KD-tree; a GeometryError where they do not coincide."""
     from scipy.spatial import cKDTree
 
+    yarns = cell.yarns
     pairs = []
     for i, j in end_pairs:
         end = np.flatnonzero((body == i) & (lay_n == layers[i]))
@@ -423,30 +495,12 @@ def cell_mesh(
         tol = 1e-9 * max(1.0, float(np.abs(nodes).max()))
         if end.size != start.size or dist.max() > tol:
             raise GeometryError(
-                f"end face of yarn '{yarns[i].name}' does not match the start of '{yarns[j].name}' shifted by L1 "
-                f"(max distance {dist.max():.3g} mm); the centerlines must continue into each other"
+                f"end face of yarn '{yarns[i].name}' does not match the start of '{yarns[j].name}' "
+                f"shifted by L1 (max distance {dist.max():.3g} mm); the centerlines must continue into "
+                "each other"
             )
         pairs.append((end, start[idx], shift.copy()))
-    timings["surface_and_pairs"] = time.perf_counter() - t0
-    return CellMesh(
-        mesh=mesh,
-        order=order,
-        radius=float(radius),
-        seed=float(seed),
-        names=tuple(y.name for y in yarns),
-        lengths=np.asarray(lengths),
-        nodes=nodes,
-        node_body=body,
-        node_arc=arc,
-        node_tangent=tang,
-        node_offset=offs,
-        element_body=ebody,
-        surface=tri,
-        surface_body=sbody,
-        end_pairs=tuple(pairs),
-        clearance=clear,
-        timings=timings,
-    )
+    return pairs
 
 
 def surface_facets(mesh: Any, facets: np.ndarray) -> np.ndarray:
@@ -516,7 +570,7 @@ def mesh_quality(cm: CellMesh) -> dict[str, float]:
     # face normals (outward up to sign) to get the six dihedral angles
     faces = [(1, 2, 3), (0, 2, 3), (0, 1, 3), (0, 1, 2)]
     normals, areas = [], []
-    for f, opp in zip(faces, range(4)):
+    for f, opp in zip(faces, range(4), strict=True):
         a, b, c = X[:, f[0]], X[:, f[1]], X[:, f[2]]
         nrm = np.cross(b - a, c - a, axis=0)
         sgn = np.sign(np.einsum("ie,ie->e", nrm, X[:, opp] - a))
