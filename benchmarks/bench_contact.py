@@ -7,9 +7,11 @@ Usage::
     python benchmarks/bench_contact.py --material               # time the material assembly too, for scale
     python benchmarks/bench_contact.py --save ref.pkl           # keep the inputs and E, gradient, Hessian
     python benchmarks/bench_contact.py --compare ref.pkl        # same inputs, relative differences to them
-    python benchmarks/bench_contact.py --profile mortar-P2-2    # cProfile of one case (top 30 by cumulative time)
-    python benchmarks/bench_contact.py --projection 100000      # closest points on random curved facets, and the
-                                                                # share of the start search in them
+    python benchmarks/bench_contact.py --profile mortar-P2-2    # cProfile of one case (top 30 by
+                                                                # cumulative time)
+    python benchmarks/bench_contact.py --projection 100000      # closest points on random curved
+                                                                # facets, and the share of the start
+                                                                # search in them
 
 The cell is meshed at seed r/3 as the solver does it, the contact surface is the solver's
 two-pass surface with periodic images, and the yarns are shrunk across the fibre about their
@@ -78,7 +80,8 @@ def rel(a, b) -> str:
 
 
 def projection_time(m: int, repeat: int) -> None:
-    """Time ``project_p2`` on m random bowed quadratic facets, and its start search (the 28-point lattice) alone."""
+    """Time ``project_p2`` on m random bowed quadratic facets, and its start search (the 28-point
+    lattice) alone."""
     from knitframe.numerics.contact import barycentric, p2
 
     rng = np.random.default_rng(0)
@@ -192,8 +195,8 @@ def main(argv=None) -> None:
                     f"{t2 - t1:.2f} | | | |"
                 )
                 print(
-                    f"| {name}-P{mo}-2 at x + noise, friction ({info['slipping']} of {len(state)} slipping) | "
-                    f"{surf.n_nodes} | {info['active']} | {t3 - t2:.2f} | | | |",
+                    f"| {name}-P{mo}-2 at x + noise, friction ({info['slipping']} of {len(state)} "
+                    f"slipping) | {surf.n_nodes} | {info['active']} | {t3 - t2:.2f} | | | |",
                     flush=True,
                 )
     if args.save:

@@ -16,8 +16,8 @@ from knitframe.numerics.newton import NewtonOptions, minimise
 
 def join(meshes: list, order: int):
     """One mesh from separate P1 bodies (body id per node), raised to P2 if asked."""
-    p, t, body, off = [], [], [], 0
-    for b, m in enumerate(meshes):
+    p, t, off = [], [], 0
+    for m in meshes:
         p.append(m.p)
         t.append(m.t + off)
         off += m.p.shape[1]
@@ -76,7 +76,8 @@ def solve(
     reach: float,
     friction_state=None,
 ):
-    """Equilibrium of elasticity + contact (+ lagged friction) by the shared Newton driver; returns (u, contact info)."""
+    """Equilibrium of elasticity + contact (+ lagged friction) by the shared Newton driver; returns
+    (u, contact info)."""
     X = nodes(forms.mesh)
     n = forms.ndof
 
@@ -190,7 +191,8 @@ def quarter_cylinder_on_flat(R: float, h_contact: float, h_far: float, thickness
 
 
 def image_blocks():
-    """A slave block's right face (x = 1) meets the left face (master) of the periodic image of a second block.
+    """A slave block's right face (x = 1) meets the left face (master) of the periodic image of a
+    second block.
 
     Block A = [0.5, 1] x [0.2, 0.8] x [0.1, 0.4] (slave: its right face) and block B =
     [0, 0.4] x [0, 1] x [0, 0.5] (master: its left face), whose image one lattice vector
@@ -223,7 +225,8 @@ def image_blocks():
 
 
 def assert_derivatives(f, u, du, n):
-    """Central differences of ``f(v, order) -> (E, g, H, info)`` along du match g·du and H·du on the n node DOFs."""
+    """Central differences of ``f(v, order) -> (E, g, H, info)`` along du match g·du and H·du on the
+    n node DOFs."""
     E, g, H, info = f(u, 2)
     h = 1e-7
     fd_g = (f(u + h * du, 0)[0] - f(u - h * du, 0)[0]) / (2 * h)
