@@ -105,10 +105,8 @@ def projection_time(m: int, repeat: int) -> None:
     print(f"| of it the start search (28-point lattice) | {best(lambda: p2._best_start(p, *a, xi)):.3f} |")
 
 
-def main(argv=None) -> None:
-    from knitframe_contact.mortar import SolidMortar
-    from knitframe_contact.penalty import SolidPenalty
-
+def arguments(argv=None) -> argparse.Namespace:
+    """The command line of the benchmark (see the module docstring)."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--meshes", default="1,2", help="mesh orders: 1,2")
     p.add_argument("--orders", default="0,1,2", help="derivative orders: 0,1,2")
@@ -126,7 +124,39 @@ def main(argv=None) -> None:
     p.add_argument("--compare")
     p.add_argument("--profile", help="law-Pk-order, e.g. mortar-P2-2")
     p.add_argument("--projection", type=int, help="only time project_p2 on this many random curved facets")
-    args = p.parse_args(argv)
+    return p.parse_args(argv)
+
+
+def friction_time(
+    law, name: str, mo: int, surf, x: np.ndarray, h: np.ndarray, stiffness: float, reach: float
+) -> None:
+    """Time friction_state at x, and an order-2 evaluation at x + noise (0.003 mm) without and with
+    friction."""
+    t0 = time.perf_counter()
+    state = law.friction_state(surf, x, h, stiffness=stiffness, reach=reach)
+    xn = x + 0.003 * np.random.default_rng(0).normal(size=x.shape)
+    t1 = time.perf_counter()
+    law.evaluate(surf, xn, h, 2, stiffness=stiffness, reach=reach)
+    t2 = time.perf_counter()
+    E, G, H, info = law.evaluate(surf, xn, h, 2, stiffness=stiffness, reach=reach, friction_state=state)
+    t3 = time.perf_counter()
+    print(f"| {name}-P{mo} friction_state | {surf.n_nodes} | {len(state)} | {t1 - t0:.2f} | | | |")
+    print(
+        f"| {name}-P{mo}-2 at x + noise, no friction | {surf.n_nodes} | {info['active']} | "
+        f"{t2 - t1:.2f} | | | |"
+    )
+    print(
+        f"| {name}-P{mo}-2 at x + noise, friction ({info['slipping']} of {len(state)} "
+        f"slipping) | {surf.n_nodes} | {info['active']} | {t3 - t2:.2f} | | | |",
+        flush=True,
+    )
+
+
+def main(argv=None) -> None:
+    from knitframe_contact.mortar import SolidMortar
+    from knitframe_contact.penalty import SolidPenalty
+
+    args = arguments(argv)
     if args.projection:
         projection_time(args.projection, args.repeat)
         return
@@ -177,28 +207,7 @@ def main(argv=None) -> None:
                     flush=True,
                 )
             if args.friction:
-                t0 = time.perf_counter()
-                state = law.friction_state(surf, x, h, stiffness=stiffness, reach=reach)
-                xn = x + 0.003 * np.random.default_rng(0).normal(size=x.shape)
-                t1 = time.perf_counter()
-                law.evaluate(surf, xn, h, 2, stiffness=stiffness, reach=reach)
-                t2 = time.perf_counter()
-                E, G, H, info = law.evaluate(
-                    surf, xn, h, 2, stiffness=stiffness, reach=reach, friction_state=state
-                )
-                t3 = time.perf_counter()
-                print(
-                    f"| {name}-P{mo} friction_state | {surf.n_nodes} | {len(state)} | {t1 - t0:.2f} | | | |"
-                )
-                print(
-                    f"| {name}-P{mo}-2 at x + noise, no friction | {surf.n_nodes} | {info['active']} | "
-                    f"{t2 - t1:.2f} | | | |"
-                )
-                print(
-                    f"| {name}-P{mo}-2 at x + noise, friction ({info['slipping']} of {len(state)} "
-                    f"slipping) | {surf.n_nodes} | {info['active']} | {t3 - t2:.2f} | | | |",
-                    flush=True,
-                )
+                friction_time(law, name, mo, surf, x, h, stiffness, reach)
     if args.save:
         with open(args.save, "wb") as fh:
             pickle.dump(saved, fh)
