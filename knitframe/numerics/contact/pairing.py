@@ -1,8 +1,9 @@
 """Pairing: the nearest opposing master element of every query point, with its signed gap.
 
-:func:`select_pairs` narrows the broad phase's candidates (:meth:`SolidSurface.candidates`) to
-one master element per point: a linear triangle (plane gap) or a quadratic facet (signed
-distance to the closest point, :func:`knitframe.numerics.contact.p2.project_p2`).
+:func:`select_pairs` narrows the broad phase's candidates
+(:meth:`knitframe.numerics.contact.surfaces.SolidSurface.candidates`) to one master element per
+point: a linear triangle (plane gap) or a quadratic facet (signed distance to the closest point,
+:func:`knitframe.numerics.contact.p2.project_p2`).
 """
 
 from __future__ import annotations
