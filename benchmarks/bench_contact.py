@@ -7,9 +7,11 @@ Usage::
     python benchmarks/bench_contact.py --material               # time the material assembly too, for scale
     python benchmarks/bench_contact.py --save ref.pkl           # keep the inputs and E, gradient, Hessian
     python benchmarks/bench_contact.py --compare ref.pkl        # same inputs, relative differences to them
-    python benchmarks/bench_contact.py --profile mortar-P2-2    # cProfile of one case (top 30 by cumulative time)
-    python benchmarks/bench_contact.py --projection 100000      # closest points on random curved facets, and the
-                                                                # share of the start search in them
+    python benchmarks/bench_contact.py --profile mortar-P2-2    # cProfile of one case (top 30 by
+                                                                # cumulative time)
+    python benchmarks/bench_contact.py --projection 100000      # closest points on random curved
+                                                                # facets, and the share of the start
+                                                                # search in them
 
 The cell is meshed at seed r/3 as the solver does it, the contact surface is the solver's
 two-pass surface with periodic images, and the yarns are shrunk across the fibre about their
@@ -78,17 +80,17 @@ def rel(a, b) -> str:
 
 
 def projection_time(m: int, repeat: int) -> None:
-    """Time ``project_p2`` on m random bowed quadratic facets, and its start search (the 28-point lattice)
-    alone."""
-    from knitframe.numerics import solid_contact as sg
+    """Time ``project_p2`` on m random bowed quadratic facets, and its start search (the 28-point
+    lattice) alone."""
+    from knitframe.numerics.contact import barycentric, p2
 
     rng = np.random.default_rng(0)
     c = rng.normal(size=(m, 3, 3)) * 0.1 + np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]])
     mid = 0.5 * (c[:, [0, 1, 2]] + c[:, [1, 2, 0]]) + rng.normal(size=(m, 3, 3)) * 0.05
     X = np.concatenate([c, mid], axis=1)
     p = rng.uniform(-0.2, 0.8, size=(m, 3)) * [1, 1, 0.3]
-    a = sg.p2_coefficients(X)
-    xi = sg.barycentric(p, X[:, 0], X[:, 1], X[:, 2])[:, 1:].clip(0.0, 1.0)
+    a = p2.p2_coefficients(X)
+    xi = barycentric(p, X[:, 0], X[:, 1], X[:, 2])[:, 1:].clip(0.0, 1.0)
 
     def best(f):
         out = []
@@ -99,14 +101,12 @@ def projection_time(m: int, repeat: int) -> None:
         return min(out)
 
     print("| what | s |\n|---|---|")
-    print(f"| project_p2, {m} facets | {best(lambda: sg.project_p2(p, X)):.3f} |")
-    print(f"| of it the start search (28-point lattice) | {best(lambda: sg._best_start(p, *a, xi)):.3f} |")
+    print(f"| project_p2, {m} facets | {best(lambda: p2.project_p2(p, X)):.3f} |")
+    print(f"| of it the start search (28-point lattice) | {best(lambda: p2._best_start(p, *a, xi)):.3f} |")
 
 
-def main(argv=None) -> None:
-    from knitframe_contact.mortar import SolidMortar
-    from knitframe_contact.penalty import SolidPenalty
-
+def arguments(argv=None) -> argparse.Namespace:
+    """The command line of the benchmark (see the module docstring)."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--meshes", default="1,2", help="mesh orders: 1,2")
     p.add_argument("--orders", default="0,1,2", help="derivative orders: 0,1,2")
@@ -124,7 +124,39 @@ def main(argv=None) -> None:
     p.add_argument("--compare")
     p.add_argument("--profile", help="law-Pk-order, e.g. mortar-P2-2")
     p.add_argument("--projection", type=int, help="only time project_p2 on this many random curved facets")
-    args = p.parse_args(argv)
+    return p.parse_args(argv)
+
+
+def friction_time(
+    law, name: str, mo: int, surf, x: np.ndarray, h: np.ndarray, stiffness: float, reach: float
+) -> None:
+    """Time friction_state at x, and an order-2 evaluation at x + noise (0.003 mm) without and with
+    friction."""
+    t0 = time.perf_counter()
+    state = law.friction_state(surf, x, h, stiffness=stiffness, reach=reach)
+    xn = x + 0.003 * np.random.default_rng(0).normal(size=x.shape)
+    t1 = time.perf_counter()
+    law.evaluate(surf, xn, h, 2, stiffness=stiffness, reach=reach)
+    t2 = time.perf_counter()
+    E, G, H, info = law.evaluate(surf, xn, h, 2, stiffness=stiffness, reach=reach, friction_state=state)
+    t3 = time.perf_counter()
+    print(f"| {name}-P{mo} friction_state | {surf.n_nodes} | {len(state)} | {t1 - t0:.2f} | | | |")
+    print(
+        f"| {name}-P{mo}-2 at x + noise, no friction | {surf.n_nodes} | {info['active']} | "
+        f"{t2 - t1:.2f} | | | |"
+    )
+    print(
+        f"| {name}-P{mo}-2 at x + noise, friction ({info['slipping']} of {len(state)} "
+        f"slipping) | {surf.n_nodes} | {info['active']} | {t3 - t2:.2f} | | | |",
+        flush=True,
+    )
+
+
+def main(argv=None) -> None:
+    from knitframe_contact.mortar import SolidMortar
+    from knitframe_contact.penalty import SolidPenalty
+
+    args = arguments(argv)
     if args.projection:
         projection_time(args.projection, args.repeat)
         return
@@ -175,28 +207,7 @@ def main(argv=None) -> None:
                     flush=True,
                 )
             if args.friction:
-                t0 = time.perf_counter()
-                state = law.friction_state(surf, x, h, stiffness=stiffness, reach=reach)
-                xn = x + 0.003 * np.random.default_rng(0).normal(size=x.shape)
-                t1 = time.perf_counter()
-                law.evaluate(surf, xn, h, 2, stiffness=stiffness, reach=reach)
-                t2 = time.perf_counter()
-                E, G, H, info = law.evaluate(
-                    surf, xn, h, 2, stiffness=stiffness, reach=reach, friction_state=state
-                )
-                t3 = time.perf_counter()
-                print(
-                    f"| {name}-P{mo} friction_state | {surf.n_nodes} | {len(state)} | {t1 - t0:.2f} | | | |"
-                )
-                print(
-                    f"| {name}-P{mo}-2 at x + noise, no friction | {surf.n_nodes} | {info['active']} | "
-                    f"{t2 - t1:.2f} | | | |"
-                )
-                print(
-                    f"| {name}-P{mo}-2 at x + noise, friction ({info['slipping']} of {len(state)} slipping) | "
-                    f"{surf.n_nodes} | {info['active']} | {t3 - t2:.2f} | | | |",
-                    flush=True,
-                )
+                friction_time(law, name, mo, surf, x, h, stiffness, reach)
     if args.save:
         with open(args.save, "wb") as fh:
             pickle.dump(saved, fh)

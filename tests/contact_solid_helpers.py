@@ -8,16 +8,16 @@ from knitframe_linsolvers.direct import direct
 from knitframe_solvers.volumetric_material import SolidForms, YarnLaw
 from knitframe_yarns.isotropic import Isotropic
 
+from knitframe.numerics.contact import SolidSurface
 from knitframe.numerics.contact_search import SegmentTopology
 from knitframe.numerics.mesh import surface_facets
 from knitframe.numerics.newton import NewtonOptions, minimise
-from knitframe.numerics.solid_contact import SolidSurface
 
 
 def join(meshes: list, order: int):
     """One mesh from separate P1 bodies (body id per node), raised to P2 if asked."""
-    p, t, body, off = [], [], [], 0
-    for b, m in enumerate(meshes):
+    p, t, off = [], [], 0
+    for m in meshes:
         p.append(m.p)
         t.append(m.t + off)
         off += m.p.shape[1]
@@ -76,8 +76,8 @@ def solve(
     reach: float,
     friction_state=None,
 ):
-    """Equilibrium of elasticity + contact (+ lagged friction) by the shared Newton driver; returns (u,
-    contact info)."""
+    """Equilibrium of elasticity + contact (+ lagged friction) by the shared Newton driver; returns
+    (u, contact info)."""
     X = nodes(forms.mesh)
     n = forms.ndof
 
@@ -191,7 +191,8 @@ def quarter_cylinder_on_flat(R: float, h_contact: float, h_far: float, thickness
 
 
 def image_blocks():
-    """A slave block's right face (x = 1) meets the left face (master) of the periodic image of a second block.
+    """A slave block's right face (x = 1) meets the left face (master) of the periodic image of a
+    second block.
 
     Block A = [0.5, 1] x [0.2, 0.8] x [0.1, 0.4] (slave: its right face) and block B =
     [0, 0.4] x [0, 1] x [0, 0.5] (master: its left face), whose image one lattice vector
@@ -201,10 +202,10 @@ def image_blocks():
     """
     import skfem
 
+    from knitframe.numerics.contact import SolidSurface
     from knitframe.numerics.contact_search import SegmentTopology
     from knitframe.numerics.mesh import surface_facets
     from knitframe.numerics.periodic import Lattice
-    from knitframe.numerics.solid_contact import SolidSurface
 
     a = skfem.MeshTet1.init_tensor(np.linspace(0.5, 1, 3), np.linspace(0.2, 0.8, 4), np.linspace(0.1, 0.4, 3))
     b = skfem.MeshTet1.init_tensor(np.linspace(0, 0.4, 3), np.linspace(0, 1, 5), np.linspace(0, 0.5, 4))
@@ -224,8 +225,8 @@ def image_blocks():
 
 
 def assert_derivatives(f, u, du, n):
-    """Central differences of ``f(v, order) -> (E, g, H, info)`` along du match g·du and H·du on the n node
-    DOFs."""
+    """Central differences of ``f(v, order) -> (E, g, H, info)`` along du match g·du and H·du on the
+    n node DOFs."""
     E, g, H, info = f(u, 2)
     h = 1e-7
     fd_g = (f(u + h * du, 0)[0] - f(u - h * du, 0)[0]) / (2 * h)

@@ -7,16 +7,17 @@ import numpy as np
 import pytest
 import skfem
 from contact_solid_helpers import hertz_supports, iso, join, nodes, quarter_cylinder_on_flat, surface
-from knitframe_contact.ipc import SolidIPC, collision_mesh
+from knitframe_contact.ipc import SolidIPC
+from knitframe_contact.ipc_mesh import collision_mesh
 from knitframe_linsolvers.direct import direct
 from knitframe_solvers.volumetric_material import SolidForms
 from knitframe_yarns.law import line_contact_approach
 
+from knitframe.numerics.contact import SolidSurface
 from knitframe.numerics.contact_search import SegmentTopology
 from knitframe.numerics.mesh import surface_facets
 from knitframe.numerics.newton import NewtonOptions, minimise
 from knitframe.numerics.periodic import Lattice
-from knitframe.numerics.solid_contact import SolidSurface
 from knitframe.plugins import get_registry
 
 

@@ -23,8 +23,7 @@ from knitframe_solvers.volumetric_material import SolidForms
 from knitframe_yarns.law import line_contact_approach
 
 from knitframe.geometry import Centerline, UnitCell
-from knitframe.numerics.mesh import cell_mesh
-from knitframe.numerics.solid_contact import (
+from knitframe.numerics.contact import (
     chain_facet_derivatives,
     facet_gap,
     nagata_facets,
@@ -37,6 +36,7 @@ from knitframe.numerics.solid_contact import (
     project_p2,
     select_pairs,
 )
+from knitframe.numerics.mesh import cell_mesh
 from knitframe.plugins import get_registry
 
 

@@ -19,7 +19,7 @@ from knitframe_contact.mortar import SolidMortar
 from knitframe_contact.penalty import SolidPenalty
 from knitframe_solvers.volumetric_material import SolidForms
 
-from knitframe.numerics.solid_contact import friction_potential
+from knitframe.numerics.contact import friction_potential
 
 LAWS = [SolidPenalty(friction=0.4, slip=0.05), SolidMortar(friction=0.4, slip=0.05)]
 IDS = ["penalty", "mortar"]

@@ -296,7 +296,7 @@ def test_friction_is_frozen_per_increment_only_when_asked(monkeypatch):
 def test_contact_search_once_per_newton_iteration(monkeypatch, search):
     """contact_search = "iteration": the broad-phase contact search runs at the Hessian evaluations only
     (one per Newton iterate), its candidates held through the line search; "evaluation" searches every time."""
-    from knitframe.numerics.solid_contact import SolidSurface
+    from knitframe.numerics.contact import SolidSurface
 
     calls = count_calls(monkeypatch, SolidSurface, "candidates")
     # a stretch large enough for the Poisson contraction to need Newton iterations with line searches

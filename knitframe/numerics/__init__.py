@@ -8,8 +8,8 @@ module                     what it holds
 ``stepfiles``              one VTU file per converged step and the ``.pvd`` that lists them
 ``periodic``               the periodic 2x2 cell's macro degrees of freedom and its tensions
 ``contact_search``         broad-phase search between yarn segments, with periodic images
-``solid_contact``          gap kinematics, pairing, P2 projection, penalty and friction terms
-                           of solid yarn–yarn contact
+``contact``                solid contact: surfaces, gaps, pairing, P2 projection, penalty and
+                           friction terms, assembly (one module per concern)
 ``mesh``                   swept tetrahedral yarn tubes (gmsh) for the volumetric cell
 ``memory``, ``parallel``   process memory and thread settings for the large solves
 =========================  ==================================================================

@@ -108,7 +108,8 @@ class SegmentTopology:
 
 @attrs.frozen(eq=False)
 class Pairs:
-    """Segment pairs closer than the search cutoff: segment ``i`` (image 0) and segment ``j`` at image ``k``."""
+    """Segment pairs closer than the search cutoff: segment ``i`` (image 0) and segment ``j`` at image
+    ``k``."""
 
     #: (m,)
     i: np.ndarray

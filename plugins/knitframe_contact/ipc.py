@@ -18,20 +18,20 @@ pair is projected to positive semi-definite (``psd``), as in IPC's projected New
 Periodic cell. The cell's surface and its periodic images (the shifts F̄·S_k of
 :mod:`knitframe.numerics.periodic`, S_k = k1 L1 + k2 L2) form one collision mesh whose vertices are
 (node, image) pairs; a tube's end nodes are their matched start nodes of the next image, so the
-yarns run on across the seams without a cut. The energy of the cell counts each periodic class
-of pairs once: a point–triangle pair is kept in the translate whose point lies in the central
-image, an edge–edge pair in the translate where its edge of smaller class is owned by the
-central image (:meth:`PeriodicCollisionMesh.candidates`); the filtering acts on the candidate
-pairs, before ipctk reduces each to its distance type, so the count does not change where the
-type does. Positions are
-affine in q = [u (3N), h (6)], V = X + u + S_k + H·S_k, so the gradient and Hessian in q are
-Pᵀ ∂W/∂V and Pᵀ ∂²W/∂V² P with the constant sparse P.
+yarns run on across the seams without a cut. The energy of the cell counts each periodic class of
+pairs once: a point–triangle pair is kept in the translate whose point lies in the central image, an
+edge–edge pair in the translate where its edge of smaller class is owned by the central image
+(:meth:`knitframe_contact.ipc_mesh.PeriodicCollisionMesh.candidates`); the filtering acts on the
+candidate pairs, before ipctk reduces each to its distance type, so the count does not change where
+the type does. Positions are affine in q = [u (3N), h (6)], V = X + u + S_k + H·S_k, so the gradient
+and Hessian in q are Pᵀ ∂W/∂V and Pᵀ ∂²W/∂V² P with the constant sparse P.
 
-Stiffness: the solver's penalty ε (N/mm³, ``factor``·E/h as for ``penalty`` and ``mortar``) sets
-κ so that the barrier's normal stiffness at d = d̂/2 of a vertex with the mean tributary area A
-equals ε·A. Self-contact: a yarn meets its own other loops, but not its own material: vertices of one
+Stiffness: the solver's penalty ε (N/mm³, ``factor``·E/h as for ``penalty`` and ``mortar``) sets κ
+so that the barrier's normal stiffness at d = d̂/2 of a vertex with the mean tributary area A equals
+ε·A. Self-contact: a yarn meets its own other loops, but not its own material: vertices of one
 strand copy closer than the surface's ``exclusion`` along it never form a pair
-(:meth:`PeriodicCollisionMesh.own_material_filter`), as in the ``penalty`` and ``mortar`` laws.
+(:meth:`knitframe_contact.ipc_mesh.PeriodicCollisionMesh.own_material_filter`), as in the
+``penalty`` and ``mortar`` laws.
 
 Broad phase: a search's candidates are kept while no vertex has moved more than ``reuse``·d̂
 since it (a Verlet list, exact: :meth:`SolidIPC._collisions`), so the line search's and chord
@@ -45,264 +45,21 @@ forces and tangent bases of the increment's start state and the slip u_T measure
 ε_v = ``slip`` × the mean surface edge length.
 """
 
-from __future__ import annotations
-
 import functools
-import itertools
-import operator
 from typing import Any, ClassVar
 
 import attrs
 import numpy as np
-import scipy.sparse as sp
 
 from knitframe import hookimpl
 from knitframe import validators as v
 from knitframe.errors import NumericalError
-from knitframe.numerics.periodic import N_MACRO, macro_index
+from knitframe_contact.ipc_mesh import collision_mesh, ipctk_module
 
 #: halvings of a step whose collision check ran out of memory before the check gives up
 CCD_HALVINGS = 6
-#: staggered binnings of the own-material exclusion (pairs within (1 − 1/n) × exclusion along a strand excluded)
-EXCLUSION_BINNINGS = 4
 
-__all__ = ["SolidIPC", "PeriodicCollisionMesh"]
-
-
-def _ipctk():
-    try:
-        import ipctk
-    except ImportError as e:  # pragma: no cover - ipctk is a dependency
-        raise NumericalError("contact law 'ipc' needs ipctk: pip install ipctk") from e
-    return ipctk
-
-
-class PeriodicCollisionMesh:
-    """The cell's surface with its periodic images as one ipctk collision mesh.
-
-    Vertices are (canonical node, image k) pairs, those of the central image first
-    (``n_center``); ``node`` and ``image`` hold them. ``P`` maps q = [u (3N), h (6)] to the
-    stacked vertex positions minus ``V_rest`` (mm).
-    """
-
-    def __init__(self, surface, ring: int = 2, margin: float = 0.35):
-        ipctk = _ipctk()
-        X = surface.X
-        N = surface.n_nodes
-        canon = np.arange(N) if surface.identify is None else np.asarray(surface.identify, np.int64)
-        lat = surface.lattice
-        tri = np.asarray(surface.triangles, np.int64)
-        if lat is None:
-            k_node = np.zeros((N, 2), np.int64)
-            images = np.zeros((1, 2), np.int64)
-        else:
-            L = np.column_stack([lat.L1[:2], lat.L2[:2]])
-            k_node = np.rint(np.linalg.solve(L, (X - X[canon])[:, :2].T).T).astype(np.int64)
-            if np.abs(lat.reference_shift(k_node) - (X - X[canon])).max() > 1e-6 * (1.0 + np.abs(X).max()):
-                raise NumericalError(
-                    "ipc: an identified node is not a lattice image of the node it stands for"
-                )
-            used = np.unique(canon[tri])
-            lo, hi = X[used].min(axis=0), X[used].max(axis=0)
-            grow = margin * max(np.linalg.norm(lat.L1), np.linalg.norm(lat.L2))
-            r = range(-ring, ring + 1)
-            cand = np.array([(a, b) for a in r for b in r], np.int64)
-            S = lat.reference_shift(cand)
-            overlap = np.all(
-                (lo[None, :2] + S[:, :2] <= hi[:2] + grow) & (hi[None, :2] + S[:, :2] >= lo[:2] - grow),
-                axis=1,
-            )
-            images = cand[overlap]
-            images = images[np.argsort(np.abs(images).sum(axis=1), kind="stable")]
-        # every image's triangles, their corners mapped to (canonical node, image)
-        c_all = np.broadcast_to(canon[tri][None], (len(images),) + tri.shape)
-        k_all = images[:, None, None, :] + k_node[tri][None]
-        span = int(np.abs(k_all).max(initial=0)) + 1
-        width = 2 * span + 1
-        key = (c_all * width + (k_all[..., 0] + span)) * width + (k_all[..., 1] + span)
-        uniq, inv = np.unique(key.ravel(), return_inverse=True)
-        node = uniq // (width * width)
-        kk = np.column_stack([(uniq // width) % width - span, uniq % width - span])
-        center = (kk[:, 0] == 0) & (kk[:, 1] == 0)
-        faces = inv.reshape(-1, 3)
-        if lat is not None:
-            # image triangles far from the central image only cost time: keep those with a corner in
-            # the central image or within the margin of its bounding box (reference positions)
-            Vr = X[node] + lat.reference_shift(kk)
-            lo, hi = Vr[center].min(axis=0) - grow, Vr[center].max(axis=0) + grow
-            near = center | np.all((Vr >= lo) & (Vr <= hi), axis=1)
-            faces = faces[near[faces].any(axis=1)]
-        used = np.zeros(len(node), bool)
-        used[faces.ravel()] = True
-        used |= center
-        order = np.flatnonzero(used)[np.argsort(~center[used], kind="stable")]  # central image first
-        rank = np.full(len(node), -1, np.int64)
-        rank[order] = np.arange(len(order))
-        self.node = node[order]
-        self.image = kk[order]
-        self.n_center = int(center.sum())
-        self.faces = rank[faces].astype(np.int32)
-        shift = np.zeros((len(self.node), 3)) if lat is None else lat.reference_shift(self.image)
-        self.V_rest = X[self.node] + shift
-        self.n_nodes = N
-        nv = len(self.node)
-        rows = np.arange(3 * nv)
-        cols = (3 * self.node[:, None] + np.arange(3)[None, :]).ravel()
-        blocks = [sp.csr_matrix((np.ones(3 * nv), (rows, cols)), shape=(3 * nv, 3 * N + N_MACRO))]
-        if lat is not None:
-            S = lat.reference_shift(self.image)  # ∂V_i/∂H_ij = S_k,j
-            r_, c_, d_ = [], [], []
-            for i in range(3):
-                for j in range(2):
-                    r_.append(3 * np.arange(nv) + i)
-                    c_.append(np.full(nv, 3 * N + macro_index(i, j)))
-                    d_.append(S[:, j])
-            blocks.append(
-                sp.csr_matrix(
-                    (np.concatenate(d_), (np.concatenate(r_), np.concatenate(c_))),
-                    shape=(3 * nv, 3 * N + N_MACRO),
-                )
-            )
-        self.P = sum(blocks[1:], blocks[0]).tocsr()
-        self.PT = self.P.T.tocsr()
-        self.lattice = lat
-        edges = ipctk.edges(self.faces)
-        self.mesh = ipctk.CollisionMesh(self.V_rest, edges, self.faces)
-        self.mesh.can_collide = ipctk.make_static_obstacle_filter(self.n_center)
-        own = self.own_material_filter(surface)
-        if own is not None:
-            self.mesh.can_collide = self.mesh.can_collide & own
-        self.edges = np.asarray(self.mesh.edges)
-        # each edge's periodic class (its two canonical nodes and their relative image) and owner: the
-        # translate whose first end (the smaller canonical node) lies in the central image
-        a, b = self.edges[:, 0], self.edges[:, 1]
-        swap = (self.node[a] > self.node[b]) | ((self.node[a] == self.node[b]) & (b < a))
-        first, second = np.where(swap, b, a), np.where(swap, a, b)
-        rel = self.image[second] - self.image[first]
-        w = 2 * int(np.abs(rel).max(initial=0)) + 1
-        self.edge_class = (
-            ((self.node[first] * N + self.node[second]) * w + rel[:, 0] + w // 2) * w + rel[:, 1] + w // 2
-        )
-        self.edge_image = self.image[first]
-        self.edge_owned = np.all(self.image[first] == 0, axis=1)
-        #: the last broad-phase search (positions, candidates, d̂, reuse reach) kept by SolidIPC._collisions, and
-        #: how many searches ran
-        self.held = None
-        self.searches = 0
-        # mean edge length of the cell's own surface (each triangle edge once per triangle), mm
-        corners = X[tri]
-        self.edge_length = float(np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2).mean())
-
-    def own_material_filter(self, surface, n_bins: int = EXCLUSION_BINNINGS):
-        """ipctk filter of the pairs of a yarn with its own material: vertices of one strand copy within
-        the surface's ``exclusion`` along it never collide (None when nothing is excluded).
-
-        A vertex (node n, image k) lies on strand copy (strand, k₂, base) at unrolled arc a
-        (:meth:`knitframe.numerics.contact_search.SegmentTopology.unrolled`). ipctk filters by vertex patches
-        (equivalence classes), so the exclusion is ``n_bins`` staggered binnings of a into bins of
-        length ℓ = exclusion, offset by ℓ/n_bins: a pair is excluded when its two vertices share a bin
-        in any binning. A pair |Δa| < (1 − 1/n_bins)·ℓ apart shares one (its interval holds at most
-        n_bins − 1 bin boundaries, each of another binning); a pair ≥ ℓ apart shares none. So pairs
-        within 0.75 × exclusion (n_bins = 4) are always excluded and pairs beyond it never, as the
-        ``penalty`` and ``mortar`` laws exclude them: where a transversely soft tube is squashed, its
-        surface folds onto itself, and barrier pairs between the folds (a tube's own material, not a
-        contact) had stalled the Newton steps. ipctk keeps an edge–edge or face–vertex candidate when
-        any of its vertex pairs may collide, so pairs straddling a bin are kept.
-        """
-        ipctk = _ipctk()
-        topo, excl = surface.topology, float(surface.exclusion)
-        if topo is None or not excl > 0.0:
-            return None
-        base, arc = topo.unrolled(self.node, self.image[:, 0])
-        copy = np.column_stack([topo.strand[self.node], self.image[:, 1], base])
-        if not np.isfinite(excl):  # no self-contact: a strand copy never meets itself
-            _, pid = np.unique(copy, axis=0, return_inverse=True)
-            return ipctk.make_vertex_patches_filter(pid.astype(np.int32).reshape(-1, 1))
-        out = None
-        for j in range(n_bins):
-            bins = np.floor(arc / excl + j / n_bins).astype(np.int64)
-            _, pid = np.unique(np.column_stack([copy, bins]), axis=0, return_inverse=True)
-            f = ipctk.make_vertex_patches_filter(pid.astype(np.int32).reshape(-1, 1))
-            out = f if out is None else out & f
-        return out
-
-    def positions(self, x: np.ndarray, h: np.ndarray | None) -> np.ndarray:
-        """Vertex positions (nv, 3) for node positions x (N, 3) and macro DOFs h."""
-        V = np.asarray(x)[self.node]
-        if self.lattice is not None:
-            V = V + self.lattice.shift(self.image, np.zeros(N_MACRO) if h is None else h)
-        return np.asfortranarray(V)
-
-    def displacement(self, dx: np.ndarray, dh: np.ndarray | None) -> np.ndarray:
-        """Vertex displacements (nv, 3) for node displacements dx (N, 3) and a macro step dh."""
-        dV = np.asarray(dx)[self.node]
-        if self.lattice is not None and dh is not None:  # the images' shifts move by ΔH·S_k
-            dV = dV + self.lattice.affine(self.lattice.reference_shift(self.image), dh)
-        return dV
-
-    def candidates(self, V: np.ndarray, inflation: float):
-        """Broad-phase candidates within ``inflation`` of each other, one representative per periodic class.
-
-        A point–triangle pair is kept when its point lies in the central image (each class of
-        pairs has exactly one such translate). An edge–edge pair {e1, e2} is kept in the translate
-        where the edge of the smaller canonical id (its end nodes and their relative image) is
-        owned, i.e. has its first end node (the smaller canonical node) in the central image;
-        between an edge and its own image, the translate whose second edge lies on the positive
-        side. The energy then counts each periodic pair once, whatever the reduced pair type
-        (point–edge, point–point) its distance takes: a weight per reduced pair would jump where
-        the type switches.
-        """
-        ipctk = _ipctk()
-        cand = ipctk.Candidates()
-        cand.build(self.mesh, V, inflation)
-        out = ipctk.Candidates()
-        fv = cand.fv_candidates
-        if len(fv):
-            keep = np.flatnonzero(_ids(fv, "vertex_id")[:, 0] < self.n_center)
-            out.fv_candidates = [fv[i] for i in keep]
-        ee = cand.ee_candidates
-        if len(ee):
-            ids = _ids(ee, "edge0_id", "edge1_id")
-            a, b = ids[:, 0], ids[:, 1]
-            ca, cb = self.edge_class[a], self.edge_class[b]
-            oa, ob = self.edge_owned[a], self.edge_owned[b]
-            d = self.edge_image[b] - self.edge_image[a]
-            pos = (d[:, 0] > 0) | ((d[:, 0] == 0) & (d[:, 1] > 0))
-            neg = (d[:, 0] < 0) | ((d[:, 0] == 0) & (d[:, 1] < 0))
-            keep = np.where(ca < cb, oa, np.where(ca > cb, ob, (oa & pos) | (ob & neg)))
-            out.ee_candidates = [ee[i] for i in np.flatnonzero(keep)]
-        if len(cand.ev_candidates) or len(
-            cand.vv_candidates
-        ):  # pragma: no cover - only for codimensional meshes
-            raise NumericalError(
-                "ipc: edge–vertex and vertex–vertex candidates (codimensional surfaces) are not supported"
-            )
-        return out
-
-
-def _ids(objs: list, *names: str) -> np.ndarray:
-    """(len(objs), len(names)) int64 array of the named integer attributes of ipctk candidates (no
-    intermediate tuples: about 2.5 times faster than a list comprehension on 10⁵–10⁶ candidates)."""
-    get = operator.attrgetter(*names)
-    flat = get if len(names) > 1 else (lambda o: (get(o),))
-    return np.fromiter(
-        itertools.chain.from_iterable(map(flat, objs)), np.int64, len(names) * len(objs)
-    ).reshape(-1, len(names))
-
-
-_CACHE: dict[int, tuple[Any, PeriodicCollisionMesh]] = {}
-
-
-def collision_mesh(surface) -> PeriodicCollisionMesh:
-    """The (cached) periodic collision mesh of a solid contact surface."""
-    hit = _CACHE.get(id(surface))
-    if hit is not None and hit[0] is surface:
-        return hit[1]
-    pcm = PeriodicCollisionMesh(surface)
-    if len(_CACHE) > 8:
-        _CACHE.clear()
-    _CACHE[id(surface)] = (surface, pcm)
-    return pcm
+__all__ = ["SolidIPC"]
 
 
 @attrs.frozen
@@ -322,7 +79,8 @@ class SolidIPC:
 
     name: ClassVar[str] = "ipc"
     description: ClassVar[str] = (
-        "barrier contact (Incremental Potential Contact via ipctk): no interpenetration, CCD line search (solid)"
+        "barrier contact (Incremental Potential Contact via ipctk): no interpenetration, "
+        "CCD line search (solid)"
     )
     discretisation: ClassVar[str] = "solid"
 
@@ -348,11 +106,12 @@ class SolidIPC:
     ccd: str = attrs.field(default="additive", validator=v.one_of(("additive", "tight-inclusion")))
 
     def penalty(self, modulus: float, size: float) -> float:
-        """Penalty stiffness ε (N/mm³): ``stiffness``, else ``factor`` · E / h (converted to κ per surface)."""
+        """Penalty stiffness ε (N/mm³): ``stiffness``, else ``factor`` · E / h (converted to κ per
+        surface)."""
         return float(self.stiffness) if self.stiffness is not None else self.factor * modulus / size
 
     def _setup(self, surface, stiffness: float):
-        ipctk = _ipctk()
+        ipctk = ipctk_module()
         pcm = collision_mesh(surface)
         dhat = self.dhat * pcm.edge_length
         area = float(np.mean(surface.tributary[surface.tributary > 0]))
@@ -372,13 +131,13 @@ class SolidIPC:
     ) -> float:
         """Largest α ∈ [0, 1] such that the straight path x + t·α·dx (t ∈ [0, 1]) has no crossing (CCD).
 
-        The narrow phase is ``ccd``. The IPC Toolkit's CCD can run out of memory on a long step with many near pairs
-        (std::bad_alloc; ipc-toolkit issues #39 and #99: the broad phase's space-time boxes and the
-        narrow phase's interval lists grow with the trajectory). Then the first half of the step is
-        checked instead, α = ½·α(½ dx), down to ``CCD_HALVINGS`` halvings, a conservative bound; past
-        that a NumericalError names the failure.
+        The narrow phase is ``ccd``. The IPC Toolkit's CCD can run out of memory on a long step with
+        many near pairs (std::bad_alloc; ipc-toolkit issues #39 and #99: the broad phase's space-time
+        boxes and the narrow phase's interval lists grow with the trajectory). Then the first half of
+        the step is checked instead, α = ½·α(½ dx), down to ``CCD_HALVINGS`` halvings, a conservative
+        bound; past that a NumericalError names the failure.
         """
-        ipctk = _ipctk()
+        ipctk = ipctk_module()
         pcm, _, _ = self._setup(surface, stiffness)
         V0 = pcm.positions(x, h)
         D = pcm.displacement(dx, dh)
@@ -400,7 +159,7 @@ class SolidIPC:
     def _narrow_phase(self):
         """ipctk's narrow-phase CCD of ``ccd``, each with ipctk's defaults (conservative rescaling 0.9 for
         ACCD, 0.8 for Tight Inclusion: the step stops at that fraction of the time of impact)."""
-        ipctk = _ipctk()
+        ipctk = ipctk_module()
         return ipctk.AdditiveCCD() if self.ccd == "additive" else ipctk.TightInclusionCCD()
 
     def _collisions(self, pcm, V, dhat):
@@ -414,7 +173,7 @@ class SolidIPC:
         collisions is exactly that of a fresh search (a Verlet list). The search, and the periodic
         filtering of its candidates in Python, then runs only when a vertex has moved further.
         """
-        ipctk = _ipctk()
+        ipctk = ipctk_module()
         held = pcm.held
         reach = self.reuse * dhat
         if (
@@ -435,7 +194,7 @@ class SolidIPC:
         self, surface, x: np.ndarray, h: np.ndarray | None, *, stiffness: float, reach: float, **_: Any
     ) -> IPCFrictionState:
         """Tangential pairs of the converged state x (normal forces and tangent bases lagged from it)."""
-        ipctk = _ipctk()
+        ipctk = ipctk_module()
         pcm, dhat, B = self._setup(surface, stiffness)
         V0 = pcm.positions(x, h)
         col = self._collisions(pcm, V0, dhat)
@@ -461,7 +220,7 @@ class SolidIPC:
         the barrier admits none), nodal ``pressure`` (|contact force| / tributary area, MPa) and
         ``force`` (sum of the pair force magnitudes, N).
         """
-        ipctk = _ipctk()
+        ipctk = ipctk_module()
         pcm, dhat, B = self._setup(surface, stiffness)
         V = pcm.positions(x, h)
         col = self._collisions(pcm, V, dhat)

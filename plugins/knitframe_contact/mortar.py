@@ -14,14 +14,14 @@ consistently through the master's shape functions at the projection points. On l
 is the distance to the master triangle's plane; on quadratic facets it is the signed distance to
 the closest point x(ξ*) of the curved master facet, n·(x_q − x(ξ*)) inside it, so that it stays
 continuous where the nearest facet changes (beyond an open edge of the master surface, the
-facet's polynomial continuation; :func:`knitframe.numerics.solid_contact.select_pairs`). On
+facet's polynomial continuation; :func:`knitframe.numerics.contact.select_pairs`). On
 linear meshes the master surface is by default smoothed (``smoothing = "nagata"``): each master
 triangle becomes the quadratic patch through its corners' nodal normals
-(:func:`knitframe.numerics.solid_contact.nagata_facets`), with the normals frozen for the
+(:func:`knitframe.numerics.contact.nagata_facets`), with the normals frozen for the
 increment, so that the gap does not kink at facet edges. The gradient
 and Hessian are exact for the current pairing, including the second derivative of the
 closest-point projection on curved facets
-(:func:`knitframe.numerics.solid_contact.p2_gap_derivatives`; Gauss-Newton only where the
+(:func:`knitframe.numerics.contact.p2_gap_derivatives`; Gauss-Newton only where the
 continuation has no closest point near the facet). This is the Gauss-point-to-segment form of
 the penalty mortar method; the integration is by quadrature on the slave facets rather than by
 clipping against the master segments, which is exact for flat contact and converges with
@@ -37,7 +37,7 @@ normal n and the master's material point ξ* under them; :meth:`SolidMortar.eval
 
 (the slip of the slave point against the same material point of the master, x_m including the
 image shift F̄·S_k; ε_s = ``slip`` × the slave facet's size), whose tangential force rises
-smoothly to μ λ_q at the slip ε_s (:func:`knitframe.numerics.solid_contact.friction_terms`).
+smoothly to μ λ_q at the slip ε_s (:func:`knitframe.numerics.contact.friction_terms`).
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ import numpy as np
 
 from knitframe import hookimpl
 from knitframe import validators as v
-from knitframe.numerics.solid_contact import (
+from knitframe.numerics.contact import (
     Candidates,
     FrictionState,
     P2Projection,
@@ -107,24 +107,8 @@ class SolidMortar(SolidContactLaw):
         with ``held`` the pairs are chosen from those candidates (:meth:`search`)."""
         quadratic = surface.facets.shape[1] == 6
         smooth = self.smoothed(surface)
-        lam, w = triangle_rule(self.quadrature)
-        if quadratic:
-            N_q, dN_q = p2_shape(lam[:, 1:])
-        else:
-            N_q = lam
+        N_q, w, sf, xq, dA, ns_q = self._slave_points(surface, x, quadratic)
         nq = w.size
-        sf = surface.facets[surface.slave]  # (F, 3 or 6)
-        xs = x[sf]
-        xq = np.einsum("qi,fik->fqk", N_q, xs).reshape(-1, 3)
-        if quadratic:
-            # area element |X_ξ × X_η| of the reference facet at each point (curved facets)
-            Jr = np.einsum("qia,fik->fqka", dN_q, surface.X[sf])
-            Jc = np.einsum("qia,fik->fqka", dN_q, xs)
-            dA = 0.5 * np.linalg.norm(np.cross(Jr[..., 0], Jr[..., 1]), axis=-1).reshape(-1)
-            ns_q = np.cross(Jc[..., 0], Jc[..., 1]).reshape(-1, 3)
-        else:
-            dA = np.repeat(surface.area[surface.slave], nq)
-            ns_q = np.repeat(np.cross(xs[:, 1] - xs[:, 0], xs[:, 2] - xs[:, 0]), nq, axis=0)
         face = np.repeat(np.arange(len(sf)), nq)
         qidx = np.tile(np.arange(nq), len(sf))
         cand = self.search(surface, xq, sf[face, 0], x, h, reach, held, quadratic=quadratic, group=nq)
@@ -165,13 +149,59 @@ class SolidMortar(SolidContactLaw):
             "qidx": qidx,
             "candidates": cand,
         }
+        self._gap_derivatives(out, surface, chosen.projection, sel, order, normals)
+        return out
+
+    def _slave_points(
+        self, surface: SolidSurface, x: np.ndarray, quadratic: bool
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The quadrature points of the slave facets at state x.
+
+        Returns the shape functions at the rule's points N_q (nq, k) and its weights w (nq,), the
+        slave facets sf (F, k), the points xq (F·nq, 3), their reference area elements dA (F·nq,) and
+        the slave surface's normals there ns_q (F·nq, 3).
+        """
+        lam, w = triangle_rule(self.quadrature)
         if quadratic:
-            pr = _take(chosen.projection, sel)
+            N_q, dN_q = p2_shape(lam[:, 1:])
+        else:
+            N_q = lam
+        nq = w.size
+        sf = surface.facets[surface.slave]  # (F, 3 or 6)
+        xs = x[sf]
+        xq = np.einsum("qi,fik->fqk", N_q, xs).reshape(-1, 3)
+        if quadratic:
+            # area element |X_ξ × X_η| of the reference facet at each point (curved facets)
+            Jr = np.einsum("qia,fik->fqka", dN_q, surface.X[sf])
+            Jc = np.einsum("qia,fik->fqka", dN_q, xs)
+            dA = 0.5 * np.linalg.norm(np.cross(Jr[..., 0], Jr[..., 1]), axis=-1).reshape(-1)
+            ns_q = np.cross(Jc[..., 0], Jc[..., 1]).reshape(-1, 3)
+        else:
+            dA = np.repeat(surface.area[surface.slave], nq)
+            ns_q = np.repeat(np.cross(xs[:, 1] - xs[:, 0], xs[:, 2] - xs[:, 0]), nq, axis=0)
+        return N_q, w, sf, xq, dA, ns_q
+
+    def _gap_derivatives(
+        self,
+        out: dict[str, Any],
+        surface: SolidSurface,
+        projection: P2Projection | None,
+        sel: np.ndarray,
+        order: int,
+        normals: np.ndarray | None,
+    ) -> None:
+        """Add to the pairs ``out`` of :meth:`_pairs` the master's parametric points ``xi``, unit normals
+        ``normal`` and, for ``order`` ≥ 1, the gap derivatives ``dg``, ``Hg`` in (slave facet nodes,
+        master element nodes); ``projection`` and ``sel``: the chosen pairs' closest points on curved
+        masters and the rows of them kept."""
+        N, Xm = out["N"], out["Xm"]
+        if out["quadratic"]:
+            pr = _take(projection, sel)
             out["xi"], out["normal"] = pr.xi, pr.n
             if order >= 1:
                 out["dg"], out["Hg"] = p2_gap_derivatives(pr, Xm, N, order)
-        elif smooth:
-            pr = _take(chosen.projection, sel)
+        elif self.smoothed(surface):
+            pr = _take(projection, sel)
             out["xi"], out["normal"] = pr.xi, pr.n
             if order >= 1:
                 out["dg"], out["Hg"] = self.patch_gap_derivatives(
@@ -183,19 +213,7 @@ class SolidMortar(SolidContactLaw):
             nrm = np.cross(B - A, C - A)
             out["normal"] = nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
             if order >= 1:
-                _, dgm, H = plane_gap(out["p"], A, B, C, order=order)
-                k = N.shape[1]
-                # chain rule: the slave point moves with its facet's nodes, x_q = Σ N_i x_i
-                out["dg"] = np.concatenate([N[:, :, None] * dgm[:, None, 0, :], dgm[:, 1:]], axis=1)
-                Hfull = None
-                if order == 2:
-                    Hfull = np.zeros((len(sel), 2 * k, 3, 2 * k, 3))
-                    Hfull[:, :k, :, :k, :] = np.einsum("mi,mj,mkl->mikjl", N, N, H[:, 0, :, 0, :])
-                    Hfull[:, :k, :, k:, :] = np.einsum("mi,mkbl->mikbl", N, H[:, 0, :, 1:, :])
-                    Hfull[:, k:, :, :k, :] = np.einsum("mj,makl->makjl", N, H[:, 1:, :, 0, :])
-                    Hfull[:, k:, :, k:, :] = H[:, 1:, :, 1:, :]
-                out["Hg"] = Hfull
-        return out
+                out["dg"], out["Hg"] = _flat_gap_derivatives(out["p"], N, A, B, C, order)
 
     def friction_state(
         self,
@@ -207,7 +225,8 @@ class SolidMortar(SolidContactLaw):
         reach: float,
         normals: np.ndarray | None = None,
     ) -> FrictionState:
-        """Freeze the active quadrature-point pairs of the converged state x for the next increment's friction.
+        """Freeze the active quadrature-point pairs of the converged state x for the next increment's
+        friction.
 
         Each pair keeps its slave facet and quadrature point, master facet (linear triangle on
         P1 surfaces) and image, the master's parametric point ξ* of the projection, the normal
@@ -282,8 +301,7 @@ class SolidMortar(SolidContactLaw):
         images[:, k:] = pr["image"][:, None, :]
         # the quadrature points of one slave facet on one master element (and image), with or
         # without friction, form one element: summed before the assembly
-        img = pr["image"]
-        key = (surface.slave[f] * len(elements) + pr["master"]) * 9 + 3 * (img[:, 0] + 1) + img[:, 1] + 1
+        key = _element_key(surface.slave[f], pr["master"], pr["image"], len(elements))
         info: dict[str, Any] = {}
         if friction_state is not None and self.friction > 0 and len(friction_state):
             Ef, gf, Hf, info = friction_terms(
@@ -292,15 +310,7 @@ class SolidMortar(SolidContactLaw):
             E += Ef
             info["friction_energy"] = Ef
             fs = friction_state
-            key = np.concatenate(
-                [
-                    key,
-                    (fs.slave * len(elements) + fs.master) * 9
-                    + 3 * (fs.image[:, 0] + 1)
-                    + fs.image[:, 1]
-                    + 1,
-                ]
-            )
+            key = np.concatenate([key, _element_key(fs.slave, fs.master, fs.image, len(elements))])
             nodes, images = np.concatenate([nodes, fs.nodes]), np.concatenate([images, fs.images])
             grads, hesses = [grad, gf], [hess, Hf]
         else:
@@ -310,23 +320,52 @@ class SolidMortar(SolidContactLaw):
             first, grad, hess = combine(key, grads, hesses if order == 2 else None)
             terms.append((nodes[first], images[first], grad, hess))
         E, G, Hm = assemble(surface.n_nodes, surface.lattice, E, terms, order)
-        # nodal pressure for output: area-weighted mean of ε⟨−g⟩ over the points of the node's facets
-        nq, dA, w = pr["nq"], pr["dA"], pr["w"]
-        num, den = np.zeros(surface.n_nodes), np.zeros(surface.n_nodes)
-        wq = w[pr["qidx"]] * dA
-        np.add.at(den, np.repeat(sf, nq, axis=0).ravel(), np.repeat(wq, k))
-        np.add.at(num, sf[f].ravel(), np.repeat(weight * pn, k))
-        pressure = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
         info.update(
             {
                 "active": int(g.size),
                 "max_penetration": float(-g.min()) if g.size else 0.0,
-                "pressure": pressure,
+                "pressure": _nodal_pressure(surface.n_nodes, pr, weight * pn),
                 "force": float(np.sum(weight * pn)),
                 "candidates": pr["candidates"],
             }
         )
         return E, G, Hm, info
+
+
+def _element_key(slave: np.ndarray, master: np.ndarray, image: np.ndarray, n_elements: int) -> np.ndarray:
+    """One integer per (slave facet, master element, image (m, 2) in −1 … 1) pair."""
+    return (slave * n_elements + master) * 9 + 3 * (image[:, 0] + 1) + image[:, 1] + 1
+
+
+def _nodal_pressure(n_nodes: int, pr: dict[str, Any], force: np.ndarray) -> np.ndarray:
+    """Nodal pressure for output (n_nodes,), MPa: the area-weighted mean of ε⟨−g⟩ over the points of the
+    node's facets; ``pr`` the pairs of :meth:`SolidMortar._pairs` and ``force`` their w ε⟨−g⟩ (N)."""
+    nq, dA, w, sf = pr["nq"], pr["dA"], pr["w"], pr["sf"]
+    k = pr["N"].shape[1]
+    num, den = np.zeros(n_nodes), np.zeros(n_nodes)
+    wq = w[pr["qidx"]] * dA
+    np.add.at(den, np.repeat(sf, nq, axis=0).ravel(), np.repeat(wq, k))
+    np.add.at(num, sf[pr["f"]].ravel(), np.repeat(force, k))
+    return np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+
+
+def _flat_gap_derivatives(
+    p: np.ndarray, N: np.ndarray, A: np.ndarray, B: np.ndarray, C: np.ndarray, order: int
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Plane-gap derivatives of slave points p (m, 3) on flat master triangles (A, B, C), in (slave facet
+    nodes, the triangle's corners): dg (m, 2k, 3) and, for ``order`` 2, Hg (m, 2k, 3, 2k, 3)."""
+    _, dgm, H = plane_gap(p, A, B, C, order=order)
+    k = N.shape[1]
+    # chain rule: the slave point moves with its facet's nodes, x_q = Σ N_i x_i
+    dg = np.concatenate([N[:, :, None] * dgm[:, None, 0, :], dgm[:, 1:]], axis=1)
+    Hfull = None
+    if order == 2:
+        Hfull = np.zeros((len(p), 2 * k, 3, 2 * k, 3))
+        Hfull[:, :k, :, :k, :] = np.einsum("mi,mj,mkl->mikjl", N, N, H[:, 0, :, 0, :])
+        Hfull[:, :k, :, k:, :] = np.einsum("mi,mkbl->mikbl", N, H[:, 0, :, 1:, :])
+        Hfull[:, k:, :, :k, :] = np.einsum("mj,makl->makjl", N, H[:, 1:, :, 0, :])
+        Hfull[:, k:, :, k:, :] = H[:, 1:, :, 1:, :]
+    return dg, Hfull
 
 
 @hookimpl

@@ -2,7 +2,7 @@
 
 Each slave node s is paired with the nearest master triangle (a, b, c) — of another yarn, of a
 periodic image, or of the same yarn further than the exclusion length along it — and penalised
-by its signed plane gap g (see :func:`knitframe.numerics.solid_contact.plane_gap`)::
+by its signed plane gap g (see :func:`knitframe.numerics.contact.plane_gap`)::
 
     W = Σ_s ½ ε A_s ⟨−g_s⟩²,        ⟨x⟩ = max(x, 0)
 
@@ -29,7 +29,7 @@ unit normal n and the barycentric point ξ of the node's projection on it;
 (the slip of the node against the same material point x_m(ξ) = Σ ξ_i x_i of the master
 triangle, with its image shift F̄·S_k; ε_s = ``slip`` × the mean size of the node's slave
 facets), whose tangential force rises smoothly to μ λ_s at the slip ε_s
-(:func:`knitframe.numerics.solid_contact.friction_terms`).
+(:func:`knitframe.numerics.contact.friction_terms`).
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ import numpy as np
 
 from knitframe import hookimpl
 from knitframe import validators as v
-from knitframe.numerics.solid_contact import (
+from knitframe.numerics.contact import (
     Candidates,
     FrictionState,
     P2Projection,
@@ -86,7 +86,8 @@ class SolidContactLaw:
     smoothing: str = attrs.field(default="nagata", validator=v.one_of(("none", "nagata")))
 
     def band(self, reach: float) -> tuple[float, float] | None:
-        """The fade band (d1, d2) of the penetration, mm (see :func:`~knitframe.numerics.solid_contact.penalty_depth`).
+        """The fade band (d1, d2) of the penetration, mm (see
+        :func:`~knitframe.numerics.contact.penalty_depth`).
 
         A pair is only kept up to the search reach; without the fade the energy would jump by
         ½ ε w reach² when a pair crosses it (a point that comes within reach of the far side
@@ -101,7 +102,8 @@ class SolidContactLaw:
         return 0.5 * stiffness * penalty_depth(g, self.band(reach))[1]
 
     def smoothed(self, surface: SolidSurface) -> bool:
-        """Whether the master surface is made of Nagata patches: linear (P1) facets and ``smoothing = "nagata"``."""
+        """Whether the master surface is made of Nagata patches: linear (P1) facets and
+        ``smoothing = "nagata"``."""
         return surface.facets.shape[1] == 3 and self.smoothing == "nagata"
 
     def master_normals(self, surface: SolidSurface, x: np.ndarray | None = None) -> np.ndarray | None:
@@ -127,7 +129,7 @@ class SolidContactLaw:
         normals: np.ndarray | None,
     ) -> np.ndarray:
         """Nagata patches (m, 6, 3) of master triangles ``triangle`` (m,) moved by ``shift`` (m, 3): each
-        distinct triangle is built once (:func:`~knitframe.numerics.solid_contact.nagata_facets`)."""
+        distinct triangle is built once (:func:`~knitframe.numerics.contact.nagata_facets`)."""
         nodal = self._nodal(surface, normals)
         used, where = np.unique(triangle, return_inverse=True)
         tri = surface.triangles[used]
@@ -137,7 +139,7 @@ class SolidContactLaw:
         self, surface: SolidSurface, triangle: np.ndarray, normals: np.ndarray | None
     ) -> np.ndarray | None:
         """Nodal normals (m, 3, 3) at the corners of master triangles ``triangle`` (m,) that shape their
-        patches (the edge pseudo-normals of :func:`~knitframe.numerics.solid_contact.select_pairs`), or None
+        patches (the edge pseudo-normals of :func:`~knitframe.numerics.contact.select_pairs`), or None
         when the surface is not smoothed."""
         if not self.smoothed(surface):
             return None
@@ -154,7 +156,8 @@ class SolidContactLaw:
         order: int,
         normals: np.ndarray | None,
     ):
-        """Gap gradient and Hessian of pairs on patches, in (slave points, the triangles' corners Xt (m, 3, 3))."""
+        """Gap gradient and Hessian of pairs on patches, in (slave points, the triangles' corners
+        Xt (m, 3, 3))."""
         nodal = self._nodal(surface, normals)
         X6, A6 = nagata_facets(Xt, nodal[surface.triangles[triangle]])
         return chain_facet_derivatives(*p2_gap_derivatives(projection, X6, weights, order), A6)
@@ -213,7 +216,7 @@ class SolidPenalty(SolidContactLaw):
         held: Candidates | None = None,
     ) -> dict[str, Any]:
         """Slave node → nearest opposing master triangle within ``reach`` (mm), with its image (see
-        :func:`knitframe.numerics.solid_contact.select_pairs`); on a smoothed surface also the
+        :func:`knitframe.numerics.contact.select_pairs`); on a smoothed surface also the
         patch projection and gap. ``held``: candidates to choose from instead of a search (:meth:`search`)."""
         slave = surface.slave_nodes
         cand = self.search(surface, x[slave], slave, x, h, reach, held)
@@ -252,7 +255,8 @@ class SolidPenalty(SolidContactLaw):
         normals: np.ndarray | None = None,
         held: Candidates | None = None,
     ):
-        """Active pairs: nodes (m, 4) and images (m, 4, 2) of (s, a, b, c), their points, gaps and derivatives."""
+        """Active pairs: nodes (m, 4) and images (m, 4, 2) of (s, a, b, c), their points, gaps and
+        derivatives."""
         pr = self.pairs(surface, x, h, reach, normals, held)
         tri = surface.triangles[pr["triangle"]]
         nodes = np.column_stack([pr["node"], tri])

@@ -36,7 +36,7 @@ import numpy as np
 
 from knitframe import hookimpl
 from knitframe import validators as v
-from knitframe.numerics.solid_contact import friction_potential
+from knitframe.numerics.contact.friction import friction_potential
 
 
 @attrs.frozen

@@ -60,7 +60,7 @@ from knitframe.numerics.contact_search import SegmentTopology
 from knitframe.numerics.memory import retain_freed_memory
 from knitframe.numerics.newton import NewtonOptions, StepCheckpoints, continuation, minimise
 from knitframe.numerics.periodic import N_MACRO, Lattice, macro_index, periodic_transform
-from knitframe.numerics.solid_contact import SolidSurface
+from knitframe.numerics.contact import SolidSurface
 from knitframe.numerics.stepfiles import StepSeries
 from knitframe.plugins import get_registry
 from knitframe.records import Fabric, Provenance, Response, Scene
