@@ -585,7 +585,7 @@ def _executor(table: LadderTable, config, ctx) -> tuple[Any, str]:
                 "the config has an [executor] table as well: name the executor in one place",
                 source=ctx.source,
             )
-        from knitframe_executors import executor_from_config
+        from knitframe.executors import executor_from_config
 
         executor, name = executor_from_config(config, ctx)
         if not table.cache and "cache_dir" in _fields(executor):

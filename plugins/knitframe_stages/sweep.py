@@ -426,7 +426,7 @@ class SweepStage:
 
     @classmethod
     def from_config(cls, config, ctx) -> SweepStage:
-        from knitframe_executors import executor_from_config
+        from knitframe.executors import executor_from_config
 
         src = ctx.source
         table = build(SweepTable, config["sweep"], "sweep", source=src)
