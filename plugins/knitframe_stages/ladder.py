@@ -58,7 +58,7 @@ from knitframe.ladder import (
     CostModel,
     LadderResult,
     TimingPoint,
-    _response,
+    curve_response,
     format_duration,
     format_memory,
     plot_curves,
@@ -344,7 +344,7 @@ class LadderStage:
         row["peak_rss_mb"] = res.get("peak_rss_mb")
         row["notes"] = res.get("mesh") or res.get("notes") or ""
         if res.get("curve"):
-            r = _response(res["curve"], label=row["rung"])
+            r = curve_response(res["curve"], label=row["rung"])
             curves[row["rung"]] = r
             row["T1_end_N_per_mm"], row["T2_end_N_per_mm"] = float(r.T1[-1]), float(r.T2[-1])
         for w in res.get("warnings", []):
