@@ -136,7 +136,8 @@ def _function_digest(fn: Callable[..., Any]) -> str:
         h.update(_canonical_json({"args": list(fn.args), "keywords": fn.keywords}).encode())
         return h.hexdigest()
     target = fn
-    if not hasattr(target, "__code__") and hasattr(type(fn), "__call__") and not isinstance(fn, type):
+    # a class always has __call__ (its metaclass's): the test is that fn is an instance, not a class
+    if not hasattr(target, "__code__") and hasattr(type(fn), "__call__") and not isinstance(fn, type):  # noqa: B004
         target = type(fn).__call__
         h.update(_canonical_json(fn).encode())  # the object's own state
     target = getattr(target, "__func__", target)  # bound methods
