@@ -14,9 +14,9 @@ The key of ``fn(job)`` (:func:`job_key`) is the SHA-256 of the canonical JSON of
   (function-level imports too);
 * the source of the modules the job names at run time — plugins chosen by name from a config,
   which no import statement reveals: a job function lists them with a ``cache_modules(job)``
-  attribute (the sweep stage's point function names its solver, contact law, linear solver,
-  pattern, yarn model, reduced model and fitter plugins), and their imports are followed the same
-  way.
+  attribute (the sweep's point function, :func:`knitframe.sweep.run_point`, names its solver,
+  contact law, linear solver, pattern, yarn model, reduced model and fitter plugins; the ladder's
+  :func:`knitframe.ladder.run_rung` its own), and their imports are followed the same way.
 
 Solver options are part of the job, so a changed option changes the key too. Sources are read from
 disk: worker processes import them from there. A module edited in an interactive session but not
@@ -136,7 +136,8 @@ def _function_digest(fn: Callable[..., Any]) -> str:
         h.update(_canonical_json({"args": list(fn.args), "keywords": fn.keywords}).encode())
         return h.hexdigest()
     target = fn
-    if not hasattr(target, "__code__") and hasattr(type(fn), "__call__") and not isinstance(fn, type):
+    # a class always has __call__ (its metaclass's): the test is that fn is an instance, not a class
+    if not hasattr(target, "__code__") and hasattr(type(fn), "__call__") and not isinstance(fn, type):  # noqa: B004
         target = type(fn).__call__
         h.update(_canonical_json(fn).encode())  # the object's own state
     target = getattr(target, "__func__", target)  # bound methods

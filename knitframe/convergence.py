@@ -199,7 +199,8 @@ def convergence_table(rows: Sequence[Mapping[str, Any]]) -> str:
             "Richardson estimate of the mesh-converged tension and of the finest mesh's error "
             "(knitframe.convergence).",
             "",
-            "| direction | strain | coarsest | middle | finest | order p | extrapolated | error of the finest | GCI | behaviour |",
+            "| direction | strain | coarsest | middle | finest | order p | extrapolated "
+            "| error of the finest | GCI | behaviour |",
             "|---|---|---|---|---|---|---|---|---|---|",
         ]
         for r in mine:

@@ -110,7 +110,7 @@ def compare(simulated: Sequence[Response], measured: Sequence[Response]) -> dict
     out: dict[str, dict[str, float]] = {}
     for sim in simulated:
         for mea in (m for m in measured if m.load == sim.load):
-            for (name, es, Ts, _), (_, em, Tm, _) in zip(curve(sim), curve(mea)):
+            for (name, es, Ts, _), (_, em, Tm, _) in zip(curve(sim), curve(mea), strict=False):
                 key = sim.load if sim.loaded_direction is not None else f"{sim.load} {name}"
                 es, Ts = from_origin(*_sorted(es, Ts))
                 row = {}
@@ -285,7 +285,7 @@ def plot_validation(path: Path, panels: Sequence[dict], *, title: str = "", colu
     cols = min(columns, n)
     rows = -(-n // cols)
     fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 2.9 * rows), dpi=100, squeeze=False)
-    for ax, panel in zip(axes.flat, panels):
+    for ax, panel in zip(axes.flat, panels, strict=False):
         mea, sim, m = panel["measured"], panel.get("simulated"), panel.get("metrics")
         for _, e, T, sd in curve(mea):
             x, y = _sorted(e, T)

@@ -104,9 +104,8 @@ def _fits(rows: Iterable[Mapping[str, Any]]) -> tuple[list[_Fit], list[str]]:
         name = str(r.get("name") or r.get("index") or "?")
         if r.get("status", "done") != "done":
             reason = str(r.get("reason") or "no reason").split("; ")[0]
-            left.append(
-                f"{name}: {r.get('status')} ({reason if len(reason) <= 160 else reason[:157] + '...'}), not used"
-            )
+            shown = reason if len(reason) <= 160 else reason[:157] + "..."
+            left.append(f"{name}: {r.get('status')} ({shown}), not used")
             continue
         sl = _num(r.get("stitch_length"))
         a, b, th = _num(r.get("a")), _num(r.get("b")), _num(r.get("theta_deg"))
@@ -309,11 +308,12 @@ def _yarn_ab(fits: list[_Fit], share: float, min_cases: int, min_determined: flo
     parts = []
     for p in ("a", "b"):
         text = (
-            f"{p} moves more than {factor:g}× across the yarns in {hits[p]} of {cases[p]} pattern-stitch-length "
-            f"groups with {p} determined for every yarn, of {total[p]}"
+            f"{p} moves more than {factor:g}× across the yarns in {hits[p]} of {cases[p]} "
+            f"pattern-stitch-length groups with {p} determined for every yarn, of {total[p]}"
         )
         if total[p] > cases[p]:
-            text += f" (the bounds alone put it above {factor:g}× in {beyond[p]} of the {total[p] - cases[p]} others)"
+            others = total[p] - cases[p]
+            text += f" (the bounds alone put it above {factor:g}× in {beyond[p]} of the {others} others)"
         parts.append(text + f": {verdicts[p]}")
     names = " / ".join(yarns)
     columns = ("pattern", "SL", f"a ({names}), N/mm", "a max/min", f"b ({names})", "b max/min")

@@ -187,7 +187,7 @@ def test_cache_key_changes_when_the_job_function_or_a_module_it_imports_changes(
 def test_cache_key_changes_with_a_solver_option_and_covers_the_solver_code(tmp_path):
     """A changed solver option gives new keys; the key hashes the rod solver's modules (and what they import)
     and knitframe's version."""
-    from knitframe_stages.sweep import point_modules, run_point
+    from knitframe.sweep import point_modules, run_point
 
     def keys(segments: int) -> list[str]:
         cfg = (

@@ -183,7 +183,7 @@ def test_a_failed_load_keeps_the_other_curve_and_is_not_cached(tmp_path, singal_
 
 def test_params_png_leaves_out_a_done_point_without_a_fit(tmp_path):
     """A measured-test point whose fit failed is done but has no parameters: params.png draws the others."""
-    from knitframe_stages.sweep import plot_params
+    from knitframe.sweep import plot_params
 
     model = knitframe.get_registry()["homogenizer"]["hgo"]()
     base = {

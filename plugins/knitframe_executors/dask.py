@@ -31,7 +31,7 @@ from knitframe import hookimpl
 from knitframe import validators as v
 from knitframe.cache import JobCache, JobFailure, failure_reason
 from knitframe.errors import ConfigError, FieldError, KnitframeWarning, PluginError
-from knitframe_executors import Tally, check_failures
+from knitframe.executors import Tally, check_failures
 
 #: the nanny's setting that slows assembly in workers (see the module docstring)
 TRIM_KEY = "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_"
@@ -69,7 +69,8 @@ def _check_address(instance: Any, attribute: Any, value: str | None) -> None:
 
 @attrs.frozen
 class DaskExecutor:
-    """Run jobs on dask.distributed (a LocalCluster, or a scheduler ``address``); results cached by job hash."""
+    """Run jobs on dask.distributed (a LocalCluster, or a scheduler ``address``); results cached by
+    job hash."""
 
     name: ClassVar[str] = "dask"
     description: ClassVar[str] = "jobs on a dask.distributed cluster (LocalCluster or scheduler address)"
@@ -123,9 +124,10 @@ class DaskExecutor:
         if trimmed:
             worker, val = next(iter(trimmed.items()))
             warnings.warn(
-                f"{len(trimmed)} Dask worker(s) (e.g. {worker}) run with MALLOC_TRIM_THRESHOLD_={val}, set by Dask's "
-                "nanny, which slows assembly several-fold; start them with DASK_CONFIG naming a folder whose YAML "
-                "file sets distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_ to null (docs/sweeps.md)",
+                f"{len(trimmed)} Dask worker(s) (e.g. {worker}) run with MALLOC_TRIM_THRESHOLD_={val}, "
+                "set by Dask's nanny, which slows assembly several-fold; start them with DASK_CONFIG "
+                "naming a folder whose YAML file sets "
+                "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_ to null (docs/sweeps.md)",
                 KnitframeWarning,
                 stacklevel=3,
             )

@@ -16,7 +16,7 @@ import attrs
 from knitframe import hookimpl
 from knitframe import validators as v
 from knitframe.cache import JobCache, JobFailure, failure_reason
-from knitframe_executors import Tally, check_failures
+from knitframe.executors import Tally, check_failures
 
 
 @attrs.frozen
@@ -39,7 +39,8 @@ class LocalExecutor:
         failures: str = "raise",
         progress: Callable[..., Any] | None = None,
     ) -> list[Any]:
-        """``[fn(job) for job in jobs]`` in order; ``failures = "keep"`` puts a JobFailure where a job raised."""
+        """``[fn(job) for job in jobs]`` in order; ``failures = "keep"`` puts a JobFailure where a job
+        raised."""
         check_failures(failures)
         cache = JobCache(self.cache_dir)
         keys, results, todo = cache.split(fn, jobs)

@@ -18,12 +18,13 @@
     effects = ["large_deformation", "bending", "contact", "self_contact", "prestress", "anisotropy"]
     load = { kind = "equibiaxial", max_strain = 0.3, steps = 6 }
 
-The rungs are :data:`knitframe.ladder.RUNGS`. Each simulated rung simulates the scene's effects
-that its solver models (the rod has no anisotropic section, for instance; the CSV lists them). The
-best rung that converged is the reference; ``reduced`` is the paper's model fitted to it (hgo;
-hgo2m when a side is free), so its error is what the three-parameter model costs in accuracy. With
-a ``[data]`` table, the measured curves of the same load are compared as well (their points up to
-the path's largest stretch).
+The work is done by :mod:`knitframe.ladder` (the waves by :mod:`knitframe.ladder.runner`); this
+stage reads the config into it. The rungs are :data:`knitframe.ladder.RUNGS`. Each simulated
+rung simulates the scene's effects that its solver models (the rod has no anisotropic section,
+for instance; the CSV lists them). The best rung that converged is the reference; ``reduced`` is
+the paper's model fitted to it (hgo; hgo2m when a side is free), so its error is what the
+three-parameter model costs in accuracy. With a ``[data]`` table, the measured curves of the same
+load are compared as well (their points up to the path's largest stretch).
 
 Rungs run in waves, cheapest first, through the executor (``executor.map``): each rung in a fresh
 process, whose wall time and peak memory are the rung's. Before a wave, each rung's estimated time
@@ -38,52 +39,45 @@ Writes ``ladder.csv``, ``ladder.md``, ``ladder.png`` (time against error, log ax
 
 from __future__ import annotations
 
-import logging
 import time
-import warnings
 from pathlib import Path
 from typing import Any, ClassVar
 
 import attrs
-import numpy as np
 
 from knitframe import __version__, hookimpl
 from knitframe import validators as v
 from knitframe.config import PluginSpec, instantiate
-from knitframe.convergence import convergence_table, mesh_convergence, write_convergence
-from knitframe.errors import ConfigError, KnitframeError, KnitframeWarning, NumericalError
+from knitframe.convergence import convergence_table, write_convergence
+from knitframe.errors import ConfigError, KnitframeError, NumericalError
+from knitframe.executors import executor_from_config
 from knitframe.ladder import (
     DEFAULT_RUNGS,
     RUNGS,
     CostModel,
     LadderResult,
     TimingPoint,
-    _response,
-    format_duration,
-    format_memory,
     plot_curves,
     plot_pareto,
     read_timings,
-    run_rung,
     rung,
     shipped_timings_path,
-    tension_errors,
-    within_range,
     write_csv,
     write_table,
+)
+from knitframe.ladder.runner import (
+    compare,
+    convergence_rows,
+    fabric_label,
+    measured_curves,
+    run_reduced,
+    run_waves,
+    rung_rows,
+    scene_label,
 )
 from knitframe.records import Scene
 from knitframe.report import write_responses_csv
 from knitframe.schema import build
-
-log = logging.getLogger("knitframe.ladder")
-
-#: a wave holds the pending rungs estimated at most this many times the cheapest one ...
-WAVE_SPAN = 10.0
-#: ... or at most this many seconds
-WAVE_FLOOR_S = 30.0
-#: a crashed rung found in the cache is run again, at most this many times in one ladder
-MAX_ATTEMPTS = 20
 
 
 @attrs.frozen
@@ -124,22 +118,6 @@ def default_cache_dir() -> Path:
     from knitframe.cache import default_cache_dir as jobs_cache_dir
 
     return jobs_cache_dir()
-
-
-def _fabric_label(fabric: Any) -> str:
-    size = f"SL{fabric.stitch_length:g}" if fabric.stitch_length else f"{fabric.arc_length:g} mm per stitch"
-    return f"{fabric.pattern} {size} {fabric.yarn.name}"
-
-
-def _scene_label(scene: Scene) -> str:
-    load = scene.load
-    kind = f"uniaxial ({load.direction}, free side)" if load.kind == "uniaxial" else load.kind
-    text = (
-        f"{kind} 0→{100 * load.max_strain:g} % in {load.steps} steps"
-        if load.kind != "general"
-        else (f"general path of {len(load.lambda1)} points")
-    )
-    return ("pre-stress + " if "prestress" in scene.effects else "") + text
 
 
 @attrs.frozen
@@ -243,80 +221,24 @@ class LadderStage:
         fabric = first.fabric
         ctx.used("pattern", fabric.pattern)
         t_start = time.time()
-        rows: dict[str, dict[str, Any]] = {}
         curves: dict[str, Any] = {}
-        for name, st in self.stages.items():
-            rg = rung(name)
-            dofs, increments = _size(st, ctx.registry)
-            rows[name] = {
-                "rung": name,
-                "family": rg.family,
-                "solver": rg.solver,
-                "options": dict(self.jobs[name]["solver"]),
-                "effects": " ".join(sorted(st.scene.effects)),
-                "dofs": dofs,
-                "increments": increments,
-                "fabric": _fabric_label(fabric),
-                "load": self.scene.load.response_kind,
-                "cached": False,
-                "reference": False,
-            }
-        cost = CostModel(self.timings)
-        pending = list(self.stages)
-        budget = self.settings.max_time
-        while pending:
-            est = {
-                n: cost.estimate(rows[n]["family"], rows[n]["dofs"], rows[n]["increments"]) for n in pending
-            }
-            for n in pending:
-                e = est[n]
-                rows[n].update(
-                    estimated_time_s=None if e is None else e.seconds,
-                    estimated_rss_mb=None if e is None else e.rss_mb,
-                    estimate_basis=None if e is None else e.basis,
-                )
-                if budget is not None and e is not None and e.seconds > budget:
-                    rows[n]["status"] = f"skipped: {e.text()}, over max_time {format_duration(budget)}"
-                    log.warning(
-                        f"ladder: skipping {n}: {e.text()}, over max_time {format_duration(budget)} "
-                        f"({budget:g} s)"
-                    )
-            pending = [n for n in pending if "status" not in rows[n]]
-            if not pending:
-                break
-            known = [est[n].seconds for n in pending if est[n] is not None]
-            limit = max(WAVE_SPAN * min(known), WAVE_FLOOR_S) if known else np.inf
-            wave = [n for n in pending if est[n] is None or est[n].seconds <= limit]
-            if not self._parallel():  # one rung at a time: each estimate uses every rung before it
-                wave = wave[:1]
-            for n in wave:
-                e = est[n]
-                what = (
-                    f"{e.text()} ({e.basis})" if e is not None else "no estimate (no timings of its family)"
-                )
-                dofs = f"{rows[n]['dofs']:,}".replace(",", " ")
-                log.info(f"ladder: {n} ({dofs} DOFs): {what}")
-            results = _map(executor, [self.jobs[n] for n in wave], t_start)
-            for n, res in zip(wave, results):
-                self._record(rows[n], res, t_start, curves)
-                if rows[n]["status"] == "ok":
-                    cost.add(
-                        TimingPoint(
-                            rows[n]["family"],
-                            rows[n]["dofs"],
-                            rows[n]["increments"],
-                            rows[n]["wall_time_s"],
-                            rows[n].get("peak_rss_mb"),
-                            "run",
-                            n,
-                        )
-                    )
-            pending = [n for n in pending if n not in wave]
-
+        rows = rung_rows(self.stages, self.jobs, self.scene, ctx.registry, fabric)
+        run_waves(
+            executor,
+            self.jobs,
+            rows,
+            CostModel(self.timings),
+            budget=self.settings.max_time,
+            parallel=self._parallel(),
+            t_start=t_start,
+            curves=curves,
+        )
         finished = [n for n in self.rungs if rows.get(n, {}).get("status") == "ok"]
         reference = finished[-1] if finished else None
         if self.reduced is not None:
-            rows["reduced"] = self._run_reduced(executor, reference, curves, t_start, fabric)
+            rows["reduced"] = run_reduced(
+                executor, self.reduced, self.scene, reference, curves, t_start, fabric
+            )
         if not curves:
             statuses = "; ".join(f"{n}: {rows[n].get('status')}" for n in self.rungs if n in rows)
             if all(str(r.get("status", "")).startswith("skipped") for r in rows.values()):
@@ -324,162 +246,18 @@ class LadderStage:
                     "ladder.max_time", f"every rung was skipped ({statuses})", source=self.source
                 )
             raise NumericalError(f"no rung of the ladder finished: {statuses}")
-        measured = self._measured(ctx)
-        self._compare(rows, curves, reference, measured)
+        measured = measured_curves(self.scene, ctx.responses)
+        compare(rows, curves, reference, measured)
         ordered = [rows[n] for n in self.rungs if n in rows]
-        convergence = self._convergence(curves)
+        convergence = convergence_rows(curves, self.scene)
         self._write(ctx, ordered, curves, measured, fabric, reference, convergence)
 
     def _parallel(self) -> bool:
         """Whether the executor runs a wave's jobs side by side (the local one with one worker does not)."""
         return self.executor_name != "local" or getattr(self.executor, "workers", 1) > 1
 
-    def _record(
-        self, row: dict[str, Any], res: dict[str, Any], t_start: float, curves: dict[str, Any]
-    ) -> None:
-        row["status"] = res.get("status", "crashed: no result")
-        row["cached"] = res.get("finished_unix", t_start) < t_start
-        row["started_unix"], row["finished_unix"] = res.get("started_unix"), res.get("finished_unix")
-        row["wall_time_s"] = res.get("wall_time_s")
-        row["peak_rss_mb"] = res.get("peak_rss_mb")
-        row["notes"] = res.get("mesh") or res.get("notes") or ""
-        if res.get("curve"):
-            r = _response(res["curve"], label=row["rung"])
-            curves[row["rung"]] = r
-            row["T1_end_N_per_mm"], row["T2_end_N_per_mm"] = float(r.T1[-1]), float(r.T2[-1])
-        for w in res.get("warnings", []):
-            warnings.warn(f"ladder rung {row['rung']}: {w}", KnitframeWarning, stacklevel=2)
-        if row["wall_time_s"] is not None:
-            mem = "" if row["peak_rss_mb"] is None else f", {format_memory(row['peak_rss_mb'])}"
-            log.info(
-                f"ladder: {row['rung']}: {row['status']}, {format_duration(row['wall_time_s'])}{mem}"
-                + (" (cached)" if row["cached"] else "")
-            )
-        else:
-            log.warning(f"ladder: {row['rung']}: {row['status']}")
-
-    def _run_reduced(
-        self, executor: Any, reference: str | None, curves: dict[str, Any], t_start: float, fabric: Any
-    ) -> dict:
-        job = dict(self.reduced)
-        model = job["solver"]["model"]
-        row = {
-            "rung": "reduced",
-            "family": "reduced",
-            "solver": "reduced",
-            "fabric": _fabric_label(fabric),
-            "load": self.scene.load.response_kind,
-            "effects": " ".join(job["scene"]["effects"]),
-            "cached": False,
-            "reference": False,
-            "increments": self.scene.load.steps,
-            "options": {"model": model, "fitter": job["solver"]["fitter"]},
-        }
-        if reference is None:
-            row["status"] = "skipped: no rung converged to fit the reduced model to"
-            return row
-        ref = curves[reference]
-        job["reference"] = {
-            "lambda1": ref.lambda1.tolist(),
-            "lambda2": ref.lambda2.tolist(),
-            "T1": ref.T1.tolist(),
-            "T2": ref.T2.tolist(),
-            "load": ref.load,
-            "label": reference,
-        }
-        res = _map(executor, [job], t_start)[0]
-        self._record(row, res, t_start, curves)
-        if res.get("params"):
-            row["dofs"] = len(res["params"])
-            row["options"] = {
-                **row["options"],
-                "model": res.get("model", model),
-                "params": res["params"],
-                "fitted_to": reference,
-            }
-            row["notes"] = (
-                f"fitted to {reference} in {format_duration(res.get('fit_time_s') or 0.0)}; "
-                f"time is one evaluation of the path"
-            )
-        return row
-
-    def _measured(self, ctx) -> list[Any]:
-        kind = self.scene.load.response_kind
-        experiments = [r for r in ctx.responses if r.provenance.kind == "experiment"]
-        same = [r for r in experiments if r.load == kind]
-        other = [r.label for r in experiments if r.load != kind]
-        if other:
-            log.info(f"ladder: measured curves of another load are not compared: {', '.join(other)}")
-        if experiments and not same:
-            warnings.warn(
-                f"ladder: no measured curve is {kind} (the scene's load); the rungs are compared "
-                f"with the best rung only",
-                KnitframeWarning,
-                stacklevel=2,
-            )
-        _, lam1, lam2 = self.scene.load.stretches()
-        top = max(float(np.max(x)) for x in (lam1, lam2) if x is not None)
-        out = []
-        for r in same:
-            cut = within_range(r, top)
-            if cut is None:
-                warnings.warn(
-                    f"ladder: measured curve '{r.label}' has fewer than 2 points within the path "
-                    f"(stretch ≤ {top:g}); not compared",
-                    KnitframeWarning,
-                    stacklevel=2,
-                )
-            else:
-                out.append(cut)
-        return out
-
-    def _compare(self, rows, curves, reference, measured) -> None:
-        ref = curves.get(reference) if reference else None
-        for name, r in curves.items():
-            row = rows[name]
-            row["reference"] = name == reference
-            if ref is not None:
-                e = tension_errors(ref, r)
-                row.update(
-                    nrmse_vs_best=e["overall"], nrmse_course_vs_best=e["course"], nrmse_wale_vs_best=e["wale"]
-                )
-            if measured:
-                errs = [tension_errors(m, r) for m in measured]
-                for key, col in (
-                    ("overall", "nrmse_vs_measured"),
-                    ("course", "nrmse_course_vs_measured"),
-                    ("wale", "nrmse_wale_vs_measured"),
-                ):
-                    vals = [e[key] for e in errs if e[key] is not None]
-                    row[col] = float(np.mean(vals)) if vals else None
-
-    def _convergence(self, curves) -> list[dict[str, Any]]:
-        """Richardson rows of every volumetric order with three or more finished seeds (knitframe.convergence)."""
-        rows: list[dict[str, Any]] = []
-        for family in sorted({rung(n).family for n in curves if rung(n).solver == "volumetric"}):
-            sizes = {n: float(rung(n).options["seed"]) for n in curves if rung(n).family == family}
-            found = mesh_convergence(sizes, curves, self.scene.load.response_kind, family)
-            rows += found
-            if found:
-                last = [r for r in found if r["strain"] == max(x["strain"] for x in found)]
-                text = "; ".join(
-                    f"{r['direction']} T {r['T_finest']:.4g} N/mm, "
-                    + (
-                        f"order {r['order']:.2f}, extrapolated {r['T_extrapolated']:.4g}, error of the finest "
-                        f"{100 * r['error_finest']:.3g} %"
-                        if r["order"] is not None
-                        else r["behaviour"]
-                    )
-                    for r in last
-                )
-                log.info(
-                    f"ladder: mesh convergence of {family} ({found[0]['rungs']}) at "
-                    f"{100 * last[0]['strain']:g} %: {text}"
-                )
-        return rows
-
     def _write(self, ctx, rows, curves, measured, fabric, reference, convergence=()) -> None:
-        title = f"{_fabric_label(fabric)}, {_scene_label(self.scene)}"
+        title = f"{fabric_label(fabric)}, {scene_label(self.scene)}"
         labels = [m.label for m in measured]
         write_csv(ctx.output("ladder.csv"), rows)
         md = ctx.output("ladder.md")
@@ -585,8 +363,6 @@ def _executor(table: LadderTable, config, ctx) -> tuple[Any, str]:
                 "the config has an [executor] table as well: name the executor in one place",
                 source=ctx.source,
             )
-        from knitframe_executors import executor_from_config
-
         executor, name = executor_from_config(config, ctx)
         if not table.cache and "cache_dir" in _fields(executor):
             executor = attrs.evolve(executor, cache_dir=None)
@@ -611,38 +387,10 @@ def _executor(table: LadderTable, config, ctx) -> tuple[Any, str]:
     ), spec.kind
 
 
-def _map(executor: Any, jobs: list[dict[str, Any]], t_start: float) -> list[dict[str, Any]]:
-    """executor.map over the jobs; a crash that comes from the cache (an earlier run's) is run again."""
-    results = list(executor.map(run_rung, jobs))
-    for _ in range(MAX_ATTEMPTS):
-        stale = [i for i, r in enumerate(results) if r.get("crashed") and r.get("finished_unix", 0) < t_start]
-        if not stale:
-            break
-        retry = [{**jobs[i], "attempt": jobs[i]["attempt"] + 1} for i in stale]
-        for i, job in zip(stale, retry):
-            jobs[i] = job
-        for i, r in zip(stale, executor.map(run_rung, retry)):
-            results[i] = r
-    return results
-
-
 def _fields(obj: Any) -> dict[str, Any]:
     """An attrs class's (or instance's) fields by name; empty for anything else."""
     cls = obj if isinstance(obj, type) else type(obj)
     return attrs.fields_dict(cls) if attrs.has(cls) else {}
-
-
-def _size(stage: Any, registry) -> tuple[int, int]:
-    """A simulated rung's unknowns (the solver's own set-up: mesh or rod nodes) and its load increments."""
-    solver, scene = stage.solver, stage.scene
-    model = solver.setup(stage.fabric, scene, registry)
-    model = model[0] if isinstance(model, tuple) else model
-    cm = getattr(model, "cm", None)
-    dofs = 3 * int(cm.n_nodes) if cm is not None else int(model.n_dof)
-    steps = len(scene.load.stretches()[0])
-    if "prestress" in scene.effects:
-        steps += int(getattr(solver, "prestress_steps", 0))
-    return dofs, steps
 
 
 @hookimpl
