@@ -79,6 +79,9 @@ class CellRun:
         ``write_vtu(path, q)`` writes the VTU file of state q.
     arrays : callable, optional
         ``arrays() -> dict`` of extra arrays saved with each checkpoint (besides ``q`` and ``rows``).
+    meta : callable, optional
+        ``meta() -> dict`` of state entries updated at every accepted step (e.g. a parameter of
+        the model that the step's phase changed).
     progress : callable, optional
         ``progress(done, total, message)`` after every converged step.
     on_failure : {"raise", "truncate"}
@@ -100,6 +103,7 @@ class CellRun:
         prefix: str = "cell",
         write_vtu: Callable[[Path, np.ndarray], object] | None = None,
         arrays: Callable[[], dict[str, np.ndarray]] | None = None,
+        meta: Callable[[], dict[str, Any]] | None = None,
         progress: Callable[[int, int, str], None] | None = None,
         on_failure: str = "raise",
         t_start: float | None = None,
@@ -128,6 +132,7 @@ class CellRun:
         self.vtu = write_vtu is not None and output_dir is not None and "vtu" in scene.outputs
         self.series: StepSeries | None = None
         self.arrays = arrays or dict
+        self.meta = meta or dict
         self.progress = progress or (lambda done, total, message: None)
         self.on_failure = on_failure
         #: (λ1, λ2, T1, T2) of every converged load step
@@ -165,9 +170,9 @@ class CellRun:
     def accept(self, phase: str, index: int, q: np.ndarray, message: str, done: int, **meta: Any) -> None:
         """Step ``index`` of ``phase`` converged at state q: its VTU file, its checkpoint, a progress report.
 
-        ``meta`` updates the state saved with it.
+        ``meta`` and the run's ``meta()`` update the state saved with it.
         """
-        self.state.update(phase=phase, target=index, **meta)
+        self.state.update({"phase": phase, "target": index, **self.meta(), **meta})
         if self.series is not None:  # before the checkpoint: every checkpointed step has its file
             self.series.write(self.step, lambda path: self.write_vtu(path, q))
         if self.checkpoints is not None:
