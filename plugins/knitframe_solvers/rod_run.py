@@ -119,6 +119,16 @@ class RodRun(MultiStart):
             on_failure=self.on_failure,
             t_start=t_start,
         )
+        self.init_load_path()
+
+    def __getattr__(self, name: str) -> Any:
+        # the solver's options and methods, read through the run
+        if name.startswith("__") or "solver" not in self.__dict__:
+            raise AttributeError(name)
+        return getattr(self.__dict__["solver"], name)
+
+    def init_load_path(self) -> None:
+        """The load path's bookkeeping: reference lattice, kept jumps, states, and the branch watch."""
         # the load path: its reference lattice, the jumps it kept (snaps) and the states of this path
         self.lam_ref: list[float] | None = None
         self.snaps: list[dict[str, Any]] = self.state["snaps"]
@@ -127,19 +137,13 @@ class RodRun(MultiStart):
         # lenient: load steps up to this tau may jump (following their branch failed at its fold)
         self.follow: dict[str, Any] = {"cut": False, "last": None, "lenient": -1.0}
         # the free side of a uniaxial path is watched for jumps to another branch (follow_branch)
-        self.watch = self.follow_branch and scene.load.kind == "uniaxial"
-        self.k_load = 0 if scene.load.direction == "course" else 1
+        self.watch = self.follow_branch and self.scene.load.kind == "uniaxial"
+        self.k_load = 0 if self.scene.load.direction == "course" else 1
         loaded_path = self.run.stretch_paths[self.k_load]
         # the smallest increment continuation tries, in loaded stretch
         self.smallest = (
             self.min_step_fraction * float(np.abs(np.diff(loaded_path)).min()) if self.watch else 0.0
         )
-
-    def __getattr__(self, name: str) -> Any:
-        # the solver's options and methods, read through the run
-        if name.startswith("__") or "solver" not in self.__dict__:
-            raise AttributeError(name)
-        return getattr(self.__dict__["solver"], name)
 
     # ---------------------------------------------------------------------------------- the run
     def __call__(self) -> Response:
@@ -174,7 +178,9 @@ class RodRun(MultiStart):
     def stabilise(self, info: dict) -> bool:
         return info.get("strands_in_contact", 0) < self.model.n_strands
 
-    def newton(self, q0: np.ndarray, free: np.ndarray, options: NewtonOptions | None = None) -> NewtonResult:
+    def newton_solve(
+        self, q0: np.ndarray, free: np.ndarray, options: NewtonOptions | None = None
+    ) -> NewtonResult:
         energy = self.energy
         if energy.friction and energy.law is not None:
             energy.update_lag(q0)
@@ -226,7 +232,7 @@ class RodRun(MultiStart):
                 energy.kappa0 = (1.0 - t) * self.kappa_knitted
             # the intermediate states are only a path to t = 1; where contacts barely touch, the
             # smooth onset of the law makes Newton converge linearly, so they get a looser tolerance
-            return self.newton(x0, free, loose if t < 1.0 - 1e-12 else opts)
+            return self.newton_solve(x0, free, loose if t < 1.0 - 1e-12 else opts)
 
         try:
             return self.run.prestress(
@@ -358,7 +364,7 @@ class RodRun(MultiStart):
         qs[: 3 * n] = (x[0] + (x - x[0]) @ A.T - self.model.X).reshape(-1)
         free = self.base_free.copy()
         free[3 * n :] = ~pres
-        res = self.newton(qs, free)
+        res = self.newton_solve(qs, free)
         if self.watch:
             self.watch_branch(tau, q0, res.x)
         self.follow["last"] = (tau, res.x)

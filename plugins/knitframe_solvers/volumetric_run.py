@@ -179,7 +179,7 @@ class VolumetricRun:
         e = float(res.info.get("stabilisation_energy", 0.0))
         return e / abs(res.energy) if res.energy else 0.0
 
-    def newton(
+    def newton_solve(
         self,
         q0: np.ndarray,
         free: np.ndarray,
@@ -281,7 +281,7 @@ class VolumetricRun:
         def solve_prestress(t: float, q0: np.ndarray) -> NewtonResult:
             s_new = s0 + t * (1.0 - s0)
             q1 = model.grow(q0, s_done[0], s_new)
-            res = self.newton(
+            res = self.newton_solve(
                 q1,
                 free,
                 anchor=q0,
@@ -293,7 +293,7 @@ class VolumetricRun:
 
         if start_index < 0:  # equilibrium of the shrunk state (curvature makes it not quite stress-free)
             model.s = s0
-            q = self.newton(q, free, options=self.loose).x
+            q = self.newton_solve(q, free, options=self.loose).x
         return self.run.prestress(
             solve_prestress, q, first=start_index + 1, min_fraction=self.min_step_fraction
         )
@@ -322,7 +322,7 @@ class VolumetricRun:
         free = self.base_free.copy()
         free[self.n_ind :] = ~pres
         # (anchored already when the secant was tried: anchoring again would repeat the friction pairing)
-        res = self.newton(qs, free, anchor=q0, where=("load", tau), anchored=secant)
+        res = self.newton_solve(qs, free, anchor=q0, where=("load", tau), anchored=secant)
         self.path[:] = [*self.path[-1:], (tau, res.x)]
         return res
 
