@@ -3,7 +3,8 @@
 Stiff yarns in tight cells can be multistable: different pre-stress paths relax to different
 states. The rod solver explores the starts of :data:`START_SET` (option ``starts``) and loads the
 one of lowest relaxed energy; if its load path fails it falls back to the next by
-:func:`fallback_order` and :func:`next_start` (see :mod:`knitframe_solvers.rod`).
+:func:`fallback_order` and :func:`next_start` (see :mod:`knitframe_solvers.rod`). The run's
+phases that handle several starts are :class:`MultiStart`'s.
 """
 
 from __future__ import annotations

@@ -24,7 +24,7 @@ A run is
    Fθ = I + (s − 1)(I − a⊗a) with s growing from s₀ to 1 restores the knitted diameter dk at
    constant length, against contact (this resolves the geometry's initial interference);
 2. the scene's load path (equibiaxial, uniaxial with a free side, or general) in the scene's
-   steps, each cut back adaptively on failure (:func:`knitframe.numerics.newton.continuation`).
+   steps, each cut back adaptively on failure (:func:`knitframe.numerics.continuation.continuation`).
 
 Each increment is solved by the shared Newton driver (:func:`knitframe.numerics.newton.minimise`) with a
 linear-solver plugin, whose wall time is kept next to the assembly times (provenance
@@ -34,7 +34,9 @@ quadrature point (IPC's projected Newton), and an iterate whose Newton step move
 than ``step_tolerance``·r is converged (``"adaptive"`` switches between the exact and the
 projected tangent; ``"exact"`` keeps the exact one).
 Every converged step is checkpointed; a call with the same inputs and checkpoint directory
-resumes after the last saved step.
+resumes after the last saved step. The run is :class:`knitframe_solvers.volumetric_run.VolumetricRun`
+on the unit-cell run skeleton :class:`knitframe.numerics.cellrun.CellRun`; the discrete problem is
+:class:`knitframe_solvers.volumetric_model.VolumetricModel`.
 """
 
 from __future__ import annotations
