@@ -36,7 +36,7 @@ import numpy as np
 
 def setup(order: int, seed: float, shrink: float):
     """(fabric, cell mesh, contact surface, x, stiffness, reach) of the jersey cell."""
-    from knitframe_solvers.volumetric import contact_surface
+    from knitframe_solvers.volumetric_model import contact_surface
 
     from knitframe.geometry import unit_cell
     from knitframe.numerics.mesh import cell_mesh

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from knitframe_solvers.rod import branch_jumps
+from knitframe_solvers.rod_branches import branch_jumps
 
 from knitframe.records import LoadPath
 
@@ -47,7 +47,7 @@ def test_equibiaxial_paths_have_no_free_side_to_watch():
 def test_a_tension_that_falls_while_its_stretch_grows_is_a_snap():
     """Equibiaxial: a step whose tension falls by more than 10 % (and 1 % of the largest) is flagged; smooth
     curves are not."""
-    from knitframe_solvers.rod import tension_drops
+    from knitframe_solvers.rod_branches import tension_drops
 
     lam = 1.0 + np.linspace(0.05, 0.5, 10)
     T1 = 10.0 * (lam - 1.0) ** 2 + (lam - 1.0)

@@ -497,7 +497,7 @@ def helix_cell(c: float, r: float = 0.3) -> UnitCell:
 @pytest.mark.parametrize("law", [SolidPenalty(), SolidMortar()], ids=["penalty", "mortar"])
 def test_self_contact_between_helix_turns_only(law):
     """A tube is never in contact with its own cross-section, but overlapping turns of a helix are."""
-    from knitframe_solvers.volumetric import contact_surface
+    from knitframe_solvers.volumetric_model import contact_surface
 
     for c, expect in ((0.2, False), (0.085, True)):  # pitch 1.26 mm (> 2r) and 0.53 mm (< 2r = 0.6)
         cm = cell_mesh(helix_cell(c), seed=0.6, check=False)
@@ -639,7 +639,7 @@ def test_gap_is_continuous_where_the_nearest_facet_changes_over_a_corner():
 def test_open_edges_of_the_master_surface():
     """An open face has its rim as open edges; a periodic cell's tube surface, its end nodes identified with the
     start nodes across the seam, has none."""
-    from knitframe_solvers.volumetric import contact_surface
+    from knitframe_solvers.volumetric_model import contact_surface
 
     _, surf, _ = image_blocks()
     m = surf.master
@@ -652,7 +652,7 @@ def test_nagata_normals_match_across_the_periodic_seam():
     """The end nodes of a periodic tube and the start nodes they stand for get one nodal normal from both
     fans of triangles, so the smoothed (Nagata) master surface has no step at the seam; from one fan
     each, the two sides' normals differed and the patches on either side of the seam did not meet."""
-    from knitframe_solvers.volumetric import contact_surface
+    from knitframe_solvers.volumetric_model import contact_surface
 
     cm = cell_mesh(helix_cell(0.2), seed=0.6, check=False)
     surf = contact_surface(cm, None)

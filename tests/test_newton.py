@@ -9,7 +9,8 @@ import scipy.sparse as sp
 from knitframe_linsolvers.direct import direct
 
 from knitframe.errors import NumericalError
-from knitframe.numerics.newton import NewtonOptions, StepCheckpoints, continuation, minimise
+from knitframe.numerics.continuation import StepCheckpoints, continuation
+from knitframe.numerics.newton import NewtonOptions, minimise
 
 
 def quartic(x, order=2):

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import knitframe
-from knitframe.numerics.newton import StepCheckpoints
+from knitframe.numerics.continuation import StepCheckpoints
 from knitframe.numerics.stepfiles import StepSeries
 
 CONFIG = """\
@@ -106,7 +106,7 @@ def test_killed_and_resumed_run_has_every_step_file(tmp_path, monkeypatch, refer
 
         monkeypatch.setattr(cls, name, die)
     else:
-        import knitframe_solvers.rod as rod
+        import knitframe_solvers.rod_run as rod
 
         real_minimise = rod.minimise
 

@@ -11,7 +11,8 @@ from knitframe_solvers.rod_model import RodEnergy, from_cell, open_rods
 from scipy.integrate import solve_bvp
 
 from knitframe.geometry import Centerline, UnitCell
-from knitframe.numerics.newton import NewtonOptions, continuation, minimise
+from knitframe.numerics.continuation import continuation
+from knitframe.numerics.newton import NewtonOptions, minimise
 from knitframe.numerics.periodic import Lattice
 
 EA, EI = 50.0, 0.05
@@ -352,7 +353,7 @@ def test_energy_is_invariant_under_periodic_translation():
 
 def test_stabilisation_does_not_change_the_converged_answer(monkeypatch):
     """The rigid-mode Hessian shift (on while a strand has no contact) changes the iterations, not the curve."""
-    import knitframe_solvers.rod as rod
+    import knitframe_solvers.rod_run as rod
 
     from knitframe import get_registry
     from knitframe.records import Fabric, LoadPath, Scene

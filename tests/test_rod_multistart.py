@@ -16,7 +16,9 @@ import warnings
 import meshio
 import numpy as np
 import pytest
-from knitframe_solvers.rod import START_SET, RodSolver, fallback_order, is_jump, locate_jumps, next_start
+from knitframe_solvers.rod import RodSolver
+from knitframe_solvers.rod_branches import is_jump, locate_jumps
+from knitframe_solvers.rod_starts import START_SET, fallback_order, next_start
 
 from knitframe import get_registry
 from knitframe.errors import ConfigError, KnitframeWarning, NumericalError
@@ -190,7 +192,7 @@ def failing_load_path(monkeypatch, fails):
     Only the load path's solves are touched (``continuation`` of ``solve_load``), so the
     pre-stress and the relaxed states of the starts are the real ones.
     """
-    import knitframe_solvers.rod as rod
+    import knitframe_solvers.rod_run as rod
 
     real = rod.continuation
     paths = []
@@ -318,7 +320,7 @@ def test_a_run_killed_after_the_fallback_resumes_from_the_start_it_fell_back_to(
 ):
     """Killed after the first load step of the fallback path, the resumed run (nothing forced any more) continues
     from the start in the checkpoint, not from the lowest one, and ends as the uninterrupted fallback would."""
-    import knitframe_solvers.rod as rod
+    import knitframe_solvers.rod_run as rod
 
     single, _ = nominal_alone
     failing_load_path(monkeypatch, lambda path, tau: path == 0)

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from knitframe.numerics.newton import StepCheckpoints
+from knitframe.numerics.continuation import StepCheckpoints
 from knitframe.pipeline import run
 
 CONFIG = """\

@@ -224,7 +224,7 @@ def test_pipeline_resume_after_a_kill(tmp_path, monkeypatch):
     """``knitframe.run(..., resume=True)`` (the API twin of ``knitframe run --resume``) finishes a killed run
     identically."""
     import knitframe
-    from knitframe.numerics.newton import StepCheckpoints
+    from knitframe.numerics.continuation import StepCheckpoints
 
     config = {
         "solver": {"kind": "volumetric", "order": 1, "seed": 0.75},
@@ -427,7 +427,7 @@ def test_secant_predictor_starts_the_next_increment_near_its_solution():
 def test_a_converged_state_with_forces_far_above_the_flux_gets_a_note(monkeypatch):
     """The step test can pass while forces far above the force flux are left (the jammed SL10 cell: 29-800 ×):
     the Response's notes say which state and how far; a well-converged run has no such note."""
-    import knitframe_solvers.volumetric as vol
+    import knitframe_solvers.volumetric_run as vol
 
     records = []
     clean = VolumetricSolver(order=1, seed=0.75).simulate(FABRIC, STRETCH, trace=records.append)

@@ -15,6 +15,7 @@ friction (``friction``) and external work −f·q. Terms not asked for are never
 from __future__ import annotations
 
 from collections import Counter
+from pathlib import Path
 from typing import Any
 
 import attrs
@@ -26,7 +27,7 @@ from knitframe.numerics.periodic import N_MACRO, Lattice, PointMap
 from knitframe_solvers.rod_contact import friction_energy, gauss_points, pair_weights, quadrature_contact
 from knitframe_solvers.rod_terms import bend, stretch
 
-__all__ = ["RodModel", "RodEnergy", "from_cell", "open_rods"]
+__all__ = ["RodModel", "RodEnergy", "from_cell", "open_rods", "write_rod_vtu"]
 
 
 @attrs.frozen(eq=False)
@@ -237,7 +238,9 @@ class FrictionLag:
 
 @attrs.define(eq=False, slots=False)
 class RodEnergy:
-    """Total energy of a :class:`RodModel`: ``energy(q, order) -> (E, g, H, info)`` for :func:`knitframe.numerics.newton.minimise`.
+    """Total energy of a :class:`RodModel`: ``energy(q, order) -> (E, g, H, info)``.
+
+    For :func:`knitframe.numerics.newton.minimise`.
 
     ``dk`` (the contact distance) is mutable for the pre-stress step; with ``dk_full`` set, the
     contact stiffnesses are scaled by (dk_full/dk)², which keeps the line load of two yarns at a
@@ -300,7 +303,7 @@ class RodEnergy:
         return float(getattr(self.law, "core", 0.0) or 0.0) * self.dk
 
     def rule(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The Gauss rule of the contact integral at the current contact distance (see the class docstring)."""
+        """The Gauss rule of the contact integral at the current contact distance (see the class)."""
         n = self.quadrature
         if self.core > 0:
             n = max(n, int(np.ceil(1.6 * self._l_max / self.core)))
@@ -335,7 +338,7 @@ class RodEnergy:
         return self.model.l0[i] * self.model.l0[j]
 
     def update_lag(self, q: np.ndarray) -> None:
-        """Freeze the contacting point pairs of state q (normal forces, normals, material points) for friction."""
+        """Freeze the contacting point pairs of state q (normal forces, normals, material points)."""
         pr = self.pairs(q)
         pm = self._pair_map(pr.i, pr.j, pr.k)
         p = pm.points(self.model.positions(q), q[3 * self.model.n_nodes :])
@@ -413,7 +416,7 @@ class RodEnergy:
                 g -= self.external
         H = None
         if order >= 2:
-            r, c, v = (np.concatenate(a) for a in zip(*coo))
+            r, c, v = (np.concatenate(a) for a in zip(*coo, strict=False))
             H = sp.csr_matrix((v, (r, c)), shape=(m.n_dof, m.n_dof))
         if not np.isfinite(E):
             info["diagnostic"] = (
@@ -421,3 +424,35 @@ class RodEnergy:
                 f"contact distance {self.dk:.4g} mm)"
             )
         return E, g, H, info
+
+
+def write_rod_vtu(
+    path: Path, model: RodModel, q: np.ndarray, radius: float, cell_data: dict | None = None
+) -> Path:
+    """Deformed centerlines as VTU line cells; segments crossing the cell boundary get their own end point."""
+    import meshio
+
+    x = model.positions(q)
+    p0, p1 = model.segments(q)
+    n = model.n_nodes
+    cross = np.any(model.edge_images[:, 1] != 0, axis=1)
+    extra = p1[cross]
+    pts = np.vstack([x, extra])
+    cells = model.edges.copy()
+    cells[cross, 1] = n + np.arange(int(cross.sum()))
+    yarn = np.concatenate([model.yarn, model.yarn[model.edges[cross, 0]]])
+    disp = pts - np.vstack([model.X, model.X[model.edges[cross, 1]]])
+    meshio.write(
+        path,
+        meshio.Mesh(
+            pts,
+            [("line", cells)],
+            point_data={
+                "yarn": yarn.astype(np.float64),
+                "displacement": disp,
+                "radius": np.full(len(pts), radius),
+            },
+            cell_data={k: [np.asarray(v_, dtype=np.float64)] for k, v_ in (cell_data or {}).items()},
+        ),
+    )
+    return path
