@@ -77,7 +77,8 @@ def main(argv=None) -> None:
             fr = fitted(reg, rr)
             rows.append(row(vol, rr, t_rod, fv, fr, dropped, EI))
     print(
-        "| run | rod EI, N·mm² | mesh | volumetric s | rod s | last stretch | T1, T2 vol (N/mm) | T1, T2 rod (N/mm) | "
+        "| run | rod EI, N·mm² | mesh | volumetric s | rod s | last stretch | "
+        "T1, T2 vol (N/mm) | T1, T2 rod (N/mm) | "
         "NRMSE rod vs vol | a, b, θ vol (fit NRMSE) | a, b, θ rod (fit NRMSE) |"
     )
     print("|---|---|---|---|---|---|---|---|---|---|---|")
@@ -85,7 +86,8 @@ def main(argv=None) -> None:
         fv, fr = r["fit_vol"], r["fit_rod"]
         ei = "yarn's own" if r["rod_EI"] is None else f"{r['rod_EI']:g}"
         print(
-            f"| {r['run']}{'' if r['converged'] else ' (stopped early)'} | {ei} | {r['mesh']} | {r['volumetric_s']} | "
+            f"| {r['run']}{'' if r['converged'] else ' (stopped early)'} | {ei} | {r['mesh']} | "
+            f"{r['volumetric_s']} | "
             f"{r['rod_s']} | {r['max_stretch']:.3f} | {r['T1_end_vol']:.4g}, {r['T2_end_vol']:.4g} | "
             f"{r['T1_rod_at_same']:.4g}, {r['T2_rod_at_same']:.4g} | {r['nrmse_rod_vs_vol']:.1%} | "
             f"{fv['a']:.4g}, {fv['b']:.4g}, {fv['theta_deg']:.1f}° ({fv['nrmse']:.1%}) | "

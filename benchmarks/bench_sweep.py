@@ -33,7 +33,8 @@ description = "36 fabrics: 4 patterns x 3 stitch lengths x 3 yarns, rod solver, 
 
 [sweep]
 name = "rod-36"
-grid = {{ pattern = ["jersey", "garter", "rib", "seed"], stitch_length = [10, 11, 12], yarn = ["cotton", "nylon", "pet"] }}
+grid = {{ pattern = ["jersey", "garter", "rib", "seed"], stitch_length = [10, 11, 12], \
+yarn = ["cotton", "nylon", "pet"] }}
 
 [sweep.solver]
 kind = "rod"
@@ -115,7 +116,8 @@ def sweep(args) -> None:
     for r in runs:
         (b1, b5, _), (a1, a5, _) = r["load"]
         print(
-            f"| {r['name']} | {r['done']} / {r['failed']} | {r['wall']:.1f} | {r['stage']:.1f} | {r['work']:.1f} | "
+            f"| {r['name']} | {r['done']} / {r['failed']} | {r['wall']:.1f} | "
+            f"{r['stage']:.1f} | {r['work']:.1f} | "
             f"{base['stage'] / r['stage']:.2f} | {b1:.2f} → {a1:.2f} |"
         )
     same = all(r["params"] == runs[0]["params"] for r in runs)
@@ -155,7 +157,8 @@ def overhead(args) -> None:
     )
     print(f"dask executor map of 1 trivial job (cluster start and close included): {one:.2f} s")
     print(
-        f"dask executor map of {n} trivial jobs: {many:.2f} s = {1e3 * (many - one) / (n - 1):.2f} ms per task "
+        f"dask executor map of {n} trivial jobs: {many:.2f} s = "
+        f"{1e3 * (many - one) / (n - 1):.2f} ms per task "
         "beyond the first"
     )
     print(f"load average: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")

@@ -10,8 +10,9 @@ shipped with knitframe (``knitframe/data/ladder-timings.json``), which the cost 
     python benchmarks/ladder.py --out ladder-out                               # the default rungs
     python benchmarks/ladder.py --out ladder-out -- --rungs rod:8,rod:16,rod:32 --max-time 900
     python benchmarks/ladder.py --out ladder-out --timings knitframe/data/ladder-timings.json
+    # the cost model on another fabric:
     python benchmarks/ladder.py --pattern garter --stitch-length 12 --out garter-out \
-        --check-estimates ladder-out/ladder.csv -- --rungs rod:8,rod:16,rod:32   # the cost model on another fabric
+        --check-estimates ladder-out/ladder.csv -- --rungs rod:8,rod:16,rod:32
 """
 
 from __future__ import annotations
@@ -85,7 +86,8 @@ def main(argv: list[str] | None = None) -> int:
 
         model = CostModel(read_timings(args.check_estimates))
         print(
-            f"| rung | DOFs | estimated from {Path(args.check_estimates).name} | measured | measured / estimated |"
+            f"| rung | DOFs | estimated from {Path(args.check_estimates).name} | "
+            "measured | measured / estimated |"
         )
         print("|---|---|---|---|---|")
         for r in rows:

@@ -85,13 +85,15 @@ def main() -> None:
                 )
     print(f"fitter: {args.fitter}; {time.perf_counter() - t0:.0f} s for 24 fits of each model\n")
     print(
-        "| yarn | pattern | direction | max strain | repeats | hgo NRMSE (λ2 measured) | hgo free-side tension / max T "
+        "| yarn | pattern | direction | max strain | repeats | hgo NRMSE (λ2 measured) "
+        "| hgo free-side tension / max T "
         "| hgo NRMSE (free side solved) | hgo2m NRMSE tension | hgo2m NRMSE transverse |"
     )
     print("|---|---|---|---|---|---|---|---|---|---|")
     for y, pat, d, s, n, a, ft, p, b, bt in rows:
         print(
-            f"| {y} | {pat} | {d} | {100 * s:.0f} % | {n} | {100 * a:.1f} % | {100 * ft:.0f} % | {100 * p:.0f} % "
+            f"| {y} | {pat} | {d} | {100 * s:.0f} % | {n} | {100 * a:.1f} % "
+            f"| {100 * ft:.0f} % | {100 * p:.0f} % "
             f"| {100 * b:.1f} % | {100 * bt:.1f} % |"
         )
     med = np.median(np.array([r[5:] for r in rows]), axis=0)

@@ -276,8 +276,8 @@ def tension_per_width(
     if not tension[i] > limit:
         return tension
     detected = (
-        f"{tension[i]:g} is more than a knit carries (above {limit:g} N/mm): the column reads as a force in N, "
-        "not a tension in N/mm"
+        f"{tension[i]:g} is more than a knit carries (above {limit:g} N/mm): "
+        "the column reads as a force in N, not a tension in N/mm"
     )
     if width is None:
         raise DataError(table.path, f"{detected}; {how_to_give_width}", line=table.lines[i], column=column)
@@ -292,7 +292,8 @@ def tension_per_width(
 
 
 def _warn(table: Table, message: str) -> None:
-    """A unit conversion: one KnitframeWarning line, and kept in ``table.warnings`` for the Responses' provenance."""
+    """A unit conversion: one KnitframeWarning line, and kept in ``table.warnings`` for the Responses'
+    provenance."""
     table.warnings.append(message)
     warnings.warn(message, KnitframeWarning, stacklevel=3)
 

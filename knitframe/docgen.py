@@ -113,10 +113,16 @@ def configuration_md(registry: Registry | None = None) -> str:
         "A config is a TOML file. Its top-level tables select pipeline stages; the stages present run in",
         "order (import data or simulate → fit → patchwork → design). Units: mm, N, MPa, tension in N/mm;",
         "angles in degrees in configs. Relative paths resolve against the config file's directory.",
-        "Any error names the TOML path of the offending key, e.g. `fabric.stitch_length: must be > 0, got -1`.",
+        (
+            "Any error names the TOML path of the offending key, e.g. "
+            "`fabric.stitch_length: must be > 0, got -1`."
+        ),
         "",
         'A plugin is chosen by name — `fitter = "lbfgs"` — or by a table with `kind` plus its options —',
-        '`fitter = { kind = "mads", max_evals = 500 }`. The options of every built-in plugin are listed below.',
+        (
+            '`fitter = { kind = "mads", max_evals = 500 }`. '
+            "The options of every built-in plugin are listed below."
+        ),
         "",
         "## `[pipeline]`",
         "",

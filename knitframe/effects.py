@@ -43,5 +43,6 @@ def require_effects(scene: Scene, solver: Any, registry: Registry, *, name: str 
         ]
         raise ConfigError(
             "scene.load.kind",
-            f"solver '{solver_name}' cannot follow load '{key}'; solvers that can: {', '.join(others) or 'none installed'}",
+            f"solver '{solver_name}' cannot follow load '{key}'; "
+            f"solvers that can: {', '.join(others) or 'none installed'}",
         )

@@ -162,7 +162,10 @@ def card_refusal(model: Any, fmt: str) -> str | None:
         return None
     reason = getattr(model, "card_refusal", "") or "it defines no material cards"
     if formats:
-        return f"homogenizer '{model.name}' has no {fmt} card ({reason}); it can be written as {', '.join(formats)}"
+        return (
+            f"homogenizer '{model.name}' has no {fmt} card ({reason}); "
+            f"it can be written as {', '.join(formats)}"
+        )
     return (
         f"homogenizer '{model.name}' has no {fmt} card: none of {', '.join(FORMATS)} can express it: {reason}"
     )

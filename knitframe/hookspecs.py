@@ -24,7 +24,8 @@ __all__ = ["hookspec", "hookimpl"]
 
 @hookspec
 def register_patterns(register: Register) -> None:
-    """Register stitch patterns: unit-cell yarn centerlines and lattice vectors (:class:`~knitframe.interfaces.Pattern`).
+    """Register stitch patterns: unit-cell yarn centerlines and lattice vectors
+    (:class:`~knitframe.interfaces.Pattern`).
 
     :param register: call ``register(PatternClass)`` once per pattern.
     """
@@ -48,7 +49,8 @@ def register_yarn_models(register: Register) -> None:
 
 @hookspec
 def register_solvers(register: Register) -> None:
-    """Register unit-cell solvers that turn a Fabric and a Scene into a Response (:class:`~knitframe.interfaces.Solver`).
+    """Register unit-cell solvers that turn a Fabric and a Scene into a Response
+    (:class:`~knitframe.interfaces.Solver`).
 
     :param register: call ``register(SolverClass)``; the class declares its supported ``effects``.
     """
@@ -56,7 +58,8 @@ def register_solvers(register: Register) -> None:
 
 @hookspec
 def register_contact_laws(register: Register) -> None:
-    """Register yarn-yarn contact laws for a solver's discretisation (:class:`~knitframe.interfaces.ContactLaw`).
+    """Register yarn-yarn contact laws for a solver's discretisation
+    (:class:`~knitframe.interfaces.ContactLaw`).
 
     :param register: call ``register(ContactLawClass)`` once per law.
     """
@@ -72,7 +75,8 @@ def register_linear_solvers(register: Register) -> None:
 
 @hookspec
 def register_homogenizers(register: Register) -> None:
-    """Register reduced-order fabric models: energy, stresses and export cards (:class:`~knitframe.interfaces.Homogenizer`).
+    """Register reduced-order fabric models: energy, stresses and export cards
+    (:class:`~knitframe.interfaces.Homogenizer`).
 
     :param register: call ``register(HomogenizerClass)`` once per model.
     """

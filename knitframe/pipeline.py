@@ -153,7 +153,7 @@ class Pipeline:
             repeatable = getattr(owner, "repeatable", False) and _table(owner) == key
             if isinstance(value, list) and repeatable:
                 if not value or not all(isinstance(v, dict) for v in value):
-                    raise ConfigError(key, "expected one or more tables ([[%s]])" % key, source=source)
+                    raise ConfigError(key, f"expected one or more tables ([[{key}]])", source=source)
             elif not isinstance(value, dict):
                 raise ConfigError(key, f"expected a table, got {value!r}", source=source)
         self._check_pipeline_table()

@@ -206,7 +206,8 @@ class LoadPath(Record):
 
     @property
     def response_kind(self) -> str:
-        """The ``Response.load`` this path produces: ``equibiaxial``, ``uniaxial-course``, ``uniaxial-wale`` or ``general``."""
+        """The ``Response.load`` this path produces: ``equibiaxial``, ``uniaxial-course``, ``uniaxial-wale``
+        or ``general``."""
         return f"uniaxial-{self.direction}" if self.kind == "uniaxial" else self.kind
 
     def stretches(self) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:

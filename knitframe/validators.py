@@ -48,7 +48,8 @@ def _fmt(value: Any) -> str:
 
 
 def shown(value: Any, limit: int = 60) -> str:
-    """``repr`` of a value for an error line, cut to about ``limit`` characters (a pasted array stays short)."""
+    """``repr`` of a value for an error line, cut to about ``limit`` characters (a pasted array stays
+    short)."""
     text = repr(value)
     return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
 
@@ -165,7 +166,8 @@ def finite_array(instance, attribute, value) -> None:
 
 
 def within_model_bounds(model: Any, params: Any) -> None:
-    """Reduced-model parameters inside the model's own box ``model.bounds()``; FieldError names the first outside.
+    """Reduced-model parameters inside the model's own box ``model.bounds()``; FieldError names the first
+    outside.
 
     The field is the parameter as a config or a params.json writes it (``a``, ``theta_deg``), and
     the message gives the bounds the same way (angles in degrees). Values within 1e-9 (relative)
@@ -195,7 +197,8 @@ OVERRIDE_FACTOR = 1e6
 
 
 def near_own(field: str, value: float | None, own: float, unit: str) -> None:
-    """An override ``value`` within :data:`OVERRIDE_FACTOR` of the yarn's ``own`` value it replaces; else FieldError.
+    """An override ``value`` within :data:`OVERRIDE_FACTOR` of the yarn's ``own`` value it replaces; else
+    FieldError.
 
     Further off is a slip of units rather than a yarn, and it overflows the solvers' arithmetic.
     """

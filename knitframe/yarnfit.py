@@ -109,7 +109,8 @@ def line_contact_load(
 
 
 def pretension(line_load: float, curvature_radius: float) -> float:
-    """Yarn tension (N) that presses a yarn wrapped on radius ``curvature_radius`` (mm) with ``line_load`` (N/mm).
+    """Yarn tension (N) that presses a yarn wrapped on radius ``curvature_radius`` (mm) with ``line_load``
+    (N/mm).
 
     Belt (capstan) equilibrium without friction: f = T / ρ, so T = f ρ. With the pre-compression
     from :func:`fit_compression` this is the pre-tension that squeezes d0 to dk in a loop of radius ρ.
@@ -323,7 +324,8 @@ def fit_yarn(
         c = fit_compression(compression, d0=d0, dk=dk, nu=nu)
         E_T = min(c.E_transverse, t.E_axial)
         src += (
-            f"; compression {c.file} (E_transverse {c.E_transverse:.4g} MPa, pre-compression {c.precompression:.4g} N/mm, "
+            f"; compression {c.file} (E_transverse {c.E_transverse:.4g} MPa, "
+            f"pre-compression {c.precompression:.4g} N/mm, "
             f"{c.points} points, rmse {c.rmse:.3g} mm)"
         )
     kind = model or ("transverse_isotropic" if compression is not None else "isotropic")

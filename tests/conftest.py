@@ -73,7 +73,8 @@ def installed_plugin():
 
 @pytest.fixture(scope="session")
 def example_run(tmp_path_factory):
-    """The built-in example run once through the Python API for the session: (PipelineResult, output folder)."""
+    """The built-in example run once through the Python API for the session: (PipelineResult, output
+    folder)."""
     import knitframe
 
     out = tmp_path_factory.mktemp("example") / "ex"

@@ -241,7 +241,8 @@ def test_hertz_cylinder_on_flat_with_the_barrier(cylinder):
     assert info["min_distance"] > 0
     ratio = d / line_contact_approach(np.array([f]), R, E, nu, rigid_partner=True)[0]
     print(
-        f"Hertz with the barrier, P{2 if isinstance(mesh, skfem.MeshTet2) else 1}: approach / Hertz = {ratio:.4f}"
+        f"Hertz with the barrier, P{2 if isinstance(mesh, skfem.MeshTet2) else 1}: "
+        f"approach / Hertz = {ratio:.4f}"
     )
     assert ratio == pytest.approx(1.0, abs=0.05)
 

@@ -230,7 +230,8 @@ def prism(n_sides: int, R: float = 1.0, length: float = 1.0) -> tuple[np.ndarray
 
 
 def test_nagata_patch_rebuilds_a_circle_and_keeps_a_plane():
-    """Patches through nodal normals: an 11-gon's edges bow onto its circle, flat facets stay flat, X6 = A·x."""
+    """Patches through nodal normals: an 11-gon's edges bow onto its circle, flat facets stay flat,
+    X6 = A·x."""
     X, tri = prism(11)
     nrm = node_normals(X, tri)
     assert np.allclose(nrm[:, 2], 0.0) and np.allclose(np.linalg.norm(nrm[:, :2] - X[:, :2], axis=1), 0.0)
@@ -404,7 +405,8 @@ def test_contact_derivatives_match_finite_differences(cylinder, law):
 
 @pytest.mark.parametrize("law", [SolidPenalty(), SolidMortar()], ids=["penalty", "mortar"])
 def test_hertz_cylinder_on_flat(cylinder, law):
-    """The axis approach of an elastic cylinder pressed on a rigid flat matches Hertz line contact within 5 %."""
+    """The axis approach of an elastic cylinder pressed on a rigid flat matches Hertz line contact
+    within 5 %."""
     mesh, body, surf = cylinder
     E, nu, R, t, d = 100.0, 0.3, 1.0, 0.05, 0.02
     forms = SolidForms(mesh, iso(E, nu), None)
@@ -637,8 +639,8 @@ def test_gap_is_continuous_where_the_nearest_facet_changes_over_a_corner():
 
 
 def test_open_edges_of_the_master_surface():
-    """An open face has its rim as open edges; a periodic cell's tube surface, its end nodes identified with the
-    start nodes across the seam, has none."""
+    """An open face has its rim as open edges; a periodic cell's tube surface, its end nodes identified with
+    the start nodes across the seam, has none."""
     from knitframe_solvers.volumetric_model import contact_surface
 
     _, surf, _ = image_blocks()

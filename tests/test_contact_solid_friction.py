@@ -87,7 +87,8 @@ def test_friction_derivatives_match_finite_differences(cylinder, law):
 
 @pytest.mark.parametrize("law", LAWS, ids=IDS)
 def test_friction_with_periodic_image_macro_derivatives(law):
-    """Friction against a periodic image: the slip includes the image shift F̄·S_k, with exact h-derivatives."""
+    """Friction against a periodic image: the slip includes the image shift F̄·S_k, with exact
+    h-derivatives."""
     X, surf, n = image_blocks()
     state = law.friction_state(surf, X, np.zeros(6), stiffness=100.0, reach=0.1)
     assert len(state) > 0 and np.any(state.image != 0)
@@ -142,7 +143,8 @@ def test_friction_only_with_a_state(law):
 
 
 def _shear_block(law, order: int, slides: list[float]):
-    """Press the upper block on the lower one by 0.01, freeze friction there, slide its top by each of ``slides``.
+    """Press the upper block on the lower one by 0.01, freeze friction there, slide its top by each of
+    ``slides``.
 
     Returns (normal force Σλ of the state, [(tangential reaction, normal reaction) per slide]) in N.
     """

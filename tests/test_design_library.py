@@ -237,8 +237,8 @@ def test_builtin_library_entries_and_limits():
 
 
 def test_builtin_fits_nrmse_recomputed_from_the_shipped_data():
-    """Each built-in entry's NRMSE, recomputed from its parameters and the shipped CSVs, is the recorded one and
-    below 1.5 % overall, 2 % per direction and 12 % for the lateral strain."""
+    """Each built-in entry's NRMSE, recomputed from its parameters and the shipped CSVs, is the recorded one
+    and below 1.5 % overall, 2 % per direction and 12 % for the lateral strain."""
     reg = knitframe.get_registry()
     reader = instantiate(reg, "reader", "singal2024", "reader")
     for e in builtin_library():
@@ -254,8 +254,8 @@ def test_builtin_fits_nrmse_recomputed_from_the_shipped_data():
 
 
 def test_acrylic_stiffer_than_cotton_at_20_percent_course_strain():
-    """At 20 % course strain the acrylic carries more tension than the pearl cotton in every pattern, as measured
-    (mean of the repeats) and as the built-in models predict for the same free-sides test."""
+    """At 20 % course strain the acrylic carries more tension than the pearl cotton in every pattern, as
+    measured (mean of the repeats) and as the built-in models predict for the same free-sides test."""
     reg = knitframe.get_registry()
     raw = instantiate(reg, "reader", {"kind": "singal2024", "average": False}, "reader")
     lib = builtin_library()
@@ -325,8 +325,8 @@ def fitted(tmp_path_factory):
 
 
 def test_library_build_writes_a_loadable_library(fitted, tmp_path, capsys):
-    """`knitframe library build` on two fits writes library.json through the output folder, with given pitches for
-    one and Munden's from the arc length for the other."""
+    """`knitframe library build` on two fits writes library.json through the output folder, with given
+    pitches for one and Munden's from the arc length for the other."""
     out = tmp_path / "lib"
     code = cli(
         [
@@ -376,8 +376,9 @@ def test_library_build_writes_a_loadable_library(fitted, tmp_path, capsys):
 
 
 def test_from_fits_takes_fabric_metadata_from_the_params_file(fitted, tmp_path):
-    """Pattern, yarn, stitch length and name come from a params file's ``fabric`` table; the pitches then follow
-    from the pattern's stitch-length table by Munden's relations, and a contradicting option is refused."""
+    """Pattern, yarn, stitch length and name come from a params file's ``fabric`` table; the pitches then
+    follow from the pattern's stitch-length table by Munden's relations, and a contradicting option is
+    refused."""
     data = json.loads(fitted[0].read_text())
     data["fabric"] = {"pattern": "rib", "yarn": "acrylic", "stitch_length": 11, "name": "acrylic-rib-sl11"}
     p = tmp_path / "sweep" / "rib-params.json"
@@ -405,7 +406,8 @@ def _refused(args, capsys, tmp_path, expected: str):
 
 
 def test_library_build_bad_input_refused_in_one_line(fitted, tmp_path, capsys):
-    """Bad arguments or files are refused in one line naming the option or file, exit code 2, nothing written."""
+    """Bad arguments or files are refused in one line naming the option or file, exit code 2, nothing
+    written."""
     good = [*map(str, fitted), "--pattern", "garter", "seed", "--yarn", "cotton", "--arc-length", "11"]
     broken = tmp_path / "broken.json"
     broken.write_text("{not json")

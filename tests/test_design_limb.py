@@ -321,7 +321,7 @@ def test_from_measurements_reproduces_circumferences_exactly():
         a, b = np.abs(x[:, 0]).max(), np.abs(x[:, 1]).max()
         assert b / a == pytest.approx(k, rel=1e-9)
         quad = integrate.quad(
-            lambda s: np.sqrt(a**2 * np.sin(s) ** 2 + b**2 * np.cos(s) ** 2),
+            lambda s, a=a, b=b: np.sqrt(a**2 * np.sin(s) ** 2 + b**2 * np.cos(s) ** 2),
             0,
             2 * np.pi,
             epsabs=1e-12,

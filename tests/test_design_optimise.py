@@ -71,7 +71,8 @@ def test_runs_splits_an_assignment_into_regions():
 
 
 def test_level_search_minimises_the_coefficient_of_variation():
-    """Searching the level τ with exact inner assignments finds the CV-optimal assignment of a small problem."""
+    """Searching the level τ with exact inner assignments finds the CV-optimal assignment of a small
+    problem."""
     rng = np.random.default_rng(7)
     R, F = 6, 3
     T = rng.uniform(0.5, 2.0, (R, F))  # one value per row and fabric (one element per row)

@@ -1,4 +1,5 @@
-"""Material cards: CalculiX runs them and agrees with knitframe; ABAQUS and FEBio cards match them value by value.
+"""Material cards: CalculiX runs them and agrees with knitframe; ABAQUS and FEBio cards match them value by
+value.
 
 The fitted parameters come from a real fit (Singal et al. 2024 cotton jersey, course and wale,
 model hgo) made once per module by a ``[fit]`` stage with ``export`` set to every format.
@@ -247,7 +248,8 @@ def test_abaqus_and_febio_cards_match_the_calculix_deck_value_by_value(fitted):
 
 
 def _isochoric_energies(F, ccx, febio):
-    """Deviatoric energies of the CalculiX and FEBio materials at F (det F = 1), from their published forms."""
+    """Deviatoric energies of the CalculiX and FEBio materials at F (det F = 1), from their published
+    forms."""
     C = F.T @ F
     J = np.linalg.det(F)
     Cb = J ** (-2 / 3) * C
@@ -531,7 +533,8 @@ def test_fit_stage_export_writes_the_cards_and_lists_them_in_summary(fitted):
 
 
 def test_fit_stage_refuses_an_impossible_export_before_any_work(tmp_path):
-    """[fit] with hgo2m and export = ["calculix"], or a format listed twice, is refused and creates no folder."""
+    """[fit] with hgo2m and export = ["calculix"], or a format listed twice, is refused and creates no
+    folder."""
     import knitframe
 
     files = [str(_data_file("cotton-stockinette-x.csv"))]

@@ -10,7 +10,8 @@ from knitframe import run
 
 
 def test_fit_cli_writes_params_and_plot(cli, tmp_path, singal_file):
-    """`knitframe fit X Y --model hgo --fitter lbfgs --out DIR` writes every parameter, theta_deg and nrmse."""
+    """`knitframe fit X Y --model hgo --fitter lbfgs --out DIR` writes every parameter, theta_deg and
+    nrmse."""
     out = tmp_path / "fit"
     r = cli(
         "fit",
@@ -66,7 +67,8 @@ def test_fit_cli_bad_data_is_one_line(cli, tmp_path):
     """A malformed data file stops the command with one line naming the file, line and column."""
     bad = tmp_path / "bad-x.csv"
     bad.write_text(
-        "# source\n# uniaxial\nvideo,frame,strain_axial,strain_transverse,tension_N_per_mm\nv1,1,0.1,nan,0.2\n"
+        "# source\n# uniaxial\n"
+        "video,frame,strain_axial,strain_transverse,tension_N_per_mm\nv1,1,0.1,nan,0.2\n"
     )
     r = cli("fit", str(bad), "--out", str(tmp_path / "o"))
     assert r.returncode == 2

@@ -41,7 +41,8 @@ def fd_gradient(f, x, h=1e-6):
 
 
 def test_objective_gradient_measured_free_side():
-    """For hgo on free-sides data (measured λ2 imposed) the objective's gradient matches finite differences."""
+    """For hgo on free-sides data (measured λ2 imposed) the objective's gradient matches finite
+    differences."""
     m = model("hgo")
     lam = np.linspace(1.0, 1.5, 30)
     rc = Response(lam, 1 - 0.3 * (lam - 1), 0.4 * (lam - 1) ** 2, 0 * lam, load="uniaxial-course", label="c")

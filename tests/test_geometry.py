@@ -29,7 +29,7 @@ def test_arc_length_per_stitch_matches_the_stitch_length_table(sl, arc):
     assert abs(cell.arc_length_per_stitch - arc) <= 1e-6 * arc
     total = 0.0
     for c in cell.yarns:
-        speed = lambda t: float(np.linalg.norm(c.derivative(np.array([t]))[0]))  # noqa: E731
+        speed = lambda t, c=c: float(np.linalg.norm(c.derivative(np.array([t]))[0]))  # noqa: E731
         total += quad(speed, c.t0, c.t1, limit=400, epsabs=0, epsrel=1e-11)[0]
     assert abs(total / 4 - arc) <= 1e-6 * arc
 

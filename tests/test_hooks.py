@@ -127,7 +127,8 @@ def test_hook_register_fitters():
 
 
 def test_hook_register_design_objectives():
-    """register_design_objectives collects objectives; stress variance and pressure uniformity are built in."""
+    """register_design_objectives collects objectives; stress variance and pressure uniformity are built
+    in."""
     _check_hook("design_objective")
 
 

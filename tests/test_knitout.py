@@ -1,5 +1,6 @@
 """Machine output of a designed sleeve: every program is run through knitout-interpreter (a simulated Shima
-SWG091N2) and its knit graph is checked against the knit map; what a machine cannot knit is refused in one line."""
+SWG091N2) and its knit graph is checked against the knit map; what a machine cannot knit is refused in
+one line."""
 
 from __future__ import annotations
 
@@ -117,7 +118,8 @@ def reverse_stitches(course, needles: int) -> list[bool]:
     """Seen from outside the tube, which stitches of a course (in knitting order, once around) are purls.
 
     A course knits the front layer (the first half, rounded up) from the front bed's side and then the back
-    layer from the back: a plain stitch is pulled back-to-front on the front layer and front-to-back on the back.
+    layer from the back: a plain stitch is pulled back-to-front on the front layer and front-to-back on the
+    back.
     """
     from knit_graphs.Pull_Direction import Pull_Direction
 
@@ -125,7 +127,7 @@ def reverse_stitches(course, needles: int) -> list[bool]:
     return [(loop.pull_direction is Pull_Direction.BtF) != (i < front) for i, loop in enumerate(course)]
 
 
-def test_example_design_runs_clean_in_the_interpreter_and_matches_its_knit_map(tmp_path, knit_here):
+def test_example_design_runs_clean_in_the_interpreter_and_matches_its_knit_map(tmp_path, knit_here):  # noqa: F811
     """The built-in example's knitout runs with no error, warning or violation: N loops in each of its courses
     after the cast-on, each band in its yarn's carrier, and the stitch number of the table before it."""
     assert knit_here("design", "--example", "--out", "sleeve", cwd=tmp_path).returncode == 0
@@ -214,10 +216,10 @@ def test_jersey_only_tube_from_a_config_is_checked_and_written(tmp_path):
     assert {p for *_, p, _ in bands} == {"jersey"} and not any(any(reverse_stitches(c, 12)) for c in courses)
 
 
-def test_two_yarn_stripes_change_carrier_between_courses(tmp_path, knit_here):
+def test_two_yarn_stripes_change_carrier_between_courses(tmp_path, knit_here):  # noqa: F811
     """Stripes of two yarns: each stripe is knitted by its yarn's carrier (one given, one assigned); a yarn is
-    carried up inside the tube over a short stripe and cut and brought in again over a long one; a stitch-number
-    table file is read."""
+    carried up inside the tube over a short stripe and cut and brought in again over a long one; a
+    stitch-number table file is read."""
     design = write_design(
         tmp_path / "d",
         10,
@@ -272,9 +274,10 @@ def test_the_check_refuses_a_program_that_does_not_knit_the_design():
         verify(p, lines[:knit] + [lines[knit].replace("knit - f", "knit - b")] + lines[knit + 1 :])
 
 
-def test_dat_file_carries_the_stitch_numbers_or_is_refused_in_one_line(tmp_path, knit_here):
+def test_dat_file_carries_the_stitch_numbers_or_is_refused_in_one_line(tmp_path, knit_here):  # noqa: F811
     """With a knitout-to-dat-python that works, sleeve.dat holds each band's stitch number in its passes'
-    stitch option line; where it does not work with the installed interpreter, --dat is refused in one line."""
+    stitch option line; where it does not work with the installed interpreter, --dat is refused in one
+    line."""
     design = write_design(tmp_path / "d", 6, [(2, "a-j", "jersey", "a", 11), (4, "b-g", "garter", "b", 12)])
     before = snapshot(tmp_path)
     proc = knit_here("knitout", design, "--out", "out", "--dat", cwd=tmp_path)
@@ -383,10 +386,18 @@ REFUSED = [
 
 @pytest.mark.parametrize("case, bands, needles, mode, args, field", REFUSED, ids=[c[0] for c in REFUSED])
 def test_what_the_machine_cannot_knit_is_refused_in_one_line(
-    tmp_path, knit_here, case, bands, needles, mode, args, field
+    tmp_path,
+    knit_here,  # noqa: F811
+    case,
+    bands,
+    needles,
+    mode,
+    args,
+    field,
 ):
     """A paper-mode design, a tube wider than the machine, more yarns than carriers, a pattern or intarsia it
-    cannot knit, a bad stitch-number or carrier table, or no design files: one line, exit 2, nothing written."""
+    cannot knit, a bad stitch-number or carrier table, or no design files: one line, exit 2, nothing
+    written."""
     if bands is None:
         (tmp_path / "d").mkdir()
         (tmp_path / "d" / "design.json").write_text("{}")
@@ -415,8 +426,9 @@ STAGE_REFUSED = [
 
 
 @pytest.mark.parametrize("case, changes, field", STAGE_REFUSED, ids=[c[0] for c in STAGE_REFUSED])
-def test_bad_machine_table_is_refused_before_any_work(tmp_path, knit_here, case, changes, field):
-    """Every [design.machine] problem the config shows is refused in one line naming its key, before any work."""
+def test_bad_machine_table_is_refused_before_any_work(tmp_path, knit_here, case, changes, field):  # noqa: F811
+    """Every [design.machine] problem the config shows is refused in one line naming its key, before any
+    work."""
     import tomli_w
 
     table = {**STAGE, **changes, "tube": {**STAGE["tube"], **changes.get("tube", {})}}

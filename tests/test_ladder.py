@@ -59,7 +59,7 @@ def test_ladder_writes_every_output_with_the_measured_data(tmp_path):
     rows = read_csv(out / "ladder.csv")
     assert list(rows) == ["reduced", "rod:8", "rod:16"]
     assert rows["rod:16"]["reference"] == "true" and result.reference == "rod:16"
-    for name, row in rows.items():
+    for row in rows.values():
         assert row["status"] == "ok", row
         assert float(row["wall_time_s"]) > 0 and float(row["peak_rss_mb"]) > 20
         assert float(row["nrmse_vs_measured"]) > 0  # every rung is compared with the measured curve
@@ -106,7 +106,8 @@ def test_tension_errors_are_nrmse_between_with_both_sides_loaded_and_the_loaded_
 
 
 def test_cost_estimate_is_within_2x_of_the_measured_time_on_a_second_fabric(tmp_path):
-    """Rod rungs of jersey SL11 cotton fit the cost model; it estimates a rod rung of garter SL12 within 2x."""
+    """Rod rungs of jersey SL11 cotton fit the cost model; it estimates a rod rung of garter SL12
+    within 2x."""
     scene = {
         "effects": ["large_deformation", "bending", "contact", "prestress"],
         "load": {"kind": "equibiaxial", "max_strain": 0.2, "steps": 2},
@@ -172,7 +173,8 @@ def test_cost_model_scales_a_family_without_rungs_in_this_run_by_its_sibling():
 
 
 def test_max_time_skips_an_expensive_rung_and_says_so(tmp_path, capsys):
-    """--max-time skips the rung whose estimate (from the shipped timings) is over it, with a one-line notice."""
+    """--max-time skips the rung whose estimate (from the shipped timings) is over it, with a one-line
+    notice."""
     assert any(p.family == "volumetric:p1" for p in read_timings(shipped_timings_path(), "shipped"))
     cfg = write_toml(tmp_path / "small.toml", singal_config(tmp_path))
     code = main(
@@ -279,7 +281,8 @@ def test_every_rung_has_solver_options_a_family_and_a_known_solver():
 
 
 def test_any_resolution_can_be_named_and_is_ordered_by_fidelity():
-    """rod:N and volumetric:pK:r/X at any resolution: a mesh-convergence study names three seeds of one order."""
+    """rod:N and volumetric:pK:r/X at any resolution: a mesh-convergence study names three seeds of one
+    order."""
     from knitframe.ladder import rung
 
     r = rung("volumetric:p2:r/2.25")

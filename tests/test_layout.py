@@ -39,7 +39,8 @@ def plugin_imports() -> list[tuple[str, str, str]]:
 
 
 def is_public(module: str, public: set[str]) -> bool:
-    """A module is public when it is listed, or lies in a listed subpackage, and no part of its name is private.
+    """A module is public when it is listed, or lies in a listed subpackage, and no part of its name is
+    private.
 
     The top-level package ``knitframe`` stands for its own namespace only, not for every module below it.
     """
@@ -71,7 +72,8 @@ def test_plugins_import_only_the_public_api_and_never_another_plugin():
 
 
 def test_the_layout_check_catches_a_private_import_and_a_plugin_import():
-    """The rule itself: a private module, a private name inside a public package and an unlisted module fail."""
+    """The rule itself: a private module, a private name inside a public package and an unlisted module
+    fail."""
     public = {"knitframe", "knitframe.numerics"}
     assert is_public("knitframe.numerics.newton", public)
     assert not is_public("knitframe.numerics._kernels", public)

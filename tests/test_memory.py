@@ -9,8 +9,9 @@ import pytest
 
 
 def test_retained_memory_is_reused_without_page_faults():
-    """After ``retain_freed_memory()`` a freed 200 MB block is reused by the next one without faulting its pages in
-    again (glibc); without it each block is mapped afresh. Run in fresh interpreters: the policy is process-wide."""
+    """After ``retain_freed_memory()`` a freed 200 MB block is reused by the next one without faulting its
+    pages in again (glibc); without it each block is mapped afresh. Run in fresh interpreters: the policy is
+    process-wide."""
     if not sys.platform.startswith("linux"):
         pytest.skip("glibc's malloc only")
     code = """

@@ -55,7 +55,8 @@ def test_no_hanging_faces(helix_mesh):
 
 
 def test_volume_and_quality(helix_mesh):
-    """The mesh volume matches π r² L (P1: polygonal section, 2.5 %; P2: curved, 0.01 %) with sound elements."""
+    """The mesh volume matches π r² L (P1: polygonal section, 2.5 %; P2: curved, 0.01 %) with sound
+    elements."""
     q = mesh_quality(helix_mesh)
     tol = 0.025 if helix_mesh.order == 1 else 1e-4
     assert abs(q["volume_error"]) < tol

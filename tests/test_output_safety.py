@@ -60,7 +60,8 @@ def listed_files_exist(out: Path) -> dict:
 
 
 def test_out_dotdot_two_levels_down_deletes_nothing(tmp_path):
-    """`run CFG --out ..` from two levels down is refused; the parent's config, data and other files survive."""
+    """`run CFG --out ..` from two levels down is refused; the parent's config, data and other files
+    survive."""
     parent = tmp_path / "project"
     here = parent / "runs" / "today"
     here.mkdir(parents=True)
@@ -126,7 +127,8 @@ def test_two_runs_into_one_folder_never_interleave(tmp_path):
 
 
 def test_two_runs_started_together_one_wins_and_its_files_are_all_there(tmp_path):
-    """Two runs launched at the same instant into one new folder: one exits 0 with all its files, the other 2."""
+    """Two runs launched at the same instant into one new folder: one exits 0 with all its files,
+    the other 2."""
     cfg = data_config(tmp_path)
     cmd = [sys.executable, "-m", "knitframe", "run", str(cfg), "--out", "out", "--quiet"]
     env = {**os.environ, "MPLBACKEND": "Agg"}

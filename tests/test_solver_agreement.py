@@ -1,4 +1,5 @@
-"""Rod against volumetric on a small cell: the same yarn record gives the same answer where both model the same thing.
+"""Rod against volumetric on a small cell: the same yarn record gives the same answer where both model the
+same thing.
 
 Two straight yarns along the course, far apart (the test pattern of ``test_volumetric_solver``): under a
 uniaxial course stretch ε both carry T1 = 2·E_A·A·ε / |L2| (A = π dk²/4), the axial path of the yarn

@@ -24,7 +24,8 @@ def model(name, **kw):
 
 
 def linear_test_file(tmp_path):
-    """A generic course and wale test whose tension softens: hgo can only follow it with b at its lower bound."""
+    """A generic course and wale test whose tension softens: hgo can only follow it with b at its lower
+    bound."""
     rows = ["direction,strain,transverse_strain,tension_N_per_mm"]
     for d, k in (("course", 0.2), ("wale", 0.5)):
         rows += [
@@ -62,7 +63,8 @@ def test_fit_at_a_bound_is_printed_recorded_and_plotted(cli, tmp_path):
 
 
 def test_fit_inside_the_box_has_no_bound_warning(singal_file, recwarn):
-    """A fit of real jersey tests ends inside the box: at_bound and warnings stay empty and nothing is warned."""
+    """A fit of real jersey tests ends inside the box: at_bound and warnings stay empty and nothing is
+    warned."""
     reader = get_registry()["reader"]["singal2024"]()
     data = [
         r
@@ -76,7 +78,8 @@ def test_fit_inside_the_box_has_no_bound_warning(singal_file, recwarn):
 
 
 def test_at_bound_names_both_ends_but_not_symmetry_planes():
-    """at_bound lists parameters at either end of the box in params.json names, but not hgo's θ at 0 or 90°."""
+    """at_bound lists parameters at either end of the box in params.json names, but not hgo's θ
+    at 0 or 90°."""
     m = model("hgo")
     names, msg = at_bound(m, np.array([100.0, 1e-4, math.radians(90)]))
     assert (
@@ -153,7 +156,8 @@ def test_non_finite_parameters_are_refused():
 
 
 def test_reader_conversions_are_recorded_with_the_fit(tmp_path, singal_file):
-    """Strains converted from percent while reading are listed in the fit's warnings (and so in params.json)."""
+    """Strains converted from percent while reading are listed in the fit's warnings (and so in
+    params.json)."""
     src = singal_file("cotton-stockinette-y.csv").read_text().splitlines()
     rows = [
         ",".join(c[:2] + [f"{float(c[2]) * 100:.3f}", f"{float(c[3]) * 100:.3f}", c[4]])

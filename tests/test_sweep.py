@@ -33,7 +33,8 @@ GRID4 = 'grid = { pattern = ["jersey"], stitch_length = [11, 12], yarn = ["cotto
 #: 3 listed points; the second starves Newton of iterations, so its pre-stress fails
 POINTS3 = """points = [
   { pattern = "jersey", stitch_length = 12, yarn = "cotton" },
-  { pattern = "jersey", stitch_length = 11, yarn = "cotton", solver = { max_iterations = 2 }, name = "starved" },
+  { pattern = "jersey", stitch_length = 11, yarn = "cotton", solver = { max_iterations = 2 }, \
+name = "starved" },
   { pattern = "jersey", stitch_length = 11, yarn = "nylon" },
 ]"""
 

@@ -30,7 +30,8 @@ def test_installed_plugin_runs_from_a_config(installed_plugin, cli, tmp_path):
     rows = "\n".join(f"{e:.3f},{0.2 * e + 0.01 * e**2:.5f}" for e in ext)
     (tmp_path / "pull.csv").write_text("extension_mm,force_N\n" + rows + "\n")
     (tmp_path / "c.toml").write_text(
-        '[data]\nreader = { kind = "force-extension", gauge_length = 50.0, width = 40.0, direction = "wale" }\n'
+        '[data]\nreader = { kind = "force-extension", gauge_length = 50.0, width = 40.0, '
+        'direction = "wale" }\n'
         'files = ["pull.csv"]\n'
     )
     proc = cli("run", "c.toml", "--out", "o", env=EXTERNAL)

@@ -286,9 +286,9 @@ def test_the_shipped_trends_config_is_the_24_fabric_rod_sweep_with_nothing_per_f
 def test_a_sweep_run_writes_trends_md_and_its_verdicts(tmp_path, monkeypatch):
     """The whole stage (run, outputs, results) with the point function replaced by fits whose trends are
     known."""
-    import knitframe.sweep.job as sweep
     import numpy as np
 
+    import knitframe.sweep.job as sweep
     from knitframe.pipeline import run
     from knitframe.records import Provenance, Response
 

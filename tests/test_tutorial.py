@@ -84,7 +84,8 @@ def test_tuck_cell_is_a_periodic_cross_tuck(tuck, sl, arc):
         # a knit loop enters the tuck loop below and the loop held on its needle from behind, leaves in front
         assert links[(row, "knit", "course below")] == "-++-"
         assert links[(row, "knit", "two courses below")] == "-++-"
-        # a tuck loop is drawn through nothing: it lies behind the held loop and meets nothing two courses down
+        # a tuck loop is drawn through nothing: it lies behind the held loop and meets nothing two
+        # courses down
         assert links[(row, "tuck", "course below")] == "--"
         assert links[(row, "tuck", "two courses below")] == ""
 

@@ -105,7 +105,8 @@ def test_two_measured_curves_and_a_failed_point_give_the_columns_and_the_figure(
     points = (
         f'points = [\n  {{ name = "jersey", pattern = "jersey", yarn = "pearl-cotton", '
         f"{measured(files, max_strain=0.12)} }},\n"
-        f'  {{ name = "starved", pattern = "jersey", yarn = "pearl-cotton", solver = {{ max_iterations = 2 }}, '
+        f'  {{ name = "starved", pattern = "jersey", yarn = "pearl-cotton", '
+        f"solver = {{ max_iterations = 2 }}, "
         f"{measured(files[:1], max_strain=0.12)} }},\n]"
     )
     cfg = sweep_config(tmp_path, points)

@@ -94,7 +94,8 @@ def test_adapter_keeps_tensor_order():
 
 
 def test_model_without_order_keyword_still_works():
-    """A yarn model whose evaluate(F, a) has no ``order`` parameter gives the same energy, stress and tangent."""
+    """A yarn model whose evaluate(F, a) has no ``order`` parameter gives the same energy, stress and
+    tangent."""
 
     class Legacy:
         def __init__(self, inner):
@@ -273,8 +274,8 @@ def test_force_flux_does_not_cancel_at_equilibrium():
 
 
 def test_psd_projection_of_the_tangent():
-    """psd_project clamps the eigenvalues of each 9x9 tangent at zero: the result is PSD, idempotent, and a PSD
-    tangent is unchanged."""
+    """psd_project clamps the eigenvalues of each 9x9 tangent at zero: the result is PSD, idempotent, and a
+    PSD tangent is unchanged."""
     rng = np.random.default_rng(3)
     M = rng.normal(size=(5, 7, 9, 9))
     M = M + np.swapaxes(M, -1, -2)

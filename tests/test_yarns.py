@@ -136,7 +136,8 @@ def test_line_contact_inverse_and_tangent_stiffness():
 
 
 def test_line_contact_matches_hertz_half_width_and_scaling():
-    """δ(f) follows the Hertz form: for two cylinders twice a cylinder on a flat of the doubled modulus term."""
+    """δ(f) follows the Hertz form: for two cylinders twice a cylinder on a flat of the doubled modulus
+    term."""
     R, E, nu, f = 0.2, 1.0, 0.3, np.array([1e-4, 1e-3])
     k = (1 - nu**2) / E
     b = np.sqrt(4 * f * R * k / np.pi)  # two identical cylinders: R* = R/2, E* = 1/(2k)
@@ -149,7 +150,8 @@ def test_line_contact_matches_hertz_half_width_and_scaling():
 
 @pytest.mark.parametrize("name", list(make.CASES))
 def test_fits_recover_known_parameters_from_noisy_synthetic_tests(name, tmp_path):
-    """Fits to the noisy synthetic tension and compression tests recover E_axial, failure strain, E_T and f_k."""
+    """Fits to the noisy synthetic tension and compression tests recover E_axial, failure strain,
+    E_T and f_k."""
     p = make.CASES[name]
     make.main(tmp_path)
     t = fit_tension(tmp_path / f"{name}_tension.csv", diameter=p["dk"])

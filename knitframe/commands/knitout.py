@@ -1,5 +1,5 @@
-"""``knitframe knitout DESIGN_DIR --out DIR [--machine SWG091N2] [--gauge 15] [--width N] [--carriers YARN=C,...]
-[--stitch-numbers SL=N,...|FILE] [--dat] [--no-check]``.
+"""``knitframe knitout DESIGN_DIR --out DIR [--machine SWG091N2] [--gauge 15] [--width N]
+[--carriers YARN=C,...] [--stitch-numbers SL=N,...|FILE] [--dat] [--no-check]``.
 
 Turns a design folder (``design.json`` and ``knit-map.csv`` of ``knitframe design`` in knitting
 mode) into a knitout program for a V-bed machine: ``sleeve.k``, checked by knitout-interpreter (a

@@ -1,4 +1,5 @@
-"""``knitframe ladder CONFIG --out DIR [--rungs NAMES] [--max-time SECONDS] [--overwrite]``: what accuracy costs.
+"""``knitframe ladder CONFIG --out DIR [--rungs NAMES] [--max-time SECONDS] [--overwrite]``: what
+accuracy costs.
 
 Runs the config's pipeline with the ``[ladder]`` stage: its ``[fabric]`` and ``[scene]`` through a
 list of rungs of fidelity (the fitted reduced model, the rod solver at three resolutions, the
@@ -29,8 +30,8 @@ def add_parser(sub) -> None:
         "--rungs",
         default=None,
         metavar="NAMES",
-        help=f"comma-separated rungs of {', '.join(RUNGS)}, or rod:N, volumetric:p1:r/X, volumetric:p2:r/X at "
-        f"any resolution; three seeds of one order add a mesh-convergence table "
+        help=f"comma-separated rungs of {', '.join(RUNGS)}, or rod:N, volumetric:p1:r/X, "
+        "volumetric:p2:r/X at any resolution; three seeds of one order add a mesh-convergence table "
         f"(default: {','.join(DEFAULT_RUNGS)})",
     )
     p.add_argument(

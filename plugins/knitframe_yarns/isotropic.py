@@ -28,7 +28,8 @@ class Isotropic(YarnModelBase):
     def evaluate(
         self, F: np.ndarray, fibre: np.ndarray | None = None, order: int = 2
     ) -> tuple[np.ndarray, Any, Any]:
-        """(W, P, A) at F (..., 3, 3), MPa; ``fibre`` is accepted and ignored; ``order`` as in invariant_law."""
+        """(W, P, A) at F (..., 3, 3), MPa; ``fibre`` is accepted and ignored; ``order`` as in
+        invariant_law."""
         mu, lam = self.lame
         return invariant_law(F, None, mu, lam, order=order)
 

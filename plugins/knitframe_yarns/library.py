@@ -25,8 +25,9 @@ YARNS = (
         nu=0.3,
         failure_strain=0.10,
         model="transverse_isotropic",
-        source=f"Cotton 20/2 (Supreme Corp.): d0, dk and strain capacity < 10 % from {_PAPER}; E_axial representative "
-        "(1-1.5 GPa: ~400 cN/tex x 59 tex over the dk section); E_transverse = 1e-4 E_axial (paper's ratio)",
+        source=f"Cotton 20/2 (Supreme Corp.): d0, dk and strain capacity < 10 % from {_PAPER}; "
+        "E_axial representative (1-1.5 GPa: ~400 cN/tex x 59 tex over the dk section); "
+        "E_transverse = 1e-4 E_axial (paper's ratio)",
     ),
     Yarn(
         name="nylon",
@@ -37,7 +38,8 @@ YARNS = (
         nu=0.3,
         failure_strain=1.2,
         model="transverse_isotropic",
-        source=f"Nylon 70 den, 24 f, 2-ply textured (Hickory Throwing): d0, dk and elongation > 120 % from {_PAPER}; "
+        source="Nylon 70 den, 24 f, 2-ply textured (Hickory Throwing): "
+        f"d0, dk and elongation > 120 % from {_PAPER}; "
         "E_axial representative of the crimp-straightening range (30-50 MPa; ~0.4-0.5 GPa once straight); "
         "E_transverse = 1e-4 E_axial (paper's ratio)",
     ),
@@ -50,11 +52,12 @@ YARNS = (
         nu=0.3,
         bending_stiffness=0.0708,
         model="transverse_isotropic",
-        source="Pearl cotton 3/2, the cotton of Singal et al. 2024 (Nat Commun 15:2622, Supplement): bending modulus "
-        "B = 70.8 mN mm2 measured (bending_stiffness); their compression law k = 11.49, p = 2.94 has no Yarn field and "
-        "is not used. d0 = dk = 0.74 mm estimated from the count (3/2 = Ne 1.5, about 394 tex) with Peirce's "
-        "d = 1/(28 sqrt(Ne)) inch; E_axial representative of cotton yarn (as 'cotton'); E_transverse = 1e-4 E_axial "
-        "(the paper's ratio for cotton)",
+        source="Pearl cotton 3/2, the cotton of Singal et al. 2024 (Nat Commun 15:2622, Supplement): "
+        "bending modulus B = 70.8 mN mm2 measured (bending_stiffness); "
+        "their compression law k = 11.49, p = 2.94 has no Yarn field and is not used. "
+        "d0 = dk = 0.74 mm estimated from the count (3/2 = Ne 1.5, about 394 tex) with Peirce's "
+        "d = 1/(28 sqrt(Ne)) inch; E_axial representative of cotton yarn (as 'cotton'); "
+        "E_transverse = 1e-4 E_axial (the paper's ratio for cotton)",
     ),
     Yarn(
         name="acrylic",
@@ -65,12 +68,14 @@ YARNS = (
         nu=0.3,
         bending_stiffness=0.00996,
         model="transverse_isotropic",
-        source="Acrylic worsted (Knit Picks Brava Worsted, 100 % acrylic), the acrylic of Singal et al. 2024 (Nat Commun "
-        "15:2622, Supplement): E_axial = stretching modulus 79.0 MPa measured (Ding 2023, cited by Singal); "
-        "bending_stiffness = their measured bending modulus 0.249 MPa times pi d^4/64 (the diameter is estimated, so "
-        "EI is derived); d0 = dk = 0.95 mm estimated from the count (label: 100 g per 218 yd, about 502 tex) as a "
-        "round yarn 60 % fibre by volume (Peirce's packing for cotton) of acrylic fibre 1.17 g/cm3; E_transverse = "
-        "1e-4 E_axial (the paper's ratio for cotton and nylon, an estimate); nu assumed",
+        source="Acrylic worsted (Knit Picks Brava Worsted, 100 % acrylic), "
+        "the acrylic of Singal et al. 2024 (Nat Commun 15:2622, Supplement): "
+        "E_axial = stretching modulus 79.0 MPa measured (Ding 2023, cited by Singal); "
+        "bending_stiffness = their measured bending modulus 0.249 MPa times pi d^4/64 "
+        "(the diameter is estimated, so EI is derived); "
+        "d0 = dk = 0.95 mm estimated from the count (label: 100 g per 218 yd, about 502 tex) "
+        "as a round yarn 60 % fibre by volume (Peirce's packing for cotton) of acrylic fibre 1.17 g/cm3; "
+        "E_transverse = 1e-4 E_axial (the paper's ratio for cotton and nylon, an estimate); nu assumed",
     ),
     Yarn(
         name="pet",
@@ -80,8 +85,8 @@ YARNS = (
         E_transverse=4000.0,
         nu=0.35,
         model="isotropic",
-        source=f"PET monofilament 0.178 mm (Thread Exchange), isotropic, from {_PAPER}; E = 4 GPa and nu = 0.35 "
-        "representative (3-5 GPa)",
+        source=f"PET monofilament 0.178 mm (Thread Exchange), isotropic, from {_PAPER}; "
+        "E = 4 GPa and nu = 0.35 representative (3-5 GPa)",
     ),
 )
 

@@ -312,7 +312,8 @@ def make(tmp_path: Path, name: str, content) -> Path:
 
 @pytest.mark.parametrize("case, name, content, words", FILES, ids=[f[0] for f in FILES])
 def test_bad_data_file_is_refused(knit_here, tmp_path, case, name, content, words):
-    """A malformed or mis-unit data file stops `knitframe fit` with one line naming the file and the problem."""
+    """A malformed or mis-unit data file stops `knitframe fit` with one line naming the file and the
+    problem."""
     path = make(tmp_path, name, content)
     before = snapshot(tmp_path)
     proc = knit_here("fit", path, "--out", tmp_path / "out", cwd=tmp_path)
@@ -349,7 +350,8 @@ ARGS = [
 
 @pytest.mark.parametrize("case, extra, data, words", ARGS, ids=[a[0] for a in ARGS])
 def test_bad_fit_arguments_are_refused(knit_here, tmp_path, case, extra, data, words):
-    """Unknown plugins, the wrong reader and a bad file after a good one are one line, with nothing created."""
+    """Unknown plugins, the wrong reader and a bad file after a good one are one line, with nothing
+    created."""
     files = {
         "singal": [RIB_Y],
         "generic": [make(tmp_path, "g.csv", GENERIC)],
@@ -465,7 +467,8 @@ READABLE = [
 
 @pytest.mark.parametrize("case, rel, content, extra, expected", READABLE, ids=[r[0] for r in READABLE])
 def test_unusual_but_readable_file_fits(knit_here, tmp_path, case, rel, content, extra, expected):
-    """Unusual but readable files fit, writing strict JSON, with exactly one warning line per unit conversion."""
+    """Unusual but readable files fit, writing strict JSON, with exactly one warning line per unit
+    conversion."""
     path = tmp_path / rel
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(content, encoding="utf-8", newline="")

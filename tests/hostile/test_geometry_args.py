@@ -1,4 +1,5 @@
-"""Hostile ``knitframe geometry`` arguments: geometry requests that cannot be met are refused before any output.
+"""Hostile ``knitframe geometry`` arguments: geometry requests that cannot be met are refused before any
+output.
 
 Each case runs ``knitframe geometry PATTERN ... --out geo`` in a fresh folder (in this process, a few
 as real subprocesses) and checks exit code 2, one stderr line naming the option, no traceback, and

@@ -62,7 +62,8 @@ CASES = {
 
 
 def tension(p: dict, n: int = 120) -> tuple[np.ndarray, np.ndarray]:
-    """Displacement (mm) and force (N) of a synthetic tension test with relative force noise ``p['noise']``."""
+    """Displacement (mm) and force (N) of a synthetic tension test with relative force noise
+    ``p['noise']``."""
     rng = np.random.default_rng(p["seed"])
     k = p["E_axial"] * np.pi * p["dk"] ** 2 / 4.0 / p["gauge_length"]
     u_fail = p["slack"] + p["failure_strain"] * p["gauge_length"]
