@@ -75,8 +75,6 @@ measured ones).
 from __future__ import annotations
 
 import csv
-import functools
-import inspect
 import itertools
 import json
 import math
@@ -95,6 +93,7 @@ from knitframe.cache import JobCache, JobFailure, failure_reason, job_keys
 from knitframe.config import PluginSpec, instantiate
 from knitframe.errors import ConfigError, DataError, FieldError, KnitframeWarning
 from knitframe.geometry import checked_cell
+from knitframe.interfaces import DispatchingReader
 from knitframe.progress import ProgressBar
 from knitframe.records import Fabric, Response, Scene
 from knitframe.report import curve, plot_validation, validate_uniaxial
@@ -380,25 +379,9 @@ def point_modules(job: dict[str, Any]) -> list[str]:
 run_point.cache_modules = point_modules  # type: ignore[attr-defined]
 
 
-def _keep_failures(fn: Any, job: dict[str, Any]) -> Any:
-    """For an executor without ``failures = "keep"``: a failure as a result."""
-    try:
-        return fn(job)
-    except Exception as e:  # noqa: BLE001 - recorded as the point's reason
-        return JobFailure(failure_reason(e))
-
-
 def _map(executor: Any, jobs: list[dict[str, Any]], progress: Any) -> list[Any]:
-    try:
-        params = inspect.signature(executor.map).parameters
-    except (TypeError, ValueError):
-        params = {}
-    if "failures" in params:
-        kwargs: dict[str, Any] = {"failures": "keep"}
-        if "progress" in params:
-            kwargs["progress"] = progress
-        return list(executor.map(run_point, jobs, **kwargs))
-    return list(executor.map(functools.partial(_keep_failures, run_point), jobs))
+    """The points' results in order, a JobFailure in place of each point that raised."""
+    return list(executor.map(run_point, jobs, failures="keep", progress=progress))
 
 
 # ------------------------------------------------------------------------------------------ stage
@@ -1002,7 +985,7 @@ def _measured_tests(
         key = f"{where}.files[{j}]"
         path = ctx.path(name, key)
         try:
-            read = reader.reader_for(path).read(path) if hasattr(reader, "reader_for") else reader.read(path)
+            read = (reader.reader_for(path) if isinstance(reader, DispatchingReader) else reader).read(path)
         except DataError as e:
             raise ConfigError(key, str(e), source=src) from None
         except OSError as e:
