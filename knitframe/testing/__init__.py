@@ -66,6 +66,24 @@ def _square_or_fail(job: dict) -> float:
 def check_executor(obj: Any) -> None:
     """Runs jobs in order, reuses cached results instead of recomputing them, keeps failures as
     JobFailures with ``failures = "keep"`` and reports through ``progress``."""
+    calls: list[tuple[float, float]] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        ex = obj(cache_dir=tmp) if attrs.has(obj) else obj
+        try:
+            out = ex.map(
+                _square_or_fail,
+                [{"x": 3}, {"x": -1}],
+                failures="keep",
+                progress=lambda done, total, message: calls.append((done, total)),
+            )
+        except TypeError as e:
+            raise AssertionError(
+                f"map(fn, jobs) must take the keywords failures= and progress=: {e}"
+            ) from None
+    assert out[0] == 9.0 and isinstance(out[1], JobFailure), (
+        f'map(..., failures="keep") must put a JobFailure in place of a failed job, got {out!r}'
+    )
+    assert calls and calls[-1] == (2, 2), f"progress must be told when all jobs are done, got {calls}"
     jobs = [{"x": i} for i in range(4)]
     with tempfile.TemporaryDirectory() as tmp:
         ex = obj(cache_dir=tmp) if attrs.has(obj) else obj
@@ -75,19 +93,6 @@ def check_executor(obj: Any) -> None:
         assert ex.map(_square, jobs)[2] == "cached", (
             "a finished job was recomputed instead of read from the cache"
         )
-    calls: list[tuple[float, float]] = []
-    with tempfile.TemporaryDirectory() as tmp:
-        ex = obj(cache_dir=tmp) if attrs.has(obj) else obj
-        out = ex.map(
-            _square_or_fail,
-            [{"x": 3}, {"x": -1}],
-            failures="keep",
-            progress=lambda done, total, message: calls.append((done, total)),
-        )
-    assert out[0] == 9.0 and isinstance(out[1], JobFailure), (
-        f'map(..., failures="keep") must put a JobFailure in place of a failed job, got {out!r}'
-    )
-    assert calls and calls[-1] == (2, 2), f"progress must be told when all jobs are done, got {calls}"
 
 
 def check_design_objective(obj: Any) -> None:
