@@ -126,7 +126,7 @@ def check_stage(obj: Any) -> None:
     assert isinstance(obj.order, int), "stage.order must be an int"
     assert isinstance(obj.uses, tuple), "stage.uses must be a tuple of table names"
     assert inspect.ismethod(obj.from_config), "stage.from_config must be a classmethod"
-    assert callable(getattr(obj, "run", None)), "stage.run must be callable"
+    assert callable(obj.run), "stage.run must be callable"
 
 
 def check_yarn(obj: Any) -> None:
