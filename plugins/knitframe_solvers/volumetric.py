@@ -434,10 +434,10 @@ class VolumetricSolver:
     def holds_candidates(self, law: Any) -> bool:
         """Whether the contact candidates are held through each Newton iteration's line search.
 
-        They are with ``contact_search = "iteration"`` and a law that takes them (its ``holds_candidates``
-        flag); then ``max_step``
-        must be at most half the reach (ConfigError otherwise): two nodes each moving max_step
-        could close a gap wider than the reach within one step.
+        They are with ``contact_search = "iteration"`` and a law that takes them (its
+        ``holds_candidates`` flag); then ``max_step`` must be at most half the reach (ConfigError
+        otherwise): two nodes each moving max_step could close a gap wider than the reach within
+        one step.
         """
         held = self.contact_search == "iteration" and law is not None and law.holds_candidates
         if held and self.max_step > 0.5 * self.reach:

@@ -177,8 +177,8 @@ class SolidForms:
     Parameters
     ----------
     mesh : skfem.MeshTet1 or skfem.MeshTet2.
-    law : a material with ``energy``, ``stress`` and ``tangent`` of (F, a) and ``evaluate(F, a, order)``
-        giving (Ψ, P, A) at once, e.g. :class:`YarnLaw`.
+    law : a material with ``energy(F, a)``, ``stress(F, a)`` and ``evaluate(F, a, order)`` giving
+        (Ψ, P, A) at once, e.g. :class:`YarnLaw`.
     node_tangent : (N, 3) fibre direction at each node (N = vertices for P1, vertices + edges
         for P2); None gives a fixed x fibre (only meaningful for isotropic laws).
     node_offset : (N, 3) offset of each node from its yarn's centerline (mm), for the pre-stress
