@@ -9,8 +9,7 @@ monotone) or a fitted reduced model (its uniaxial response with a free or a fixe
 * **Series** (regions one after another along the load, lengths L_j): every region carries the
   same tension T, and the stretches partition the end displacement,
   ``Σ_j L_j (λ_j(T) − 1) = u``. The left side is increasing in T, so T is found by a bracketed,
-  bisection-safeguarded Newton iteration with ``d/dT = Σ_j L_j / T_j'(λ_j)`` (or by Chandrupatla's
-  bracketed search, :func:`scipy.optimize.elementwise.find_root`, for curves without a slope), each λ_j(T) by
+  bisection-safeguarded Newton iteration with ``d/dT = Σ_j L_j / T_j'(λ_j)``, each λ_j(T) by
   inverting the region's curve (exactly for Responses; for models by a safeguarded Newton iteration
   bracketed by a tabulated curve).
   The displacement of each interface, ``Σ_{k≤j} L_k (λ_k − 1)``, is reported.
@@ -34,7 +33,7 @@ import attrs
 import numpy as np
 
 from knitframe.errors import KnitframeWarning, NumericalError
-from knitframe.fitting import FREE_MIN, bracketed_newton, direction_index, free_side_zero_message
+from knitframe.fitting import FREE_MIN, FitResult, bracketed_newton, direction_index, free_side_zero_message
 from knitframe.records import Provenance, Response
 
 __all__ = ["ResponseCurve", "ModelCurve", "as_curve", "PatchworkResult", "parallel", "series", "grid"]
@@ -137,24 +136,23 @@ class ModelCurve:
         return self._state(np.atleast_1d(np.asarray(lam, dtype=np.float64)))[1]
 
     def slack_warning(self, top: float) -> str | None:
-        """Why this region carries no tension up to loaded stretch ``top``, if that is because of its free side.
+        """Why this region carries no tension up to loaded stretch ``top``, if its free side is why.
 
-        Only models that state their free-side slack (``free_side_slack(params, direction)``, the
-        paper's hgo) can say; for others, and for a fixed lateral side, None.
+        Only models that do not predict the free side (``predicts_lateral = False``, the paper's hgo)
+        have a free-side slack (``free_side_slack(params, direction)``) to blame; for others, and for a
+        fixed lateral side, None.
         """
-        slack_of = getattr(self.model, "free_side_slack", None)
-        if self.lateral != "free" or getattr(self.model, "predicts_lateral", True) or slack_of is None:
+        if self.lateral != "free" or self.model.predicts_lateral:
             return None
-        slack = slack_of(self.params, self.direction)
+        slack = self.model.free_side_slack(self.params, self.direction)
         if not 1.0 < top <= slack:
             return None
         where = f"patchwork region '{self.label}': " if self.label else "patchwork region: "
-        return where + free_side_zero_message(
-            getattr(self.model, "name", "model"), top, slack, self.direction
-        )
+        return where + free_side_zero_message(self.model.name, top, slack, self.direction)
 
     def slope(self, lam: np.ndarray) -> np.ndarray:
-        """dT/dλ along the load path: ∂P_l/∂λ_l, condensed by the free side (K_ll − K_lf²/K_ff) when it is free."""
+        """dT/dλ along the load path: ∂P_l/∂λ_l, condensed by the free side (K_ll − K_lf²/K_ff) when it
+        is free."""
         return self.tension_slope(lam)[1]
 
     def tension_slope(self, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -178,7 +176,8 @@ class ModelCurve:
                 top = 1.0 + 2.0 * (lam[-1] - 1.0)
                 if top > 1e3:
                     raise NumericalError(
-                        f"region '{self.label}': tension {T_max:.4g} N/mm not reached up to stretch {lam[-1]:.4g}"
+                        f"region '{self.label}': tension {T_max:.4g} N/mm not reached up to stretch "
+                        f"{lam[-1]:.4g}"
                     )
             lam = np.linspace(1.0, top, 257)
             T = np.maximum.accumulate(self.tension(lam))
@@ -204,8 +203,9 @@ class ModelCurve:
 
 
 def as_curve(source: Any, direction: str | int = "course", lateral: str = "free", label: str = ""):
-    """A region curve from a Response, a fitted model (FitResult), a ``(model, params)`` pair or a curve."""
-    if hasattr(source, "tension") and hasattr(source, "stretch"):
+    """A region curve from a Response, a fitted model (FitResult), a ``(model, params)`` pair or a curve
+    (:class:`ResponseCurve`, :class:`ModelCurve`)."""
+    if isinstance(source, (ResponseCurve, ModelCurve)):
         return source
     d = direction_index(direction)
     if isinstance(source, Response):
@@ -214,13 +214,11 @@ def as_curve(source: Any, direction: str | int = "course", lateral: str = "free"
         raise ValueError(f"lateral must be 'free' or 'fixed', got {lateral!r}")
     if isinstance(source, tuple) and len(source) == 2:
         model, params = source
-    elif hasattr(source, "model") and hasattr(source, "params"):
+    elif isinstance(source, FitResult):
         model, params = source.model, source.params
     else:
         raise TypeError(f"cannot make a patchwork region from {type(source).__name__}")
-    return ModelCurve(
-        model, np.asarray(params, dtype=np.float64), d, lateral, label or getattr(model, "name", "")
-    )
+    return ModelCurve(model, np.asarray(params, dtype=np.float64), d, lateral, label or model.name)
 
 
 @attrs.frozen(eq=False)
@@ -272,7 +270,6 @@ class PatchworkResult:
 
 def _chain(curves: Sequence[Any], lengths: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Series chain: tension T (s,) and stretches (s, n) with Σ L_j (λ_j(T) − 1) = u."""
-    from scipy.optimize.elementwise import find_root
 
     def stretches(T):
         return np.stack([c.stretch(T) for c in curves], axis=-1)
@@ -306,22 +303,16 @@ def _chain(curves: Sequence[Any], lengths: np.ndarray, u: np.ndarray) -> tuple[n
             hi = np.where(short, 2.0 * hi, hi)
         else:
             raise NumericalError("series patchwork: no tension reaches the requested stretch")
-        if all(hasattr(c, "slope") for c in curves):
-            # the inner inversions hold λ to ~1e-12, so the tension is asked for to 1e-9 (relative)
-            Tt = bracketed_newton(
-                lambda x: gap_newton(x, ut),
-                np.zeros_like(ut),
-                hi,
-                0.5 * hi,
-                xtol=1e-9,
-                xscale=1e3 * TAUT,
-                increasing=True,
-            )
-        else:  # curves without a slope: derivative-free bracketed search
-            res = find_root(gap, (np.zeros_like(ut), hi), args=(ut,))
-            if not np.all(res.success):
-                raise NumericalError("series patchwork: the equal-tension root search failed")
-            Tt = res.x
+        # the inner inversions hold λ to ~1e-12, so the tension is asked for to 1e-9 (relative)
+        Tt = bracketed_newton(
+            lambda x: gap_newton(x, ut),
+            np.zeros_like(ut),
+            hi,
+            0.5 * hi,
+            xtol=1e-9,
+            xscale=1e3 * TAUT,
+            increasing=True,
+        )
         T[taut] = Tt
         lam[taut] = stretches(Tt)
     return T, lam
@@ -359,7 +350,7 @@ def grid(
         raise ValueError("widths must be > 0")
     rows = [[as_curve(r, direction, lateral) for r in row] for row in regions]
     L = [np.asarray(ls, dtype=np.float64) for ls in lengths]
-    for i, (row, ls) in enumerate(zip(rows, L)):
+    for i, (row, ls) in enumerate(zip(rows, L, strict=False)):
         if len(row) != len(ls) or not row:
             raise ValueError(f"row {i}: {len(row)} regions but {len(ls)} lengths")
         if np.any(ls <= 0):
@@ -375,7 +366,7 @@ def grid(
     lam = np.full((s, len(rows), ncol), np.nan)
     disp = np.full((s, len(rows), max(ncol - 1, 0)), np.nan)
     Trow = np.empty((s, len(rows)))
-    for i, (row, ls) in enumerate(zip(rows, L)):
+    for i, (row, ls) in enumerate(zip(rows, L, strict=False)):
         T, lr = _chain(row, ls, strain * total)
         Trow[:, i] = T
         lam[:, i, : len(row)] = lr

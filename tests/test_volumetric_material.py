@@ -105,7 +105,7 @@ def test_model_without_order_keyword_still_works():
             return self.inner.evaluate(F, a)
 
     inner = TransverseIsotropic(E_axial=200.0, radius=0.2, nu=0.3, E_transverse=5.0)
-    new, old = YarnLaw(inner), YarnLaw(Legacy(inner))
+    new, old = YarnLaw(inner), YarnLaw(Legacy(inner), takes_order=False)
     assert new.takes_order and not old.takes_order
     rng = np.random.default_rng(3)
     F = np.eye(3)[:, :, None, None] + 0.1 * rng.normal(size=(3, 3, 4, 2))

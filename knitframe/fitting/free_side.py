@@ -52,7 +52,7 @@ def solve_free_side(
 
     Parameters
     ----------
-    model : reduced model with ``stress(params, lam1, lam2)`` and ``tangent(params, lam1, lam2)``
+    model : reduced model with ``stress(params, lam1, lam2)`` and ``stress_tangent(params, lam1, lam2)``
     params : (k,) parameters
     lam : (n,) loaded stretch, -
     direction : ``"course"`` or ``"wale"``
@@ -72,11 +72,8 @@ def solve_free_side(
         return model.stress(params, *_pair(d, lam, lf))[1 - d]
 
     def fdf(lf):
-        if hasattr(model, "stress_tangent"):  # one evaluation instead of two
-            P1, P2, K11, _, K22 = model.stress_tangent(params, *_pair(d, lam, lf))
-            return (P2, K22) if d == 0 else (P1, K11)
-        K11, _, K22 = model.tangent(params, *_pair(d, lam, lf))
-        return f(lf), (K22 if d == 0 else K11)
+        P1, P2, K11, _, K22 = model.stress_tangent(params, *_pair(d, lam, lf))  # one evaluation, not two
+        return (P2, K22) if d == 0 else (P1, K11)
 
     one = np.ones_like(lam)
     f1 = f(one)

@@ -4,14 +4,12 @@ result cache, :mod:`knitframe.cache`), and the map of the points through an exec
 
 from __future__ import annotations
 
-import functools
-import inspect
 import socket
 import time
 import warnings
 from typing import Any
 
-from knitframe.cache import JobCache, JobFailure, failure_reason, job_keys
+from knitframe.cache import JobCache, failure_reason, job_keys
 from knitframe.config import instantiate
 from knitframe.errors import KnitframeWarning
 from knitframe.records import Fabric, Scene
@@ -121,27 +119,9 @@ def point_modules(job: dict[str, Any]) -> list[str]:
 run_point.cache_modules = point_modules  # type: ignore[attr-defined]
 
 
-def _keep_failures(fn: Any, job: dict[str, Any]) -> Any:
-    """For an executor without ``failures = "keep"``: a failure as a result."""
-    try:
-        return fn(job)
-    except Exception as e:  # noqa: BLE001 - recorded as the point's reason
-        return JobFailure(failure_reason(e))
-
-
 def map_points(executor: Any, jobs: list[dict[str, Any]], progress: Any) -> list[Any]:
-    """:func:`run_point` of every job through ``executor.map``, in order; a point that raised is a
-    :class:`~knitframe.cache.JobFailure` (its one-line reason) and the others go on."""
-    try:
-        params = inspect.signature(executor.map).parameters
-    except (TypeError, ValueError):
-        params = {}
-    if "failures" in params:
-        kwargs: dict[str, Any] = {"failures": "keep"}
-        if "progress" in params:
-            kwargs["progress"] = progress
-        return list(executor.map(run_point, jobs, **kwargs))
-    return list(executor.map(functools.partial(_keep_failures, run_point), jobs))
+    """The points' results in order, a JobFailure in place of each point that raised."""
+    return list(executor.map(run_point, jobs, failures="keep", progress=progress))
 
 
 def cached_points(executor: Any, jobs: list[dict[str, Any]]) -> tuple[JobCache | None, list[str], list[bool]]:

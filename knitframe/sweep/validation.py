@@ -14,6 +14,7 @@ import numpy as np
 from knitframe import validators as v
 from knitframe.config import instantiate
 from knitframe.errors import ConfigError, DataError, FieldError
+from knitframe.interfaces import DispatchingReader
 from knitframe.records import Response
 from knitframe.report import curve, validate_uniaxial
 from knitframe.schema import build
@@ -85,7 +86,7 @@ def measured_tests(
         key = f"{where}.files[{j}]"
         path = ctx.path(name, key)
         try:
-            read = reader.reader_for(path).read(path) if hasattr(reader, "reader_for") else reader.read(path)
+            read = (reader.reader_for(path) if isinstance(reader, DispatchingReader) else reader).read(path)
         except DataError as e:
             raise ConfigError(key, str(e), source=src) from None
         except OSError as e:

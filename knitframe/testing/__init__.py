@@ -6,8 +6,10 @@ Third-party authors run it on their own plugins::
     check_plugin("pattern", "tuck")          # raises AssertionError explaining what is wrong
 
 The project's own test suite runs :func:`check_plugin` over every registered implementation.
-Kind-specific checks live in submodules (``patterns``, ``models``, ``solvers``); each exposes a
-``CHECKS`` dict that is merged into :data:`CHECKS` here.
+Every plugin is first checked for the members its protocol in :mod:`knitframe.interfaces`
+declares (:func:`~knitframe.testing.members.check_members`); kind-specific checks live in
+submodules (``patterns``, ``models``, ``solvers``), each exposing a ``CHECKS`` dict that is merged
+into :data:`CHECKS` here.
 """
 
 from __future__ import annotations
@@ -22,9 +24,10 @@ import attrs
 import numpy as np
 
 from knitframe import interfaces
-from knitframe.cache import JobCache, job_key
+from knitframe.cache import JobCache, JobFailure, job_key
 from knitframe.plugins import KINDS, Entry, Registry, get_registry
 from knitframe.records import Yarn
+from knitframe.testing.members import check_members
 
 __all__ = ["CHECKS", "PROTOCOLS", "check_plugin", "check_entry", "check_registry", "default_instance"]
 
@@ -54,8 +57,33 @@ def _square(job: dict) -> float:
     return float(job["x"]) ** 2
 
 
+def _square_or_fail(job: dict) -> float:
+    if job["x"] < 0:
+        raise ValueError("negative")
+    return float(job["x"]) ** 2
+
+
 def check_executor(obj: Any) -> None:
-    """Runs jobs in order and reuses cached results instead of recomputing them."""
+    """Runs jobs in order, reuses cached results instead of recomputing them, keeps failures as
+    JobFailures with ``failures = "keep"`` and reports through ``progress``."""
+    calls: list[tuple[float, float]] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        ex = obj(cache_dir=tmp) if attrs.has(obj) else obj
+        try:
+            out = ex.map(
+                _square_or_fail,
+                [{"x": 3}, {"x": -1}],
+                failures="keep",
+                progress=lambda done, total, message: calls.append((done, total)),
+            )
+        except TypeError as e:
+            raise AssertionError(
+                f"map(fn, jobs) must take the keywords failures= and progress=: {e}"
+            ) from None
+    assert out[0] == 9.0 and isinstance(out[1], JobFailure), (
+        f'map(..., failures="keep") must put a JobFailure in place of a failed job, got {out!r}'
+    )
+    assert calls and calls[-1] == (2, 2), f"progress must be told when all jobs are done, got {calls}"
     jobs = [{"x": i} for i in range(4)]
     with tempfile.TemporaryDirectory() as tmp:
         ex = obj(cache_dir=tmp) if attrs.has(obj) else obj
@@ -98,7 +126,7 @@ def check_stage(obj: Any) -> None:
     assert isinstance(obj.order, int), "stage.order must be an int"
     assert isinstance(obj.uses, tuple), "stage.uses must be a tuple of table names"
     assert inspect.ismethod(obj.from_config), "stage.from_config must be a classmethod"
-    assert callable(getattr(obj, "run", None)), "stage.run must be callable"
+    assert callable(obj.run), "stage.run must be callable"
 
 
 def check_yarn(obj: Any) -> None:
@@ -134,17 +162,8 @@ for _mod in ("patterns", "models", "solvers"):
             raise
 
 
-def _protocol_members(proto: type) -> set[str]:
-    members = getattr(proto, "__protocol_attrs__", None)
-    if members is None:  # Python < 3.12
-        import typing
-
-        members = typing._get_protocol_attrs(proto)
-    return set(members)
-
-
 def check_entry(entry: Entry) -> None:
-    """Common contract (name, description, protocol) plus the kind's own check."""
+    """Common contract (name, description, every member its protocol declares) plus the kind's own check."""
     assert entry.kind in KINDS, f"unknown kind {entry.kind}"
     assert isinstance(entry.name, str) and entry.name, "a plugin needs a non-empty name"
     assert entry.description, f"{entry.kind} '{entry.name}' needs a description (ClassVar or docstring)"
@@ -156,8 +175,7 @@ def check_entry(entry: Entry) -> None:
     if proto is not None:
         # stages and yarn models are built from a config / a Yarn, not from defaults
         target = default_instance(obj) if entry.kind not in ("stage", "yarn_model") else obj
-        missing = [m for m in _protocol_members(proto) if not hasattr(target, m)]
-        assert not missing, f"{entry.kind} '{entry.name}' lacks {', '.join(sorted(missing))}"
+        check_members(target, proto, f"{entry.kind} '{entry.name}'")
     if entry.kind == "linear_solver":
         assert callable(obj), "a linear solver is a factory function returning solve(A, b)"
     check = CHECKS.get(entry.kind)

@@ -1,4 +1,7 @@
-"""Conformance checks for linear-solver and contact-law plugins (merged into :data:`knitframe.testing.CHECKS`)."""
+"""Conformance checks for linear-solver and contact-law plugins.
+
+They are merged into :data:`knitframe.testing.CHECKS`.
+"""
 
 from __future__ import annotations
 
@@ -6,6 +9,9 @@ from typing import Any
 
 import attrs
 import numpy as np
+
+from knitframe import interfaces
+from knitframe.testing.members import check_members
 
 __all__ = ["CHECKS", "check_linear_solver", "check_contact_law"]
 
@@ -21,10 +27,11 @@ def _laplacian_3d(n: int):
 
 
 def check_linear_solver(factory: Any) -> None:
-    """A factory with default options returns ``solve(A, b)`` that solves SPD systems of several sizes to 1e-6."""
+    """A factory with default options returns ``solve(A, b)`` that solves SPD systems of several sizes
+    to 1e-6; its declared ``factorize`` (None, or factors that solve as ``solve`` does and can be freed)."""
     assert callable(factory), "a linear solver is a factory function returning solve(A, b)"
     solve = factory()
-    assert callable(solve), "the factory must return a callable solve(A, b)"
+    check_members(solve, interfaces.LinearSolve, "the factory's solve(A, b)")
     rng = np.random.default_rng(0)
     for n in (3, 8):
         A = _laplacian_3d(n)
@@ -37,21 +44,20 @@ def check_linear_solver(factory: Any) -> None:
     # a zero right-hand side must give zero, not NaN
     x0 = np.asarray(solve(_laplacian_3d(3), np.zeros(27)))
     assert np.allclose(x0, 0.0), "solve(A, 0) must return 0"
+    if solve.factorize is not None:
+        assert callable(solve.factorize), "solve.factorize must be None or callable"
+        A = _laplacian_3d(4)
+        f = solve.factorize(A)
+        check_members(f, interfaces.Factors, "solve.factorize(A)")
+        for _ in range(2):  # the kept factors serve several right-hand sides
+            x_true = rng.standard_normal(A.shape[0])
+            err = np.linalg.norm(np.asarray(f(A @ x_true)) - x_true) / np.linalg.norm(x_true)
+            assert err < 1e-6, f"factorize(A)(b): relative error {err:.3g}"
+        f.free()
 
 
-def check_contact_law(obj: Any) -> None:
-    """Declares its discretisation; a rod law's energy is zero beyond contact, repulsive, C¹ and stiffening.
-
-    For ``discretisation == "rod"``: ``normal(d, dk, k) -> (e, e', e'')`` vectorised over centre
-    distances d; e = 0 for d ≥ dk, e ≥ 0, the force −e′ ≥ 0 grows as d shrinks, e′ and e″
-    match finite differences, and nothing is NaN.
-    """
-    inst = obj() if isinstance(obj, type) and attrs.has(obj) else obj
-    disc = getattr(inst, "discretisation", None)
-    assert disc in ("rod", "solid"), f"contact law discretisation must be 'rod' or 'solid', got {disc!r}"
-    if disc != "rod":
-        return
-    assert callable(getattr(inst, "normal", None)), "a rod contact law needs normal(d, dk, k) -> (e, de, d2e)"
+def _check_rod_law(inst: Any) -> None:
+    """A rod law's energy is zero beyond contact, repulsive, C¹ and stiffening; friction is finite."""
     dk, k = 0.4, 2.0
     d = np.linspace(0.62 * dk, 1.5 * dk, 301)
     e, e1, e2 = (np.asarray(a, dtype=np.float64) for a in inst.normal(d, dk, k))
@@ -75,6 +81,40 @@ def check_contact_law(obj: Any) -> None:
     scale2 = np.abs(e2).max() + 1e-30
     assert np.abs(fd1 - e1).max() < 1e-5 * scale1, "de/dd does not match finite differences of e"
     assert np.abs(fd2 - e2).max() < 1e-4 * scale2, "d2e/dd2 does not match finite differences of de/dd"
+    u = np.array([[0.0, 0.0, 0.0], [1e-4, 0.0, 0.0], [0.1, 0.05, 0.0]])
+    D, gD, HD = (np.asarray(a, dtype=np.float64) for a in inst.friction_potential(u, np.ones(3), dk))
+    assert D.shape == (3,) and gD.shape == (3, 3) and HD.shape == (3, 3, 3), (
+        "friction_potential must return D (m,), its gradient (m, 3) and Hessian (m, 3, 3)"
+    )
+    assert np.all(np.isfinite(D)) and np.all(D >= 0), "the friction potential must be finite and >= 0"
+
+
+def _check_solid_law(inst: Any) -> None:
+    """A solid law's penalty is positive and grows with the modulus (unless the stiffness is given);
+    ``finishes_strain`` is None or a positive strain."""
+    eps = inst.penalty(5.0, 0.1)
+    assert np.isfinite(eps) and eps > 0, f"penalty(E, h) must be a positive stiffness, got {eps!r}"
+    if inst.stiffness is None:
+        assert inst.penalty(10.0, 0.1) > eps, "without a given stiffness the penalty must grow with E"
+    fs = inst.finishes_strain
+    assert fs is None or 0 < fs, f"finishes_strain must be None or a positive strain, got {fs!r}"
+
+
+def check_contact_law(obj: Any) -> None:
+    """Declares its discretisation and every member of its protocol, then the checks of its kind.
+
+    For ``discretisation == "rod"`` (:class:`~knitframe.interfaces.RodContactLaw`):
+    ``normal(d, dk, k) -> (e, e', e'')`` vectorised over centre distances d; e = 0 for d ≥ dk,
+    e ≥ 0, the force −e′ ≥ 0 grows as d shrinks, e′ and e″ match finite differences, and nothing
+    is NaN; ``friction_potential`` is finite. For ``"solid"``
+    (:class:`~knitframe.interfaces.SolidContactLaw`): a positive penalty stiffness.
+    """
+    inst = obj() if isinstance(obj, type) and attrs.has(obj) else obj
+    disc = inst.discretisation
+    assert disc in ("rod", "solid"), f"contact law discretisation must be 'rod' or 'solid', got {disc!r}"
+    proto = interfaces.RodContactLaw if disc == "rod" else interfaces.SolidContactLaw
+    check_members(inst, proto, f"{disc} contact law '{inst.name}'")
+    (_check_rod_law if disc == "rod" else _check_solid_law)(inst)
 
 
 CHECKS = {"linear_solver": check_linear_solver, "contact_law": check_contact_law}

@@ -83,6 +83,12 @@ class SolidIPC:
         "CCD line search (solid)"
     )
     discretisation: ClassVar[str] = "solid"
+    #: a barrier: infinite energy at touching surfaces, each step bounded by :meth:`step_limit`
+    barrier: ClassVar[bool] = True
+    #: evaluate keeps its own broad-phase candidates (a Verlet list), it takes none
+    holds_candidates: ClassVar[bool] = False
+    #: no load strain limit: no signed gap's pairing to switch
+    finishes_strain: ClassVar[float | None] = None
 
     #: ε, N/mm³; default factor·E/h
     stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))
@@ -109,6 +115,10 @@ class SolidIPC:
         """Penalty stiffness ε (N/mm³): ``stiffness``, else ``factor`` · E / h (converted to κ per
         surface)."""
         return float(self.stiffness) if self.stiffness is not None else self.factor * modulus / size
+
+    def master_normals(self, surface, x: np.ndarray | None = None) -> None:
+        """None: the barrier acts on the flat facets, no smoothed master surface."""
+        return None
 
     def _setup(self, surface, stiffness: float):
         ipctk = ipctk_module()

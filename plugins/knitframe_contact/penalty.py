@@ -70,6 +70,10 @@ class SolidContactLaw:
     #: pairing switches where yarns slide and the path stalls (13-23 %, docs/validation.md); a config
     #: asking for more is refused before any work (VolumetricSolver.check_law_reach)
     finishes_strain: ClassVar[float | None] = 0.10
+    #: a signed-gap penalty, not a barrier: no collision check bounds the steps
+    barrier: ClassVar[bool] = False
+    #: evaluate takes the search's ``candidates``, held through a line search
+    holds_candidates: ClassVar[bool] = True
 
     #: ε, N/mm³; default factor·E/h
     stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))
@@ -197,6 +201,10 @@ class SolidContactLaw:
         """Penalty stiffness ε (N/mm³) for contact modulus E (MPa) and element size h (mm): the given
         ``stiffness``, else ``factor`` · E / h."""
         return float(self.stiffness) if self.stiffness is not None else self.factor * modulus / size
+
+    def step_limit(self, surface, x, h, dx, dh, *, stiffness: float) -> float:
+        """1.0: a penalty admits any step (the solver asks only a ``barrier`` law)."""
+        return 1.0
 
 
 @attrs.frozen

@@ -64,6 +64,8 @@ class HGO2M:
     units: ClassVar[tuple[str, ...]] = ("N/mm", "N/mm", "N/mm", "N/mm", "-", "N/mm", "-")
     log_scale: ClassVar[tuple[bool, ...]] = (True,) * 7
     predicts_lateral: ClassVar[bool] = True
+    #: no bound is a symmetry plane of the model
+    symmetric_bounds: ClassVar[tuple[bool, ...]] = (False,) * 7
 
     #: no format of :mod:`knitframe.export` can hold this model (:attr:`card_refusal` says why)
     card_formats: ClassVar[tuple[str, ...]] = ()
@@ -143,6 +145,10 @@ class HGO2M:
         k11 = mu1 * (1.0 + i1) + 0.5 * K * (l2 * l2 + i1) + 4.0 * l1 * l1 * h1 + 2.0 * g1
         k22 = mu2 * (1.0 + i2) + 0.5 * K * (l1 * l1 + i2) + 4.0 * l2 * l2 * h2 + 2.0 * g2
         return P1, P2, k11, K * l1 * l2, k22
+
+    def free_side_slack(self, params, direction="course") -> float:
+        """1.0: the membrane carries tension from the start, so a free side never goes slack."""
+        return 1.0
 
     def solve_uniaxial(self, params, lam, direction="course"):
         """Free-side stretch (the unique root of P_free = 0) and loaded tension: ``(lam_free, P_loaded)``."""

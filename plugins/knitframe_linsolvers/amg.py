@@ -95,6 +95,8 @@ def amg(
             )
         return x
 
+    # an iterative solver keeps no factors to reuse (the LinearSolve protocol's optional capability)
+    solve.factorize = None
     return solve
 
 

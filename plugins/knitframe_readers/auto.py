@@ -1,11 +1,12 @@
 """Reader ``auto``: each file is read by the reader whose expected header it has.
 
-Every installed reader that offers ``accepts(header) -> bool`` is asked about the file's header
-row (the first line after the ``#`` comments). The Singal et al. files (``video, frame,
-strain_axial, …``) go to ``singal2024``, files with ``strain``/``stretch`` and a load column to
-``generic``; a more specific reader wins over ``generic`` when both accept. A header no reader
-accepts is one DataError line listing the columns each reader expects. Readers without
-``accepts`` are listed as "select by name".
+Every installed reader that recognises its files by their header
+(:class:`~knitframe.interfaces.HeaderReader`: ``accepts(header) -> bool`` and ``expects``) is asked
+about the file's header row (the first line after the ``#`` comments). The Singal et al. files
+(``video, frame, strain_axial, …``) go to ``singal2024``, files with ``strain``/``stretch`` and a
+load column to ``generic``; a more specific reader wins over ``generic`` when both accept. A
+header no reader accepts is one DataError line listing the columns each reader expects. Other
+readers are listed as "select by name".
 """
 
 from __future__ import annotations
@@ -19,10 +20,16 @@ from knitframe import hookimpl
 from knitframe import validators as v
 from knitframe.csvio import read_table
 from knitframe.errors import DataError
+from knitframe.interfaces import HeaderReader
 from knitframe.records import Response
 
 #: the fallback reader: chosen only when no more specific reader accepts the header
 FALLBACK = "generic"
+
+
+def _expects(reader: Any) -> str | None:
+    """The header a reader declares it reads, or None for a reader chosen by name only."""
+    return reader.expects if isinstance(reader, HeaderReader) else None
 
 
 @attrs.frozen
@@ -40,7 +47,8 @@ class AutoReader:
     points: int | None = attrs.field(default=None, validator=v.optional(v.in_range(2, 100000)))
 
     def detect(self, path: Path) -> str:
-        """Name of the reader for ``path``; a header no reader accepts is a DataError listing what each expects."""
+        """Name of the reader for ``path``; a header no reader accepts is a DataError listing what each
+        expects."""
         from knitframe.plugins import get_registry
 
         table = read_table(path, need_rows=False)
@@ -49,13 +57,13 @@ class AutoReader:
             n
             for n in readers
             if n != self.name
-            and callable(getattr(readers[n], "accepts", None))
+            and isinstance(readers[n], HeaderReader)
             and readers[n].accepts(list(table.header))
         ]
         if matches:
             return sorted(matches, key=lambda n: (n == FALLBACK, n))[0]
         expected = "; ".join(
-            f"{n}: {getattr(readers[n], 'expects', None) or 'its own format (select it by name)'}"
+            f"{n}: {_expects(readers[n]) or 'its own format (select it by name)'}"
             for n in readers
             if n != self.name
         )

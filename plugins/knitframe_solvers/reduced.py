@@ -50,6 +50,9 @@ class ReducedSolver:
     )
     #: cheap enough for the conformance kit to simulate with default options
     conformance_simulate: ClassVar[bool] = True
+    #: one evaluation: nothing to checkpoint, no VTU files
+    checkpoints: ClassVar[bool] = False
+    writes_vtu: ClassVar[bool] = False
 
     #: homogenizer name, or a table with ``kind`` and its options
     model: str | dict[str, Any] = "hgo"
@@ -104,6 +107,9 @@ class ReducedSolver:
         except FieldError as e:
             raise ConfigError(f"{where}.{e.field}", e.problem) from None
         return model, params
+
+    def validate(self, fabric: Any, scene, registry=None) -> None:
+        """Nothing to check for a fabric and scene: the model has no geometry, contact law or yarn law."""
 
     def simulate(self, fabric: Any, scene, *, progress=None) -> Response:
         t0 = time.perf_counter()

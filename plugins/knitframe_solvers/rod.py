@@ -131,6 +131,11 @@ class RodSolver:
     loads: ClassVar[frozenset[str]] = frozenset(
         {"equibiaxial", "uniaxial-course", "uniaxial-wale", "general"}
     )
+    #: simulate takes checkpoint_dir (every converged step, for --resume) and output_dir (VTU files)
+    checkpoints: ClassVar[bool] = True
+    writes_vtu: ClassVar[bool] = True
+    #: minutes per run: the conformance kit does not simulate it
+    conformance_simulate: ClassVar[bool] = False
 
     #: rod segments per stitch of yarn; unset: segments no longer than dk/2 (at least 16), -
     segments_per_stitch: int | None = attrs.field(default=None, validator=v.optional(v.in_range(4, 1000)))
@@ -198,7 +203,7 @@ class RodSolver:
             v.near_own("EI", self.EI, own["EI"], "N·mm²")
             for key, value in (
                 ("contact_stiffness", self.contact_stiffness),
-                ("contact_law.stiffness", getattr(law, "stiffness", None)),
+                ("contact_law.stiffness", law.stiffness),
             ):
                 v.near_own(key, value, own["k_line"], "N/mm²")
         except FieldError as e:
@@ -222,13 +227,13 @@ class RodSolver:
         d_min = float(energy.pairs(q).distance.min(initial=cell.dk))
         return (
             f"rod: the knitted centerlines overlap (closest centre distance {d_min:.4g} mm < "
-            f"{getattr(energy.law, 'core', 0) * cell.dk:.4g} mm); add 'prestress' to scene.effects"
+            f"{energy.law.core * cell.dk:.4g} mm); add 'prestress' to scene.effects"
         )
 
     def make_contact_law(self, registry=None) -> Any:
         """The rod contact law named by ``contact_law``; ConfigError if it is unknown or not for rods."""
         law = instantiate(registry or get_registry(), "contact_law", self.contact_law, "solver.contact_law")
-        if getattr(law, "discretisation", None) != "rod":
+        if law.discretisation != "rod":
             raise ConfigError(
                 "solver.contact_law", f"contact law '{law.name}' is for '{law.discretisation}', not rods"
             )

@@ -42,7 +42,6 @@ on the unit-cell run skeleton :class:`knitframe.numerics.cellrun.CellRun`; the d
 from __future__ import annotations
 
 import hashlib
-import inspect
 import json
 import time
 from pathlib import Path
@@ -82,6 +81,11 @@ class VolumetricSolver:
     loads: ClassVar[frozenset[str]] = frozenset(
         {"equibiaxial", "uniaxial-course", "uniaxial-wale", "general"}
     )
+    #: simulate takes checkpoint_dir (every converged step, for --resume) and output_dir (VTU files)
+    checkpoints: ClassVar[bool] = True
+    writes_vtu: ClassVar[bool] = True
+    #: minutes per run: the conformance kit does not simulate it
+    conformance_simulate: ClassVar[bool] = False
 
     #: polynomial order of the tetrahedra (1 or 2), -
     order: int = attrs.field(default=2, validator=v.in_range(1, 2))
@@ -247,7 +251,7 @@ class VolumetricSolver:
             damping,
         )
         model.friction = law is not None and "friction" in scene.effects
-        model.barrier = law is not None and hasattr(law, "step_limit")
+        model.barrier = law is not None and law.barrier
         model.hold_candidates = self.holds_candidates(law)
         return model
 
@@ -268,17 +272,15 @@ class VolumetricSolver:
         self.holds_candidates(law if "contact" in scene.effects else None)
         try:
             v.near_own("contact_modulus", self.contact_modulus, fabric.yarn.E_transverse, "MPa")
-            if hasattr(
-                law, "penalty"
-            ):  # the penalty the run will use, against the law's default for this yarn
-                h = self.seed * 0.5 * fabric.yarn.dk
-                key = "stiffness" if getattr(law, "stiffness", None) is not None else "factor"
-                v.near_own(
-                    f"contact_law.{key}",
-                    law.penalty(self.contact_modulus or fabric.yarn.E_transverse, h),
-                    type(law)().penalty(fabric.yarn.E_transverse, h),
-                    "N/mm³ penalty",
-                )
+            # the penalty the run will use, against the law's default for this yarn
+            h = self.seed * 0.5 * fabric.yarn.dk
+            key = "stiffness" if law.stiffness is not None else "factor"
+            v.near_own(
+                f"contact_law.{key}",
+                law.penalty(self.contact_modulus or fabric.yarn.E_transverse, h),
+                type(law)().penalty(fabric.yarn.E_transverse, h),
+                "N/mm³ penalty",
+            )
         except FieldError as e:
             raise ConfigError(f"solver.{e.field}", e.problem) from None
         self.check_law_reach(law, scene)
@@ -325,7 +327,7 @@ class VolumetricSolver:
         cells its pairing switches where yarns slide, and no run has finished past 10 % strain
         (the paths stall between 13 and 23 %; docs/validation.md). ``ipc`` has no such limit.
         """
-        limit = getattr(law, "finishes_strain", None)
+        limit = law.finishes_strain
         if limit is None or "contact" not in scene.effects:
             return
         _, lam1, lam2 = scene.load.stretches()
@@ -340,7 +342,7 @@ class VolumetricSolver:
     def make_contact_law(self, registry=None) -> Any:
         """The solid contact law named by ``contact_law``; ConfigError if it is unknown or not for solids."""
         law = instantiate(registry or get_registry(), "contact_law", self.contact_law, "solver.contact_law")
-        if getattr(law, "discretisation", None) != "solid":
+        if law.discretisation != "solid":
             raise ConfigError(
                 "solver.contact_law",
                 f"contact law '{law.name}' is for '{law.discretisation}', not solid meshes",
@@ -350,15 +352,12 @@ class VolumetricSolver:
     def holds_candidates(self, law: Any) -> bool:
         """Whether the contact candidates are held through each Newton iteration's line search.
 
-        They are with ``contact_search = "iteration"`` and a law that takes them; then ``max_step``
-        must be at most half the reach (ConfigError otherwise): two nodes each moving max_step
-        could close a gap wider than the reach within one step.
+        They are with ``contact_search = "iteration"`` and a law that takes them (its
+        ``holds_candidates`` flag); then ``max_step`` must be at most half the reach (ConfigError
+        otherwise): two nodes each moving max_step could close a gap wider than the reach within
+        one step.
         """
-        held = (
-            self.contact_search == "iteration"
-            and law is not None
-            and "candidates" in inspect.signature(law.evaluate).parameters
-        )
+        held = self.contact_search == "iteration" and law is not None and law.holds_candidates
         if held and self.max_step > 0.5 * self.reach:
             raise ConfigError(
                 "solver.max_step",

@@ -64,16 +64,6 @@ def _inv_det(F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return c / np.where(J == 0, 1.0, J), J
 
 
-def _accepts_order(model: Any) -> bool:
-    """True if ``model.evaluate`` has an ``order`` parameter (older third-party models compute everything)."""
-    import inspect
-
-    try:
-        return "order" in inspect.signature(model.evaluate).parameters
-    except (TypeError, ValueError):
-        return False
-
-
 @attrs.frozen
 class YarnLaw:
     """A yarn model's solid law on skfem-shaped arrays: F (3, 3, n_el, n_qp), fibres a (3, n_el, n_qp).
@@ -84,12 +74,11 @@ class YarnLaw:
     states instead of raising, so line searches can back off.
     """
 
-    #: yarn model plugin instance with ``evaluate``
+    #: yarn model plugin instance with ``evaluate`` (:class:`~knitframe.interfaces.YarnModel`)
     model: Any
-    #: whether ``model.evaluate`` takes ``order`` (read once from its signature, not per call)
-    takes_order: bool = attrs.field(
-        init=False, default=attrs.Factory(lambda self: _accepts_order(self.model), takes_self=True)
-    )
+    #: ``model.evaluate`` takes ``order``, as the YarnModel protocol declares; False for a model
+    #: written before it did (it computes everything)
+    takes_order: bool = True
 
     @classmethod
     def from_yarn(cls, yarn: Any, registry: Any = None) -> YarnLaw:
@@ -188,7 +177,8 @@ class SolidForms:
     Parameters
     ----------
     mesh : skfem.MeshTet1 or skfem.MeshTet2.
-    law : a material with ``energy``, ``stress`` and ``tangent`` of (F, a), e.g. :class:`YarnLaw`.
+    law : a material with ``energy(F, a)``, ``stress(F, a)`` and ``evaluate(F, a, order)`` giving
+        (Ψ, P, A) at once, e.g. :class:`YarnLaw`.
     node_tangent : (N, 3) fibre direction at each node (N = vertices for P1, vertices + edges
         for P2); None gives a fixed x fibre (only meaningful for isotropic laws).
     node_offset : (N, 3) offset of each node from its yarn's centerline (mm), for the pre-stress
@@ -408,14 +398,7 @@ class SolidForms:
             if s != 1.0:
                 Ti, Jt = self._eigen(s, sl)
                 F = np.einsum("iMeq,MJeq->iJeq", F, Ti)
-            if hasattr(self.law, "evaluate"):
-                Psi, P, A = self.law.evaluate(F, a, order)
-            else:
-                Psi, P, A = (
-                    self.law.energy(F, a),
-                    self.law.stress(F, a),
-                    self.law.tangent(F, a) if order == 2 else None,
-                )
+            Psi, P, A = self.law.evaluate(F, a, order)
             W = float(np.sum(Jt * Psi * self.dx[sl]))
             if Ti is not None:
                 P = Jt * np.einsum("iMeq,JMeq->iJeq", P, Ti)

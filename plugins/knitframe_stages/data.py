@@ -3,7 +3,8 @@
 ::
 
     [data]
-    reader = "auto"                  # chosen from each file's header; or "singal2024", { kind = "generic", average = false }
+    reader = "auto"     # chosen from each file's header; or "singal2024",
+                        # or { kind = "generic", average = false }
     files = ["cotton-stockinette-x.csv"]
 
 Writes ``responses.csv`` and ``responses.png``.
@@ -18,6 +19,7 @@ import attrs
 from knitframe import hookimpl
 from knitframe.config import PluginSpec, instantiate
 from knitframe.errors import ConfigError, FieldError
+from knitframe.interfaces import DispatchingReader
 from knitframe.records import Response
 from knitframe.report import plot_responses, write_responses_csv
 from knitframe.schema import build
@@ -60,7 +62,7 @@ class DataStage:
         chosen: list[str] = []
         for i, f in enumerate(table.files):
             path = ctx.path(f, f"data.files[{i}]")
-            if hasattr(reader, "reader_for"):  # the auto reader: record which reader each file got
+            if isinstance(reader, DispatchingReader):  # the auto reader: record which reader each file got
                 file_reader = reader.reader_for(path)
                 chosen.append(file_reader.name)
                 responses.extend(file_reader.read(path))

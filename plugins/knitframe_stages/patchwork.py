@@ -42,6 +42,7 @@ from knitframe.config import PluginSpec
 from knitframe.errors import ConfigError, FieldError, KnitframeError
 from knitframe.fitting import FitResult
 from knitframe.patchwork import grid
+from knitframe.records import Response
 from knitframe.report import plot_responses
 from knitframe.schema import build
 
@@ -198,7 +199,7 @@ class PatchworkStage:
         response = res.to_response(t.direction, label=f"patchwork ({t.mode})")
         ctx.responses.append(response)
         self._write_csv(ctx.output("patchwork.csv"), res, names)
-        curves = [r for r in src.values() if hasattr(r, "loaded_direction")]
+        curves = [r for r in src.values() if isinstance(r, Response)]
         plot_responses(ctx.output("patchwork.png"), [*curves, response], title=f"patchwork ({t.mode})")
         ctx.results[self.name] = {
             "mode": t.mode,
@@ -264,7 +265,7 @@ def _check_free_side(table: PatchworkTable, files: dict[str, FitResult], config,
                 continue  # the [fit] stage names an unknown model itself
         else:
             continue
-        if not getattr(model, "predicts_lateral", True):
+        if not model.predicts_lateral:
             origin = " (the [fit] default)" if default else ""
             raise ConfigError(
                 "patchwork.lateral",

@@ -16,15 +16,15 @@
     load = { kind = "equibiaxial", max_strain = 0.3, steps = 10 }
 
 The scene's effects and load are checked against the solver before any work, the fabric's cell is
-built once to refuse dimensions no stitch can have, and a solver with a ``validate(fabric, scene,
-registry)`` method makes its own checks (plugins by name, yarn model) then too. Writes
-``simulated.csv`` and ``simulated.png`` (and ``vtu/`` when the scene's outputs include "vtu");
-every converged step is checkpointed so ``knitframe run --resume`` continues a killed run.
+built once to refuse dimensions no stitch can have, and the solver's ``validate(fabric, scene,
+registry)`` makes its own checks (plugins by name, yarn model) then too. Writes ``simulated.csv``
+and ``simulated.png`` (and ``vtu/`` when the scene's outputs include "vtu" and the solver
+``writes_vtu``); a solver that declares ``checkpoints`` checkpoints every converged step, so
+``knitframe run --resume`` continues a killed run.
 """
 
 from __future__ import annotations
 
-import inspect
 from typing import Any, ClassVar
 
 import attrs
@@ -43,17 +43,11 @@ from knitframe.yarns import config_yarns, resolve_yarn
 
 @attrs.frozen
 class SolverTable:
-    """Schema of the ``[solver]`` table: ``kind`` names the solver plugin; every other key is one of its options."""
+    """Schema of the ``[solver]`` table: ``kind`` names the solver plugin; every other key is one of its
+    options."""
 
     #: solver plugin name (see "Plugin options" → solver)
     kind: str = "rod"
-
-
-def _accepts(fn, name: str) -> bool:
-    try:
-        return name in inspect.signature(fn).parameters
-    except (TypeError, ValueError):
-        return False
 
 
 @attrs.frozen
@@ -105,16 +99,12 @@ class SimulateStage:
         except ConfigError as e:
             raise ConfigError(e.path, e.problem, source=src) from None
         scenes = _scenes(config.get("scene", {}), src)
-        validate = getattr(solver, "validate", None)
         for scene in scenes:
             require_effects(scene, solver, ctx.registry, name=spec.kind)
-            if validate is not None:
-                try:
-                    validate(
-                        fabric, scene, ctx.registry
-                    )  # the solver's own checks: plugins by name, yarn model ...
-                except ConfigError as e:
-                    raise ConfigError(e.path, e.problem, source=src) from None
+            try:  # the solver's own checks: plugins by name, yarn model ...
+                solver.validate(fabric, scene, ctx.registry)
+            except ConfigError as e:
+                raise ConfigError(e.path, e.problem, source=src) from None
         return cls(spec.kind, solver, fabric, scenes[0], tuple(scenes))
 
     def run(self, ctx) -> None:
@@ -168,12 +158,10 @@ class SimulateStage:
                 + (f" {scene.load.response_kind}" if several else "")
             )
             kwargs["progress"] = bar
-        if _accepts(self.solver.simulate, "checkpoint_dir"):
-            kwargs["checkpoint_dir"] = ctx.checkpoint_dir(
-                "simulate"
-            )  # checkpoints are keyed by fabric and scene
+        if self.solver.checkpoints:
+            kwargs["checkpoint_dir"] = ctx.checkpoint_dir("simulate")  # keyed by fabric and scene
         vtu = "vtu" + (f"/{scene.load.response_kind}" if several else "")
-        if "vtu" in scene.outputs and _accepts(self.solver.simulate, "output_dir"):
+        if "vtu" in scene.outputs and self.solver.writes_vtu:
             kwargs["output_dir"] = ctx.out / vtu
         try:
             response = self.solver.simulate(self.fabric, scene, **kwargs)
