@@ -26,7 +26,7 @@ def predict(result: FitResult, response: Response) -> Response:
     """
     d = response.loaded_direction
     lam1, lam2 = response.lambda1, response.lambda2
-    if d is not None and getattr(result.model, "predicts_lateral", False):
+    if d is not None and result.model.predicts_lateral:
         lam_load = (lam1, lam2)[d]
         lf, _ = result.solve_uniaxial(lam_load, d)
         lam1, lam2 = _pair(d, lam_load, lf)
@@ -76,7 +76,7 @@ def plot_fit(path: Path, result: FitResult, responses: Sequence[Response], *, ti
             bx.plot(strain[o], lat[o], color=c, lw=1.2)
             if sd is not None:
                 bx.fill_between(strain[o], (lat - sd)[o], (lat + sd)[o], color=c, alpha=0.2, lw=0)
-            if getattr(result.model, "predicts_lateral", False):
+            if result.model.predicts_lateral:
                 plat = (pred.lambda1, pred.lambda2)[1 - d] - 1
                 bx.plot(strain[o], plat[o], "k-", lw=1.0)
     ax.plot([], [], "k-", lw=1.0, label=f"fitted {result.model.name}")

@@ -51,7 +51,7 @@ class FitProblem:
         if not self.responses:
             raise ConfigError("fit", "no responses to fit")
         self.transverse_weight = float(transverse_weight)
-        self.lateral = bool(getattr(model, "predicts_lateral", False))
+        self.lateral = bool(model.predicts_lateral)
         self.n_evals = 0
         self._guess: dict[int, np.ndarray] = {}
         self.blocks = [self._block(i, r) for i, r in enumerate(self.responses)]

@@ -139,7 +139,7 @@ class UnitBox:
     def __init__(self, model: Any):
         lo, hi = (np.asarray(v, dtype=np.float64) for v in model.bounds())
         self.lo, self.hi = lo, hi
-        self.log = np.asarray(getattr(model, "log_scale", (False,) * len(lo)), dtype=bool)
+        self.log = np.asarray(model.log_scale, dtype=bool)
         if np.any(self.log & (lo <= 0)):
             raise ValueError("log-scaled parameters need a positive lower bound")
         self.span = np.array(
@@ -198,7 +198,7 @@ def at_bound(model: Any, params: np.ndarray) -> tuple[tuple[str, ...], str]:
     u = box.to_unit(params)
     lo, hi = model.bounds()
     shown = params_to_json(model.param_names, params)
-    symmetric = getattr(model, "symmetric_bounds", (False,) * len(u))
+    symmetric = model.symmetric_bounds
     names, parts = [], []
     for k, (n, key) in enumerate(zip(model.param_names, shown, strict=False)):
         side = "lower" if u[k] <= AT_BOUND else "upper" if u[k] >= 1.0 - AT_BOUND else None

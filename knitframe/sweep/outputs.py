@@ -68,7 +68,7 @@ def plot_params(
     keys = list(params_to_json(model.param_names, [0.0] * len(model.param_names)))
     # a point compared with measured tests may be done without a fit (its fit failed): nothing to draw
     done = [r for r in rows if r["status"] == "done" and all(r[k] not in ("", None) for k in keys)]
-    log = list(getattr(model, "log_scale", (False,) * len(keys)))
+    log = list(model.log_scale)
     by_sl = all(r["stitch_length"] not in (None, "") for r in done)
     xkey, xlabel = (
         ("stitch_length", "stitch length (machine setting)")

@@ -225,9 +225,8 @@ class VolumetricModel:
         self.friction_state = None
         self.held = None
         x = self.cm.nodes + self.u0.reshape(-1, 3)
-        # laws without a smoothed master surface (or without the method, from other packages) get none
-        frozen = getattr(self.law, "master_normals", None)
-        self.normals = None if frozen is None else frozen(self.surface, x)
+        # no contact, or a law without a smoothed master surface: no frozen normals
+        self.normals = None if self.law is None else self.law.master_normals(self.surface, x)
         if self.friction:
             self.friction_state = self.law.friction_state(
                 self.surface, x, q0[-N_MACRO:], stiffness=self.stiffness, reach=self.reach, **self._normals()

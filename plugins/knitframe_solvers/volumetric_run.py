@@ -131,13 +131,13 @@ class VolumetricRun:
             return wrapper
 
         solve = timed(backend, True)
-        if self.chord and model.barrier and not model.hold_candidates and hasattr(backend, "factorize"):
+        if self.chord and model.barrier and not model.hold_candidates and backend.factorize is not None:
             # chord steps reuse a factorisation: each back-substitution counts as a linear solve, the
             # factorisation's time goes with them
             def factorize(A):
                 kept = timed(backend.factorize, False)(A)
                 apply = timed(kept, True)
-                apply.free = getattr(kept, "free", lambda: None)
+                apply.free = kept.free
                 return apply
 
             solve.factorize = factorize
