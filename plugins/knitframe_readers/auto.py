@@ -49,7 +49,7 @@ class AutoReader:
     def detect(self, path: Path) -> str:
         """Name of the reader for ``path``; a header no reader accepts is a DataError listing what each
         expects."""
-        from knitframe.plugins import get_registry
+        from knitframe import get_registry
 
         table = read_table(path, need_rows=False)
         readers = get_registry()["reader"]
@@ -75,8 +75,8 @@ class AutoReader:
 
     def reader_for(self, path: Path) -> Any:
         """The chosen reader for ``path``, built with this reader's ``average`` and ``points``."""
+        from knitframe import get_registry
         from knitframe.config import instantiate
-        from knitframe.plugins import get_registry
 
         reg = get_registry()
         name = self.detect(path)

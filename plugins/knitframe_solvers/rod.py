@@ -70,12 +70,11 @@ from typing import Any, ClassVar, Literal
 import attrs
 import numpy as np
 
-from knitframe import hookimpl
+from knitframe import get_registry, hookimpl
 from knitframe import validators as v
 from knitframe.config import instantiate
 from knitframe.errors import ConfigError, FieldError
 from knitframe.geometry import unit_cell
-from knitframe.plugins import get_registry
 from knitframe.records import Fabric, Response, Scene
 from knitframe.yarns import yarn_model
 from knitframe_solvers.rod_contact import line_energy

@@ -20,13 +20,13 @@ import attrs
 import numpy as np
 import scipy.sparse as sp
 
+from knitframe import get_registry
 from knitframe.config import instantiate
 from knitframe.errors import NumericalError
 from knitframe.numerics.cellrun import CellRun
 from knitframe.numerics.continuation import StepCheckpoints, continuation
 from knitframe.numerics.newton import NewtonOptions, NewtonResult, minimise
 from knitframe.numerics.periodic import macro_index
-from knitframe.plugins import get_registry
 from knitframe.records import Fabric, Response, Scene
 from knitframe_solvers.rod_branches import CUT_RATIO, flag_jumps, is_jump
 from knitframe_solvers.rod_model import write_rod_vtu

@@ -83,7 +83,7 @@ class YarnLaw:
     @classmethod
     def from_yarn(cls, yarn: Any, registry: Any = None) -> YarnLaw:
         """Law of the yarn model named by ``yarn.model``, parameterised by the Yarn record."""
-        from knitframe.plugins import get_registry
+        from knitframe import get_registry
 
         reg = registry or get_registry()
         return cls(reg["yarn_model"][yarn.model].from_yarn(yarn))

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 import attrs
 import numpy as np
 
+from knitframe import get_registry
 from knitframe.config import instantiate
 from knitframe.errors import NumericalError
 from knitframe.numerics.cellrun import CellRun
@@ -24,7 +25,6 @@ from knitframe.numerics.continuation import StepCheckpoints
 from knitframe.numerics.memory import retain_freed_memory
 from knitframe.numerics.newton import NewtonOptions, NewtonResult, minimise
 from knitframe.numerics.periodic import N_MACRO, macro_index
-from knitframe.plugins import get_registry
 from knitframe.records import Fabric, Response, Scene
 from knitframe_solvers.volumetric_model import write_solid_vtu
 
