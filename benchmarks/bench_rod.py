@@ -1,8 +1,8 @@
 """Rod solver benchmark and science sweep.
 
-    python benchmarks/bench_rod.py                     # pre-stress + equibiaxial 0→30 %, jersey SL11 cotton
-    python benchmarks/bench_rod.py --cli               # ... and the same through `knitframe run`
-    python benchmarks/bench_rod.py --science           # docs/validation.md "Rod solver" tables (a few minutes)
+    python benchmarks/bench_rod.py                 # pre-stress + equibiaxial 0→30 %, jersey SL11 cotton
+    python benchmarks/bench_rod.py --cli           # ... and the same through `knitframe run`
+    python benchmarks/bench_rod.py --science       # docs/validation.md "Rod solver" tables (a few minutes)
 
 Prints Markdown tables. Timings are wall-clock seconds on whatever machine runs this; the first
 line gives the core count and load average, so a busy machine shows. The science sweep compares
@@ -55,7 +55,8 @@ PATHS = [
 
 
 def branches(fab: Fabric, load: LoadPath) -> tuple[list, int]:
-    """The distinct relaxed states reached over :data:`PATHS`, lowest relaxed energy first, and the number of paths that converged.
+    """The distinct relaxed states reached over :data:`PATHS`, lowest relaxed energy first, and the number of
+    paths that converged.
 
     Like repeating a minimisation from several starts (Singal et al. 2024 do the same): the
     relaxed state is what every curve is measured from, and stiff yarns make the cell multistable.
@@ -101,7 +102,8 @@ def bench(repeats: int, cli: bool) -> None:
         r = run(fabric("jersey", "cotton", 11), EQUIBIAXIAL)
         dt = time.perf_counter() - t0
         print(
-            f"| jersey SL11 cotton, pre-stress + equibiaxial 0→30 % (Python API) | {k + 1} | {dt:.2f} | {len(r)} | "
+            f"| jersey SL11 cotton, pre-stress + equibiaxial 0→30 % (Python API) | {k + 1} | {dt:.2f} | "
+            f"{len(r)} | "
             f"{r.T1[-1]:.4g} | {r.T2[-1]:.4g} | {r.provenance.converged} |"
         )
     if cli:
@@ -122,8 +124,8 @@ def bench(repeats: int, cli: bool) -> None:
             )
             dt = time.perf_counter() - t0
         print(
-            f"| `knitframe run docs/examples/rod-jersey.toml` (+ VTU of every step, hgo fit, new process) | 1 | "
-            f"{dt:.2f} | 10 | | | |"
+            "| `knitframe run docs/examples/rod-jersey.toml` (+ VTU of every step, hgo fit, new process) | "
+            f"1 | {dt:.2f} | 10 | | | |"
         )
 
 
@@ -147,7 +149,8 @@ def fmt(values, digits=3):
 
 
 def energy_split(fab: Fabric, load: LoadPath, **options) -> list[dict[str, float]]:
-    """Stretching, bending, contact penalty and contact core energies (N·mm) after relaxation and at the end."""
+    """Stretching, bending, contact penalty and contact core energies (N·mm) after relaxation and at the
+    end."""
     from knitframe_solvers.rod_contact import quadrature_contact
     from knitframe_solvers.rod_terms import bend, stretch
 
@@ -206,8 +209,8 @@ def singal(directory: Path | None, pattern: str, direction: str):
 def science(singal_dir: Path | None) -> None:
     print("### Jersey, cotton, equibiaxial 0→30 %: stitch length\n")
     print(
-        "| SL | relaxed state (energy, λ1, λ2) | T1 at 10/20/30 %, N/mm | T2 at 10/20/30 %, N/mm | hgo a, N/mm | "
-        "hgo b | hgo θ, deg | NRMSE |"
+        "| SL | relaxed state (energy, λ1, λ2) | T1 at 10/20/30 %, N/mm | T2 at 10/20/30 %, N/mm | "
+        "hgo a, N/mm | hgo b | hgo θ, deg | NRMSE |"
     )
     print("|---|---|---|---|---|---|---|---|")
     for sl in (10, 11, 12):
@@ -216,15 +219,15 @@ def science(singal_dir: Path | None) -> None:
             p, res = fit_hgo([r])
             pick = [i for i in (2, 5, 9) if i < len(r)]
             print(
-                f"| {sl} | {branch_label(r, found[0])} | {fmt(r.T1[pick])} | {fmt(r.T2[pick])} | {p['a']:.4g} | "
-                f"{p['b']:.3g} | {np.degrees(p['theta']):.1f} | {res.nrmse['overall']:.3f} |"
+                f"| {sl} | {branch_label(r, found[0])} | {fmt(r.T1[pick])} | {fmt(r.T2[pick])} | "
+                f"{p['a']:.4g} | {p['b']:.3g} | {np.degrees(p['theta']):.1f} | {res.nrmse['overall']:.3f} |"
             )
         print(f"|  | ({paths} of {len(PATHS)} pre-stress paths converged) | | | | | | |")
 
     print("\n### Patterns at SL11, cotton, equibiaxial 0→30 %\n")
     print(
-        "| pattern | relaxed state (energy, λ1, λ2) | T1 / T2 at 30 %, N/mm | T1/T2 | hgo θ, deg | hgo a, N/mm | "
-        "hgo b | NRMSE |"
+        "| pattern | relaxed state (energy, λ1, λ2) | T1 / T2 at 30 %, N/mm | T1/T2 | hgo θ, deg | "
+        "hgo a, N/mm | hgo b | NRMSE |"
     )
     print("|---|---|---|---|---|---|---|---|")
     for pat in PATTERNS:
@@ -232,8 +235,9 @@ def science(singal_dir: Path | None) -> None:
         for r in found:
             p, res = fit_hgo([r])
             print(
-                f"| {pat} | {branch_label(r, found[0])} | {r.T1[-1]:.3g} / {r.T2[-1]:.3g} | {r.T1[-1] / r.T2[-1]:.3g} | "
-                f"{np.degrees(p['theta']):.1f} | {p['a']:.4g} | {p['b']:.3g} | {res.nrmse['overall']:.3f} |"
+                f"| {pat} | {branch_label(r, found[0])} | {r.T1[-1]:.3g} / {r.T2[-1]:.3g} | "
+                f"{r.T1[-1] / r.T2[-1]:.3g} | {np.degrees(p['theta']):.1f} | {p['a']:.4g} | {p['b']:.3g} | "
+                f"{res.nrmse['overall']:.3f} |"
             )
 
     cases = [("cotton", {"sl": 11}, "cotton SL11 (paper's yarn)")]
@@ -241,8 +245,8 @@ def science(singal_dir: Path | None) -> None:
     for yarn, size, title in cases:
         print(f"\n### Free-sides uniaxial 0→30 %, {title}, against Singal et al. 2024 (pearl cotton)\n")
         print(
-            "| pattern | pull | relaxed state (energy, λ1, λ2) | simulated T at 10/20/30 %, N/mm | measured | "
-            "simulated lateral stretch at 30 % | measured |"
+            "| pattern | pull | relaxed state (energy, λ1, λ2) | simulated T at 10/20/30 %, N/mm | "
+            "measured | simulated lateral stretch at 30 % | measured |"
         )
         print("|---|---|---|---|---|---|---|")
         for pat in PATTERNS:
@@ -282,8 +286,9 @@ def energy_table(cases, load: LoadPath) -> None:
                 ("relaxed", "30 %"), energy_split(fabric("jersey", yarn, **size), load, **path)
             ):
                 print(
-                    f"| {title}, {branch_label(r, found[0])} | {label} | {e['stretch']:.4g} | {e['bend']:.4g} | "
-                    f"{e['penalty']:.3g} | {e['core']:.3g} | {e['strain']:.4f} | {e['d_min']:.3f} | {e['core_pairs']} |"
+                    f"| {title}, {branch_label(r, found[0])} | {label} | {e['stretch']:.4g} | "
+                    f"{e['bend']:.4g} | {e['penalty']:.3g} | {e['core']:.3g} | {e['strain']:.4f} | "
+                    f"{e['d_min']:.3f} | {e['core_pairs']} |"
                 )
 
 

@@ -22,7 +22,8 @@ def test_smooth_lateral_contraction_is_no_jump():
 
 
 def test_a_snap_of_the_free_side_is_flagged_at_its_step():
-    """The free wale stretch falling 0.84 -> 0.43 in the last step of a course pull is reported at that step."""
+    """The free wale stretch falling 0.84 -> 0.43 in the last step of a course pull is reported at that
+    step."""
     l1 = 1.0 + 0.03 * np.arange(1, 11)
     l2 = np.concatenate([np.linspace(0.98, 0.84, 9), [0.43]])
     (jump,) = branch_jumps(rows(l1, l2), LoadPath(kind="uniaxial", direction="course"))

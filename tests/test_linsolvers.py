@@ -91,7 +91,8 @@ def test_symmetry_probe():
     reason="pypardiso is not installed",
 )
 def test_pardiso_symmetric_indefinite_and_unsymmetric():
-    """PARDISO solves a symmetric indefinite system (LDLᵀ of the upper triangle) and an unsymmetric one (LU)."""
+    """PARDISO solves a symmetric indefinite system (LDLᵀ of the upper triangle) and an unsymmetric one
+    (LU)."""
     import scipy.sparse as sp
     from knitframe_linsolvers.direct import direct
 
@@ -107,7 +108,7 @@ def test_pardiso_symmetric_indefinite_and_unsymmetric():
         used = []
         refined = d._refined
 
-        def spy(solver, M, A_, b_, refine, rtol):
+        def spy(solver, M, A_, b_, refine, rtol, used=used, refined=refined):
             used.append(solver.mtype)
             return refined(solver, M, A_, b_, refine, rtol)
 
@@ -168,8 +169,8 @@ def test_kept_factorisation_solves_several_right_hand_sides(backend):
 
 def test_refinement_takes_a_backward_stable_solution_whose_residual_is_at_the_conditioning_floor():
     """A soft chain tied by stiff springs (like yarns pressed together by a barrier deep inside d̂): no float64
-    solve gets |b − A x| ≤ 1e-10 |b|, but the factorised solve is backward stable (componentwise backward error
-    of a few ε), so the refinement takes it; a solution that is not (here x = 0) is still refused."""
+    solve gets |b − A x| ≤ 1e-10 |b|, but the factorised solve is backward stable (componentwise backward
+    error of a few ε), so the refinement takes it; a solution that is not (here x = 0) is still refused."""
     import knitframe_linsolvers.direct as d
     import scipy.sparse as sp
     import scipy.sparse.linalg as sla

@@ -153,7 +153,8 @@ def test_sigkilled_cli_run_resumes_with_its_files_and_says_so(tmp_path, referenc
 
 
 def test_ctrl_c_is_one_line_and_exit_130(tmp_path):
-    """SIGINT during a run prints one line, exits 130 and leaves no traceback; checkpoints stay for --resume."""
+    """SIGINT during a run prints one line, exits 130 and leaves no traceback; checkpoints stay for
+    --resume."""
     (tmp_path / "rod.toml").write_text(CONFIG.format(steps=30))
     proc = subprocess.Popen(
         [sys.executable, "-m", "knitframe", "run", "rod.toml", "--out", "out", "--quiet"],

@@ -150,13 +150,14 @@ def test_following_the_branch_gives_one_path_and_one_snap_for_two_step_counts():
         assert abs(x["at_loaded_stretch"][0] - y["at_loaded_stretch"][0]) <= 0.03 / 64
 
 
-# ---------------------------------------------------------------------------------------------------------------
+# ------------------------------------------------------------------------------------------------------------
 # Fallback: a start whose load path fails gives way to the next converged start in order of relaxed energy.
 
 
 def test_the_fallback_order_begins_with_the_chosen_start_and_skips_a_failed_state():
-    """The chosen start comes first (a lower energy by 1e-4 relative or less does not displace an earlier start), the
-    rest follow by energy; a start within 1e-4 of a failed one is the same state and is passed over, and says so."""
+    """The chosen start comes first (a lower energy by 1e-4 relative or less does not displace an earlier
+    start), the rest follow by energy; a start within 1e-4 of a failed one is the same state and is passed
+    over, and says so."""
     starts = [
         {"name": "a", "converged": True, "energy_Nmm": 1.0},
         {"name": "b", "converged": True, "energy_Nmm": 1.0 - 1e-6},
@@ -287,7 +288,8 @@ def test_a_failed_load_path_falls_back_to_the_next_start(monkeypatch, tmp_path, 
     assert "forced failure of load path 0" in fallback[0]
     assert fallback[0].endswith(f"continued from 'nominal' (energy {dE:.4g} N·mm higher)")
     assert fallback[0] in r.provenance.notes
-    # step files: those of the nominal path (pre-stress, relaxed lattice, 2 load steps), none of the failed one
+    # step files: those of the nominal path (pre-stress, relaxed lattice, 2 load steps), none of the failed
+    # one
     names = sorted(p.name for p in (tmp_path / "vtu").glob("*.vtu"))
     assert names == sorted(p.name for p in single_out.glob("*.vtu")) == pvd_names(tmp_path / "vtu")
     for name in names[-3:]:
@@ -318,8 +320,9 @@ class Killed(BaseException):
 def test_a_run_killed_after_the_fallback_resumes_from_the_start_it_fell_back_to(
     monkeypatch, tmp_path, nominal_alone
 ):
-    """Killed after the first load step of the fallback path, the resumed run (nothing forced any more) continues
-    from the start in the checkpoint, not from the lowest one, and ends as the uninterrupted fallback would."""
+    """Killed after the first load step of the fallback path, the resumed run (nothing forced any more)
+    continues from the start in the checkpoint, not from the lowest one, and ends as the uninterrupted
+    fallback would."""
     import knitframe_solvers.rod_run as rod
 
     single, _ = nominal_alone
@@ -363,8 +366,9 @@ def test_a_run_killed_after_the_fallback_resumes_from_the_start_it_fell_back_to(
 
 
 def test_when_every_start_fails_the_run_fails_or_keeps_the_furthest(monkeypatch):
-    """Every load path fails: "raise" names each start's failure in one line; "truncate" keeps the rows of the start
-    that got furthest (here both stop after step 1, so the lower-energy one, replayed without a new solve)."""
+    """Every load path fails: "raise" names each start's failure in one line; "truncate" keeps the rows of the
+    start that got furthest (here both stop after step 1, so the lower-energy one, replayed without a new
+    solve)."""
     failing_load_path(monkeypatch, lambda path, tau: path == 0 or tau > 1.0 + 1e-9)
     with pytest.raises(NumericalError) as err:
         run_recording_warnings(jersey_cotton(), TWO_STEPS, starts=2)
@@ -395,7 +399,8 @@ def test_when_every_start_fails_the_run_fails_or_keeps_the_furthest(monkeypatch)
 
 @pytest.mark.slow
 def test_garter_pearl_cotton_finishes_from_the_next_start():
-    """The case that failed from the lowest start: garter pearl cotton, free sides, course to 0.58317 in 12 steps.
+    """The case that failed from the lowest start: garter pearl cotton, free sides, course to 0.58317 in 12
+    steps.
 
     The lowest-energy relaxed state cannot be pulled past about 12 % strain; the run continues
     from the next start, finishes, and says which start failed and why.

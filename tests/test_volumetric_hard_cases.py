@@ -51,6 +51,6 @@ def test_hard_case_converges_or_stops_cleanly(name):
     assert r.provenance.converged or "stopped after" in r.provenance.notes
     print(
         f"\n{name}: converged={r.provenance.converged} lambda1={np.round(r.lambda1, 4).tolist()} "
-        f"T1={np.round(r.T1, 5).tolist()} T2={np.round(r.T2, 5).tolist()} N/mm, {r.provenance.wall_time:.0f} s "
-        f"{r.provenance.notes}"
+        f"T1={np.round(r.T1, 5).tolist()} T2={np.round(r.T2, 5).tolist()} N/mm, "
+        f"{r.provenance.wall_time:.0f} s {r.provenance.notes}"
     )

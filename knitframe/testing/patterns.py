@@ -141,7 +141,8 @@ def derivative_errors(model: Any, F: np.ndarray, a: np.ndarray, h: float = 1e-6)
 
 
 def check_yarn_model(obj: Any) -> None:
-    """Stress-free at F = I, P = ∂W/∂F and A = ∂P/∂F by finite differences, frame-indifferent, positive rod stiffness."""
+    """Stress-free at F = I, P = ∂W/∂F and A = ∂P/∂F by finite differences, frame-indifferent, positive rod
+    stiffness."""
     model = obj.from_yarn(reference_yarn())
     rng = np.random.default_rng(7)
     F = np.eye(3) + 0.15 * rng.standard_normal((4, 3, 3))

@@ -217,11 +217,11 @@ def _el(tag: str, text: str):
 HOST_NOTES = (
     "ABAQUS and FEBio drop the fibre stress in compression (I4 < 1); knitframe's hgo keeps it unless "
     "compression_fibre = false.",
-    "The hosts use isochoric invariants (I4bar = J^(-2/3) I4) and need an isotropic matrix term (C10, D / "
-    "neo-Hookean E, v); the fabric model has none, so a small matrix is added that barely changes the "
+    "The hosts use isochoric invariants (I4bar = J^(-2/3) I4) and need an isotropic matrix term (C10, D "
+    "/ neo-Hookean E, v); the fabric model has none, so a small matrix is added that barely changes the "
     "tension-stretch curve.",
-    "knitframe energies are per unit reference area (N/mm); the card holds them per unit volume for a shell of "
-    "the given thickness (k1 = 2a/t, so k1 = 2a at t = 1 mm).",
+    "knitframe energies are per unit reference area (N/mm); the card holds them per unit volume for a shell "
+    "of the given thickness (k1 = 2a/t, so k1 = 2a at t = 1 mm).",
 )
 
 
@@ -286,7 +286,8 @@ class HGO:
         return g * d1, g * d2, h * d1 * d1 + 2.0 * g * c2, h * d1 * d2, h * d2 * d2 + 2.0 * g * s2
 
     def free_side_slack(self, params, direction="course") -> float:
-        """Loaded stretch up to which a free side keeps the tension at zero: 1/cos θ (course), 1/sin θ (wale)."""
+        """Loaded stretch up to which a free side keeps the tension at zero: 1/cos θ (course), 1/sin θ
+        (wale)."""
         theta = float(params[2])
         c = math.cos(theta) if direction_index(direction) == 0 else math.sin(theta)
         return 1.0 / c if c > 1e-12 else math.inf
@@ -310,7 +311,8 @@ class HGO:
         return lf, P
 
     def card(self, fmt: str, params, **options) -> str:
-        """Material card in ``fmt`` (one of :attr:`card_formats`) from the parameters as stored in params.json.
+        """Material card in ``fmt`` (one of :attr:`card_formats`) from the parameters as stored in
+        params.json.
 
         ``params`` maps ``a`` (N/mm), ``b`` and ``theta_deg`` (degrees, as stored: no radians);
         ``options``: ``thickness`` (mm), ``name``, ``matrix_fraction``, ``bulk_ratio``,

@@ -4,7 +4,8 @@ r"""Homogenizer ``hgo2m``: two fibre families (course, wale) plus a membrane; it
 
     \psi = \sum_{\alpha=1,2} \frac{\mu_\alpha}{2}\left(\lambda_\alpha^2 - 1 - 2\ln\lambda_\alpha\right)
          + \frac{K}{4}\left(J^2 - 1 - 2\ln J\right)
-         + \sum_{\alpha=1,2} \frac{a_\alpha}{b_\alpha}\left[e^{b_\alpha \langle \lambda_\alpha^2 - 1\rangle^2} - 1\right],
+         + \sum_{\alpha=1,2} \frac{a_\alpha}{b_\alpha}
+           \left[e^{b_\alpha \langle \lambda_\alpha^2 - 1\rangle^2} - 1\right],
     \qquad J = \lambda_1 \lambda_2
 
 Parameters ``(mu1, mu2, K, a1, b1, a2, b2)``: μ, K, a in N/mm (energy per unit reference area),
@@ -54,7 +55,8 @@ def _log_term(lam: np.ndarray) -> np.ndarray:
 
 @attrs.frozen
 class HGO2M:
-    """Course and wale exponential fibres (a1, b1, a2, b2) plus an orthotropic neo-Hookean membrane (mu1, mu2, K)."""
+    """Course and wale exponential fibres (a1, b1, a2, b2) plus an orthotropic neo-Hookean membrane (mu1, mu2,
+    K)."""
 
     name: ClassVar[str] = "hgo2m"
     description: ClassVar[str] = (
@@ -70,9 +72,9 @@ class HGO2M:
     #: no format of :mod:`knitframe.export` can hold this model (:attr:`card_refusal` says why)
     card_formats: ClassVar[tuple[str, ...]] = ()
     card_refusal: ClassVar[str] = (
-        "its membrane is orthotropic (mu1 != mu2) and compressible in the plane (Poisson ratio K/(2 mu + K), which "
-        "can exceed the 0.5 a 3-D solid allows), while the matrix of ABAQUS HOLZAPFEL, CalculiX ELASTIC_FIBER and "
-        "FEBio Holzapfel-Gasser-Ogden is an isotropic solid; fit 'hgo' for a card"
+        "its membrane is orthotropic (mu1 != mu2) and compressible in the plane (Poisson ratio K/(2 mu + K), "
+        "which can exceed the 0.5 a 3-D solid allows), while the matrix of ABAQUS HOLZAPFEL, CalculiX "
+        "ELASTIC_FIBER and FEBio Holzapfel-Gasser-Ogden is an isotropic solid; fit 'hgo' for a card"
     )
 
     #: keep the fibre stress in compression (false: tension-only fibres)
@@ -132,7 +134,8 @@ class HGO2M:
         return self.stress_tangent(params, lam1, lam2)[2:]
 
     def stress_tangent(self, params, lam1, lam2):
-        """``(P1, P2, ∂P1/∂λ1, ∂P1/∂λ2, ∂P2/∂λ2)`` sharing one evaluation of each fibre (the free-side solve's path)."""
+        """``(P1, P2, ∂P1/∂λ1, ∂P1/∂λ2, ∂P2/∂λ2)`` sharing one evaluation of each fibre (the free-side solve's
+        path)."""
         mu1, mu2, K, a1, b1, a2, b2 = params
         l1, l2 = as_stretch(lam1, lam2)
         c = self.compression_fibre
@@ -157,12 +160,14 @@ class HGO2M:
     def abaqus(self, params, *, thickness: float = 1.0, name: str = "KNIT") -> str:
         """Not available: no built-in ABAQUS form holds this model (use ``febio`` or the ``hgo`` model)."""
         raise KnitframeError(
-            "homogenizer 'hgo2m' has no exact ABAQUS *ANISOTROPIC HYPERELASTIC, HOLZAPFEL card: ABAQUS shares k1, k2 "
-            "between fibre families and its matrix is isotropic; export 'hgo' or use the FEBio block"
+            "homogenizer 'hgo2m' has no exact ABAQUS *ANISOTROPIC HYPERELASTIC, HOLZAPFEL card: ABAQUS "
+            "shares k1, k2 between fibre families and its matrix is isotropic; export 'hgo' or use the FEBio "
+            "block"
         )
 
     def febio(self, params, *, thickness: float = 1.0, name: str = "knit") -> str:
-        """FEBio solid mixture: neo-Hookean matrix plus ``fiber-exp-pow`` fibres at 0° (ξ = 2a1/t, α = b1) and 90°.
+        """FEBio solid mixture: neo-Hookean matrix plus ``fiber-exp-pow`` fibres at 0° (ξ = 2a1/t, α = b1) and
+        90°.
 
         The fibres map exactly (both are tension-only there). The matrix is the isotropic part of
         the membrane: shear modulus min(μ1, μ2)/t and the Poisson ratio of the areal term; the
@@ -173,8 +178,8 @@ class HGO2M:
         nu = min(K / (2.0 * mu + K), 0.49)  # small-strain Poisson ratio of the isotropic part
         G = mu / thickness
         notes = [
-            f"knitframe hgo2m: mu1 = {_fmt(mu1)}, mu2 = {_fmt(mu2)}, K = {_fmt(K)}, a1 = {_fmt(a1)}, a2 = {_fmt(a2)} "
-            f"N/mm, b1 = {_fmt(b1)}, b2 = {_fmt(b2)}, thickness = {_fmt(thickness)} mm.",
+            f"knitframe hgo2m: mu1 = {_fmt(mu1)}, mu2 = {_fmt(mu2)}, K = {_fmt(K)}, a1 = {_fmt(a1)}, "
+            f"a2 = {_fmt(a2)} N/mm, b1 = {_fmt(b1)}, b2 = {_fmt(b2)}, thickness = {_fmt(thickness)} mm.",
             "Matrix = isotropic part of the membrane (agrees at small strain only); the orthotropic excess "
             f"|mu1 - mu2| = {_fmt(abs(mu1 - mu2))} N/mm is not represented.",
             "FEBio uses per-volume energies: values are divided by the thickness.",

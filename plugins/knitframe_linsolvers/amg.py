@@ -21,7 +21,8 @@ KRYLOV = ("cg", "gmres")
 
 
 def rigid_body_modes(points: np.ndarray) -> np.ndarray:
-    """(3n, 6) rigid-body modes (3 translations, 3 rotations) of nodes ``points`` (n, 3) with xyz-interleaved DOFs."""
+    """(3n, 6) rigid-body modes (3 translations, 3 rotations) of nodes ``points`` (n, 3) with xyz-interleaved
+    DOFs."""
     p = np.asarray(points, dtype=np.float64)
     p = p - p.mean(axis=0)
     n = len(p)

@@ -45,7 +45,8 @@ def _superlu(A: Any, b: np.ndarray) -> np.ndarray:
 
 
 _PARDISO: dict[int, Any] = {}
-#: PARDISO matrix types: real symmetric indefinite (Bunch-Kaufman LDLᵀ on the upper triangle) and real unsymmetric (LU)
+#: PARDISO matrix types: real symmetric indefinite (Bunch-Kaufman LDLᵀ on the upper triangle) and real
+#: unsymmetric (LU)
 SYMMETRIC, UNSYMMETRIC = -2, 11
 
 
@@ -148,7 +149,8 @@ def _refine(
 
 
 def _refined(solver: Any, M: Any, A: Any, b: np.ndarray, refine: int, rtol: float) -> np.ndarray | None:
-    """Solve with ``solver`` on the matrix M it factorises, refine against A (:func:`_refine`), free the factors."""
+    """Solve with ``solver`` on the matrix M it factorises, refine against A (:func:`_refine`), free the
+    factors."""
     try:
         return _refine(lambda v: solver.solve(M, v), A, b, refine, rtol)
     finally:
@@ -319,7 +321,10 @@ def _with_factorize(solve: Callable, factorize: Callable) -> Callable[[Any, np.n
     return wrapped
 
 
-direct.description = "sparse direct factorisation: SuperLU (scipy), PARDISO (pypardiso) or CHOLMOD (scikit-sparse) when installed"
+direct.description = (
+    "sparse direct factorisation: SuperLU (scipy), PARDISO (pypardiso) or CHOLMOD (scikit-sparse) "
+    "when installed"
+)
 
 
 @hookimpl

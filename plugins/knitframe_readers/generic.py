@@ -119,7 +119,8 @@ def _stretch(table: Table, column: str, x: np.ndarray) -> np.ndarray:
 
 @attrs.frozen
 class GenericReader:
-    """Documented CSV: strain or stretch, course or wale, N/mm or MPa with a thickness; repeats → mean ± sd."""
+    """Documented CSV: strain or stretch, course or wale, N/mm or MPa with a thickness; repeats → mean ±
+    sd."""
 
     name: ClassVar[str] = "generic"
     description: ClassVar[str] = (

@@ -139,7 +139,8 @@ def psd_project(A: np.ndarray, method: str = "clamp") -> np.ndarray:
 
 
 def _filter_eigenvalues(M: np.ndarray, method: str = "clamp") -> np.ndarray:
-    """Symmetric part of a stack of matrices M (p, n, n) rebuilt as V diag(f(w)) Vᵀ, f(w) = max(w, 0) or |w|."""
+    """Symmetric part of a stack of matrices M (p, n, n) rebuilt as V diag(f(w)) Vᵀ, f(w) = max(w, 0) or
+    |w|."""
     M = 0.5 * (M + np.swapaxes(M, 1, 2))
     w, V = np.linalg.eigh(M)
     return np.einsum(
@@ -218,7 +219,9 @@ class SolidForms:
             o = np.asarray(node_offset, dtype=np.float64)[self.edofs]  # (nl, n_el, 3)
             self.grad_offset = np.einsum("lei,lJeq->iJeq", o, self.grad)
         self.chunk = int(chunk)
-        self.projection = "clamp"  #: eigenvalue filter of the projected tangent: "clamp" or "abs" per point (:func:`psd_project`), "element" (:func:`psd_project_elements`)
+        #: eigenvalue filter of the projected tangent: "clamp" or "abs" per point (:func:`psd_project`),
+        #: "element" (:func:`psd_project_elements`)
+        self.projection = "clamp"
         self.flux: np.ndarray | None = None  #: Σ_e |R_e| of the last evaluate(order >= 1), N
         nl, ne = self.edofs.shape
         self.vdofs = (3 * self.edofs[:, None, :] + np.arange(3)[None, :, None]).reshape(
@@ -246,14 +249,16 @@ class SolidForms:
         return F
 
     def _chunks(self) -> list[slice]:
-        """Slices of at most ``chunk`` elements, and 8 of them for meshes of 2 048 to 8 ``chunk`` elements (work for up
-        to 8 threads); the slicing does not depend on ``threads``, so neither does the summation order."""
+        """Slices of at most ``chunk`` elements, and 8 of them for meshes of 2 048 to 8 ``chunk`` elements
+        (work for up to 8 threads); the slicing does not depend on ``threads``, so neither does the summation
+        order."""
         ne = self.edofs.shape[1]
         size = max(1, min(self.chunk, max(256, -(-ne // 8))))
         return [slice(start, min(start + size, ne)) for start in range(0, ne, size)]
 
     def _map(self, fn: Callable[[slice], Any]) -> Iterator[Any]:
-        """fn(chunk) for every chunk, in chunk order; on ``threads`` threads with BLAS held to one thread each.
+        """fn(chunk) for every chunk, in chunk order; on ``threads`` threads with BLAS held to one thread
+        each.
 
         A chunk that raises re-raises here (the first in chunk order)."""
         chunks = self._chunks()
@@ -277,8 +282,9 @@ class SolidForms:
         if np.any(bad):
             e = int(np.flatnonzero(bad.any(axis=1))[0]) + (sl.start or 0)
             raise NumericalError(
-                f"volumetric solid: {int(bad.sum())} quadrature points inverted (det F = {float(J[bad].min()):.3g}), "
-                f"first in element {e}; the load step is too large or the mesh too coarse"
+                f"volumetric solid: {int(bad.sum())} quadrature points inverted "
+                f"(det F = {float(J[bad].min()):.3g}), first in element {e}; the load step is too large or "
+                "the mesh too coarse"
             )
 
     # -- forms -------------------------------------------------------------------------------------
@@ -353,9 +359,9 @@ class SolidForms:
         return self._pattern
 
     def scatter(self) -> dict[int, tuple[np.ndarray, np.ndarray]]:
-        """Per chunk (by its first element), the CSR entries of the tangent its elements touch and the map of its element-matrix
-        entries onto them: K.data[touched] += bincount(inverse, Ke.ravel()) sums one chunk (a bincount as
-        long as the chunk's share of the pattern instead of the whole of it)."""
+        """Per chunk (by its first element), the CSR entries of the tangent its elements touch and the map of
+        its element-matrix entries onto them: K.data[touched] += bincount(inverse, Ke.ravel()) sums one chunk
+        (a bincount as long as the chunk's share of the pattern instead of the whole of it)."""
         if self._scatter is None:
             _, where = self.pattern()
             m2 = self.vdofs.shape[0] ** 2
