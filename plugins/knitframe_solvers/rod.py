@@ -76,10 +76,12 @@ from knitframe.errors import ConfigError, FieldError, KnitframeWarning, Numerica
 from knitframe.geometry import unit_cell
 from knitframe.numerics.newton import NewtonOptions, StepCheckpoints, continuation, minimise
 from knitframe.numerics.periodic import macro_index
+from knitframe.numerics.settings import settings_field
 from knitframe.numerics.stepfiles import StepSeries
 from knitframe.plugins import get_registry
 from knitframe.records import Fabric, Provenance, Response, Scene
 from knitframe.yarns import yarn_model
+from knitframe_solvers.newton_settings import RodNewton
 from knitframe_solvers.rod_contact import line_energy
 from knitframe_solvers.rod_model import RodEnergy, RodModel, from_cell
 
@@ -256,18 +258,15 @@ class RodSolver:
     self_contact_exclusion: float = attrs.field(default=np.pi, validator=v.positive)
     #: Newton residual tolerance / EA, -
     tolerance: float = attrs.field(default=1e-9, validator=v.positive)
-    #: relative Hessian shift while a strand has no contact, -
-    stabilisation: float = attrs.field(default=1e-6, validator=v.non_negative)
-    #: largest node move per Newton step / max(current contact distance, dk/2), -
-    max_step: float = attrs.field(default=0.2, validator=v.positive)
-    #: smallest cut-back increment / load step, -
-    min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))
     #: Newton iterations per increment, -
     max_iterations: int = attrs.field(default=100, validator=v.in_range(1, 10000))
     #: after pre-stress, let the lattice contract or expand to zero tension and load from there
     relax: bool = True
     #: "truncate" returns the converged steps (converged = false)
     on_failure: Literal["raise", "truncate"] = "raise"
+    #: Newton and cut-back tuning: a preset ("default", "robust", "fast") or a table of keys, optionally with
+    #: ``preset`` (see ``[solver.newton]`` of rod below)
+    newton: str | dict[str, Any] = settings_field(RodNewton)
     #: override axial stiffness, N
     EA: float | None = attrs.field(default=None, validator=v.optional(v.positive))
     #: override bending stiffness, N·mm²
@@ -412,8 +411,8 @@ class RodSolver:
             atol=self.tolerance * energy.EA,
             rtol=1e-10,
             max_iter=self.max_iterations,
-            stabilisation=self.stabilisation,
-            max_step=self.max_step,
+            stabilisation=self.newton.stabilisation,
+            max_step=self.newton.max_step,
             xtol=1e-12 * float(np.linalg.norm(lat.L1) + np.linalg.norm(lat.L2)),
         )
         L_max = float(max(np.linalg.norm(lat.L1), np.linalg.norm(lat.L2)))
@@ -595,7 +594,7 @@ class RodSolver:
                     q0,
                     targets,
                     t0=t_first,
-                    min_fraction=min_fraction or self.min_step_fraction,
+                    min_fraction=min_fraction or self.newton.min_step_fraction,
                     on_target=on_prestress,
                 )
             except NumericalError as e:
@@ -663,7 +662,7 @@ class RodSolver:
                             initial_distance(q0),
                             steps,
                             label=f" start {k + 1}/{count} ({st.name})",
-                            min_fraction=max(self.min_step_fraction, EXTRA_START_MIN_FRACTION),
+                            min_fraction=max(self.newton.min_step_fraction, EXTRA_START_MIN_FRACTION),
                         )
                     )
                     E = float(energy(qk, 0)[0])
@@ -742,7 +741,9 @@ class RodSolver:
             k_load = 0 if scene.load.direction == "course" else 1
             loaded_path = lam1_path if k_load == 0 else lam2_path
             # the smallest increment continuation tries, in loaded stretch
-            smallest = self.min_step_fraction * float(np.abs(np.diff(loaded_path)).min()) if watch else 0.0
+            smallest = (
+                self.newton.min_step_fraction * float(np.abs(np.diff(loaded_path)).min()) if watch else 0.0
+            )
             # cut: an increment of this load step was cut back for a jump; last: the last converged (tau, q);
             # lenient: load steps up to this tau may jump (following their branch failed at its fold)
             follow: dict[str, Any] = {"cut": False, "last": None, "lenient": -1.0}
@@ -803,7 +804,7 @@ class RodSolver:
                             q_at,
                             list(np.arange(np.floor(t_at) + 1, n_load + 1, dtype=float)),
                             t0=t_at,
-                            min_fraction=self.min_step_fraction,
+                            min_fraction=self.newton.min_step_fraction,
                             on_target=on_load,
                         )
                         return
