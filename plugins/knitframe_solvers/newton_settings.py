@@ -31,10 +31,10 @@ class RodNewton:
         ),
         "fast": Preset(
             {"min_step_fraction": 1.0 / 16},
-            "a failing load path gives up after two cut-backs instead of six: for sweeps over many "
-            "cells, where a failure is better reported soon than fought; a run that converges takes "
-            "the same path as with the defaults (longer Newton steps were tried and reached another "
-            "equilibrium state)",
+            "a failing load path gives up after four halvings of its increment instead of six: for "
+            "sweeps over many cells, where a failure is better reported soon than fought; a run that "
+            "converges takes the same path as with the defaults (longer Newton steps were tried and "
+            "reached another equilibrium state)",
         ),
     }
 
