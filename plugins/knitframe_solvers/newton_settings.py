@@ -60,9 +60,11 @@ class VolumetricNewton:
             "evaluation: for cells whose default run stops on a cut-back; slower per iteration",
         ),
         "fast": Preset(
-            {"extrapolation": 8.0},
-            "Newton steps lengthened where the energy shows they were too short: a third fewer "
-            "Hessians on P1 cells; on fine P2 cells it slowed the run, so use it for P1 and quick looks",
+            {"extrapolation": 8.0, "chord_after_full_steps": False},
+            "Newton steps lengthened where the energy shows they were too short, and steps on a reused "
+            "factorisation only after shortened steps: on the coarse P1 cell to 30 % about 15 % less "
+            "time and half the linear solves, the tensions within 0.4 % at 30 % (3.5 % in T2 at 10 %); "
+            "on fine P2 cells the longer steps slowed the run, so use it for P1 cells and quick looks",
         ),
     }
 
