@@ -189,12 +189,13 @@ def bench_iteration(args) -> list[dict]:
 
 #: 'run' flags forwarded when given (flag → option of the contact law, or of VolumetricSolver); "on"/"off" become booleans
 LAW_FLAGS = {"smoothing": "smoothing", "mu": "friction", "dhat": "dhat", "ccd": "ccd", "reuse": "reuse"}
-SOLVER_FLAGS = {
+SOLVER_FLAGS = {"step_tol": "step_tolerance"}
+#: 'run' flags forwarded to the solver's ``newton`` settings when given
+NEWTON_FLAGS = {
     "stabilisation": "stabilisation",
     "max_step": "max_step",
     "cap_shift": "cap_shift",
     "tangent": "tangent",
-    "step_tol": "step_tolerance",
     "predictor": "predictor",
     "chord": "chord",
     "eigen": "eigenvalue_filter",
@@ -222,8 +223,11 @@ def bench_run(args) -> list[dict]:
         linear_solver=args.linear_solver,
         contact_modulus=args.contact_modulus,
         on_failure="truncate" if args.truncate else "raise",
-        **({"start_projected": True} if args.start_projected else {}),
         **_given(args, SOLVER_FLAGS),
+        newton={
+            **({"start_projected": True} if args.start_projected else {}),
+            **_given(args, NEWTON_FLAGS),
+        },
     )
     fab = attrs.evolve(fabric(), stitch_length=args.stitch_length)
     if args.transverse_ratio is not None:  # a diagnostic: the same yarn with a milder anisotropy

@@ -17,7 +17,7 @@ from knitframe.plugins import Registry, load_registry
 from knitframe.records import EFFECTS, Fabric, LoadPath, Scene, Yarn
 from knitframe.schema import _hints, type_name
 
-__all__ = ["field_docs", "schema_table", "configuration_md"]
+__all__ = ["field_docs", "schema_table", "settings_tables", "configuration_md"]
 
 #: plugin kinds selectable from a config, in the order they are documented
 CONFIG_KINDS = (
@@ -98,6 +98,37 @@ def schema_table(cls: type) -> str:
     return "\n".join(rows)
 
 
+def _value(v: Any) -> str:
+    return f'"{v}"' if isinstance(v, str) else repr(v)
+
+
+def settings_tables(cls: type, prefix: str) -> list[str]:
+    """Markdown lines of the settings tables held in fields of ``cls`` (a field whose default is a fresh
+    attrs instance, e.g. ``[solver.newton]``): its named presets, with their values and reasons, and
+    its keys."""
+    out: list[str] = []
+    for f in attrs.fields(cls):
+        d = f.default
+        if not (isinstance(d, attrs.Factory) and not d.takes_self and attrs.has(d.factory)):  # type: ignore[arg-type]
+            continue
+        sub, key = d.factory, f.alias or f.name
+        out += [f"##### `[{prefix}.{key}]`", "", _doc(sub), ""]
+        presets = getattr(sub, "presets", None)
+        if presets:
+            out += [
+                f'Presets: `{key} = "name"`, or `{key} = {{ preset = "name", ... }}` with keys that override',
+                "the preset's values.",
+                "",
+                "- `default`: the values in the table below, measured on the standard cells",
+            ]
+            for name, p in presets.items():
+                values = ", ".join(f"`{k} = {_value(v)}`" for k, v in p.values.items())
+                out.append(f"- `{name}` ({values}): {p.reason}")
+            out.append("")
+        out += [schema_table(sub), ""]
+    return out
+
+
 def _doc(obj: Any) -> str:
     return (getattr(obj, "description", "") or inspect.getdoc(obj) or "").strip().splitlines()[0]
 
@@ -163,6 +194,7 @@ def configuration_md(registry: Registry | None = None) -> str:
             out += [f"#### `{e.name}`", "", e.description, ""]
             if isinstance(e.obj, type) and attrs.has(e.obj) and any(f.init for f in attrs.fields(e.obj)):
                 out += [schema_table(e.obj), ""]
+                out += settings_tables(e.obj, kind)
             elif callable(e.obj) and not isinstance(e.obj, type):
                 params = [
                     p

@@ -597,7 +597,7 @@ def test_chord_steps_stop_near_convergence_and_when_the_factor_is_stale():
     """No chord step follows a Newton step within twice step_tol (the next Newton step may pass the step
     test), and a chord step larger than twice the last Newton step is refused (the kept factorisation no
     longer models the energy): the Hessian is evaluated instead."""
-    from knitframe.numerics.newton import CHORD_SIZE_FACTOR, _chord_step
+    from knitframe.numerics.newton_steps import CHORD_SIZE_FACTOR, _chord_step
 
     def size(dx):
         return float(np.max(np.abs(dx)))
@@ -713,7 +713,7 @@ def test_extrapolation_backs_off_where_the_energy_rises_beyond_the_full_step():
     """Where the energy along the step grows faster than quadratically past α = 1 (a barrier), the first
     trial α* fails and a shorter α between 1.5 and α* that lowers E is taken; where every α > 1 raises E,
     the full step stands."""
-    from knitframe.numerics.newton import _extrapolated
+    from knitframe.numerics.newton_steps import _extrapolated
 
     opts = NewtonOptions(extrapolate=8.0)
     x, dx = np.zeros(1), np.ones(1)

@@ -75,7 +75,7 @@ def test_a_run_that_cannot_converge_stops_with_a_diagnostic_or_returns_its_conve
     what converged."""
     load = LoadPath(kind="equibiaxial", max_strain=0.3, steps=10)
     with pytest.raises(NumericalError, match=r"rod solver \(jersey, cotton\): .*Newton"):
-        get_registry()["solver"]["rod"](max_iterations=3, min_step_fraction=0.5).simulate(
+        get_registry()["solver"]["rod"](max_iterations=3, newton={"min_step_fraction": 0.5}).simulate(
             Fabric(pattern="jersey", yarn=get_registry()["yarn"]["cotton"], stitch_length=12),
             Scene(load=load, effects=EFFECTS),
         )
@@ -86,7 +86,7 @@ def test_a_run_that_cannot_converge_stops_with_a_diagnostic_or_returns_its_conve
         "cotton",
         LoadPath(kind="general", lambda1=(1.1, 0.4), lambda2=(1.1, 0.4)),
         on_failure="truncate",
-        min_step_fraction=0.25,
+        newton={"min_step_fraction": 0.25},
     )
     assert (
         r is not None
@@ -102,7 +102,10 @@ def test_auto_prestress_tries_the_knitted_start_after_the_straight_one_fails():
     reg = get_registry()
     fabric = Fabric(pattern="jersey", yarn=reg["yarn"]["cotton"], stitch_length=10)
     scene = Scene(load=LoadPath(kind="equibiaxial", max_strain=0.05, steps=1), effects=EFFECTS)
-    hurried = {"prestress_steps": 2, "min_step_fraction": 0.25}  # too few steps for this tight cell
+    hurried = {
+        "prestress_steps": 2,
+        "newton": {"min_step_fraction": 0.25},
+    }  # too few steps for this tight cell
     with pytest.raises(NumericalError, match=r"rod solver \(jersey, cotton\): pre-stress \(contact distance"):
         reg["solver"]["rod"](prestress_start="straight", **hurried).simulate(fabric, scene)
     with pytest.raises(

@@ -177,11 +177,14 @@ def test_held_contact_search_needs_steps_below_half_the_reach():
 
     scene = attrs.evolve(STRETCH, effects=frozenset({"large_deformation", "anisotropy", "contact"}))
     with pytest.raises(ConfigError, match="max_step"):
-        VolumetricSolver(order=1, seed=0.75, contact_law="mortar", max_step=0.3, reach=0.5).simulate(
-            FABRIC, scene
-        )
+        VolumetricSolver(
+            order=1, seed=0.75, contact_law="mortar", newton={"max_step": 0.3, "reach": 0.5}
+        ).simulate(FABRIC, scene)
     r = VolumetricSolver(
-        order=1, seed=0.75, contact_law="mortar", max_step=0.3, reach=0.5, contact_search="evaluation"
+        order=1,
+        seed=0.75,
+        contact_law="mortar",
+        newton={"max_step": 0.3, "reach": 0.5, "contact_search": "evaluation"},
     ).simulate(FABRIC, scene)
     assert r.provenance.converged
 
@@ -304,9 +307,9 @@ def test_contact_search_once_per_newton_iteration(monkeypatch, search):
         load=LoadPath(kind="uniaxial", direction="course", max_strain=0.2, steps=2),
         effects={"large_deformation", "anisotropy", "contact"},
     )
-    r = VolumetricSolver(order=1, seed=0.75, contact_law="mortar", contact_search=search).simulate(
-        FABRIC, scene
-    )
+    r = VolumetricSolver(
+        order=1, seed=0.75, contact_law="mortar", newton={"contact_search": search}
+    ).simulate(FABRIC, scene)
     ev = r.provenance.extra["newton_evaluations"]
     assert r.provenance.converged and ev["energy"] > 0
     expected = ev["hessian"] if search == "iteration" else ev["energy"] + ev["gradient"] + ev["hessian"]
@@ -333,14 +336,16 @@ def test_barrier_contact_resolves_the_interference_of_the_prestress():
         prestress_steps=2,
         tolerance=1e-8,
         step_tolerance=1e-6,
-        flux_tolerance=0.0,
-        late_flux_tolerance=0.0,
     )
+    flux_off = {"flux_tolerance": 0.0, "late_flux_tolerance": 0.0}
     # plain projected Newton, and with chord steps and extrapolated steps (which shortens steps, so chords follow)
-    plain = VolumetricSolver(**tight, chord=False).simulate(fabric, scene, trace=(plain_records := []).append)
-    r = VolumetricSolver(**tight, chord=True, extrapolation=8.0, chord_after_full_steps=False).simulate(
-        fabric, scene, trace=(records := []).append
+    plain = VolumetricSolver(**tight, newton={**flux_off, "chord": False}).simulate(
+        fabric, scene, trace=(plain_records := []).append
     )
+    r = VolumetricSolver(
+        **tight,
+        newton={**flux_off, "chord": True, "extrapolation": 8.0, "chord_after_full_steps": False},
+    ).simulate(fabric, scene, trace=(records := []).append)
     assert r.provenance.converged and np.all(np.isfinite(r.T1))
     assert r.provenance.extra["prestress_start_radius_over_r"] < 1.0
     assert r.provenance.extra["max_penetration_over_r"] == 0.0
@@ -350,14 +355,16 @@ def test_barrier_contact_resolves_the_interference_of_the_prestress():
     assert not any("extrapolated" in x for x in plain_records if x["record"] == "iteration")
     # without contact nothing acts across the rows and the free wale side stays where it was; with it, the
     # flattened rows carry the course stretch's contraction across
-    bare = VolumetricSolver(**tight).simulate(
+    bare = VolumetricSolver(**tight, newton=flux_off).simulate(
         fabric, attrs.evolve(scene, effects=scene.effects - {"contact"})
     )
     assert bare.lambda2[-1] == pytest.approx(1.0, abs=1e-9) and r.lambda2[-1] - 1.0 > 5e-5
     assert np.allclose(r.lambda2, plain.lambda2, atol=3e-5)
     # chord steps after full steps too (the default) reach the residual test on a chord iterate: the same
     # tension, and the soft side opens, less far (λ2 = 1.000036; 1.000037 at a residual of 1e-10)
-    full = VolumetricSolver(**tight, chord=True, extrapolation=8.0).simulate(fabric, scene)
+    full = VolumetricSolver(**tight, newton={**flux_off, "chord": True, "extrapolation": 8.0}).simulate(
+        fabric, scene
+    )
     assert full.lambda2[-1] - 1.0 > 2e-5 and np.allclose(full.T1, plain.T1, rtol=1e-5)
     assert np.allclose(r.T1, plain.T1, rtol=1e-3)
     assert np.all(np.abs(r.T2) < 1e-4 * np.abs(r.T1).max())  # the free side carries no tension
@@ -373,11 +380,10 @@ def test_intermediate_prestress_states_take_the_loose_tolerances():
         contact_law="ipc",
         prestress_steps=2,
         tolerance=1e-12,
-        flux_tolerance=0.0,
-        late_flux_tolerance=0.0,
+        newton={"flux_tolerance": 0.0, "late_flux_tolerance": 0.0},
     )
     opts, loose = solver.newton_options(FABRIC, 0.2, True)
-    f = solver.path_tolerance_factor
+    f = solver.newton.path_tolerance_factor
     assert opts.step_tol == solver.step_tolerance and opts.atol == pytest.approx(
         1e-12 * YARN.E_transverse * 0.04
     )
@@ -398,7 +404,7 @@ def test_intermediate_prestress_states_take_the_loose_tolerances():
     for rec in solves:
         last = rec["history"][-1]
         tol = loose if rec["phase"] == "prestress" and rec["t"] < 1.0 else opts
-        assert last.get("step_converged") and last["step"] <= tol.step_tol / solver.max_step
+        assert last.get("step_converged") and last["step"] <= tol.step_tol / solver.newton.max_step
 
 
 def test_secant_predictor_starts_the_next_increment_near_its_solution():
@@ -413,9 +419,9 @@ def test_secant_predictor_starts_the_next_increment_near_its_solution():
     out = {}
     for predictor in ("affine", "secant"):
         records = []
-        out[predictor] = VolumetricSolver(order=1, seed=0.75, predictor=predictor, tolerance=1e-7).simulate(
-            FABRIC, scene, trace=records.append
-        )
+        out[predictor] = VolumetricSolver(
+            order=1, seed=0.75, newton={"predictor": predictor}, tolerance=1e-7
+        ).simulate(FABRIC, scene, trace=records.append)
         first[predictor] = [
             x["history"][0]["residual"] for x in records if x["record"] == "solve" and x["phase"] == "load"
         ]
@@ -446,7 +452,7 @@ def test_pull_back_of_the_tangent_is_the_triple_product(order):
     a K on another pattern gets its own map."""
     import scipy.sparse as sp
 
-    solver = VolumetricSolver(order=order, seed=0.75, stabilisation=1e-2)
+    solver = VolumetricSolver(order=order, seed=0.75, newton={"stabilisation": 1e-2})
     model = solver.setup(FABRIC, STRETCH)
     assert (
         model.damping > 0 and model.T.shape[0] > model.T.shape[1]

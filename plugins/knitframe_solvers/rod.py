@@ -75,8 +75,10 @@ from knitframe import validators as v
 from knitframe.config import instantiate
 from knitframe.errors import ConfigError, FieldError
 from knitframe.geometry import unit_cell
+from knitframe.numerics.settings import settings_field
 from knitframe.records import Fabric, Response, Scene
 from knitframe.yarns import yarn_model
+from knitframe_solvers.newton_settings import RodNewton
 from knitframe_solvers.rod_contact import line_energy
 from knitframe_solvers.rod_model import RodEnergy, RodModel, from_cell
 from knitframe_solvers.rod_run import RodRun
@@ -160,18 +162,15 @@ class RodSolver:
     self_contact_exclusion: float = attrs.field(default=np.pi, validator=v.positive)
     #: Newton residual tolerance / EA, -
     tolerance: float = attrs.field(default=1e-9, validator=v.positive)
-    #: relative Hessian shift while a strand has no contact, -
-    stabilisation: float = attrs.field(default=1e-6, validator=v.non_negative)
-    #: largest node move per Newton step / max(current contact distance, dk/2), -
-    max_step: float = attrs.field(default=0.2, validator=v.positive)
-    #: smallest cut-back increment / load step, -
-    min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))
     #: Newton iterations per increment, -
     max_iterations: int = attrs.field(default=100, validator=v.in_range(1, 10000))
     #: after pre-stress, let the lattice contract or expand to zero tension and load from there
     relax: bool = True
     #: "truncate" returns the converged steps (converged = false)
     on_failure: Literal["raise", "truncate"] = "raise"
+    #: Newton and cut-back tuning: a preset ("default", "robust", "fast") or a table of keys, optionally with
+    #: ``preset`` (see ``[solver.newton]`` of rod below)
+    newton: str | dict[str, Any] = settings_field(RodNewton)
     #: override axial stiffness, N
     EA: float | None = attrs.field(default=None, validator=v.optional(v.positive))
     #: override bending stiffness, N·mm²

@@ -44,8 +44,7 @@ RELAX_DECADES = 6
 class RodRun(MultiStart):
     """The state of one :meth:`RodSolver.simulate` call and its phases.
 
-    The solver's options read as the run's own attributes (``self.tolerance`` is the solver's
-    ``tolerance``), so the phases below use them as the solver would.
+    The phases read the solver's options from ``self.solver`` (its tuning from ``self.solver.newton``).
     """
 
     def __init__(
@@ -61,17 +60,17 @@ class RodRun(MultiStart):
         t_start = time.perf_counter()
         registry = get_registry()
         self.solver, self.fabric, self.scene = solver, fabric, scene
-        self.model, self.energy, self.cell = model, energy, cell = self.setup(fabric, scene, registry)
+        self.model, self.energy, self.cell = model, energy, cell = self.solver.setup(fabric, scene, registry)
         self.lat = lat = model.lattice
         self.n = n = model.n_nodes
-        self.solve = instantiate(registry, "linear_solver", self.linear_solver, "solver.linear_solver")
+        self.solve = instantiate(registry, "linear_solver", self.solver.linear_solver, "solver.linear_solver")
         self.with_prestress = "prestress" in scene.effects and energy.law is not None
         self.opts = NewtonOptions(
-            atol=self.tolerance * energy.EA,
+            atol=self.solver.tolerance * energy.EA,
             rtol=1e-10,
-            max_iter=self.max_iterations,
-            stabilisation=self.stabilisation,
-            max_step=self.max_step,
+            max_iter=self.solver.max_iterations,
+            stabilisation=self.solver.newton.stabilisation,
+            max_step=self.solver.newton.max_step,
             xtol=1e-12 * float(np.linalg.norm(lat.L1) + np.linalg.norm(lat.L2)),
         )
         self.L_max = float(max(np.linalg.norm(lat.L1), np.linalg.norm(lat.L2)))
@@ -100,13 +99,15 @@ class RodRun(MultiStart):
         # the relaxed state of every start (row i: state["starts"][i]; NaN where it did not converge)
         self.start_states = np.zeros((0, model.n_dof))
         ckpt = (
-            StepCheckpoints(checkpoint_dir, self._key(fabric, scene)) if checkpoint_dir is not None else None
+            StepCheckpoints(checkpoint_dir, self.solver._key(fabric, scene))
+            if checkpoint_dir is not None
+            else None
         )
         self.run = CellRun(
-            self.name,
+            self.solver.name,
             fabric,
             scene,
-            n_prestress=self.prestress_steps if self.with_prestress else 0,
+            n_prestress=self.solver.prestress_steps if self.with_prestress else 0,
             extra_steps=1,  # the relaxed lattice
             state=self.state,
             checkpoints=ckpt,
@@ -116,16 +117,10 @@ class RodRun(MultiStart):
             arrays=lambda: {"starts_q": self.start_states},
             meta=lambda: {"dk": energy.dk},
             progress=progress,
-            on_failure=self.on_failure,
+            on_failure=self.solver.on_failure,
             t_start=t_start,
         )
         self.init_load_path()
-
-    def __getattr__(self, name: str) -> Any:
-        # the solver's options and methods, read through the run
-        if name.startswith("__") or "solver" not in self.__dict__:
-            raise AttributeError(name)
-        return getattr(self.__dict__["solver"], name)
 
     def init_load_path(self) -> None:
         """The load path's bookkeeping: reference lattice, kept jumps, states, and the branch watch."""
@@ -137,12 +132,14 @@ class RodRun(MultiStart):
         # lenient: load steps up to this tau may jump (following their branch failed at its fold)
         self.follow: dict[str, Any] = {"cut": False, "last": None, "lenient": -1.0}
         # the free side of a uniaxial path is watched for jumps to another branch (follow_branch)
-        self.watch = self.follow_branch and self.scene.load.kind == "uniaxial"
+        self.watch = self.solver.follow_branch and self.scene.load.kind == "uniaxial"
         self.k_load = 0 if self.scene.load.direction == "course" else 1
         loaded_path = self.run.stretch_paths[self.k_load]
         # the smallest increment continuation tries, in loaded stretch
         self.smallest = (
-            self.min_step_fraction * float(np.abs(np.diff(loaded_path)).min()) if self.watch else 0.0
+            self.solver.newton.min_step_fraction * float(np.abs(np.diff(loaded_path)).min())
+            if self.watch
+            else 0.0
         )
 
     # ---------------------------------------------------------------------------------- the run
@@ -199,7 +196,7 @@ class RodRun(MultiStart):
         """Where the pre-stress from state q0 starts: small enough that no two centerlines overlap."""
         self.energy.dk = self.dk_full
         d_min = float(self.energy.pairs(q0).distance.min(initial=self.dk_full))
-        return min(self.initial_radius * self.dk_full, 0.95 * d_min)
+        return min(self.solver.initial_radius * self.dk_full, 0.95 * d_min)
 
     def run_prestress(
         self,
@@ -221,10 +218,10 @@ class RodRun(MultiStart):
         energy, dk_full, opts = self.energy, self.dk_full, self.opts
         free = self.base_free.copy()
         free[3 * self.n :] = False
-        loose = attrs.evolve(opts, atol=1e3 * opts.atol, max_iter=2 * self.max_iterations)
+        loose = attrs.evolve(opts, atol=1e3 * opts.atol, max_iter=2 * self.solver.max_iterations)
         record = label is None
         if label is None:
-            label = "" if self.prestress_start == "straight" else f" ({start} start)"
+            label = "" if self.solver.prestress_start == "straight" else f" ({start} start)"
 
         def solve_prestress(t: float, x0: np.ndarray) -> NewtonResult:
             energy.dk = dk0 * (dk_full / dk0) ** t
@@ -240,7 +237,7 @@ class RodRun(MultiStart):
                 q0,
                 first=first,
                 n_steps=n_steps,
-                min_fraction=min_fraction or self.min_step_fraction,
+                min_fraction=min_fraction or self.solver.newton.min_step_fraction,
                 label=label,
                 record=record,
                 follow=continuation,
@@ -261,12 +258,16 @@ class RodRun(MultiStart):
                 starts = [state["start"]]
             else:
                 state["dk0"] = self.initial_distance(q)
-                starts = ["straight", "knitted"] if self.prestress_start == "auto" else [self.prestress_start]
+                starts = (
+                    ["straight", "knitted"]
+                    if self.solver.prestress_start == "auto"
+                    else [self.solver.prestress_start]
+                )
             for k, start in enumerate(starts):
                 state["start"] = start
                 try:
                     q = self.run_prestress(
-                        start, q, int(state["target"]) + 1, state["dk0"], self.prestress_steps
+                        start, q, int(state["target"]) + 1, state["dk0"], self.solver.prestress_steps
                     )
                     break
                 except NumericalError as e:
@@ -278,7 +279,7 @@ class RodRun(MultiStart):
                 notes[-1] = f"{notes[-1]}; converged from the knitted shape instead"
             state.update(phase="load", target=-1)
         elif self.energy.law is not None and state["phase"] == "prestress":
-            problem = self.knitted_overlap(self.energy, self.cell, q)
+            problem = self.solver.knitted_overlap(self.energy, self.cell, q)
             if problem is not None:
                 raise NumericalError(problem)
             state.update(phase="load", target=-1)
@@ -312,7 +313,7 @@ class RodRun(MultiStart):
                 x,
                 free,
                 solve=self.solve,
-                options=attrs.evolve(self.opts, max_iter=4 * self.max_iterations),
+                options=attrs.evolve(self.opts, max_iter=4 * self.solver.max_iterations),
                 stabilise=self.stabilise,
                 step_norm=self.step_norm,
             ).x
@@ -320,7 +321,7 @@ class RodRun(MultiStart):
 
     def relaxed(self, qv: np.ndarray) -> np.ndarray:
         """The state the load path starts from: with ``relax``, the lattice at zero tension."""
-        return self.relax_lattice(qv, self.relax_free) if self.relax else qv
+        return self.relax_lattice(qv, self.relax_free) if self.solver.relax else qv
 
     def stretch_of(self, qv: np.ndarray) -> list[float]:
         n = self.n
@@ -338,7 +339,7 @@ class RodRun(MultiStart):
                 relaxed_energy=float(self.energy(q, 0)[0]),
                 relaxed_step=self.run.step,
             )
-            message = "relaxed lattice" if self.relax else "start of the load path"
+            message = "relaxed lattice" if self.solver.relax else "start of the load path"
             self.accept("load", -1, q, message, self.run.offset)
         self.lam_ref = state["lam_ref"]
         return q
@@ -414,7 +415,7 @@ class RodRun(MultiStart):
                     q_at,
                     t_at,
                     row=self.row,
-                    min_fraction=self.min_step_fraction,
+                    min_fraction=self.solver.newton.min_step_fraction,
                     on_step=self.on_load_step,
                     follow=continuation,
                 )
@@ -451,7 +452,7 @@ class RodRun(MultiStart):
         lat = self.lat
         return self.run.response(
             source=f"rod {fabric.pattern}",
-            mesh=f"{model.n_nodes} nodes, {len(model.edges)} segments ({self.segments(cell)}/stitch)",
+            mesh=f"{model.n_nodes} nodes, {len(model.edges)} segments ({self.solver.segments(cell)}/stitch)",
             label=f"rod {fabric.pattern} {size} {fabric.yarn.name}",
             extra={
                 "EA_N": energy.EA,

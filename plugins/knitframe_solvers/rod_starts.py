@@ -161,7 +161,7 @@ class MultiStart:
         a failed load path falls back to the next start (:func:`fallback_order`).
         """
         state, energy, model = self.state, self.energy, self.model
-        count = AUTO_STARTS if self.starts == "auto" else int(self.starts)
+        count = AUTO_STARTS if self.solver.starts == "auto" else int(self.solver.starts)
         chosen, q_best = 0, q_nominal
         best = float(energy(q_nominal, 0)[0])
         self.start_states = np.full((count, model.n_dof), np.nan)
@@ -170,7 +170,7 @@ class MultiStart:
             {
                 "name": START_SET[0].name,
                 "rest": state["start"],
-                "prestress_steps": self.prestress_steps,
+                "prestress_steps": self.solver.prestress_steps,
                 "amplitude": 1.0,
                 "converged": True,
                 "energy_Nmm": best,
@@ -183,7 +183,7 @@ class MultiStart:
                 if st.rest == "option"
                 else ("knitted" if state["start"] == "straight" else "straight")
             )
-            steps = max(1, int(round(st.steps * self.prestress_steps)))
+            steps = max(1, int(round(st.steps * self.solver.prestress_steps)))
             entry = {"name": st.name, "rest": rest, "prestress_steps": steps, "amplitude": st.amplitude}
             t0 = time.perf_counter()
             try:
@@ -196,7 +196,7 @@ class MultiStart:
                         self.initial_distance(q0),
                         steps,
                         label=f" start {k + 1}/{count} ({st.name})",
-                        min_fraction=max(self.min_step_fraction, EXTRA_START_MIN_FRACTION),
+                        min_fraction=max(self.solver.newton.min_step_fraction, EXTRA_START_MIN_FRACTION),
                     )
                 )
                 E = float(energy(qk, 0)[0])
@@ -289,7 +289,7 @@ class MultiStart:
         names = [e["name"] for e in entries]
         summary = "; ".join(f"'{entries[k]['name']}' {entries[k]['load_error']}" for k in order)
         furthest = max(order, key=lambda k: (entries[k].get("load_steps", 0), -order.index(k)))
-        if self.on_failure == "truncate" and entries[furthest].get("load_steps", 0) > 0:
+        if self.solver.on_failure == "truncate" and entries[furthest].get("load_steps", 0) > 0:
             # keep the rows of the start that got furthest (the lower energy of a tie)
             if names[furthest] != self.state["start_chosen"]:
                 q = self.switch_to(furthest)

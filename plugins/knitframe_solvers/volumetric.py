@@ -57,8 +57,10 @@ from knitframe.errors import ConfigError, FieldError
 from knitframe.geometry import unit_cell
 from knitframe.numerics.newton import NewtonOptions
 from knitframe.numerics.periodic import Lattice, periodic_transform
+from knitframe.numerics.settings import settings_field
 from knitframe.records import Fabric, Response, Scene
 from knitframe.yarns import yarn_model
+from knitframe_solvers.newton_settings import VolumetricNewton
 from knitframe_solvers.volumetric_material import SolidForms, YarnLaw
 from knitframe_solvers.volumetric_model import VolumetricModel, contact_surface
 from knitframe_solvers.volumetric_run import VolumetricRun
@@ -96,8 +98,6 @@ class VolumetricSolver:
     linear_solver: str | dict[str, Any] = "direct"
     #: modulus scaling the penalty, MPa; default the yarn's E_transverse
     contact_modulus: float | None = attrs.field(default=None, validator=v.optional(v.positive))
-    #: contact search distance / yarn radius, -
-    reach: float = attrs.field(default=0.5, validator=v.positive)
     #: same-strand pairs closer than this × dk along the yarn are the yarn itself (the ipc law: all pairs
     #: within 0.75 × this, none beyond it), -
     self_contact_exclusion: float = attrs.field(default=np.pi, validator=v.positive)
@@ -110,85 +110,18 @@ class VolumetricSolver:
     min_clearance: float = attrs.field(default=0.25, validator=v.in_range(0.05, 2.0))
     #: Newton residual tolerance (largest nodal force) / (E_transverse r²), -
     tolerance: float = attrs.field(default=1e-3, validator=v.positive)
-    #: also converged at a residual ≤ this × the average nodal force flux (ABAQUS's R_n; 0: off), -
-    flux_tolerance: float = attrs.field(default=5e-3, validator=v.non_negative)
-    #: the flux ratio after 9 iterations (ABAQUS's R_P; 0: flux_tolerance throughout), -
-    late_flux_tolerance: float = attrs.field(default=2e-2, validator=v.non_negative)
-    #: ... when the last Newton correction ≤ this × the increment's displacement (ABAQUS's C_n), -
-    correction_tolerance: float = attrs.field(default=1e-2, validator=v.positive)
-    #: tolerances (residual, flux, step) of the intermediate pre-stress states / the final ones, -
-    path_tolerance_factor: float = attrs.field(default=10.0, validator=v.in_range(1.0, 1e6))
-    #: largest node move per Newton step / yarn radius (at most reach / 2 with contact_search = "iteration"),
-    #: -
-    max_step: float = attrs.field(default=0.25, validator=v.positive)
-    #: Newton's Hessian: its PSD projection per quadrature point (projected Newton), the exact tangent, or the
-    #: projection while exact steps fail ("adaptive": projected far from the solution, exact near it)
-    tangent: Literal["adaptive", "exact", "projected"] = attrs.field(
-        default="projected", validator=v.one_of(("adaptive", "exact", "projected"))
-    )
-    #: with tangent = "adaptive", start every increment on the projected tangent (an increment's first exact
-    #: step mostly fails: this saves its evaluation and factorisation)
-    start_projected: bool = attrs.field(default=False, validator=v.boolean)
     #: also converged when the exact Newton step moves no node more than this × r (IPC's test; 0: off), -
     step_tolerance: float = attrs.field(default=0.01, validator=v.non_negative)
-    #: start of a load increment: the affine map of the macro step, plus ("secant") the yarns' fluctuation and
-    #: free macro DOFs extrapolated from the last two converged increments (with a barrier, its crossing-free
-    #: part; taken only if it lowers the energy)
-    predictor: Literal["affine", "secant"] = attrs.field(
-        default="affine", validator=v.one_of(("affine", "secant"))
-    )
-    #: the projected tangent's negative eigenvalues: set to zero at each quadrature point ("clamp", the
-    #: closest PSD matrix), to their absolute value there ("abs": a compressed fibre's mode keeps its
-    #: stiffness's size), or set to zero in each element matrix ("element", IPC's projection; a 30 × 30
-    #: eigenproblem per P2 element)
-    eigenvalue_filter: Literal["clamp", "abs", "element"] = attrs.field(
-        default="clamp", validator=v.one_of(("clamp", "abs", "element"))
-    )
-    #: with barrier contact, after a Newton step the CCD bound shortened, chord steps on its factorisation
-    #: (−H⁻¹ at the new gradients) while they lower the energy at least as fast per second (a gradient and a
-    #: back-substitution instead of a Hessian and a factorisation; needs a linear solver that factorises)
-    chord: bool = attrs.field(default=True, validator=v.boolean)
-    #: with chord, chord steps also after a full Newton step (α = 1), while they lower the energy as fast per
-    #: second: the tails of the load increments, where projected Newton's full steps converge only linearly
-    chord_after_full_steps: bool = attrs.field(default=True, validator=v.boolean)
-    #: halve a full Newton step that reverses the last one where it moves most, when that lowers the energy (a
-    #: node group flipping between two states across a kink of the energy, e.g. friction's stick-slip switch:
-    #: in the P2 r/3 pre-stress it ended a 2-cycle that had held the step test from iteration 13 to 32: 20
-    #: iterations instead of 33)
-    halve_reversals: bool = attrs.field(default=True, validator=v.boolean)
-    #: after a full Newton or chord step, a longer one (up to this × it, within max_step and the CCD bound) at
-    #: the minimum of the energy's quadratic along it, if that lowers the energy further (projected Newton
-    #: steps short along soft modes near a solution: 8 saves a third of the Hessians of P1 cells, but slowed
-    #: the P2 r/3 cell by 10 %; 1: off), -
-    extrapolation: float = attrs.field(default=1.0, validator=v.in_range(1.0, 1e3))
-    #: a Newton step over this × max_step raises the Levenberg shift (damping a near-singular mode, e.g. a
-    #: yarn only contact holds) instead of being scaled down whole (0: off), -
-    cap_shift: float = attrs.field(default=0.0, validator=v.non_negative)
-    #: smallest cut-back increment / step, -
-    min_step_fraction: float = attrs.field(default=1.0 / 64, validator=v.in_range(0.0, 1.0, lo_open=True))
     #: Newton iterations per increment (default 40; 200 with barrier contact, whose CCD-bounded steps are
     #: short while contacts engage), -
     max_iterations: int | None = attrs.field(default=None, validator=v.optional(v.in_range(1, 10000)))
-    #: cut back once the residual has not improved in this many Newton iterations (0: only after
-    #: max_iterations; barrier contact never: its residual rises while contacts engage and the energy falls),
-    #: -
-    stall_iterations: int = attrs.field(default=10, validator=v.in_range(0, 10000))
     #: quadrature order of the solid (2: 4 points), -
     intorder: int = attrs.field(default=2, validator=v.in_range(1, 6))
-    #: weak foundation on each increment's displacement / (E_transverse / h²), -
-    stabilisation: float = attrs.field(default=1e-4, validator=v.in_range(0.0, 1.0))
-    #: when the broad-phase contact search runs: once per Newton iteration, its candidates held through the
-    #: line search ("iteration"), or at every energy evaluation, -
-    contact_search: Literal["iteration", "evaluation"] = attrs.field(
-        default="iteration", validator=v.one_of(("iteration", "evaluation"))
-    )
     #: "truncate" returns the converged steps (converged = false)
     on_failure: Literal["raise", "truncate"] = "raise"
-    #: keep freed memory in the process for the run (glibc: large blocks from the heap, never trimmed), so
-    #: that the factors and tangents of each Newton iteration reuse pages instead of faulting them in afresh
-    #: (in one P2 r/3 run: 135 million page faults, 13 % of the CPU time); the process keeps its peak heap
-    #: until it exits
-    retain_freed_memory: bool = attrs.field(default=True, validator=v.boolean)
+    #: Newton and contact-search tuning: a preset ("default", "robust", "fast") or a table of keys, optionally
+    #: with ``preset`` (see ``[solver.newton]`` of volumetric below)
+    newton: str | dict[str, Any] = settings_field(VolumetricNewton)
 
     def _key(self, fabric: Fabric, scene: Scene, law: Any = None) -> str:
         """Checkpoint key: the inputs, the solver options and the resolved contact law (with its defaults)."""
@@ -218,7 +151,7 @@ class VolumetricSolver:
             node_offset=cm.node_offset,
         )
         forms.element_body = cm.element_body
-        forms.projection = self.eigenvalue_filter
+        forms.projection = self.newton.eigenvalue_filter
         lattice = Lattice(cell.L1, cell.L2)
         slave = np.concatenate([e for e, _, _ in cm.end_pairs])
         master = np.concatenate([s for _, s, _ in cm.end_pairs])
@@ -234,7 +167,7 @@ class VolumetricSolver:
         h = self.seed * cm.radius
         stiffness = law.penalty(modulus, h) if law is not None else 0.0
         vol = float(forms.dx.sum())
-        damping = self.stabilisation * fabric.yarn.E_transverse / h**2 * vol / cm.n_nodes
+        damping = self.newton.stabilisation * fabric.yarn.E_transverse / h**2 * vol / cm.n_nodes
         model = VolumetricModel(
             cell,
             cm,
@@ -245,7 +178,7 @@ class VolumetricSolver:
             law,
             surface,
             stiffness,
-            self.reach * cm.radius,
+            self.newton.reach * cm.radius,
             t_mesh,
             damping,
         )
@@ -356,12 +289,12 @@ class VolumetricSolver:
         otherwise): two nodes each moving max_step could close a gap wider than the reach within
         one step.
         """
-        held = self.contact_search == "iteration" and law is not None and law.holds_candidates
-        if held and self.max_step > 0.5 * self.reach:
+        held = self.newton.contact_search == "iteration" and law is not None and law.holds_candidates
+        if held and self.newton.max_step > 0.5 * self.newton.reach:
             raise ConfigError(
-                "solver.max_step",
-                f"{self.max_step:g} is more than half the contact reach "
-                f"({self.reach:g}): with contact_search = 'iteration' a step could bring an unseen "
+                "solver.newton.max_step",
+                f"{self.newton.max_step:g} is more than half the contact reach "
+                f"({self.newton.reach:g}): with contact_search = 'iteration' a step could bring an unseen "
                 "pair into contact; lower max_step or use contact_search = 'evaluation'",
             )
         return held
@@ -369,14 +302,17 @@ class VolumetricSolver:
     def newton_options(
         self, fabric: Fabric, radius: float, barrier: bool
     ) -> tuple[NewtonOptions, NewtonOptions]:
-        """Newton options of the knitted state and load steps, and the looser ones of the intermediate pre-stress.
+        """Newton options of the knitted state and load steps, and the looser ones of the intermediate
+        pre-stress.
 
         The residual tolerance is ``tolerance``·E_T·r² (the contact forces that resolve the pre-stress
         scale with the soft transverse modulus); the step test is ``step_tolerance`` (in units of r,
-        as ``max_step``). The intermediate pre-stress states are only a path to s = 1: their residual,
-        flux and step tolerances are ``path_tolerance_factor`` times larger, as in the rod solver.
+        as ``newton.max_step``); the safeguards are the ``newton`` settings. The intermediate pre-stress
+        states are only a path to s = 1: their residual, flux and step tolerances are
+        ``newton.path_tolerance_factor`` times larger, as in the rod solver.
         """
         r = radius
+        nw = self.newton
         # few backtracks: where a step fails, a cut-back of the load step helps more than α → 0;
         # Levenberg shifts up to 1e-2 × the mean diagonal: where loops buckle or contact curvature makes the
         # Hessian indefinite the Newton direction climbs, and shifts of 1e-5 had been too small to turn it;
@@ -388,25 +324,25 @@ class VolumetricSolver:
             atol=self.tolerance * fabric.yarn.E_transverse * r * r,
             rtol=1e-10,
             max_iter=max_iter,
-            max_step=self.max_step,
+            max_step=nw.max_step,
             xtol=1e-10 * r,
             max_backtracks=12,
             residual_backtracks=0,
             max_shift_increases=7,
-            flux_rtol=self.flux_tolerance,
-            correction_rtol=self.correction_tolerance,
-            late_flux_rtol=self.late_flux_tolerance,
-            stall_iterations=0 if barrier else self.stall_iterations,
-            cap_shift=self.cap_shift,
-            projection={"exact": "off", "projected": "always"}.get(self.tangent, self.tangent),
+            flux_rtol=nw.flux_tolerance,
+            correction_rtol=nw.correction_tolerance,
+            late_flux_rtol=nw.late_flux_tolerance,
+            stall_iterations=0 if barrier else nw.stall_iterations,
+            cap_shift=nw.cap_shift,
+            projection={"exact": "off", "projected": "always"}.get(nw.tangent, nw.tangent),
             step_tol=self.step_tolerance,
-            start_projected=self.start_projected,
-            chord=self.chord and barrier,
-            extrapolate=self.extrapolation,
-            halve_reversals=self.halve_reversals,
-            chord_full=self.chord_after_full_steps,
+            start_projected=nw.start_projected,
+            chord=nw.chord and barrier,
+            extrapolate=nw.extrapolation,
+            halve_reversals=nw.halve_reversals,
+            chord_full=nw.chord_after_full_steps,
         )
-        f = self.path_tolerance_factor
+        f = nw.path_tolerance_factor
         loose = attrs.evolve(
             opts,
             atol=f * opts.atol,

@@ -48,8 +48,7 @@ P1_LOCKING = (
 class VolumetricRun:
     """The state of one :meth:`VolumetricSolver.simulate` call and its phases.
 
-    The solver's options read as the run's own attributes (``self.tolerance`` is the solver's
-    ``tolerance``), so the phases below use them as the solver would.
+    The phases read the solver's options from ``self.solver`` (its tuning from ``self.solver.newton``).
     """
 
     def __init__(
@@ -65,20 +64,20 @@ class VolumetricRun:
     ):
         t_start = time.perf_counter()
         self.solver, self.fabric, self.scene, self.trace = solver, fabric, scene, trace
-        if self.retain_freed_memory:
+        if self.solver.newton.retain_freed_memory:
             retain_freed_memory()
         registry = get_registry()
-        self.model = model = self.setup(fabric, scene, registry)
-        backend = instantiate(registry, "linear_solver", self.linear_solver, "solver.linear_solver")
+        self.model = model = self.solver.setup(fabric, scene, registry)
+        backend = instantiate(registry, "linear_solver", self.solver.linear_solver, "solver.linear_solver")
         self.solve = self.timed_solver(backend)
         self.with_prestress = "prestress" in scene.effects
         self.r = r = model.cm.radius
-        self.opts, self.loose = self.newton_options(fabric, r, model.barrier)
+        self.opts, self.loose = self.solver.newton_options(fabric, r, model.barrier)
         self.n_ind = 3 * len(model.independent)
         self.base_free = np.ones(self.n_ind + N_MACRO, bool)
         self.base_free[:3] = False  # pin one node: the cell's free translation
         ckpt = (
-            StepCheckpoints(checkpoint_dir, self._key(fabric, scene, model.law))
+            StepCheckpoints(checkpoint_dir, self.solver._key(fabric, scene, model.law))
             if checkpoint_dir is not None
             else None
         )
@@ -89,29 +88,23 @@ class VolumetricRun:
         s0 = 1.0
         if self.with_prestress:
             d_min = model.cm.clearance.minimum if model.cm.clearance is not None else 2.0 * r
-            s0 = min(self.initial_radius, 0.95 * d_min / (2.0 * r))
+            s0 = min(self.solver.initial_radius, 0.95 * d_min / (2.0 * r))
         self.state: dict[str, Any] = {"phase": "prestress", "target": -1, "s0": s0}
         self.run = CellRun(
-            self.name,
+            self.solver.name,
             fabric,
             scene,
-            n_prestress=self.prestress_steps if self.with_prestress else 0,
+            n_prestress=self.solver.prestress_steps if self.with_prestress else 0,
             state=self.state,
             checkpoints=ckpt,
             output_dir=output_dir,
             prefix="solid",
             write_vtu=self.write_step,
             progress=progress,
-            on_failure=self.on_failure,
+            on_failure=self.solver.on_failure,
             t_start=t_start,
         )
         self.path: list[tuple[float, np.ndarray]] = []  # the last two converged load states (τ, q)
-
-    def __getattr__(self, name: str) -> Any:
-        # the solver's options and methods, read through the run
-        if name.startswith("__") or "solver" not in self.__dict__:
-            raise AttributeError(name)
-        return getattr(self.__dict__["solver"], name)
 
     def timed_solver(self, backend: Any) -> Any:
         """The linear solver with its wall time added to the model's ``linear_solve`` time."""
@@ -131,7 +124,12 @@ class VolumetricRun:
             return wrapper
 
         solve = timed(backend, True)
-        if self.chord and model.barrier and not model.hold_candidates and backend.factorize is not None:
+        if (
+            self.solver.newton.chord
+            and model.barrier
+            and not model.hold_candidates
+            and backend.factorize is not None
+        ):
             # chord steps reuse a factorisation: each back-substitution counts as a linear solve, the
             # factorisation's time goes with them
             def factorize(A):
@@ -152,7 +150,7 @@ class VolumetricRun:
         if arrays is not None:
             q = arrays["q"]
             state["s0"] = float(state["s0"])
-        if self.order == 1 and "bending" in self.scene.effects:
+        if self.solver.order == 1 and "bending" in self.scene.effects:
             self.run.warn(P1_LOCKING, stacklevel=3)
         with self.run.truncating():
             start_index = int(state["target"])
@@ -162,7 +160,13 @@ class VolumetricRun:
             model.s = 1.0
             first = start_index + 1
             self.path.append((float(first), q))
-            self.run.load(self.solve_load, q, float(first), row=self.row, min_fraction=self.min_step_fraction)
+            self.run.load(
+                self.solve_load,
+                q,
+                float(first),
+                row=self.row,
+                min_fraction=self.solver.newton.min_step_fraction,
+            )
         return self.response()
 
     # ---------------------------------------------------------------------------------- Newton
@@ -272,7 +276,7 @@ class VolumetricRun:
     def prestress_phase(self, q: np.ndarray, start_index: int) -> np.ndarray:
         """Grow the tubes from radius s₀·r to r (s = s₀ + t (1 − s₀)) at F̄ = I, after pre-stress step
         ``start_index``; the last state."""
-        model, s0, n = self.model, self.state["s0"], self.prestress_steps
+        model, s0, n = self.model, self.state["s0"], self.solver.prestress_steps
         free = self.base_free.copy()
         free[self.n_ind :] = False
         # the radius factor of the last converged state (not of a failed try)
@@ -295,7 +299,7 @@ class VolumetricRun:
             model.s = s0
             q = self.newton_solve(q, free, options=self.loose).x
         return self.run.prestress(
-            solve_prestress, q, first=start_index + 1, min_fraction=self.min_step_fraction
+            solve_prestress, q, first=start_index + 1, min_fraction=self.solver.newton.min_step_fraction
         )
 
     def check_overlap(self, q: np.ndarray) -> np.ndarray:
@@ -333,7 +337,7 @@ class VolumetricRun:
         model, lat, n_ind, path = self.model, self.lat, self.n_ind, self.path
         qs = q0.copy()
         qs[n_ind:][pres] = vals[pres]
-        secant = self.predictor == "secant" and len(path) == 2 and path[-1][1] is q0
+        secant = self.solver.newton.predictor == "secant" and len(path) == 2 and path[-1][1] is q0
         if secant:
             # the free macro DOFs (a free side's contraction) extrapolated from the last two converged states
             (t_prev, q_prev), (t_now, _) = path

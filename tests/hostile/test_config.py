@@ -320,8 +320,8 @@ CASES: list[tuple[str, Any, str, dict[str, str]]] = [
     ("volumetric-seed-tiny", edit(VOLUMETRIC, {"solver.seed": 1e-3}), "solver.seed", {}),
     (
         "volumetric-max-step-past-reach",
-        edit(VOLUMETRIC, {"solver.max_step": 0.4, "solver.contact_law": "penalty"}),
-        "solver.max_step",
+        edit(VOLUMETRIC, {"solver.newton.max_step": 0.4, "solver.contact_law": "penalty"}),
+        "solver.newton.max_step",
         {},
     ),
     (
@@ -336,7 +336,12 @@ CASES: list[tuple[str, Any, str, dict[str, str]]] = [
         "solver.min_clearance",
         {},
     ),
-    ("volumetric-tangent-unknown", edit(VOLUMETRIC, {"solver.tangent": "magic"}), "solver.tangent", {}),
+    (
+        "volumetric-tangent-unknown",
+        edit(VOLUMETRIC, {"solver.newton.tangent": "magic"}),
+        "solver.newton.tangent",
+        {},
+    ),
     (
         "volumetric-contact-modulus-1e300",
         edit(VOLUMETRIC, {"solver.contact_modulus": 1e300}),
@@ -351,8 +356,8 @@ CASES: list[tuple[str, Any, str, dict[str, str]]] = [
     ),
     (
         "volumetric-stabilisation-1e300",
-        edit(VOLUMETRIC, {"solver.stabilisation": 1e300}),
-        "solver.stabilisation",
+        edit(VOLUMETRIC, {"solver.newton.stabilisation": 1e300}),
+        "solver.newton.stabilisation",
         {},
     ),
     (

@@ -1,0 +1,422 @@
+"""The iteration of :func:`knitframe.numerics.newton.minimise`: its state and one step at a time.
+
+:class:`Minimiser` holds what one call of ``minimise`` carries from iteration to iteration (the
+iterate and its evaluation, the Levenberg shift, the projection switch, the kept factorisation
+of the chord steps and their back-off) and splits an iteration into its stages: the convergence
+tests, a chord step, the Newton step under rising shifts and the move to the new iterate. The
+method, its options and the equations are described in :mod:`knitframe.numerics.newton`; the
+line search and its refinements are in :mod:`knitframe.numerics.newton_steps`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from knitframe.errors import NumericalError
+from knitframe.numerics.newton_steps import (
+    CHORD_SIZE_FACTOR,
+    STALL_FACTOR,
+    _capped,
+    _chord_step,
+    _diag_scale,
+    _extrapolated,
+    _failure,
+    _fmt,
+    _halved_reversal,
+    _line_search,
+    _report,
+    _step_ratio,
+)
+
+if TYPE_CHECKING:
+    from knitframe.numerics.newton import NewtonOptions, Problem
+
+__all__ = ["Minimiser"]
+
+#: a converged state: x, E, g, the iteration count, the history and the last info
+Converged = tuple[np.ndarray, float, np.ndarray, int, tuple[dict, ...], dict]
+
+
+class Minimiser:
+    """The state of one :func:`minimise` call: the iterate, its evaluation, the shift and the chord steps.
+
+    :meth:`iterate` runs the iterations; each is a record of the iterate (:meth:`_record`), the
+    convergence tests (:meth:`_converged`, :meth:`_check_stall`), a chord step where one is due
+    (:meth:`_chord_iteration`) or a Newton step (:meth:`_newton_step`: Levenberg shifts
+    :meth:`_shifted_step` until a step is accepted), and the move to the new iterate (:meth:`_advance`).
+    """
+
+    def __init__(
+        self,
+        fun: Problem,
+        x0: np.ndarray,
+        free: np.ndarray,
+        solve: Callable[[Any, np.ndarray], np.ndarray],
+        options: NewtonOptions,
+        stabilise: Callable[[dict], bool] | None,
+        step_norm: Callable[[np.ndarray], float] | None,
+        step_limit: Callable[[np.ndarray, np.ndarray], float] | None,
+        on_iteration: Callable[[dict], None] | None,
+    ):
+        """The state at x0 (its evaluation; NumericalError if inadmissible); the arguments are
+        :func:`~knitframe.numerics.newton.minimise`'s."""
+        self.fun, self.solve, self.options = fun, solve, options
+        self.stabilise, self.step_norm, self.step_limit = stabilise, step_norm, step_limit
+        self.on_iteration = on_iteration
+        self.x = np.array(x0, dtype=np.float64, copy=True)
+        self.free = free = np.asarray(free, bool)
+        self.projecting = options.projection == "always" or (
+            options.projection == "adaptive" and options.start_projected
+        )
+        self.t_it = time.perf_counter()
+        self.E, self.g, self.H, self.info = self.evaluate(self.x)
+        if not np.isfinite(self.E):
+            raise NumericalError(
+                f"Newton: the starting state is inadmissible (energy {self.E}); "
+                f"{self.info.get('diagnostic', '')}".strip()
+            )
+        r0 = float(np.max(np.abs(self.g[free]), initial=0.0))
+        self.tol = max(options.atol, options.rtol * r0)
+        self.history: list[dict] = []
+        self.shift_rel = 0.0
+        self.x_start = self.x.copy()
+        self.measure = (
+            step_norm if step_norm is not None else (lambda d: float(np.max(np.abs(d[free]), initial=0.0)))
+        )
+        self.correction = math.inf
+        # the largest shift: the max_shift_increases-th value of 0, 1e-8, 1e-7, … (a shift carried over from
+        # the last iteration starts higher, and without this cap iterations that each needed the largest shift
+        # ratcheted it up to 1e6 × the diagonal: steps too short to matter, dozens of line searches each)
+        self.max_shift = 1e-8 * 10.0 ** max(options.max_shift_increases - 1, 0)
+        # chord steps: the last Newton iteration's factorisation, kept while it pays (options.chord)
+        self.factorize = getattr(solve, "factorize", None) if options.chord else None
+        self.kept = None
+        self.chord_next = False
+        self.newton_rate = 0.0
+        self.newton_size = math.nan
+        self.last_size = math.nan  # the last Newton step's size (options.chord_full)
+        self.n_chord = self.n_chord_total = 0
+        self.refused = self.skip = 0  # first chord steps refused in a row, and chord starts still to skip
+        self.last_move = None  # the last accepted move x_new − x (options.halve_reversals)
+
+    def evaluate(self, x: np.ndarray) -> tuple[float, Any, Any, dict]:
+        """E, g, H and info at x, with the projected Hessian while projecting."""
+        return self.fun(x, 2, projected=True) if self.projecting else self.fun(x, 2)
+
+    def release(self) -> None:
+        """Free the kept factorisation, if any."""
+        if self.kept is not None:
+            getattr(self.kept, "free", lambda: None)()
+            self.kept = None
+
+    def _result(self, it: int) -> Converged:
+        """The converged state at iteration ``it``, after reporting its history entry."""
+        _report(self.on_iteration, self.history, self.t_it)
+        return self.x, float(self.E), self.g, it, tuple(self.history), self.info
+
+    def iterate(self) -> Converged:
+        """Iterate until converged: ``(x, E, g, iterations, history, info)``; NumericalError (with
+        ``history``) when there is no progress or no convergence."""
+        options = self.options
+        for it in range(options.max_iter * (1 + options.max_chord) + 1):
+            res = self._record(it)
+            ratio = (
+                options.late_flux_rtol
+                if options.late_flux_rtol > 0 and it >= options.late_iteration
+                else options.flux_rtol
+            )
+            if self._converged(it, res, ratio):
+                return self._result(it)
+            if it - self.n_chord_total == options.max_iter:  # chord steps do not count against max_iter
+                break
+            self._check_stall(it, ratio)
+            if self.chord_next and self._chord_iteration():
+                continue
+            done = self._newton_step(it, res)
+            if done is not None:
+                return done
+        _report(self.on_iteration, self.history, self.t_it)
+        raise _failure(
+            f"Newton: no convergence in {options.max_iter} iterations (residual "
+            f"{self.history[-1]['residual']:.3g} > tol {self.tol:.3g}); {_fmt(self.history)}",
+            self.history,
+        )
+
+    def _record(self, it: int) -> float:
+        """Start the history entry of iteration ``it``; its residual max|g_f| (NumericalError if not
+        finite)."""
+        res = float(np.max(np.abs(self.g[self.free]), initial=0.0))
+        if not np.isfinite(res):
+            raise NumericalError(f"Newton: non-finite gradient at iteration {it}; {_fmt(self.history)}")
+        self.history.append({"it": it, "energy": float(self.E), "residual": res, "shift": self.shift_rel})
+        for key in ("flux", "active"):
+            if key in self.info:
+                self.history[-1][key] = float(self.info[key])
+        return res
+
+    def _converged(self, it: int, res: float, ratio: float) -> bool:
+        """The absolute test res ≤ tol, or the force-flux test at flux ratio ``ratio`` with a small
+        correction."""
+        if res <= self.tol:
+            return True
+        if ratio > 0 and it > 0 and res <= ratio * float(self.info.get("flux", 0.0)):
+            return self.correction <= self.options.correction_rtol * self.measure(self.x - self.x_start)
+        return False
+
+    def _check_stall(self, it: int, ratio: float) -> None:
+        """Give up (NumericalError) when no residual of the last ``stall_iterations`` beat the best before."""
+        k = self.options.stall_iterations
+        if not (k and it >= k):
+            return
+        history = self.history
+        window = [h["residual"] for h in history[-k:]]
+        best_before = min(h["residual"] for h in history[:-k])
+        target = max(self.tol, ratio * float(self.info.get("flux", 0.0)))
+        if min(window) >= best_before and best_before > STALL_FACTOR * target:
+            _report(self.on_iteration, history, self.t_it)
+            raise _failure(
+                f"Newton: stalled, no residual below {best_before:.3g} in the last {k} "
+                f"iterations (tol {self.tol:.3g}); {_fmt(history)}",
+                history,
+            )
+
+    def _chord_iteration(self) -> bool:
+        """Try a chord step on the kept factorisation; True if taken (the next iterate is evaluated), else
+        False with the Hessian evaluated at the iterate for a Newton step."""
+        self.chord_next = False
+        if self.projecting:  # the kept factorisation is of the projected Hessian
+            self.history[-1]["projected"] = True
+        chord = _chord_step(
+            self.fun,
+            self.x,
+            self.E,
+            self.g,
+            self.kept,
+            self.free,
+            self.options,
+            self.step_norm,
+            self.step_limit,
+            self.history[-1],
+            max_size=CHORD_SIZE_FACTOR * self.newton_size,
+        )
+        if chord is None and self.n_chord == 0:
+            # the first chord step after a Newton step refused: back off, 2^k − 1 chances skipped after
+            # the k-th such refusal in a row (stale factors refuse them in streaks, each a wasted gradient)
+            self.refused += 1
+            self.skip = 2**self.refused - 1
+        if chord is None:
+            # no chord step (it failed, or it is within step_tol, which only a Newton step may test): the
+            # Hessian
+            self.E, self.g, self.H, self.info = self.evaluate(self.x)
+            return False
+        self.refused = 0
+        alpha, x_new, E_new = chord
+        _report(self.on_iteration, self.history, self.t_it)
+        self.n_chord += 1
+        self.n_chord_total += 1
+        rate = (self.E - E_new) / max(self.history[-1]["wall_s"], 1e-9)
+        self.chord_next = rate >= self.newton_rate and self.n_chord < self.options.max_chord
+        self.t_it = time.perf_counter()
+        self.correction = self.measure(x_new - self.x)
+        self.last_move = x_new - self.x
+        self.x = x_new
+        self.E, self.g, self.H, self.info = self.fun(self.x, 1) if self.chord_next else self.evaluate(self.x)
+        return True
+
+    def _newton_step(self, it: int, res: float) -> Converged | None:
+        """A Newton iteration: the converged result if the step test passes, else None after moving."""
+        free = self.free
+        Hff = self.H[free][:, free].tocsc()
+        base = (
+            self.options.stabilisation if (self.stabilise is not None and self.stabilise(self.info)) else 0.0
+        )
+        self.shift_rel = self.shift_rel * 0.1 if self.shift_rel * 0.1 > max(base, 1e-10) else base
+        self.shift_rel = min(self.shift_rel, self.max_shift)
+        if self.projecting:
+            self.history[-1]["projected"] = True
+        step = self._shifted_step(it, res, Hff)
+        if step is None:  # converged by the step test
+            return self._result(it)
+        return self._advance(it, *step)
+
+    def _solve_shifted(self, Hff: sp.spmatrix, gf: np.ndarray, scale: float) -> np.ndarray | None:
+        """dx_f = −(H_ff + shift·scale·I)⁻¹·g_f (the factorisation kept for chord steps), None on failure."""
+        shift_rel = self.shift_rel
+        A = Hff + sp.identity(Hff.shape[0], format="csc") * (shift_rel * scale) if shift_rel > 0 else Hff
+        try:
+            with np.errstate(all="ignore"):
+                if self.factorize is not None:  # kept for chord steps
+                    self.release()
+                    self.kept = self.factorize(A)
+                    return np.atleast_1d(np.asarray(self.kept(-gf), dtype=np.float64))
+                return np.atleast_1d(np.asarray(self.solve(A, -gf), dtype=np.float64))
+        except (RuntimeError, np.linalg.LinAlgError, NumericalError, ValueError):
+            return None
+
+    def _shifted_step(self, it: int, res: float, Hff: sp.spmatrix) -> tuple | None:
+        """Raise the Levenberg shift until a descent step passes the line search.
+
+        Returns ``(alpha, x_new, E_new, dx, size)``, or None when the unshifted step is within
+        ``step_tol`` (converged); NumericalError when no shift up to the largest gives a step.
+        """
+        options, free, x, entry = self.options, self.free, self.x, self.history[-1]
+        gf = self.g[free]
+        scale = _diag_scale(Hff)
+        tried = 0.0
+        for _ in range(options.max_shift_increases + 2):
+            if self.shift_rel > self.max_shift * (1.0 + 1e-9):
+                break
+            tried = self.shift_rel
+            size = math.nan
+            dx_f = self._solve_shifted(Hff, gf, scale)
+            slope = float(gf @ dx_f) if dx_f is not None and np.all(np.isfinite(dx_f)) else math.nan
+            descent = dx_f is not None and np.isfinite(slope) and slope < 0
+            if descent:
+                dx = np.zeros_like(x)
+                dx[free] = dx_f
+                if self.step_norm is not None and (np.isfinite(options.max_step) or options.step_tol > 0):
+                    size = self.step_norm(dx)
+            if (
+                options.projection == "adaptive"
+                and not self.projecting
+                and (not descent or (np.isfinite(size) and size > options.max_step))
+            ):
+                # the exact Hessian sends the step uphill or far off: projected Newton for the rest of the
+                # increment
+                self.projecting = True
+                entry["projected"] = True
+                self.H = self.fun(x, 2, projected=True)[2]
+                Hff = self.H[free][:, free].tocsc()
+                scale = _diag_scale(Hff)
+                continue
+            if (
+                descent
+                and options.step_tol > 0
+                and self.shift_rel == 0.0
+                and np.isfinite(size)
+                and size <= options.step_tol
+            ):
+                # the Newton step would move nothing by more than step_tol: x is the solution to that accuracy
+                # (a projected step is H_p⁻¹g with H_p ⪰ the exact curvature's positive part: IPC's criterion)
+                entry["step"] = _step_ratio(size, options)
+                entry["step_converged"] = True
+                return None
+            if descent:
+                step = self._searched(dx, slope, size)
+                if step is _SHIFT:
+                    continue
+                if step is not None:
+                    alpha, x_new, E_new, dx = step
+                    return alpha, x_new, E_new, dx, size
+            self.shift_rel = max(10.0 * self.shift_rel, 1e-8)
+        _report(self.on_iteration, self.history, self.t_it)
+        raise _failure(
+            f"Newton: no descent step at iteration {it} (residual {res:.3g} > tol {self.tol:.3g}, "
+            f"shift up to {tried:.2g}); {_fmt(self.history)}",
+            self.history,
+        )
+
+    def _searched(self, dx: np.ndarray, slope: float, size: float):
+        """The step taken along the descent direction dx of size ``size`` and slope g·dx.
+
+        ``(alpha, x_new, E_new, dx)`` with dx as capped, after the line search, the extrapolation and
+        (``halve_reversals``) the halving of a reversal; None when the line search finds no α;
+        ``_SHIFT`` when dx is over ``cap_shift``·``max_step`` and the shift is raised instead.
+        """
+        options, entry = self.options, self.history[-1]
+        if (
+            options.cap_shift
+            and np.isfinite(size)
+            and size > options.cap_shift * options.max_step
+            and max(10.0 * self.shift_rel, 1e-8) <= self.max_shift * (1.0 + 1e-9)
+        ):
+            # far outside the cap: a near-singular mode dominates dx, and scaling the whole step
+            # down would leave the rest of it at nothing; damp that mode with a shift instead
+            self.shift_rel = max(10.0 * self.shift_rel, 1e-8)
+            return _SHIFT
+        if np.isfinite(size):
+            entry["step"] = _step_ratio(size, options)
+        x, fun = self.x, self.fun
+        dx, slope, alpha0 = _capped(x, dx, slope, size, options, self.step_limit)
+        entry["alpha0"] = alpha0
+        step = (
+            _line_search(fun, x, self.E, self.g, dx, slope, options, self.free, alpha0)
+            if alpha0 > 0
+            else None
+        )
+        step = _extrapolated(fun, x, self.E, dx, slope, size, step, options, self.step_limit, entry)
+        if options.halve_reversals:
+            step = _halved_reversal(fun, x, dx, step, self.last_move, self.free, entry)
+        return None if step is None else (*step, dx)
+
+    def _advance(
+        self, it: int, alpha: float, x_new: np.ndarray, E_new: float, dx: np.ndarray, size: float
+    ) -> Converged | None:
+        """Move to the accepted Newton step's iterate and evaluate it; the result if the xtol test passes."""
+        options, entry = self.options, self.history[-1]
+        entry["alpha"] = alpha
+        entry["step_energy"] = float(E_new)  # as the line search saw it: the next entry's energy may differ
+        # wall_s: this iteration's evaluations, factorisations, line search
+        _report(self.on_iteration, self.history, self.t_it)
+        self._plan_chord(alpha, E_new, size)
+        self.t_it = time.perf_counter()
+        self.correction = self.measure(x_new - self.x)
+        self.last_move = x_new - self.x
+        self.x = x_new
+        if (
+            self.projecting
+            and options.projection == "adaptive"
+            and np.isfinite(size)
+            and size <= options.release_step * options.max_step
+        ):
+            self.projecting = False  # in the basin: the exact tangent converges quadratically
+        self.E, self.g, self.H, self.info = self.fun(self.x, 1) if self.chord_next else self.evaluate(self.x)
+        if alpha == 1.0 and self.shift_rel == 0.0 and float(np.max(np.abs(dx), initial=0.0)) <= options.xtol:
+            res = float(np.max(np.abs(self.g[self.free]), initial=0.0))
+            self.history.append(
+                {"it": it + 1, "energy": float(self.E), "residual": res, "shift": 0.0, "xtol": True}
+            )
+            return self._result(it + 1)
+        return None
+
+    def _plan_chord(self, alpha: float, E_new: float, size: float) -> None:
+        """After a Newton step of length α and size ``size``: whether chord steps follow on its
+        factorisation."""
+        options = self.options
+        near = options.step_tol > 0 and np.isfinite(size) and size <= CHORD_SIZE_FACTOR * options.step_tol
+        if (
+            near
+            and options.chord_full
+            and alpha >= 1.0
+            and np.isfinite(self.last_size)
+            and self.last_size > 0
+        ):
+            # a full step: the next Newton step is expected at size·ρ, ρ = this step / the last one (under
+            # linear convergence ρ ≈ 1, and a step twice the test is many iterations from passing it)
+            near = size * min(1.0, size / self.last_size) <= options.step_tol
+        self.last_size = size
+        if (
+            options.chord
+            and self.kept is not None
+            and (alpha < 1.0 or options.chord_full)
+            and self.shift_rel == 0.0
+            and not near
+            and not self.history[-1].get("halved")
+        ):
+            # a shortened step (or with chord_full any step): chord steps on this factorisation while they
+            # gain energy at least this fast (not when the step was nearly within step_tol: the next Newton
+            # step may end the iteration)
+            self.newton_rate = (self.E - E_new) / max(self.history[-1]["wall_s"], 1e-9)
+            self.newton_size = size
+            self.chord_next, self.n_chord = self.skip == 0, 0
+            self.skip = max(self.skip - 1, 0)
+
+
+#: :meth:`Minimiser._searched`'s answer when the step is over ``cap_shift`` × the cap: raise the shift
+_SHIFT = object()
