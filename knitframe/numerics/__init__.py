@@ -3,8 +3,10 @@
 =========================  ==================================================================
 module                     what it holds
 =========================  ==================================================================
-``newton``                 the Newton driver (:func:`minimise`), load-path continuation with
-                           cut-back and per-step checkpoints
+``cellrun``                the unit-cell run skeleton (:class:`CellRun`): pre-stress and load
+                           phases, checkpoints and resume, VTU files, truncate, the Response
+``continuation``           load-path continuation with cut-back, and per-step checkpoints
+``newton``                 Newton's method on an energy (:func:`minimise`), its options
 ``newton_driver``          the state and stages of one :func:`minimise` iteration
 ``newton_steps``           the line search, extrapolated, halved and chord steps of Newton
 ``settings``               a solver's ``[solver.newton]`` tuning table: presets and overrides
@@ -13,7 +15,8 @@ module                     what it holds
 ``contact_search``         broad-phase search between yarn segments, with periodic images
 ``contact``                solid contact: surfaces, gaps, pairing, P2 projection, penalty and
                            friction terms, assembly (one module per concern)
-``mesh``                   swept tetrahedral yarn tubes (gmsh) for the volumetric cell
+``mesh``                   swept tetrahedral yarn tubes (gmsh) for the volumetric cell: the
+                           section, the swept cell, facets, element quality
 ``memory``, ``parallel``   process memory and thread settings for the large solves
 =========================  ==================================================================
 
