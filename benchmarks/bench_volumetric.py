@@ -1,14 +1,22 @@
-"""Benchmark of the volumetric solver on jersey SL11 cotton: meshing, Newton-iteration costs, solvers, full runs.
+"""Benchmark of the volumetric solver on jersey SL11 cotton: meshing, Newton-iteration costs, solvers,
+full runs.
 
 Usage::
 
-    python benchmarks/bench_volumetric.py mesh                  # mesh sizes and times, P1/P2, several seeds
-    python benchmarks/bench_volumetric.py iteration --order 2   # one Newton iteration: assembly, contact, direct vs amg
-    python benchmarks/bench_volumetric.py iteration --order 2 --solvers pardiso,amg   # skip SuperLU (its fill-in explodes on P2)
-    python benchmarks/bench_volumetric.py run --order 1 --seed 0.6 --steps 6   # pre-stress + equibiaxial 0→30 %
-    python benchmarks/bench_volumetric.py forms --order 2       # the solid's evaluations per thread count; the pull-back
-    python benchmarks/bench_volumetric.py law                   # the yarn law alone, per derivative order
-    python benchmarks/bench_volumetric.py trace --trace run.jsonl   # summary of a traced run, one row per Newton solve
+    # mesh sizes and times, P1/P2, several seeds
+    python benchmarks/bench_volumetric.py mesh
+    # one Newton iteration: assembly, contact, direct vs amg
+    python benchmarks/bench_volumetric.py iteration --order 2
+    # the same without SuperLU (its fill-in explodes on P2)
+    python benchmarks/bench_volumetric.py iteration --order 2 --solvers pardiso,amg
+    # pre-stress + equibiaxial 0→30 %
+    python benchmarks/bench_volumetric.py run --order 1 --seed 0.6 --steps 6
+    # the solid's evaluations per thread count; the pull-back
+    python benchmarks/bench_volumetric.py forms --order 2
+    # the yarn law alone, per derivative order
+    python benchmarks/bench_volumetric.py law
+    # summary of a traced run, one row per Newton solve
+    python benchmarks/bench_volumetric.py trace --trace run.jsonl
 
 Each command prints a table (and ``--json`` writes the numbers). Peak memory is the process's
 maximum resident set size (``resource.getrusage``), so run one command per process.
@@ -150,12 +158,12 @@ def bench_iteration(args) -> list[dict]:
             Bq[:n_ind] = B
             solve_fn = factory()
 
-            def run(A=A, b=b, B=Bq[free]):
+            def run(A=A, b=b, B=Bq[free], solve_fn=solve_fn):
                 return solve_fn(A, b, near_null_space=B)
         else:
             solve_fn = factory()
 
-            def run(A=A, b=b):
+            def run(A=A, b=b, solve_fn=solve_fn):
                 return solve_fn(A, b)
 
         t0 = time.perf_counter()
@@ -187,7 +195,8 @@ def bench_iteration(args) -> list[dict]:
     return rows
 
 
-#: 'run' flags forwarded when given (flag → option of the contact law, or of VolumetricSolver); "on"/"off" become booleans
+#: 'run' flags forwarded when given (flag → option of the contact law, or of VolumetricSolver); "on"/"off"
+#: become booleans
 LAW_FLAGS = {"smoothing": "smoothing", "mu": "friction", "dhat": "dhat", "ccd": "ccd", "reuse": "reuse"}
 SOLVER_FLAGS = {"step_tol": "step_tolerance"}
 #: 'run' flags forwarded to the solver's ``newton`` settings when given
@@ -292,7 +301,8 @@ def bench_run(args) -> list[dict]:
     rows.append(
         {
             "lambda": "per Newton iteration s",
-            "T1_N_per_mm": f"assembly+contact {(tm['material'] + tm['contact'] + tm['transform']) / n_it:.2f}",
+            "T1_N_per_mm": "assembly+contact "
+            f"{(tm['material'] + tm['contact'] + tm['transform']) / n_it:.2f}",
             "T2_N_per_mm": f"linear solve {tm['linear_solve'] / n_it:.2f} ({n_it} solves)",
         }
     )
@@ -332,8 +342,10 @@ def bench_trace(args) -> list[dict]:
                             "material+contact s": round(
                                 rec.get("material_s", 0.0) + rec.get("contact_s", 0.0), 1
                             ),
-                            "linear solves": f"{rec.get('n_linear_solves', '')} ({rec.get('linear_solve_s', 0.0):.1f} s)",
-                            "evaluations (E, g, H)": f"{rec.get('n_energy', '')}, {rec.get('n_gradient', '')}, "
+                            "linear solves": f"{rec.get('n_linear_solves', '')} "
+                            f"({rec.get('linear_solve_s', 0.0):.1f} s)",
+                            "evaluations (E, g, H)": f"{rec.get('n_energy', '')}, "
+                            f"{rec.get('n_gradient', '')}, "
                             f"{rec.get('n_hessian', '')}",
                         }
                     )
@@ -387,7 +399,8 @@ def bench_forms(args) -> list[dict]:
                 forms.evaluate(u, s0, order, project=True)
             rows.append(
                 {
-                    "what": f"solid, order {order} ({forms.edofs.shape[1]} elements, {len(forms._chunks())} chunks)",
+                    "what": f"solid, order {order} ({forms.edofs.shape[1]} elements, "
+                    f"{len(forms._chunks())} chunks)",
                     "threads": threads,
                     "s": round((time.perf_counter() - t0) / 3, 4),
                 }
@@ -498,7 +511,8 @@ def main(argv=None) -> None:
     p.add_argument(
         "--dhat",
         type=float,
-        help="'run': barrier activation distance of the ipc law / mean surface edge length (default the law's, 0.1)",
+        help="'run': barrier activation distance of the ipc law / mean surface edge length "
+        "(default the law's, 0.1)",
     )
     p.add_argument(
         "--ccd",
@@ -508,7 +522,8 @@ def main(argv=None) -> None:
     p.add_argument(
         "--reuse",
         type=float,
-        help="'run': the ipc law keeps a broad-phase search while no vertex has moved over this × d̂ (default the law's, 0.5; 0 searches at every evaluation)",
+        help="'run': the ipc law keeps a broad-phase search while no vertex has moved over this × d̂ "
+        "(default the law's, 0.5; 0 searches at every evaluation)",
     )
     p.add_argument(
         "--mu",

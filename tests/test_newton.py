@@ -32,7 +32,8 @@ def test_minimise_converges_from_far_away():
 
 def test_history_records_the_accepted_step_energy():
     """Each iteration records the energy of its accepted step as the line search saw it; on a plain energy
-    that is the next iterate's energy (a problem that changes between evaluations shows up as a difference)."""
+    that is the next iterate's energy (a problem that changes between evaluations shows up as a difference).
+    """
     res = minimise(
         quartic, np.full(6, 50.0), np.ones(6, bool), solve=direct(), options=NewtonOptions(rtol=0.0)
     )
@@ -444,7 +445,8 @@ def test_step_tolerance_stops_when_the_exact_step_is_small():
 
 def test_step_tolerance_applies_to_the_projected_step():
     """Under the projection the step test is IPC's: the projected Newton step. The chain converges by it on
-    projected steps alone, within about step_tol of the minimum, without the exact tangent's last iterations."""
+    projected steps alone, within about step_tol of the minimum, without the exact tangent's last iterations.
+    """
     x0 = np.r_[1.0, np.full(7, 0.05)]
     free = np.r_[False, np.ones(7, bool)]
     opts = NewtonOptions(
@@ -518,7 +520,8 @@ def test_adaptive_newton_can_start_projected():
 
 
 def _slow_hessian_quartic(calls):
-    """``quartic`` whose Hessian costs 20 ms (as a large assembly and factorisation do), counting its calls."""
+    """``quartic`` whose Hessian costs 20 ms (as a large assembly and factorisation do), counting its
+    calls."""
 
     def fun(x, order=2, projected=False):
         calls[order] = calls.get(order, 0) + 1
@@ -579,7 +582,8 @@ def test_chord_steps_reuse_the_factorisation_while_steps_are_bounded(step_tol):
 
 
 def test_no_chord_steps_without_a_factorising_solver():
-    """A linear solver without ``factorize`` (a plain function) gets Newton steps only, chord option or not."""
+    """A linear solver without ``factorize`` (a plain function) gets Newton steps only, chord option or
+    not."""
     calls = {}
     res = minimise(
         _slow_hessian_quartic(calls),
@@ -635,9 +639,9 @@ def test_chord_steps_stop_near_convergence_and_when_the_factor_is_stale():
 
 
 def _stiff_model(calls, soft=0.05):
-    """E = ½ Σ k_i x_i² + ¼ x_0⁴ with k = 1 except a soft last DOF (k = ``soft``), but a Hessian that gives that
-    DOF a stiffness of 1 (as projected Newton overestimates a soft mode's curvature): full Newton steps then
-    reduce the soft DOF only by the factor 1 − soft per iteration."""
+    """E = ½ Σ k_i x_i² + ¼ x_0⁴ with k = 1 except a soft last DOF (k = ``soft``), but a Hessian that gives
+    that DOF a stiffness of 1 (as projected Newton overestimates a soft mode's curvature): full Newton steps
+    then reduce the soft DOF only by the factor 1 − soft per iteration."""
 
     def fun(x, order=2, projected=False):
         calls.setdefault(order, []).append(x.copy())
@@ -671,7 +675,8 @@ def test_extrapolation_speeds_up_full_steps_on_a_too_stiff_model():
     )  # |g| ≤ 1e-8, k = 0.05
     assert not any("extrapolated" in h for h in plain.history)
     # plain full steps: 0.95 per iteration; extrapolated ones also move the stiff, converged DOFs off their
-    # minimum, which the next full step restores (a zig-zag, 0.93 per iteration here); 147 against 347 Hessians
+    # minimum, which the next full step restores (a zig-zag, 0.93 per iteration here); 147 against 347
+    # Hessians
     assert h_fast * 2 < h_plain
     ext = [h for h in fast.history if "extrapolated" in h]
     assert ext and all(1.5 <= h["extrapolated"] <= 8.0 for h in ext)
@@ -765,9 +770,9 @@ class _StaleFactors:
 
 
 def test_refused_chord_steps_back_off():
-    """Where every first chord step is refused (stale factors), the k-th refusal in a row skips the next 2^k − 1
-    chances: of ~40 shortened Newton steps only the 1st, 3rd, 7th, 15th, ... try one (each a gradient), and the
-    minimum is the same."""
+    """Where every first chord step is refused (stale factors), the k-th refusal in a row skips the next 2^k −
+    1 chances: of ~40 shortened Newton steps only the 1st, 3rd, 7th, 15th, ... try one (each a gradient), and
+    the minimum is the same."""
     norm = lambda dx: float(np.max(np.abs(dx)))  # noqa: E731
     calls = {}
     res = minimise(
@@ -787,10 +792,10 @@ def test_refused_chord_steps_back_off():
 
 
 def _kinked_pair(x, order=2, projected=False, k=0.01, eps=1e-3):
-    """E = h(x₀) + ½k·x₀² + ¼x₁⁴ with h the Huber function (|x| beyond ε, x²/2ε within: C¹ at ±ε, like friction's
-    stick-slip switch). In slip the Hessian sees only k, so a full Newton step from any x₀ > ε lands at −1/k and
-    the next one back at +1/k: a 2-cycle that costs no energy, which the Armijo test passes while x₁'s slow
-    convergence (Newton on a quartic: ×2/3 per step) lowers E."""
+    """E = h(x₀) + ½k·x₀² + ¼x₁⁴ with h the Huber function (|x| beyond ε, x²/2ε within: C¹ at ±ε, like
+    friction's stick-slip switch). In slip the Hessian sees only k, so a full Newton step from any x₀ > ε
+    lands at −1/k and the next one back at +1/k: a 2-cycle that costs no energy, which the Armijo test passes
+    while x₁'s slow convergence (Newton on a quartic: ×2/3 per step) lowers E."""
     a = abs(x[0])
     h, dh, d2h = (
         (a - 0.5 * eps, np.sign(x[0]), 0.0) if a > eps else (x[0] ** 2 / (2 * eps), x[0] / eps, 1.0 / eps)
@@ -804,17 +809,17 @@ def _kinked_pair(x, order=2, projected=False, k=0.01, eps=1e-3):
 
 
 def test_halving_breaks_a_two_cycle_across_a_kink():
-    """Full Newton steps flip x₀ between ±1/k while x₁ converges (the 2-cycle of a node group across friction's
-    stick-slip switch); halving a step that reverses the last move puts x₀ at the cycle's centre as soon as the
-    half step's energy is lower (while x₁ is far off, its full step outweighs that: 4 iterates on the cycle),
-    while without the option x₀ flips until x₁'s decrease no longer carries the Armijo test (10). Both reach
-    the same minimum, and without the option no step is halved."""
+    """Full Newton steps flip x₀ between ±1/k while x₁ converges (the 2-cycle of a node group across
+    friction's stick-slip switch); halving a step that reverses the last move puts x₀ at the cycle's centre as
+    soon as the half step's energy is lower (while x₁ is far off, its full step outweighs that: 4 iterates on
+    the cycle), while without the option x₀ flips until x₁'s decrease no longer carries the Armijo test (10).
+    Both reach the same minimum, and without the option no step is halved."""
     x0 = np.array([50.0, 30.0])
     runs, iterates = {}, {}
     for halve in (False, True):
         seen = iterates[halve] = []
 
-        def fun(x, order=2, projected=False):
+        def fun(x, order=2, projected=False, seen=seen):
             if order == 2:
                 seen.append(x.copy())
             return _kinked_pair(x, order)
@@ -831,9 +836,10 @@ def test_halving_breaks_a_two_cycle_across_a_kink():
 
 
 def test_chord_steps_after_full_steps_where_newton_converges_linearly():
-    """On a Hessian too stiff along a soft DOF, full Newton steps converge only linearly (×0.95 per step); each
-    costs a Hessian. Chord steps start only after shortened steps, so there are none; with ``chord_full`` they
-    follow full steps too and, at the same rate per step for a tenth of the cost, replace most Hessians."""
+    """On a Hessian too stiff along a soft DOF, full Newton steps converge only linearly (×0.95 per step);
+    each costs a Hessian. Chord steps start only after shortened steps, so there are none; with ``chord_full``
+    they follow full steps too and, at the same rate per step for a tenth of the cost, replace most Hessians.
+    """
     runs = {}
     for full in (False, True):
         calls = {}
@@ -858,9 +864,9 @@ def test_chord_steps_after_full_steps_where_newton_converges_linearly():
 
 
 def test_chord_full_steps_go_on_within_twice_the_step_test_under_linear_convergence():
-    """Under linear convergence (×0.95 per Newton step) a full step twice the step test is ~14 steps from passing
-    it: with ``chord_full`` chord steps still follow it (the observed rate predicts the next step), and the
-    iteration still ends on the step test of a Newton step."""
+    """Under linear convergence (×0.95 per Newton step) a full step twice the step test is ~14 steps from
+    passing it: with ``chord_full`` chord steps still follow it (the observed rate predicts the next step),
+    and the iteration still ends on the step test of a Newton step."""
     norm = lambda dx: float(np.max(np.abs(dx)))  # noqa: E731
     calls = {}
     opts = NewtonOptions(atol=1e-12, rtol=0.0, max_iter=2000, chord=True, chord_full=True, step_tol=1e-3)

@@ -19,7 +19,8 @@ EA, EI = 50.0, 0.05
 
 
 def wavy_cell(amp: float = 0.2, gap: float = 0.5, radius: float = 0.26) -> UnitCell:
-    """Two wavy rows a distance ``gap`` apart in the wale, in antiphase out of plane, touching their images."""
+    """Two wavy rows a distance ``gap`` apart in the wale, in antiphase out of plane, touching their
+    images."""
 
     def yarn(y0, sign, name):
         w = 2 * np.pi / 2.0
@@ -352,7 +353,8 @@ def test_energy_is_invariant_under_periodic_translation():
 
 
 def test_stabilisation_does_not_change_the_converged_answer(monkeypatch):
-    """The rigid-mode Hessian shift (on while a strand has no contact) changes the iterations, not the curve."""
+    """The rigid-mode Hessian shift (on while a strand has no contact) changes the iterations, not the
+    curve."""
     import knitframe_solvers.rod_run as rod
 
     from knitframe import get_registry
@@ -405,7 +407,8 @@ def test_knitted_rest_curvature_makes_the_generated_cell_stress_free():
 
 # ---------------------------------------------------------------------------------------- effects
 def test_terms_not_asked_for_are_never_evaluated(monkeypatch):
-    """Without 'contact' no contact search runs; without 'friction' no friction state exists or is evaluated."""
+    """Without 'contact' no contact search runs; without 'friction' no friction state exists or is
+    evaluated."""
     import knitframe_solvers.rod_model as rm
 
     calls = {"n": 0}

@@ -25,8 +25,10 @@ def outcome(pattern, sl, yarn, load, **options):
     for arr in (r.lambda1, r.lambda2, r.T1, r.T2):
         assert np.all(np.isfinite(arr))
     print(
-        f"{pattern} SL{sl} {yarn} {load.kind} {load.direction if load.kind == 'uniaxial' else ''}: {len(r)} steps, λ = ({r.lambda1[-1]:.3f}, "
-        f"{r.lambda2[-1]:.3f}), T = ({r.T1[-1]:.4g}, {r.T2[-1]:.4g}) N/mm, {r.provenance.extra['prestress_start']} "
+        f"{pattern} SL{sl} {yarn} {load.kind} {load.direction if load.kind == 'uniaxial' else ''}: "
+        f"{len(r)} steps, λ = ({r.lambda1[-1]:.3f}, "
+        f"{r.lambda2[-1]:.3f}), T = ({r.T1[-1]:.4g}, {r.T2[-1]:.4g}) N/mm, "
+        f"{r.provenance.extra['prestress_start']} "
         f"pre-stress start, {r.provenance.wall_time:.1f} s"
     )
     return r
@@ -121,7 +123,8 @@ def test_auto_prestress_tries_the_knitted_start_after_the_straight_one_fails():
 @pytest.mark.parametrize("sl", [10, 11, 12])
 @pytest.mark.parametrize("yarn", ["cotton", "pet", "nylon"])
 def test_every_pattern_stitch_length_and_yarn_ends_converged_or_with_a_diagnostic(pattern, sl, yarn):
-    """The whole table of patterns x SL10-12 x yarns, pulled equibiaxially and uniaxially both ways, never gives NaN.
+    """The whole table of patterns x SL10-12 x yarns, pulled equibiaxially and uniaxially both ways, never
+    gives NaN.
 
     Loops of stiff yarns can snap through, so the tension need not grow at every step.
     """

@@ -84,7 +84,8 @@ def test_solver_is_registered_with_its_effects():
 
 @pytest.mark.parametrize("order", [1, 2])
 def test_course_tension_of_straight_yarns(order):
-    """Stretching straight yarns along the course gives T1 = 2 E_A ε π r² / |L2| (two yarns per wale period)."""
+    """Stretching straight yarns along the course gives T1 = 2 E_A ε π r² / |L2| (two yarns per wale
+    period)."""
     from knitframe.numerics.mesh import cell_mesh, mesh_quality
 
     r = VolumetricSolver(order=order, seed=0.75).simulate(FABRIC, STRETCH)
@@ -274,7 +275,8 @@ def count_calls(monkeypatch, cls, name: str) -> list:
 
 @pytest.mark.parametrize("law", ["mortar", "penalty", "ipc"])
 def test_contact_without_touching_pairs_changes_nothing(law):
-    """Contact on, but the rows never touch: the laws see no pairs and the tension is that of the bare yarns."""
+    """Contact on, but the rows never touch: the laws see no pairs and the tension is that of the bare
+    yarns."""
     bare = VolumetricSolver(order=1, seed=0.75).simulate(FABRIC, STRETCH)
     scene = attrs.evolve(STRETCH, effects=frozenset({"large_deformation", "anisotropy", "contact"}))
     with_contact = VolumetricSolver(order=1, seed=0.75, contact_law=law).simulate(FABRIC, scene)
@@ -297,8 +299,8 @@ def test_friction_is_frozen_per_increment_only_when_asked(monkeypatch):
 
 @pytest.mark.parametrize("search", ["iteration", "evaluation"])
 def test_contact_search_once_per_newton_iteration(monkeypatch, search):
-    """contact_search = "iteration": the broad-phase contact search runs at the Hessian evaluations only
-    (one per Newton iterate), its candidates held through the line search; "evaluation" searches every time."""
+    """contact_search = "iteration": the broad-phase contact search runs at the Hessian evaluations only (one
+    per Newton iterate), its candidates held through the line search; "evaluation" searches every time."""
     from knitframe.numerics.contact import SolidSurface
 
     calls = count_calls(monkeypatch, SolidSurface, "candidates")
@@ -338,7 +340,8 @@ def test_barrier_contact_resolves_the_interference_of_the_prestress():
         step_tolerance=1e-6,
     )
     flux_off = {"flux_tolerance": 0.0, "late_flux_tolerance": 0.0}
-    # plain projected Newton, and with chord steps and extrapolated steps (which shortens steps, so chords follow)
+    # plain projected Newton, and with chord steps and extrapolated steps (which shortens steps, so chords
+    # follow)
     plain = VolumetricSolver(**tight, newton={**flux_off, "chord": False}).simulate(
         fabric, scene, trace=(plain_records := []).append
     )
@@ -371,9 +374,9 @@ def test_barrier_contact_resolves_the_interference_of_the_prestress():
 
 
 def test_intermediate_prestress_states_take_the_loose_tolerances():
-    """The intermediate pre-stress states take path_tolerance_factor × the residual, flux and step tolerances; in a
-    run where the residual and flux tests are out of reach, every solve that iterates ends by the step test within
-    its own bound (the history's step is the Newton step over the cap)."""
+    """The intermediate pre-stress states take path_tolerance_factor × the residual, flux and step tolerances;
+    in a run where the residual and flux tests are out of reach, every solve that iterates ends by the step
+    test within its own bound (the history's step is the Newton step over the cap)."""
     solver = VolumetricSolver(
         order=1,
         seed=0.75,
@@ -409,9 +412,9 @@ def test_intermediate_prestress_states_take_the_loose_tolerances():
 
 def test_secant_predictor_starts_the_next_increment_near_its_solution():
     """Small strain, no contact: the yarns' fluctuation grows linearly with the load, so the secant predictor
-    (the fluctuation and the free side's contraction extrapolated from the last two converged increments) starts
-    the second and third increments far closer to their solution than the affine map alone; both end at the same
-    tensions."""
+    (the fluctuation and the free side's contraction extrapolated from the last two converged increments)
+    starts the second and third increments far closer to their solution than the affine map alone; both end at
+    the same tensions."""
     scene = attrs.evolve(
         STRETCH, load=LoadPath(kind="uniaxial", direction="course", max_strain=0.03, steps=3)
     )
@@ -448,8 +451,8 @@ def test_a_converged_state_with_forces_far_above_the_flux_gets_a_note(monkeypatc
 
 @pytest.mark.parametrize("order", [1, 2])
 def test_pull_back_of_the_tangent_is_the_triple_product(order):
-    """model.pull_back(K) = Tᵀ (K + c I) T (the periodic map T, the foundation c), through its fixed-pattern map;
-    a K on another pattern gets its own map."""
+    """model.pull_back(K) = Tᵀ (K + c I) T (the periodic map T, the foundation c), through its fixed-pattern
+    map; a K on another pattern gets its own map."""
     import scipy.sparse as sp
 
     solver = VolumetricSolver(order=order, seed=0.75, newton={"stabilisation": 1e-2})
