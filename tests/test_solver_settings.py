@@ -117,6 +117,8 @@ def test_the_held_contact_search_check_names_the_table_key():
     vol = solver("volumetric", "newton = { max_step = 0.3, reach = 0.5 }")
 
     class Law:
+        holds_candidates = True  # a solid law that takes a search's candidates
+
         def evaluate(self, candidates=None):
             pass
 
