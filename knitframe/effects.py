@@ -19,7 +19,7 @@ __all__ = ["require_effects", "solvers_supporting"]
 def solvers_supporting(registry: Registry, effect: str) -> list[str]:
     """Names of the registered solvers whose ``effects`` include ``effect``."""
     kind = registry["solver"]
-    return [name for name in kind if effect in getattr(kind[name], "effects", frozenset())]
+    return [name for name in kind if effect in kind[name].effects]
 
 
 def require_effects(scene: Scene, solver: Any, registry: Registry, *, name: str | None = None) -> None:
@@ -27,20 +27,16 @@ def require_effects(scene: Scene, solver: Any, registry: Registry, *, name: str 
 
     Effects are checked in sorted order so the message is deterministic.
     """
-    solver_name = name or getattr(solver, "name", type(solver).__name__)
-    supported = frozenset(getattr(solver, "effects", frozenset()))
+    solver_name = name or solver.name
+    supported = frozenset(solver.effects)
     for effect in sorted(scene.effects):
         if effect not in supported:
             raise UnsupportedEffectError(effect, solver_name, solvers_supporting(registry, effect))
-    loads = getattr(solver, "loads", None)
+    loads = solver.loads
     key = scene.load.response_kind
-    if loads is not None and key not in loads and scene.load.kind not in loads:
+    if key not in loads and scene.load.kind not in loads:
         kind = registry["solver"]
-        others = [
-            n
-            for n in kind
-            if key in getattr(kind[n], "loads", ()) or scene.load.kind in getattr(kind[n], "loads", ())
-        ]
+        others = [n for n in kind if key in kind[n].loads or scene.load.kind in kind[n].loads]
         raise ConfigError(
             "scene.load.kind",
             f"solver '{solver_name}' cannot follow load '{key}'; "

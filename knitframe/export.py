@@ -157,10 +157,10 @@ def card_refusal(model: Any, fmt: str) -> str | None:
     """Why ``model`` cannot be written as ``fmt`` (one line), or None when it can."""
     if fmt not in FORMATS:
         return f"unknown format {fmt!r}; expected one of {', '.join(FORMATS)}"
-    formats = tuple(getattr(model, "card_formats", ()))
-    if fmt in formats and callable(getattr(model, "card", None)):
+    formats = tuple(model.card_formats)
+    if fmt in formats:
         return None
-    reason = getattr(model, "card_refusal", "") or "it defines no material cards"
+    reason = model.card_refusal or "it defines no material cards"
     if formats:
         return (
             f"homogenizer '{model.name}' has no {fmt} card ({reason}); "

@@ -46,6 +46,7 @@ __all__ = [
     "HeaderReader",
     "DispatchingReader",
     "Stage",
+    "declared",
     "Progress",
 ]
 
@@ -282,6 +283,15 @@ class Homogenizer(Protocol):
     predicts_lateral: ClassVar[bool]
     #: bounds that are symmetry planes of the model (a fit reports a parameter there as not determined)
     symmetric_bounds: ClassVar[tuple[bool, ...]]
+    #: the formats of :mod:`knitframe.export` :meth:`card` writes (empty: none can express the model)
+    card_formats: ClassVar[tuple[str, ...]] = ()
+    #: why a format outside ``card_formats`` cannot express the model (one clause)
+    card_refusal: ClassVar[str] = ""
+
+    def card(self, fmt: str, params: Any, **options: Any) -> str:
+        """The material card in ``fmt`` (one of ``card_formats``) for the parameters as stored in
+        params.json. Default: none (``card_formats`` is empty)."""
+        raise ValueError(f"{self.name}: no {fmt} card ({self.card_refusal or 'no card formats'})")
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Lower and upper bounds of the parameters, each (len(param_names),)."""
@@ -431,6 +441,17 @@ class Stage(Protocol):
     description: ClassVar[str]
     order: ClassVar[int]
     uses: ClassVar[tuple[str, ...]]
+    #: the table may be given several times (``[[name]]``), one stage instance per table
+    repeatable: ClassVar[bool] = False
+    #: the top-level table the stage owns when it is not ``name`` (the simulate stage owns ``[solver]``)
+    table: ClassVar[str | None] = None
+
+    @property
+    def label(self) -> str:
+        """The stage's name in timings and results (``fit:measured`` for a named repeat).
+
+        Default: ``name``."""
+        return self.name
 
     @classmethod
     def from_config(cls, config: Mapping[str, Any], ctx: BuildContext) -> Stage:
@@ -438,3 +459,23 @@ class Stage(Protocol):
 
     def run(self, ctx: RunContext) -> None:
         """Do the work, reading and adding to the run context."""
+
+
+def declared(plugin: Any, protocol: type, member: str) -> Any:
+    """``plugin``'s ``member``, or the default that ``protocol`` declares for it.
+
+    For the optional members of a protocol that older plugins may not state (a stage's
+    ``repeatable``, ``table`` and ``label``): the default is the protocol's own definition (a
+    property is evaluated on ``plugin``). A member the protocol declares without a default is
+    required, and asking for it here is an error.
+    """
+    for klass in protocol.__mro__:
+        if member in vars(klass):
+            default = vars(klass)[member]
+            break
+    else:
+        raise KeyError(f"{protocol.__name__} declares no default for {member!r}")
+    try:
+        return getattr(plugin, member)
+    except AttributeError:
+        return default.fget(plugin) if isinstance(default, property) else default

@@ -32,6 +32,7 @@ import attrs
 from knitframe import __version__
 from knitframe.config import load_toml
 from knitframe.errors import ConfigError, KnitframeWarning
+from knitframe.interfaces import Stage, declared
 from knitframe.outdir import OutputDir, fingerprint
 from knitframe.plugins import Registry, get_registry
 from knitframe.records import Response
@@ -150,7 +151,7 @@ class Pipeline:
                 known = sorted(set(owners) | set(RESERVED_TABLES))
                 raise ConfigError(key, f"unknown table; expected one of {', '.join(known)}", source=source)
             owner = stage_kind[owners[key]]
-            repeatable = getattr(owner, "repeatable", False) and _table(owner) == key
+            repeatable = declared(owner, Stage, "repeatable") and _table(owner) == key
             if isinstance(value, list) and repeatable:
                 if not value or not all(isinstance(v, dict) for v in value):
                     raise ConfigError(key, f"expected one or more tables ([[{key}]])", source=source)
@@ -291,12 +292,12 @@ class Pipeline:
 
 def _label(stage: Any) -> str:
     """A stage instance's name in timings and results: ``fit`` or, for named repeats, ``fit:measured``."""
-    return getattr(stage, "label", None) or stage.name
+    return declared(stage, Stage, "label")
 
 
 def _table(stage: Any) -> str:
     """The top-level table a stage owns: its ``table`` ClassVar if it has one, else its name."""
-    return getattr(stage, "table", None) or stage.name
+    return declared(stage, Stage, "table") or stage.name
 
 
 def _jsonable(obj: Any) -> Any:

@@ -131,8 +131,10 @@ def test_kit_catches_a_homogenizer_without_stress_tangent():
         description = "every member but stress_tangent"
         param_names, units, log_scale, symmetric_bounds = ("a",), ("N/mm",), (True,), (False,)
         predicts_lateral = False
+        card_formats, card_refusal = (), "no card"
 
     for method in (
+        "card",
         "bounds",
         "x0",
         "energy",
@@ -178,3 +180,23 @@ def test_kit_catches_a_reader_with_half_of_the_header_protocol():
 
     with pytest.raises(AssertionError, match="lacks expects"):
         check_entry(_registered("reader", Half, "register_readers"))
+
+
+def test_declared_gives_a_stage_the_protocol_defaults_and_refuses_a_required_member():
+    """An optional member a plugin does not state reads as the protocol's default (a property is
+    evaluated); a member declared without a default cannot be read that way."""
+    from knitframe.interfaces import Stage, declared
+
+    class Old:
+        name = "old"
+
+    class Own:
+        name = "own"
+        table = "solver"
+        repeatable = True
+
+    assert declared(Old(), Stage, "table") is None and declared(Old, Stage, "repeatable") is False
+    assert declared(Old(), Stage, "label") == "old"
+    assert declared(Own(), Stage, "table") == "solver" and declared(Own, Stage, "repeatable") is True
+    with pytest.raises(KeyError, match="no default for 'order'"):
+        declared(Old(), Stage, "order")

@@ -242,6 +242,8 @@ class HGO:
 
     #: formats :meth:`card` writes (see :mod:`knitframe.export`)
     card_formats: ClassVar[tuple[str, ...]] = ("abaqus", "calculix", "calculix-deck", "febio")
+    #: every format of :mod:`knitframe.export` can hold the model: nothing to refuse
+    card_refusal: ClassVar[str] = ""
 
     #: keep the fibre stress for I4 < 1 (paper); false drops it
     compression_fibre: bool = True

@@ -77,6 +77,10 @@ class HGO2M:
         "ELASTIC_FIBER and FEBio Holzapfel-Gasser-Ogden is an isotropic solid; fit 'hgo' for a card"
     )
 
+    def card(self, fmt: str, params, **options) -> str:
+        """No card: ``card_formats`` is empty (:attr:`card_refusal` says why)."""
+        raise ValueError(f"hgo2m has no {fmt} card: {self.card_refusal}")
+
     #: keep the fibre stress in compression (false: tension-only fibres)
     compression_fibre: bool = False
 

@@ -19,7 +19,7 @@ import attrs
 from knitframe import hookimpl
 from knitframe.config import PluginSpec, instantiate
 from knitframe.errors import ConfigError, FieldError
-from knitframe.interfaces import DispatchingReader
+from knitframe.interfaces import DispatchingReader, Stage
 from knitframe.records import Response
 from knitframe.report import plot_responses, write_responses_csv
 from knitframe.schema import build
@@ -40,7 +40,7 @@ class DataTable:
 
 
 @attrs.frozen
-class DataStage:
+class DataStage(Stage):
     """Import measured curves as Responses."""
 
     name: ClassVar[str] = "data"

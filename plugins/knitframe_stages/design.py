@@ -41,6 +41,7 @@ from knitframe import hookimpl
 from knitframe import validators as v
 from knitframe.config import PluginSpec, instantiate
 from knitframe.errors import ConfigError, FieldError
+from knitframe.interfaces import Stage
 from knitframe.schema import build
 
 
@@ -172,7 +173,7 @@ def load_library(value: str, ctx: Any) -> Any:
 
 
 @attrs.frozen
-class DesignStage:
+class DesignStage(Stage):
     """Design a sleeve for a limb from a fabric library."""
 
     name: ClassVar[str] = "design"

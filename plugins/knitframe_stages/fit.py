@@ -34,6 +34,7 @@ from knitframe.config import PluginSpec, instantiate
 from knitframe.errors import ConfigError
 from knitframe.export import FORMATS, card_refusal, export_card
 from knitframe.fitting import write_fit_outputs
+from knitframe.interfaces import Stage
 from knitframe.schema import build
 
 
@@ -58,7 +59,7 @@ class FitTable:
 
 
 @attrs.frozen
-class FitStage:
+class FitStage(Stage):
     """Fit a reduced model to every (or the selected) Response of the run."""
 
     name: ClassVar[str] = "fit"

@@ -51,6 +51,7 @@ from knitframe.config import PluginSpec, instantiate
 from knitframe.convergence import convergence_table, write_convergence
 from knitframe.errors import ConfigError, KnitframeError, NumericalError
 from knitframe.executors import executor_from_config
+from knitframe.interfaces import Stage
 from knitframe.ladder import (
     DEFAULT_RUNGS,
     RUNGS,
@@ -121,7 +122,7 @@ def default_cache_dir() -> Path:
 
 
 @attrs.frozen
-class LadderStage:
+class LadderStage(Stage):
     """Run the rungs of the accuracy ladder on the config's fabric and scene and compare them."""
 
     name: ClassVar[str] = "ladder"

@@ -41,6 +41,7 @@ from knitframe import validators as v
 from knitframe.config import PluginSpec
 from knitframe.errors import ConfigError, FieldError, KnitframeError
 from knitframe.fitting import FitResult
+from knitframe.interfaces import Stage
 from knitframe.patchwork import grid
 from knitframe.records import Response
 from knitframe.report import plot_responses
@@ -113,7 +114,7 @@ class PatchworkTable:
 
 
 @attrs.frozen
-class PatchworkStage:
+class PatchworkStage(Stage):
     """Series, parallel and grid combinations of fitted models and Responses."""
 
     name: ClassVar[str] = "patchwork"

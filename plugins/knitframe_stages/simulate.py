@@ -34,6 +34,7 @@ from knitframe.config import PluginSpec, instantiate
 from knitframe.effects import require_effects
 from knitframe.errors import ConfigError
 from knitframe.geometry import checked_cell
+from knitframe.interfaces import Stage
 from knitframe.progress import ProgressBar
 from knitframe.records import Fabric, Scene
 from knitframe.report import compare, plot_comparison, write_responses_csv
@@ -51,7 +52,7 @@ class SolverTable:
 
 
 @attrs.frozen
-class SimulateStage:
+class SimulateStage(Stage):
     """Simulate a fabric's unit cell with a solver plugin and add the Response to the run."""
 
     name: ClassVar[str] = "simulate"

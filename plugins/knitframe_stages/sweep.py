@@ -86,6 +86,7 @@ from knitframe import hookimpl
 from knitframe.config import PluginSpec, instantiate
 from knitframe.errors import ConfigError, KnitframeWarning
 from knitframe.executors import executor_from_config
+from knitframe.interfaces import Stage
 from knitframe.report import plot_validation
 from knitframe.schema import build, field_names, to_dict
 from knitframe.sweep import (
@@ -143,7 +144,7 @@ class SweepTable:
 
 # ------------------------------------------------------------------------------------------ stage
 @attrs.frozen
-class SweepStage:
+class SweepStage(Stage):
     """Simulate and fit many fabrics (a grid or a list) through an executor; a fabric library comes out."""
 
     name: ClassVar[str] = "sweep"
