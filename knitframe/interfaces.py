@@ -17,6 +17,7 @@ reader stays a two-line class. :mod:`knitframe.testing` checks every declared me
 
 from __future__ import annotations
 
+import types
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
@@ -60,6 +61,9 @@ class Pattern(Protocol):
 
     name: ClassVar[str]
     description: ClassVar[str]
+    #: machine setting -> yarn length per stitch (mm), for fabrics given by ``stitch_length``; None:
+    #: the pattern takes ``arc_length`` only (read through :func:`declared`)
+    stitch_lengths: Mapping[str, float] | None = None
 
     def cell(self, fabric: Fabric) -> Any:
         """Unit cell (centerlines with exact tangents, lattice vectors, end pairing, layout)."""
@@ -369,6 +373,11 @@ class DesignObjective(Protocol):
         """Additive cost of each element's value (shape ``(..., E)``), its area (E,) and its position
         along the limb (E,, 0 distal to 1 at the top); ``level`` is τ for relative objectives."""
 
+    def target(self, position: np.ndarray) -> np.ndarray | None:
+        """The target pressure (mmHg) at positions along the limb (0 distal, 1 top), or None when the
+        objective sets no absolute target (read through :func:`declared`). Default: None."""
+        return None
+
     def evaluate(self, value: np.ndarray, area: np.ndarray, position: np.ndarray) -> float:
         """The objective of a finished design, as reported (lower is better)."""
 
@@ -465,8 +474,9 @@ def declared(plugin: Any, protocol: type, member: str) -> Any:
     """``plugin``'s ``member``, or the default that ``protocol`` declares for it.
 
     For the optional members of a protocol that older plugins may not state (a stage's
-    ``repeatable``, ``table`` and ``label``): the default is the protocol's own definition (a
-    property is evaluated on ``plugin``). A member the protocol declares without a default is
+    ``repeatable``, ``table`` and ``label``, a pattern's ``stitch_lengths``, a design objective's
+    ``target``): the default is the protocol's own definition (a property is evaluated on
+    ``plugin``, a method is bound to it). A member the protocol declares without a default is
     required, and asking for it here is an error.
     """
     for klass in protocol.__mro__:
@@ -478,4 +488,6 @@ def declared(plugin: Any, protocol: type, member: str) -> Any:
     try:
         return getattr(plugin, member)
     except AttributeError:
-        return default.fget(plugin) if isinstance(default, property) else default
+        if isinstance(default, property):
+            return default.fget(plugin)
+        return types.MethodType(default, plugin) if isinstance(default, types.FunctionType) else default

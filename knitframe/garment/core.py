@@ -27,6 +27,7 @@ from knitframe.garment.assign import _assign, _evaluate
 from knitframe.garment.optimise import check_options
 from knitframe.garment.paper import _periodic_labels
 from knitframe.garment.tube import MMHG_PER_MPA, ElementGeometry, Tube, element_geometry
+from knitframe.interfaces import DesignObjective, declared
 
 __all__ = ["Design", "design", "compression_class", "CLASSES"]
 
@@ -376,10 +377,9 @@ def design(
 def _suspect(d: Design) -> list[str]:
     """What a user must know about a design that is the best the library allows but still poor."""
     out = []
-    target = getattr(d.objective, "target", None)
-    level = getattr(d.objective, "target_mmHg", None)
-    if d.objective.quantity == "pressure" and (callable(target) or level):
-        want = target(d.geometry.position)[:, None] if callable(target) else np.full((1, 1), level)
+    target = declared(d.objective, DesignObjective, "target")(d.geometry.position)
+    if d.objective.quantity == "pressure" and target is not None:
+        want = target[:, None]
         err = float(
             np.sqrt(np.sum(d.geometry.area * ((d.pressure - want) / want) ** 2) / d.geometry.area.sum())
         )

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from knitframe.garment.core import CLASSES, Design
+from knitframe.interfaces import DesignObjective, declared
 
 __all__ = ["write_design", "plot_knit_map", "plot_pressure", "write_knit_map"]
 
@@ -180,11 +181,11 @@ def plot_pressure(d: Design, path: Path) -> None:
     )
     ax2.plot(pe.mean(axis=1), g.z, color="tab:blue", lw=2.0, label="equivalent radius C/2π")
     ax2.plot(pl.mean(axis=1), g.z, color="tab:red", lw=1.2, ls=":", label="local radius: mean around")
-    target = getattr(d.objective, "target", None)
-    if callable(target):
-        ax2.plot(target(g.position), g.z, "k--", lw=1.2, label="target")
-    elif getattr(d.objective, "target_mmHg", None):
-        ax2.axvline(d.objective.target_mmHg, color="k", ls="--", lw=1.2, label="target")
+    want = declared(d.objective, DesignObjective, "target")(g.position)
+    if want is not None and np.ptp(want) > 0:  # a profile along the limb
+        ax2.plot(want, g.z, "k--", lw=1.2, label="target")
+    elif want is not None:  # one level
+        ax2.axvline(float(want.flat[0]), color="k", ls="--", lw=1.2, label="target")
     ax2.set_xlim(0, top)
     ax2.set_ylim(edges[0], edges[-1])
     ax2.set_xlabel("pressure (mmHg)")

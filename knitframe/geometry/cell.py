@@ -26,6 +26,7 @@ import attrs
 import numpy as np
 
 from knitframe.errors import GeometryError, NumericalError
+from knitframe.interfaces import Pattern, declared
 
 if TYPE_CHECKING:
     from knitframe.records import Fabric
@@ -258,7 +259,7 @@ def checked_cell(fabric: Fabric, registry=None) -> UnitCell:
 
     pattern = pattern_for(fabric, registry)
     arc_key = "fabric.arc_length" if fabric.arc_length is not None else "fabric.stitch_length"
-    table = getattr(pattern, "stitch_lengths", None)
+    table = declared(pattern, Pattern, "stitch_lengths")
     arc = None if fabric.arc_length is None else float(fabric.arc_length)
     if arc is None and isinstance(table, dict):
         setting = float(fabric.stitch_length)

@@ -67,6 +67,12 @@ class PressureUniformity:
             return level_cost(value, area, level)
         return relative_error_cost(value, area, self.target_mmHg)
 
+    def target(self, position: np.ndarray) -> np.ndarray | None:
+        """``target_mmHg`` at every position, or None for a free level."""
+        if self.target_mmHg is None:
+            return None
+        return np.full(np.shape(position), float(self.target_mmHg))
+
     def evaluate(self, value, area, position) -> float:
         if self.target_mmHg is None:
             return weighted_cv2(value, area)

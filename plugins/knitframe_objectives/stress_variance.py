@@ -66,6 +66,10 @@ class StressVariance:
     def score(self, tension: np.ndarray, area: np.ndarray, radius: np.ndarray | None = None) -> float:
         return weighted_cv2(tension, area)
 
+    def target(self, position: np.ndarray) -> None:
+        """No absolute target: any uniform tension is as good."""
+        return None
+
     def element_cost(self, value, area, position, level=None) -> np.ndarray:
         return level_cost(value, area, level)
 
