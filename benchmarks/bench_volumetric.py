@@ -234,6 +234,7 @@ def bench_run(args) -> list[dict]:
         on_failure="truncate" if args.truncate else "raise",
         **_given(args, SOLVER_FLAGS),
         newton={
+            "preset": args.newton,
             **({"start_projected": True} if args.start_projected else {}),
             **_given(args, NEWTON_FLAGS),
         },
@@ -496,6 +497,7 @@ def main(argv=None) -> None:
         "--truncate", action="store_true", help="'run': keep the converged steps when a later one fails"
     )
     p.add_argument("--linear-solver", default="direct", help="linear-solver plugin of 'run'")
+    p.add_argument("--newton", default="default", help="'run': the solver's [solver.newton] preset")
     p.add_argument("--checkpoint", help="'run': checkpoint directory; a killed run resumes from it")
     p.add_argument("--save", help="'run': write the Response as JSON here (input of benchmarks/agreement.py)")
     p.add_argument(

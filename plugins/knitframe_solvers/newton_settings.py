@@ -62,9 +62,8 @@ class VolumetricNewton:
         "fast": Preset(
             {"extrapolation": 8.0, "chord_after_full_steps": False},
             "Newton steps lengthened where the energy shows they were too short, and steps on a reused "
-            "factorisation only after shortened steps: on the coarse P1 cell to 30 % about 15 % less "
-            "time and half the linear solves, the tensions within 0.4 % at 30 % (3.5 % in T2 at 10 %); "
-            "on fine P2 cells the longer steps slowed the run, so use it for P1 cells and quick looks",
+            "factorisation only after shortened steps: fewer linear solves on P1 cells, for quick looks; "
+            "on fine P2 cells the longer steps slow the run (measured in docs/performance.md)",
         ),
     }
 
