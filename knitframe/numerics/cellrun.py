@@ -31,6 +31,8 @@ the Provenance and Response. A new solver writes its model and these hooks; see
 from __future__ import annotations
 
 import contextlib
+import hashlib
+import json
 import time
 import warnings
 from collections.abc import Callable, Iterator
@@ -44,7 +46,18 @@ from knitframe.numerics.continuation import StepCheckpoints, continuation
 from knitframe.numerics.stepfiles import StepSeries
 from knitframe.records import Fabric, Provenance, Response, Scene
 
-__all__ = ["CellRun"]
+__all__ = ["CellRun", "checkpoint_key"]
+
+
+def checkpoint_key(fabric: Fabric, scene: Scene, *options: Any) -> str:
+    """The key of a run's checkpoints: a hash of the fabric, the scene and the solver's ``options``.
+
+    ``options`` are JSON-able (e.g. ``attrs.asdict(solver)``, a resolved plugin's fields); a
+    checkpoint is resumed only by a run with the same key (:class:`StepCheckpoints`).
+    """
+    text = json.dumps([fabric.to_dict(), scene.to_dict(), *options], sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:24]
+
 
 #: ``continuation``'s signature: (solve, x0, targets, *, t0, min_fraction, on_target) -> results
 Follow = Callable[..., list]

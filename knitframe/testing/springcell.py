@@ -28,8 +28,6 @@ the rest-length factor s from ``initial_size`` to 1 at λ = 1.
 
 from __future__ import annotations
 
-import hashlib
-import json
 from pathlib import Path
 from typing import Any, ClassVar, Literal
 
@@ -39,7 +37,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from knitframe.errors import NumericalError
-from knitframe.numerics.cellrun import CellRun
+from knitframe.numerics.cellrun import CellRun, checkpoint_key
 from knitframe.numerics.continuation import StepCheckpoints
 from knitframe.numerics.newton import NewtonOptions, NewtonResult, minimise
 from knitframe.records import Fabric, Response, Scene
@@ -157,10 +155,7 @@ class SpringCell:
     ) -> Response:
         """Pre-stress (scene effect ``prestress``) and follow the scene's load path on the skeleton."""
         chain = SpringChain(self)
-        text = json.dumps(
-            [fabric.to_dict(), scene.to_dict(), attrs.asdict(self)], sort_keys=True, default=str
-        )
-        key = hashlib.sha256(text.encode()).hexdigest()[:24]
+        key = checkpoint_key(fabric, scene, attrs.asdict(self))
         prestress = "prestress" in scene.effects
         run = CellRun(
             self.name,

@@ -62,8 +62,6 @@ happened. The run is :class:`knitframe_solvers.rod_run.RodRun` on the unit-cell 
 
 from __future__ import annotations
 
-import hashlib
-import json
 from pathlib import Path
 from typing import Any, ClassVar, Literal
 
@@ -75,6 +73,7 @@ from knitframe import validators as v
 from knitframe.config import instantiate
 from knitframe.errors import ConfigError, FieldError
 from knitframe.geometry import unit_cell
+from knitframe.numerics.cellrun import checkpoint_key
 from knitframe.numerics.settings import settings_field
 from knitframe.records import Fabric, Response, Scene
 from knitframe.yarns import yarn_model
@@ -274,10 +273,7 @@ class RodSolver:
         return max(16, 4 * int(np.ceil(cell.arc_length_per_stitch / (0.5 * cell.dk) / 4.0)))
 
     def _key(self, fabric: Fabric, scene: Scene) -> str:
-        text = json.dumps(
-            [fabric.to_dict(), scene.to_dict(), attrs.asdict(self)], sort_keys=True, default=str
-        )
-        return hashlib.sha256(text.encode()).hexdigest()[:24]
+        return checkpoint_key(fabric, scene, attrs.asdict(self))
 
     # ---------------------------------------------------------------------------------- simulate
     def simulate(

@@ -41,8 +41,6 @@ on the unit-cell run skeleton :class:`knitframe.numerics.cellrun.CellRun`; the d
 
 from __future__ import annotations
 
-import hashlib
-import json
 import time
 from pathlib import Path
 from typing import Any, ClassVar, Literal
@@ -55,6 +53,7 @@ from knitframe import validators as v
 from knitframe.config import instantiate
 from knitframe.errors import ConfigError, FieldError
 from knitframe.geometry import unit_cell
+from knitframe.numerics.cellrun import checkpoint_key
 from knitframe.numerics.newton import NewtonOptions
 from knitframe.numerics.periodic import Lattice, periodic_transform
 from knitframe.numerics.settings import settings_field
@@ -126,10 +125,7 @@ class VolumetricSolver:
     def _key(self, fabric: Fabric, scene: Scene, law: Any = None) -> str:
         """Checkpoint key: the inputs, the solver options and the resolved contact law (with its defaults)."""
         resolved = None if law is None else [type(law).__name__, attrs.asdict(law)]
-        text = json.dumps(
-            [fabric.to_dict(), scene.to_dict(), attrs.asdict(self), resolved], sort_keys=True, default=str
-        )
-        return hashlib.sha256(text.encode()).hexdigest()[:24]
+        return checkpoint_key(fabric, scene, attrs.asdict(self), resolved)
 
     def setup(self, fabric: Fabric, scene: Scene, registry=None) -> VolumetricModel:
         """Mesh, material forms, periodic map and contact of a fabric's cell for the effects of a scene."""
