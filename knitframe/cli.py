@@ -18,7 +18,19 @@ from knitframe.errors import KnitframeError, KnitframeWarning
 __all__ = ["main", "COMMANDS"]
 
 #: Subcommand modules; each defines ``add_parser(subparsers)`` which sets ``func`` on its parser.
-COMMANDS = ("run", "plugins", "geometry", "fit", "design", "library", "export", "ladder", "knitout", "cache")
+COMMANDS = (
+    "run",
+    "plugins",
+    "yarn",
+    "geometry",
+    "fit",
+    "design",
+    "library",
+    "export",
+    "ladder",
+    "knitout",
+    "cache",
+)
 
 
 class _Parser(argparse.ArgumentParser):

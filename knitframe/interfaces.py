@@ -146,11 +146,12 @@ class RodContactLaw(ContactLaw, Protocol):
     """Contact between yarn centerlines (``discretisation = "rod"``): an energy of the centre distance.
 
     ``stiffness`` (N/mm², None: from the yarn model) and ``core`` (the smallest centre distance the
-    law admits, as a fraction of dk; 0: none) are read by the rod solver.
+    law admits, as a fraction of dk; 0: none; None: the yarn's compaction limit ``Yarn.compaction``)
+    are read by the rod solver.
     """
 
     stiffness: float | None
-    core: float
+    core: float | None
 
     def normal(
         self, d: np.ndarray, dk: float, k: float, k_core: float | None = None

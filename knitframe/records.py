@@ -75,6 +75,23 @@ def _f64_opt(value: Any) -> np.ndarray | None:
 DIAMETER_RANGE = (1e-3, 100.0)
 #: Yarn moduli, MPa: from 1 Pa to 1 TPa (stiffer than any fibre).
 MODULUS_RANGE = (1e-6, 1e6)
+#: Fibre volume fraction of round fibres packed hexagonally, π/(2√3): the densest a yarn can be.
+MAX_PACKING = float(np.pi / (2.0 * np.sqrt(3.0)))
+#: Yarn fields that a test can measure (the names ``Yarn.measured`` may list).
+MEASURABLE = (
+    "d0",
+    "dk",
+    "E_axial",
+    "E_transverse",
+    "G_axial",
+    "nu",
+    "failure_strain",
+    "bending_stiffness",
+    "tex",
+    "fibre_density",
+    "compaction_limit",
+    "core_modulus",
+)
 _DIAMETER = attrs.validators.and_(v.positive, v.at_least(DIAMETER_RANGE[0]), v.at_most(DIAMETER_RANGE[1]))
 _MODULUS = attrs.validators.and_(v.positive, v.at_least(MODULUS_RANGE[0]), v.at_most(MODULUS_RANGE[1]))
 
@@ -105,6 +122,19 @@ class Yarn(Record):
     failure_strain: float | None = attrs.field(default=None, validator=v.optional(v.positive))
     #: measured EI, N·mm²; unset: solid section E_axial·π·dk⁴/64
     bending_stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: linear density, tex (g/km); with ``fibre_density`` it gives the packing of the knitted yarn
+    tex: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: density of the fibre material, g/cm³
+    fibre_density: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: smallest cross-section area over the knitted one (fibres packed solid), -; unset: from tex
+    #: and fibre_density (see ``compaction``), else 0.5
+    compaction_limit: float | None = attrs.field(
+        default=None, validator=v.optional(v.in_range(0.0, 1.0, lo_open=True))
+    )
+    #: modulus of the packed fibres across the yarn, MPa; unset: E_axial
+    core_modulus: float | None = attrs.field(default=None, validator=v.optional(_MODULUS))
+    #: names of the fields that are measured on this yarn; the others are estimates
+    measured: frozenset[str] = attrs.field(default=frozenset(), converter=frozenset)
     #: yarn-model plugin name
     model: str = "transverse_isotropic"
     #: where the numbers come from
@@ -113,6 +143,17 @@ class Yarn(Record):
     def __attrs_post_init__(self) -> None:
         if self.dk > self.d0 * (1 + 1e-12):
             raise FieldError("dk", f"must be <= d0 = {self.d0}, got {self.dk}")
+        unknown = sorted(set(self.measured) - set(MEASURABLE))
+        if unknown:
+            raise FieldError(
+                "measured", f"unknown field {unknown[0]!r}; expected some of {', '.join(MEASURABLE)}"
+            )
+        if self.tex is not None and self.fibre_density is not None and self.packing > 1.0 + 1e-9:
+            raise FieldError(
+                "tex",
+                f"{self.tex:g} tex of fibre of {self.fibre_density:g} g/cm³ does not fit in a yarn of "
+                f"dk = {self.dk:g} mm (packing {self.packing:.3g} > 1)",
+            )
         solid = self.E_axial * np.pi * self.d0**4 / 64.0
         if self.bending_stiffness is not None and self.bending_stiffness > solid:
             raise FieldError(
@@ -130,6 +171,59 @@ class Yarn(Record):
     def isotropic(self) -> bool:
         """True when the transverse modulus equals the axial one."""
         return bool(np.isclose(self.E_axial, self.E_transverse))
+
+    @property
+    def G_A(self) -> float:
+        """Axial shear modulus, MPa: ``G_axial``, else E_transverse / (2(1 + ν)).
+
+        Unset, the fibres slide past each other along the yarn as easily as across it; an
+        isotropic yarn gets E/(2(1 + ν)) the same way.
+        """
+        return self.G_axial if self.G_axial is not None else self.E_transverse / (2.0 * (1.0 + self.nu))
+
+    @property
+    def EI(self) -> float:
+        """Bending stiffness, N·mm²: ``bending_stiffness``, else the solid section E_axial·π·dk⁴/64."""
+        if self.bending_stiffness is not None:
+            return self.bending_stiffness
+        return self.E_axial * np.pi * self.dk**4 / 64.0
+
+    @property
+    def packing(self) -> float | None:
+        """Fibre volume fraction of the knitted yarn φk = (tex/ρ) / (π dk²/4), or None.
+
+        tex/ρ is the fibres' cross-section: 1 tex = 1e-6 g/mm over ρ·1e-3 g/mm³ gives 1e-3 tex/ρ mm².
+        """
+        if self.tex is None or self.fibre_density is None:
+            return None
+        return 1e-3 * self.tex / self.fibre_density / (np.pi * self.dk**2 / 4.0)
+
+    @property
+    def compaction(self) -> float:
+        """Smallest cross-section area over the knitted one, J_min, -.
+
+        ``compaction_limit`` if given; else φk / φmax with φmax = :data:`MAX_PACKING` (round
+        fibres packed hexagonally) when tex and fibre density are known; else 0.5. Capped at 1
+        (a monofilament cannot be compacted).
+        """
+        if self.compaction_limit is not None:
+            return self.compaction_limit
+        phi = self.packing
+        if phi is None:
+            return 0.5
+        return float(min(phi / MAX_PACKING, 1.0))
+
+    @property
+    def core_E(self) -> float:
+        """Modulus of the packed fibres across the yarn, MPa: ``core_modulus``, else E_axial."""
+        return self.core_modulus if self.core_modulus is not None else self.E_axial
+
+    def properties(self) -> list:
+        """Every quantity the solvers read from this yarn, with its value and whether it is
+        measured, an estimate or derived (and from what): the table of ``knitframe yarns show``."""
+        from knitframe.yarns import yarn_properties
+
+        return yarn_properties(self)
 
 
 @attrs.frozen

@@ -17,12 +17,14 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+import attrs
+
 from knitframe.errors import ConfigError, FieldError, UnknownPluginError
 from knitframe.records import Yarn
 from knitframe.schema import build
 from knitframe.validators import shown
 
-__all__ = ["resolve_yarn", "config_yarns", "yarn_model"]
+__all__ = ["resolve_yarn", "config_yarns", "yarn_model", "yarn_properties", "YarnProperty"]
 
 
 def resolve_yarn(registry, value: Any, path: str) -> Yarn:
@@ -84,3 +86,185 @@ def config_yarns(registry, table: Any, path: str = "yarns") -> dict[str, Yarn]:
     if not isinstance(table, Mapping):
         raise ConfigError(path, f"expected a table of yarn tables, got {shown(table)}")
     return {name: resolve_yarn(registry, value, f"{path}.{name}") for name, value in table.items()}
+
+
+@attrs.frozen
+class YarnProperty:
+    """One quantity a solver reads from a yarn: its value and where it comes from."""
+
+    #: what it is, e.g. "axial shear modulus"
+    name: str
+    #: symbol, e.g. "G_A"
+    symbol: str
+    value: float | None
+    unit: str
+    #: "measured", "estimate" (given, not measured) or "derived" (computed from other rows)
+    status: str
+    #: how it was derived, or the field it comes from
+    how: str
+    #: which solvers read it and how
+    used_by: str
+
+
+def _given(yarn: Yarn, field: str) -> str:
+    return "measured" if field in yarn.measured else "estimate"
+
+
+def yarn_properties(yarn: Yarn) -> list[YarnProperty]:
+    """The quantities both solvers read from ``yarn``, marked measured, estimate or derived.
+
+    The derivations (docs/yarns.md, "One yarn for every solver"):
+
+    * G_A = ``G_axial``, else E_T / (2(1 + ν));
+    * EI = ``bending_stiffness``, else E_A π dk⁴ / 64;
+    * k_line = df/dδ of the Hertz line contact of two parallel yarns (E_T, ν, radius dk/2) at the
+      load that flattens them by 5 % of dk;
+    * φk = (tex/ρ)/(π dk²/4), J_min = φk/φmax (φmax = π/(2√3)), else ``compaction_limit``, else 0.5;
+    * E_core = ``core_modulus``, else E_A.
+    """
+    from knitframe.records import MAX_PACKING
+    from knitframe.yarnfit import line_contact_load
+
+    rows = [
+        YarnProperty("free diameter", "d0", yarn.d0, "mm", _given(yarn, "d0"), "d0", "both: the pre-stress"),
+        YarnProperty(
+            "knitted diameter",
+            "dk",
+            yarn.dk,
+            "mm",
+            _given(yarn, "dk"),
+            "dk",
+            "both: contact distance (rod), section (volumetric)",
+        ),
+        YarnProperty(
+            "axial modulus",
+            "E_A",
+            yarn.E_axial,
+            "MPa",
+            _given(yarn, "E_axial"),
+            "E_axial",
+            "both: EA (rod), the fibre term (volumetric)",
+        ),
+        YarnProperty(
+            "transverse modulus",
+            "E_T",
+            yarn.E_transverse,
+            "MPa",
+            _given(yarn, "E_transverse"),
+            "E_transverse",
+            "both: contact stiffness (rod), transverse law (volumetric)",
+        ),
+        YarnProperty("Poisson ratio", "ν", yarn.nu, "-", _given(yarn, "nu"), "nu", "both"),
+    ]
+    if yarn.G_axial is not None:
+        rows.append(
+            YarnProperty(
+                "axial shear modulus",
+                "G_A",
+                yarn.G_A,
+                "MPa",
+                _given(yarn, "G_axial"),
+                "G_axial",
+                "volumetric (the rod is shear-rigid)",
+            )
+        )
+    else:
+        rows.append(
+            YarnProperty(
+                "axial shear modulus",
+                "G_A",
+                yarn.G_A,
+                "MPa",
+                "derived",
+                "E_T / (2(1 + ν)): fibres slide along the yarn as easily as across it",
+                "volumetric (the rod is shear-rigid)",
+            )
+        )
+    if yarn.bending_stiffness is not None:
+        rows.append(
+            YarnProperty(
+                "bending stiffness",
+                "EI",
+                yarn.EI,
+                "N·mm²",
+                _given(yarn, "bending_stiffness"),
+                "bending_stiffness",
+                "rod (the volumetric yarn bends with E_A and G_A)",
+            )
+        )
+    else:
+        rows.append(
+            YarnProperty(
+                "bending stiffness",
+                "EI",
+                yarn.EI,
+                "N·mm²",
+                "derived",
+                "E_A π dk⁴ / 64 (solid section)",
+                "rod (the volumetric yarn bends with E_A and G_A)",
+            )
+        )
+    delta = 0.05 * yarn.dk
+    rows.append(
+        YarnProperty(
+            "line contact stiffness at 5 % flattening",
+            "k_line",
+            _line_stiffness(yarn, delta, line_contact_load),
+            "N/mm²",
+            "derived",
+            "Hertz line contact of two yarns with E_T and ν",
+            "rod: the contact penalty",
+        )
+    )
+    phi = yarn.packing
+    rows.append(
+        YarnProperty(
+            "fibre volume fraction, knitted",
+            "φk",
+            phi,
+            "-",
+            "derived" if phi is not None else "unknown",
+            "(tex/ρ) / (π dk²/4)" if phi is not None else "needs tex and fibre_density",
+            "J_min",
+        )
+    )
+    if yarn.compaction_limit is not None:
+        status, how = _given(yarn, "compaction_limit"), "compaction_limit"
+    elif phi is not None:
+        status, how = "derived", f"φk / φmax, φmax = {MAX_PACKING:.3f} (hexagonal packing)"
+    else:
+        status, how = "estimate", "default 0.5 (no tex or fibre density)"
+    rows.append(
+        YarnProperty(
+            "compaction limit (smallest section / knitted)",
+            "J_min",
+            yarn.compaction,
+            "-",
+            status,
+            how,
+            "both: the contact core at J_min·dk (rod), the compaction barrier (volumetric)",
+        )
+    )
+    rows.append(
+        YarnProperty(
+            "modulus of the packed core",
+            "E_core",
+            yarn.core_E,
+            "MPa",
+            _given(yarn, "core_modulus") if yarn.core_modulus is not None else "estimate",
+            "core_modulus"
+            if yarn.core_modulus is not None
+            else "E_A: packed fibres as stiff as the yarn along it",
+            "both: stiffness halfway through the compaction barrier",
+        )
+    )
+    return rows
+
+
+def _line_stiffness(yarn: Yarn, delta: float, line_contact_load) -> float:
+    """df/dδ of the Hertz line contact of two parallel yarns at approach δ (central difference), N/mm²."""
+    import numpy as np
+
+    r, h = 0.5 * yarn.dk, 1e-4 * delta
+    f = line_contact_load(np.array([delta - h, delta + h]), r, yarn.E_transverse, yarn.nu)
+    return float((f[1] - f[0]) / (2 * h))

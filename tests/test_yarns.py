@@ -221,3 +221,88 @@ def test_compression_that_never_reaches_dk_is_a_data_error(tmp_path):
     )
     with pytest.raises(DataError, match="never compressing d0 = 0.951 to dk = 0.334"):
         fit_compression(_write(tmp_path, text), d0=0.951, dk=0.334)
+
+
+def test_yarn_record_says_what_is_measured_and_derives_the_rest():
+    """Every quantity a solver reads is in ``properties()``, marked measured, estimate or derived."""
+    cot = get_registry()["yarn"]["cotton"]
+    rows = {p.symbol: p for p in cot.properties()}
+    assert rows["dk"].status == "measured" and rows["E_A"].status == "estimate"
+    assert rows["G_A"].status == "derived" and rows["G_A"].value == pytest.approx(0.12 / 2.6)
+    assert rows["EI"].status == "derived" and rows["EI"].value == pytest.approx(1200 * np.pi * 0.444**4 / 64)
+    # φk = (tex/ρ)/(π dk²/4): 59 tex of cotton (1.52 g/cm³) in a 0.444 mm yarn
+    phi = 59e-3 / 1.52 / (np.pi * 0.444**2 / 4)
+    assert rows["φk"].value == pytest.approx(phi) and rows["J_min"].status == "derived"
+    assert rows["J_min"].value == pytest.approx(phi / (np.pi / (2 * np.sqrt(3))))
+    assert rows["E_core"].value == 1200.0
+    pearl = {p.symbol: p for p in get_registry()["yarn"]["pearl-cotton"].properties()}
+    assert pearl["EI"].status == "measured" and pearl["EI"].value == 0.0708
+    given = Yarn(
+        name="y",
+        d0=0.5,
+        dk=0.4,
+        E_axial=100,
+        E_transverse=0.01,
+        compaction_limit=0.4,
+        measured=["compaction_limit"],
+    )
+    assert given.compaction == 0.4 and {p.symbol: p for p in given.properties()}["J_min"].status == "measured"
+    assert Yarn(name="y", d0=0.5, dk=0.4, E_axial=100, E_transverse=0.01).compaction == 0.5  # nothing known
+
+
+@pytest.mark.parametrize(
+    "fields, message",
+    [
+        ({"measured": ["E_axial", "colour"]}, "measured: unknown field 'colour'"),
+        ({"tex": 500.0, "fibre_density": 1.5}, "tex: 500 tex of fibre of 1.5 g/cm³ does not fit"),
+        ({"compaction_limit": 1.5}, "compaction_limit"),
+    ],
+)
+def test_yarn_record_refuses_impossible_packings(fields, message):
+    with pytest.raises(ConfigError) as e:
+        resolve_yarn(get_registry(), {"like": "cotton", **fields}, "yarns.x")
+    assert message in str(e.value) and "\n" not in str(e.value)
+
+
+def test_compaction_barrier_matches_finite_differences_and_stops_at_the_limit():
+    """W_c, P and A of the compaction barrier: P = ∂W/∂F and A = ∂P/∂F inside the band; zero above
+    x₁ = (1 + c)/2; +∞ at and below c; d²W/dx² = E_core mid-band."""
+    from knitframe_yarns.law import compaction_barrier
+
+    c, E = 0.3, 50.0
+    a = np.array([[1.0, 0.0, 0.0]] * 4)
+    # squeeze across the fibre (y) to section ratios x = 0.35, 0.5, 0.64, 0.9, with some shear
+    x = np.array([0.35, 0.5, 0.64, 0.9])
+    F = np.array([[[1.05, 0.02, 0.0], [0.01, s, 0.03], [0.0, 0.0, 1.0]] for s in x])
+    W, P, A = compaction_barrier(F, a, c, E)
+    assert W[3] == 0.0 and np.all(P[3] == 0.0) and np.all(W[:3] > 0)
+    h = 1e-6
+    for k in range(3):
+        for L in range(3):
+            Fp, Fm = F.copy(), F.copy()
+            Fp[:, k, L] += h
+            Fm[:, k, L] -= h
+            (Wp, Pp, _), (Wm, Pm, _) = compaction_barrier(Fp, a, c, E), compaction_barrier(Fm, a, c, E)
+            np.testing.assert_allclose(P[:, k, L], (Wp - Wm) / (2 * h), rtol=1e-6, atol=1e-9)
+            np.testing.assert_allclose(A[..., k, L], (Pp - Pm) / (2 * h), rtol=1e-5, atol=1e-6)
+    assert np.isinf(compaction_barrier(np.diag([1.0, 0.29, 1.0])[None], a[:1], c, E)[0][0])
+    # the modulus mid-band: W(x) along a pure squeeze, second difference at x_m = (c + x₁)/2
+    xm = 0.5 * (c + 0.5 * (1 + c))
+    ws = [compaction_barrier(np.diag([1.0, xm + d, 1.0])[None], a[:1], c, E)[0][0] for d in (-1e-4, 0, 1e-4)]
+    assert (ws[0] - 2 * ws[1] + ws[2]) / 1e-8 == pytest.approx(E, rel=1e-4)
+
+
+def test_both_solvers_read_the_compaction_limit_and_core_modulus_of_the_record():
+    """The rod's contact core is J_min·dk with the yarn's core modulus; the solid's barrier the same J_min."""
+    from knitframe_contact.rod_penalty import RodPenalty
+    from knitframe_solvers.rod import law_for_yarn, rod_stiffness
+
+    reg = get_registry()
+    cot = reg["yarn"]["cotton"]
+    law = law_for_yarn(RodPenalty(), cot)
+    assert law.core == pytest.approx(cot.compaction)
+    assert law_for_yarn(RodPenalty(core=0.4), cot).core == 0.4  # an explicit core stays
+    soft = rod_stiffness(Yarn(**{**cot.to_dict(), "core_modulus": 12.0}), reg, RodPenalty())
+    assert soft["k_core"] == pytest.approx(rod_stiffness(cot, reg, RodPenalty())["k_core"] / 100)
+    model = reg["yarn_model"]["transverse_isotropic"].from_yarn(cot)
+    assert model.compaction == pytest.approx(cot.compaction) and model.core_modulus == 1200.0

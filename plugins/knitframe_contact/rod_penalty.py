@@ -15,8 +15,9 @@ The rod solver uses e as an energy density per unit length of both centerlines (
 k_c in N/mm³), integrated over every pair of yarn segments
 (:mod:`knitframe_solvers.rod_contact`). It scales k so that two parallel yarns have the yarn
 model's transverse line-contact stiffness at 5 % flattening (or ``stiffness``, N/mm²), and k_c
-so that their line stiffness is the yarn's axial modulus halfway through the barrier's band: the
-core of packed fibres.
+so that their line stiffness is the yarn's core modulus (``Yarn.core_E``) halfway through the
+barrier's band: the core of packed fibres. Unset, c is the yarn's compaction limit
+(``Yarn.compaction``), the same number at which the volumetric solver's yarns stop compacting.
 
 Friction (only when the scene asks for it): regularised Coulomb on the slip u_T of the two
 material contact points since the last converged step, with the normal force λ lagged from
@@ -53,8 +54,8 @@ class RodPenalty:
     stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))
     #: ε/dk, -
     smoothing: float = attrs.field(default=0.05, validator=v.in_range(1e-3, 1.0))
-    #: smallest centre distance / dk (0: no barrier), -
-    core: float = attrs.field(default=0.5, validator=v.in_range(0.0, 1.0, hi_open=True))
+    #: smallest centre distance / dk (0: no barrier), -; default: the yarn's compaction limit J_min
+    core: float | None = attrs.field(default=None, validator=v.optional(v.in_range(0.0, 1.0, hi_open=True)))
     #: Coulomb coefficient μ, -
     friction: float = attrs.field(default=0.3, validator=v.in_range(0.0, 10.0))
     #: regularisation slip ε_s / dk, -
@@ -82,7 +83,7 @@ class RodPenalty:
         h1 = np.where(x > 1.0, x - 0.5, 0.5 * xc**2)
         h2 = np.where(x > 1.0, 1.0, xc)
         e, e1, e2 = k * eps**2 * h, -k * eps * h1, k * h2
-        if self.core > 0.0:
+        if self.core:
             c = self.core
             y1 = 0.5 * (1.0 + c)
             y = d / dk

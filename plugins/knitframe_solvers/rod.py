@@ -83,7 +83,18 @@ from knitframe_solvers.rod_model import RodEnergy, RodModel, from_cell
 from knitframe_solvers.rod_run import RodRun
 from knitframe_solvers.rod_starts import start_count
 
-__all__ = ["RodSolver", "rod_stiffness"]
+__all__ = ["RodSolver", "rod_stiffness", "law_for_yarn"]
+
+
+def law_for_yarn(law: Any, yarn) -> Any:
+    """The rod contact ``law`` with its core set to the yarn's compaction limit when it has none.
+
+    Two yarns each squeezed to J_min of their knitted section (flattened at constant width) have
+    their centres J_min·dk apart: the centre distance the law's barrier forbids.
+    """
+    if law is not None and hasattr(law, "core") and law.core is None:
+        return attrs.evolve(law, core=float(yarn.compaction))
+    return law
 
 
 def rod_stiffness(yarn, registry=None, law=None, line_stiffness: float | None = None) -> dict[str, float]:
@@ -95,8 +106,9 @@ def rod_stiffness(yarn, registry=None, law=None, line_stiffness: float | None = 
     density φ is scaled so that two parallel yarns reproduce it: ``k_contact`` (N/mm³) makes
     ψ″(0.95 dk) = k_line, with ψ(d) = ∫ φ(√(d² + τ²)) dτ
     (:func:`knitframe_solvers.rod_contact.line_energy`). The core (barrier) of the packed fibres
-    gets ``k_core`` (N/mm³), which makes the line stiffness E_axial halfway through the
-    barrier's band.
+    gets ``k_core`` (N/mm³), which makes the line stiffness the yarn's core modulus
+    (``yarn.core_E``, E_axial unless measured) halfway through the barrier's band. A ``law``
+    whose ``core`` is None takes the yarn's compaction limit (:func:`law_for_yarn`).
     """
     registry = registry or get_registry()
     model = registry["yarn_model"][yarn.model].from_yarn(yarn)
@@ -107,12 +119,11 @@ def rod_stiffness(yarn, registry=None, law=None, line_stiffness: float | None = 
     if law is not None:
         dk = yarn.dk
         out["k_contact"] = line_stiffness / line_energy(law, 0.95 * dk, dk, 1.0, 0.0, derivative=2)
-        core = float(getattr(law, "core", 0.0))
+        law = law_for_yarn(law, yarn)
+        core = float(getattr(law, "core", 0.0) or 0.0)
         y_mid = 0.5 * (core + 0.5 * (1.0 + core))
         out["k_core"] = (
-            float(yarn.E_axial) / line_energy(law, y_mid * dk, dk, 0.0, 1.0, derivative=2)
-            if core > 0
-            else 0.0
+            float(yarn.core_E) / line_energy(law, y_mid * dk, dk, 0.0, 1.0, derivative=2) if core > 0 else 0.0
         )
     return out
 
@@ -242,6 +253,7 @@ class RodSolver:
         cell = unit_cell(fabric, registry)
         model = from_cell(cell, self.segments(cell))
         law = self.make_contact_law(registry) if "contact" in scene.effects else None
+        law = law_for_yarn(law, fabric.yarn)
         stiff = rod_stiffness(
             fabric.yarn,
             registry,

@@ -63,11 +63,14 @@ def contact_surface(cm: Any, lattice: Lattice | None, exclusion: float | None = 
 
 
 def write_solid_vtu(path: Path, forms: SolidForms, u: np.ndarray, s: float, pressure: np.ndarray) -> Path:
-    """VTU of the deformed solid: displacement and contact pressure (points), max principal stress (cells).
+    """VTU of the deformed solid: displacement and contact pressure (points), max principal stress
+    and cross-section ratio (cells).
 
     The maximum principal Cauchy stress σ = J⁻¹ P Fᵀ (MPa) is averaged over each element's
-    quadrature points. P2 meshes are written as VTK quadratic tetrahedra (same node order as
-    scikit-fem's P2 element).
+    quadrature points. The cross-section ratio J_T = J/√I4 = det F / |F a| is the area of the
+    yarn's cross-section over its knitted area (fibre a): how far the yarn is squeezed across
+    (the smallest over the element's quadrature points). P2 meshes are written as VTK quadratic
+    tetrahedra (same node order as scikit-fem's P2 element).
     """
     import meshio
 
@@ -80,6 +83,8 @@ def write_solid_vtu(path: Path, forms: SolidForms, u: np.ndarray, s: float, pres
     w = forms.dx / forms.dx.sum(axis=1, keepdims=True)
     sig_e = np.einsum("ikeq,eq->eik", sigma, w)
     smax = np.linalg.eigvalsh(0.5 * (sig_e + np.swapaxes(sig_e, 1, 2)))[:, -1]
+    Fa = np.einsum("iJeq,Jeq->ieq", F, forms.fibre)
+    cross = (J / np.linalg.norm(Fa, axis=0)).min(axis=1)
     cell_type = "tetra10" if forms.edofs.shape[0] == 10 else "tetra"
     out = meshio.Mesh(
         X,
@@ -87,6 +92,7 @@ def write_solid_vtu(path: Path, forms: SolidForms, u: np.ndarray, s: float, pres
         point_data={"displacement": u.reshape(-1, 3), "contact_pressure": pressure},
         cell_data={
             "max_principal_stress": [smax],
+            "cross_section_ratio": [cross],
             "yarn": [np.asarray(getattr(forms, "element_body", np.zeros(len(smax))))],
         },
     )

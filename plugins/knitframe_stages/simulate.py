@@ -17,10 +17,11 @@
 
 The scene's effects and load are checked against the solver before any work, the fabric's cell is
 built once to refuse dimensions no stitch can have, and the solver's ``validate(fabric, scene,
-registry)`` makes its own checks (plugins by name, yarn model) then too. Writes ``simulated.csv``
-and ``simulated.png`` (and ``vtu/`` when the scene's outputs include "vtu" and the solver
-``writes_vtu``); a solver that declares ``checkpoints`` checkpoints every converged step, so
-``knitframe run --resume`` continues a killed run.
+registry)`` makes its own checks (plugins by name, yarn model) then too. Writes ``simulated.csv``,
+``simulated.png`` and ``yarn.csv`` (what the solver read from the yarn record, each value marked
+measured, estimate or derived, as ``knitframe yarn`` prints it), and ``vtu/`` when the scene's
+outputs include "vtu" and the solver ``writes_vtu``; a solver that declares ``checkpoints``
+checkpoints every converged step, so ``knitframe run --resume`` continues a killed run.
 """
 
 from __future__ import annotations
@@ -116,6 +117,7 @@ class SimulateStage(Stage):
         responses = [self._simulate(ctx, scene, len(scenes) > 1) for scene in scenes]
         ctx.responses.extend(responses)
         write_responses_csv(ctx.output("simulated.csv"), responses)
+        write_yarn_csv(ctx.output("yarn.csv"), self.fabric.yarn)
         measured = [r for r in ctx.responses if r.provenance.kind == "experiment"]
         ratios = compare(responses, measured)
         plot_comparison(
@@ -172,6 +174,30 @@ class SimulateStage(Stage):
         if "output_dir" in kwargs:
             ctx.outputs.extend(f"{vtu}/{p.name}" for p in sorted((ctx.out / vtu).glob("*")))
         return response
+
+
+def write_yarn_csv(path, yarn) -> None:
+    """The yarn record's quantities (``Yarn.properties()``) as CSV, with the record's source."""
+    import csv
+
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        fh.write(f"# yarn: {yarn.name}\n")
+        if yarn.source:
+            fh.write(f"# source: {yarn.source}\n")
+        w = csv.writer(fh)
+        w.writerow(["quantity", "symbol", "value", "unit", "status", "how", "used_by"])
+        for p in yarn.properties():
+            w.writerow(
+                [
+                    p.name,
+                    p.symbol,
+                    "" if p.value is None else repr(p.value),
+                    p.unit,
+                    p.status,
+                    p.how,
+                    p.used_by,
+                ]
+            )
 
 
 def _scenes(table: Any, source: str | None) -> list[Scene]:

@@ -284,3 +284,71 @@ class YarnModelBase:
             "nu": yarn.nu,
             "bending_modulus": yarn.bending_stiffness,
         }
+
+
+def compaction_barrier(
+    F: np.ndarray, a: np.ndarray, c: float, E_core: float, order: int = 2
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """Energy density, first Piola stress and tangent of the compaction barrier, MPa.
+
+    The fibres of a yarn cannot pack denser than solid: its cross-section area ratio
+    x = J/√I4 = det F / |F a| (area of the section across the fibre a over its natural area) stays
+    above the compaction limit c. Below x₁ = (1 + c)/2 a barrier (the one of the rod's contact
+    core, Li et al. 2020) stiffens the yarn::
+
+        W_c = K B(x),  B(x) = −(x − x₁)² ln((x − c)/(x₁ − c))  for c < x < x₁,  0 for x ≥ x₁,  +∞ for x ≤ c
+        K = E_core / B″(x_m),  x_m = (c + x₁)/2            (the tangent d²W_c/dx² is E_core mid-band)
+        ∂x/∂F = x M,  M = F⁻ᵀ − (F a ⊗ a)/I4
+        P = K B′ x M
+        A = K [(B″ x² + B′ x) M ⊗ M + B′ x ∂M/∂F],
+        ∂M_iJ/∂F_kL = −F⁻¹_Jk F⁻¹_Li − δ_ik a_J a_L / I4 + 2 (F a)_i a_J (F a)_k a_L / I4²
+
+    Parameters
+    ----------
+    F : (..., 3, 3) deformation gradients; a : (..., 3) unit fibre directions.
+    c : compaction limit in (0, 1); E_core : modulus of the packed core, MPa.
+    """
+    x1 = 0.5 * (1.0 + c)
+
+    def B(x, k):
+        r = (x - c) / (x1 - c)
+        z, w = x - x1, x - c
+        if k == 0:
+            return -(z**2) * np.log(r)
+        if k == 1:
+            return -2.0 * z * np.log(r) - z**2 / w
+        return -2.0 * np.log(r) - 4.0 * z / w + z**2 / w**2
+
+    K = E_core / B(0.5 * (c + x1), 2)
+    Fa = np.einsum("...iJ,...J->...i", F, a)
+    I4 = np.einsum("...i,...i->...", Fa, Fa)
+    J = np.linalg.det(F)
+    x = J / np.sqrt(I4)
+    band = x < x1
+    xb = np.where(band, np.maximum(x, c + 1e-9 * (x1 - c)), x1)  # P, A at x <= c: unused (W = inf)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        W = np.where(band, K * B(xb, 0), 0.0)
+    W = np.where(x <= c, np.inf, W)
+    if order < 1:
+        return W, None, None
+    P = np.zeros_like(F)
+    A = np.zeros(F.shape + (3, 3)) if order >= 2 else None
+    if not np.any(band):
+        return W, P, A
+    # only the points in the band carry the term: compute there and scatter
+    Fb, ab, Fab, I4b, xs = F[band], a[band], Fa[band], I4[band], xb[band]
+    Finv = np.linalg.inv(Fb)
+    M = np.swapaxes(Finv, -1, -2) - Fab[:, :, None] * ab[:, None, :] / I4b[:, None, None]
+    b1 = K * B(xs, 1)
+    P[band] = (b1 * xs)[:, None, None] * M
+    if order < 2:
+        return W, P, None
+    b2 = K * B(xs, 2)
+    dM = -np.einsum("pJk,pLi->piJkL", Finv, Finv)
+    dM -= np.einsum("ik,pJ,pL->piJkL", np.eye(3), ab, ab) / I4b[:, None, None, None, None]
+    aa = Fab[:, :, None] * ab[:, None, :]
+    dM += 2.0 * aa[:, :, :, None, None] * aa[:, None, None, :, :] / (I4b**2)[:, None, None, None, None]
+    A[band] = (b2 * xs**2 + b1 * xs)[:, None, None, None, None] * M[:, :, :, None, None] * M[
+        :, None, None, :, :
+    ] + (b1 * xs)[:, None, None, None, None] * dM
+    return W, P, A

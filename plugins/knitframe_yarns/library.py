@@ -24,8 +24,12 @@ YARNS = (
         E_transverse=0.12,
         nu=0.3,
         failure_strain=0.10,
+        tex=59.0,
+        fibre_density=1.52,
+        measured=("d0", "dk", "failure_strain", "tex"),
         model="transverse_isotropic",
         source=f"Cotton 20/2 (Supreme Corp.): d0, dk and strain capacity < 10 % from {_PAPER}; "
+        "tex from the count (20/2 Ne = 2 x 29.5 tex); cotton fibre density 1.52 g/cm3 (handbook); "
         "E_axial representative (1-1.5 GPa: ~400 cN/tex x 59 tex over the dk section); "
         "E_transverse = 1e-4 E_axial (paper's ratio)",
     ),
@@ -37,9 +41,13 @@ YARNS = (
         E_transverse=0.004,
         nu=0.3,
         failure_strain=1.2,
+        tex=15.56,
+        fibre_density=1.14,
+        measured=("d0", "dk", "failure_strain", "tex"),
         model="transverse_isotropic",
         source="Nylon 70 den, 24 f, 2-ply textured (Hickory Throwing): "
         f"d0, dk and elongation > 120 % from {_PAPER}; "
+        "tex from the count (2 x 70 den = 15.56 tex); nylon 6,6 fibre density 1.14 g/cm3 (handbook); "
         "E_axial representative of the crimp-straightening range (30-50 MPa; ~0.4-0.5 GPa once straight); "
         "E_transverse = 1e-4 E_axial (paper's ratio)",
     ),
@@ -51,6 +59,9 @@ YARNS = (
         E_transverse=0.12,
         nu=0.3,
         bending_stiffness=0.0708,
+        tex=394.0,
+        fibre_density=1.52,
+        measured=("bending_stiffness",),
         model="transverse_isotropic",
         source="Pearl cotton 3/2, the cotton of Singal et al. 2024 (Nat Commun 15:2622, Supplement): "
         "bending modulus B = 70.8 mN mm2 measured (bending_stiffness); "
@@ -67,6 +78,9 @@ YARNS = (
         E_transverse=0.0079,
         nu=0.3,
         bending_stiffness=0.00996,
+        tex=502.0,
+        fibre_density=1.17,
+        measured=("E_axial",),
         model="transverse_isotropic",
         source="Acrylic worsted (Knit Picks Brava Worsted, 100 % acrylic), "
         "the acrylic of Singal et al. 2024 (Nat Commun 15:2622, Supplement): "
@@ -84,6 +98,7 @@ YARNS = (
         E_axial=4000.0,
         E_transverse=4000.0,
         nu=0.35,
+        measured=("d0", "dk"),
         model="isotropic",
         source=f"PET monofilament 0.178 mm (Thread Exchange), isotropic, from {_PAPER}; "
         "E = 4 GPa and nu = 0.35 representative (3-5 GPa)",

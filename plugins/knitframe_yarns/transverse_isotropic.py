@@ -2,7 +2,10 @@
 
 The fibre direction is the yarn tangent in the reference configuration. Energy, stress and tangent
 come from the Bonet-Burton law in :mod:`knitframe_yarns.law`, whose linearisation has axial
-modulus E_A, transverse modulus E_T, axial shear modulus G_A and Poisson ratio ν.
+modulus E_A, transverse modulus E_T, axial shear modulus G_A and Poisson ratio ν. With a
+compaction limit the yarn's cross-section stops compacting at J_min of its natural area
+(:func:`knitframe_yarns.law.compaction_barrier`, with the core modulus E_core): the fibres are
+packed solid there, as in the rod solver's contact core.
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ from knitframe import hookimpl
 from knitframe import validators as v
 from knitframe.errors import FieldError
 from knitframe.records import Yarn
-from knitframe_yarns.law import YarnModelBase, constants, invariant_law
+from knitframe_yarns.law import YarnModelBase, compaction_barrier, constants, invariant_law
 
 
 @attrs.frozen
@@ -32,6 +35,12 @@ class TransverseIsotropic(YarnModelBase):
     E_transverse: float = attrs.field(kw_only=True, validator=v.positive)
     #: axial shear modulus, MPa
     G_axial: float | None = attrs.field(default=None, kw_only=True, validator=v.optional(v.positive))
+    #: smallest cross-section area over the natural one (None: no limit), -
+    compaction: float | None = attrs.field(
+        default=None, kw_only=True, validator=v.optional(v.in_range(0.0, 1.0, lo_open=True, hi_open=True))
+    )
+    #: modulus of the packed core, MPa (None: E_axial)
+    core_modulus: float | None = attrs.field(default=None, kw_only=True, validator=v.optional(v.positive))
 
     def __attrs_post_init__(self) -> None:
         if self.E_transverse > self.E_axial:
@@ -66,12 +75,27 @@ class TransverseIsotropic(YarnModelBase):
                 "fibre", "the transversely isotropic law needs the fibre (yarn tangent) direction"
             )
         c = self.constants
-        return invariant_law(F, fibre, c["mu"], c["lam"], c["alpha"], c["beta"], c["gamma"], order=order)
+        W, P, A = invariant_law(F, fibre, c["mu"], c["lam"], c["alpha"], c["beta"], c["gamma"], order=order)
+        if self.compaction is None:
+            return W, P, A
+        E_core = self.core_modulus if self.core_modulus is not None else self.E_axial
+        Wc, Pc, Ac = compaction_barrier(F, fibre, self.compaction, E_core, order=order)
+        return (
+            W + Wc,
+            None if P is None else P + Pc,
+            None if A is None else A + Ac,
+        )
 
     @classmethod
     def from_yarn(cls, yarn: Yarn) -> TransverseIsotropic:
-        """Model with the yarn's moduli and knitted radius."""
-        return cls(**cls._common(yarn), E_transverse=yarn.E_transverse, G_axial=yarn.G_axial)
+        """Model with the yarn's moduli, knitted radius, compaction limit and core modulus."""
+        return cls(
+            **cls._common(yarn),
+            E_transverse=yarn.E_transverse,
+            G_axial=yarn.G_axial,
+            compaction=yarn.compaction if yarn.compaction < 1.0 else None,
+            core_modulus=yarn.core_E,
+        )
 
 
 @hookimpl
