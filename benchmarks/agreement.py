@@ -14,6 +14,7 @@ Usage::
     python benchmarks/bench_volumetric.py run --order 1 --seed 0.6 --save vol-p1.json
     python benchmarks/agreement.py vol-p1.json [more.json ...]
     python benchmarks/agreement.py vol-p1.json --rod-bending 0.0092   # also a rod with this EI, N·mm²
+    python benchmarks/agreement.py vol-p2.json --rod '{}' --rod '{"relax": false}'   # rod option sets
 """
 
 from __future__ import annotations
@@ -41,7 +42,13 @@ def fitted(reg, response: Response) -> dict:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("runs", nargs="+", help="JSON files written by bench_volumetric.py run --save")
-    ap.add_argument("--segments", type=int, default=16, help="rod segments per stitch")
+    ap.add_argument("--segments", type=int, default=None, help="rod segments per stitch (default: the rod's)")
+    ap.add_argument(
+        "--rod",
+        action="append",
+        default=None,
+        help="rod options as JSON, one row each (repeatable; default: one row with the rod's defaults)",
+    )
     ap.add_argument(
         "--rod-bending",
         type=float,
@@ -52,7 +59,10 @@ def main(argv=None) -> None:
     ap.add_argument("--json", help="also write the rows here")
     args = ap.parse_args(argv)
     reg = knitframe.get_registry()
-    rod = reg["solver"]["rod"](segments_per_stitch=args.segments)
+    rods = [
+        (opts, reg["solver"]["rod"](segments_per_stitch=args.segments, **json.loads(opts)))
+        for opts in (args.rod or ["{}"])
+    ]
     rows = []
     for path in args.runs:
         with open(path) as fh:
@@ -60,12 +70,12 @@ def main(argv=None) -> None:
         fabric = Fabric.from_dict(data["fabric"], "fabric")
         scene = Scene.from_dict(data["scene"], "scene")
         vol = Response.from_dict(data["response"], "response")
-        dropped = sorted(scene.effects - rod.effects)
+        dropped = sorted(scene.effects - rods[0][1].effects)
         rod_scene = Scene.from_dict(
-            {**scene.to_dict(), "effects": sorted(scene.effects & rod.effects)}, "scene"
+            {**scene.to_dict(), "effects": sorted(scene.effects & rods[0][1].effects)}, "scene"
         )
         fv = fitted(reg, vol)
-        for EI in [None, *args.rod_bending]:
+        for (opts, rod), EI in [(r, None) for r in rods] + [(rods[0], EI) for EI in args.rod_bending]:
             rod_fabric = (
                 fabric
                 if EI is None
@@ -75,18 +85,19 @@ def main(argv=None) -> None:
             rr = rod.simulate(rod_fabric, rod_scene)
             t_rod = time.perf_counter() - t0
             fr = fitted(reg, rr)
-            rows.append(row(vol, rr, t_rod, fv, fr, dropped, EI))
+            rows.append({**row(vol, rr, t_rod, fv, fr, dropped, EI), "rod_options": opts})
     print(
-        "| run | rod EI, N·mm² | mesh | volumetric s | rod s | last stretch | "
+        "| run | rod options | rod EI, N·mm² | mesh | volumetric s | rod s | last stretch | "
         "T1, T2 vol (N/mm) | T1, T2 rod (N/mm) | "
         "NRMSE rod vs vol | a, b, θ vol (fit NRMSE) | a, b, θ rod (fit NRMSE) |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         fv, fr = r["fit_vol"], r["fit_rod"]
         ei = "yarn's own" if r["rod_EI"] is None else f"{r['rod_EI']:g}"
         print(
-            f"| {r['run']}{'' if r['converged'] else ' (stopped early)'} | {ei} | {r['mesh']} | "
+            f"| {r['run']}{'' if r['converged'] else ' (stopped early)'} | `{r['rod_options']}` | {ei} | "
+            f"{r['mesh']} | "
             f"{r['volumetric_s']} | "
             f"{r['rod_s']} | {r['max_stretch']:.3f} | {r['T1_end_vol']:.4g}, {r['T2_end_vol']:.4g} | "
             f"{r['T1_rod_at_same']:.4g}, {r['T2_rod_at_same']:.4g} | {r['nrmse_rod_vs_vol']:.1%} | "

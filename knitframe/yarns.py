@@ -242,7 +242,9 @@ def yarn_properties(yarn: Yarn) -> list[YarnProperty]:
             "-",
             status,
             how,
-            "both: the contact core at J_min·dk (rod), the compaction barrier (volumetric)",
+            "rod: the contact core at J_min·dk (an isotropic solid yarn has no compaction barrier)"
+            if yarn.isotropic
+            else "both: the contact core at J_min·dk (rod), the compaction barrier (volumetric)",
         )
     )
     rows.append(

@@ -265,17 +265,17 @@ def test_yarn_record_refuses_impossible_packings(fields, message):
 
 
 def test_compaction_barrier_matches_finite_differences_and_stops_at_the_limit():
-    """W_c, P and A of the compaction barrier: P = ∂W/∂F and A = ∂P/∂F inside the band; zero above
-    x₁ = (1 + c)/2; +∞ at and below c; d²W/dx² = E_core mid-band."""
+    """W_c, P and A of the compaction barrier: P = ∂W/∂F and A = ∂P/∂F inside the band and on its
+    quadratic continuation; zero above x₁ = (1 + c)/2; d²W/dx² = E_core mid-band and 69 E_core below."""
     from knitframe_yarns.law import compaction_barrier
 
     c, E = 0.3, 50.0
     a = np.array([[1.0, 0.0, 0.0]] * 4)
-    # squeeze across the fibre (y) to section ratios x = 0.35, 0.5, 0.64, 0.9, with some shear
-    x = np.array([0.35, 0.5, 0.64, 0.9])
+    # squeeze across the fibre (y) to section ratios x ≈ 0.29 (past the limit), 0.35, 0.5, 0.9, with shear
+    x = np.array([0.29, 0.35, 0.5, 0.9])
     F = np.array([[[1.05, 0.02, 0.0], [0.01, s, 0.03], [0.0, 0.0, 1.0]] for s in x])
     W, P, A = compaction_barrier(F, a, c, E)
-    assert W[3] == 0.0 and np.all(P[3] == 0.0) and np.all(W[:3] > 0)
+    assert W[3] == 0.0 and np.all(P[3] == 0.0) and np.all(W[:3] > 0) and np.isfinite(W[0])
     h = 1e-6
     for k in range(3):
         for L in range(3):
@@ -285,11 +285,16 @@ def test_compaction_barrier_matches_finite_differences_and_stops_at_the_limit():
             (Wp, Pp, _), (Wm, Pm, _) = compaction_barrier(Fp, a, c, E), compaction_barrier(Fm, a, c, E)
             np.testing.assert_allclose(P[:, k, L], (Wp - Wm) / (2 * h), rtol=1e-6, atol=1e-9)
             np.testing.assert_allclose(A[..., k, L], (Pp - Pm) / (2 * h), rtol=1e-5, atol=1e-6)
-    assert np.isinf(compaction_barrier(np.diag([1.0, 0.29, 1.0])[None], a[:1], c, E)[0][0])
-    # the modulus mid-band: W(x) along a pure squeeze, second difference at x_m = (c + x₁)/2
-    xm = 0.5 * (c + 0.5 * (1 + c))
-    ws = [compaction_barrier(np.diag([1.0, xm + d, 1.0])[None], a[:1], c, E)[0][0] for d in (-1e-4, 0, 1e-4)]
-    assert (ws[0] - 2 * ws[1] + ws[2]) / 1e-8 == pytest.approx(E, rel=1e-4)
+
+    # the modulus d²W/dx² along a pure squeeze: E_core at x_m = (c + x₁)/2, 69 E_core past the limit
+    def modulus(x0):
+        ws = [
+            compaction_barrier(np.diag([1.0, x0 + d, 1.0])[None], a[:1], c, E)[0][0] for d in (-1e-4, 0, 1e-4)
+        ]
+        return (ws[0] - 2 * ws[1] + ws[2]) / 1e-8
+
+    assert modulus(0.5 * (c + 0.5 * (1 + c))) == pytest.approx(E, rel=1e-4)
+    assert modulus(0.25) == pytest.approx(69.3 * E, rel=1e-2)
 
 
 def test_both_solvers_read_the_compaction_limit_and_core_modulus_of_the_record():

@@ -21,7 +21,7 @@ from knitframe.numerics.contact_search import SegmentTopology
 from knitframe.numerics.periodic import N_MACRO, Lattice
 from knitframe_solvers.volumetric_material import SolidForms
 
-__all__ = ["VolumetricModel", "contact_surface", "write_solid_vtu"]
+__all__ = ["VolumetricModel", "contact_surface", "write_solid_vtu", "section_ratio"]
 
 
 def contact_surface(cm: Any, lattice: Lattice | None, exclusion: float | None = None) -> SolidSurface:
@@ -62,6 +62,17 @@ def contact_surface(cm: Any, lattice: Lattice | None, exclusion: float | None = 
     return SolidSurface.build(cm.nodes, cm.surface, all_f, all_f, topo, excl, lattice, identify)
 
 
+def section_ratio(forms: SolidForms, u: np.ndarray, F: np.ndarray | None = None) -> np.ndarray:
+    """The yarn's cross-section area over its knitted area, det F / |F a| (n_el, n_qp), at displacement u.
+
+    The compaction the yarn model's barrier limits (at s = 1, where the pre-stress leaves F = Fe).
+    """
+    F = forms.deformation_gradient(u) if F is None else F
+    J = np.linalg.det(np.moveaxis(F, (0, 1), (-2, -1)))
+    Fa = np.einsum("iJeq,Jeq->ieq", F, forms.fibre)
+    return J / np.linalg.norm(Fa, axis=0)
+
+
 def write_solid_vtu(path: Path, forms: SolidForms, u: np.ndarray, s: float, pressure: np.ndarray) -> Path:
     """VTU of the deformed solid: displacement and contact pressure (points), max principal stress
     and cross-section ratio (cells).
@@ -83,8 +94,7 @@ def write_solid_vtu(path: Path, forms: SolidForms, u: np.ndarray, s: float, pres
     w = forms.dx / forms.dx.sum(axis=1, keepdims=True)
     sig_e = np.einsum("ikeq,eq->eik", sigma, w)
     smax = np.linalg.eigvalsh(0.5 * (sig_e + np.swapaxes(sig_e, 1, 2)))[:, -1]
-    Fa = np.einsum("iJeq,Jeq->ieq", F, forms.fibre)
-    cross = (J / np.linalg.norm(Fa, axis=0)).min(axis=1)
+    cross = section_ratio(forms, u, F).min(axis=1)
     cell_type = "tetra10" if forms.edofs.shape[0] == 10 else "tetra"
     out = meshio.Mesh(
         X,
@@ -282,7 +292,7 @@ class VolumetricModel:
             return np.inf, None, None, {"diagnostic": str(e)}
         if not np.isfinite(E):
             self.timings["material"] += time.perf_counter() - t0
-            return np.inf, None, None, {"diagnostic": "an element is inverted"}
+            return np.inf, None, None, {"diagnostic": "an element is inverted (det F <= 0)"}
         self.timings["material"] += time.perf_counter() - t0
         info: dict[str, Any] = {"active": 0, "max_penetration": 0.0}
         gc = Hc = None

@@ -296,12 +296,17 @@ def compaction_barrier(
     above the compaction limit c. Below x₁ = (1 + c)/2 a barrier (the one of the rod's contact
     core, Li et al. 2020) stiffens the yarn::
 
-        W_c = K B(x),  B(x) = −(x − x₁)² ln((x − c)/(x₁ − c))  for c < x < x₁,  0 for x ≥ x₁,  +∞ for x ≤ c
+        W_c = K B(x),  B(x) = −(x − x₁)² ln((x − c)/(x₁ − c))  for x_s ≤ x < x₁,  0 for x ≥ x₁
+        B(x) = B(x_s) + B′(x_s)(x − x_s) + ½ B″(x_s)(x − x_s)²   for x < x_s = c + (x₁ − c)/20
         K = E_core / B″(x_m),  x_m = (c + x₁)/2            (the tangent d²W_c/dx² is E_core mid-band)
         ∂x/∂F = x M,  M = F⁻ᵀ − (F a ⊗ a)/I4
         P = K B′ x M
         A = K [(B″ x² + B′ x) M ⊗ M + B′ x ∂M/∂F],
         ∂M_iJ/∂F_kL = −F⁻¹_Jk F⁻¹_Li − δ_ik a_J a_L / I4 + 2 (F a)_i a_J (F a)_k a_L / I4²
+
+    The quadratic below x_s (C², 69 E_core stiff) keeps every state admissible: a pre-stress step
+    that grows the yarn's natural section around a section already at the limit starts from a
+    finite energy and is pushed back, where a log barrier would make it inadmissible.
 
     Parameters
     ----------
@@ -309,6 +314,7 @@ def compaction_barrier(
     c : compaction limit in (0, 1); E_core : modulus of the packed core, MPa.
     """
     x1 = 0.5 * (1.0 + c)
+    xs_ = c + 0.05 * (x1 - c)
 
     def B(x, k):
         r = (x - c) / (x1 - c)
@@ -319,16 +325,29 @@ def compaction_barrier(
             return -2.0 * z * np.log(r) - z**2 / w
         return -2.0 * np.log(r) - 4.0 * z / w + z**2 / w**2
 
+    Bs = [B(xs_, k) for k in range(3)]
+
+    def g(x, k):
+        """B and its derivatives with the quadratic continuation below x_s (x < x₁)."""
+        inner = x >= xs_
+        xi = np.where(inner, x, xs_)
+        d = x - xs_
+        if k == 0:
+            ext = Bs[0] + Bs[1] * d + 0.5 * Bs[2] * d * d
+        elif k == 1:
+            ext = Bs[1] + Bs[2] * d
+        else:
+            ext = np.full_like(x, Bs[2])
+        return np.where(inner, B(xi, k), ext)
+
     K = E_core / B(0.5 * (c + x1), 2)
     Fa = np.einsum("...iJ,...J->...i", F, a)
     I4 = np.einsum("...i,...i->...", Fa, Fa)
     J = np.linalg.det(F)
     x = J / np.sqrt(I4)
     band = x < x1
-    xb = np.where(band, np.maximum(x, c + 1e-9 * (x1 - c)), x1)  # P, A at x <= c: unused (W = inf)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        W = np.where(band, K * B(xb, 0), 0.0)
-    W = np.where(x <= c, np.inf, W)
+    W = np.zeros(x.shape)
+    W[band] = K * g(x[band], 0)
     if order < 1:
         return W, None, None
     P = np.zeros_like(F)
@@ -336,19 +355,19 @@ def compaction_barrier(
     if not np.any(band):
         return W, P, A
     # only the points in the band carry the term: compute there and scatter
-    Fb, ab, Fab, I4b, xs = F[band], a[band], Fa[band], I4[band], xb[band]
+    Fb, ab, Fab, I4b, xb = F[band], a[band], Fa[band], I4[band], x[band]
     Finv = np.linalg.inv(Fb)
     M = np.swapaxes(Finv, -1, -2) - Fab[:, :, None] * ab[:, None, :] / I4b[:, None, None]
-    b1 = K * B(xs, 1)
-    P[band] = (b1 * xs)[:, None, None] * M
+    b1 = K * g(xb, 1)
+    P[band] = (b1 * xb)[:, None, None] * M
     if order < 2:
         return W, P, None
-    b2 = K * B(xs, 2)
+    b2 = K * g(xb, 2)
     dM = -np.einsum("pJk,pLi->piJkL", Finv, Finv)
     dM -= np.einsum("ik,pJ,pL->piJkL", np.eye(3), ab, ab) / I4b[:, None, None, None, None]
     aa = Fab[:, :, None] * ab[:, None, :]
     dM += 2.0 * aa[:, :, :, None, None] * aa[:, None, None, :, :] / (I4b**2)[:, None, None, None, None]
-    A[band] = (b2 * xs**2 + b1 * xs)[:, None, None, None, None] * M[:, :, :, None, None] * M[
+    A[band] = (b2 * xb**2 + b1 * xb)[:, None, None, None, None] * M[:, :, :, None, None] * M[
         :, None, None, :, :
-    ] + (b1 * xs)[:, None, None, None, None] * dM
+    ] + (b1 * xb)[:, None, None, None, None] * dM
     return W, P, A
