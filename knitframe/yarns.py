@@ -24,7 +24,14 @@ from knitframe.records import Yarn
 from knitframe.schema import build
 from knitframe.validators import shown
 
-__all__ = ["resolve_yarn", "config_yarns", "yarn_model", "yarn_properties", "YarnProperty"]
+__all__ = [
+    "resolve_yarn",
+    "config_yarns",
+    "yarn_model",
+    "yarn_properties",
+    "YarnProperty",
+    "effective_bending",
+]
 
 
 def resolve_yarn(registry, value: Any, path: str) -> Yarn:
@@ -200,7 +207,7 @@ def yarn_properties(yarn: Yarn) -> list[YarnProperty]:
                 yarn.EI,
                 "N·mm²",
                 "derived",
-                "E_A π dk⁴ / 64 (solid section)",
+                "E_A π dk⁴ / 64 (solid section); the rod bends with EI / (1 + EI k²/(κ G_A A)), k = 2π/ℓ",
                 "rod (the volumetric yarn bends with E_A and G_A)",
             )
         )
@@ -270,3 +277,28 @@ def _line_stiffness(yarn: Yarn, delta: float, line_contact_load) -> float:
     r, h = 0.5 * yarn.dk, 1e-4 * delta
     f = line_contact_load(np.array([delta - h, delta + h]), r, yarn.E_transverse, yarn.nu)
     return float((f[1] - f[0]) / (2 * h))
+
+
+#: Timoshenko shear coefficient of a circular section, 6(1 + ν)/(7 + 6ν) at ν = 0.3 (Cowper 1966)
+SHEAR_COEFFICIENT = 0.886
+
+
+def effective_bending(yarn: Yarn, wavelength: float) -> float:
+    """Bending stiffness of the yarn bent at ``wavelength`` (mm), shear included, N·mm².
+
+    A Timoshenko beam bent by a load of wave number k = 2π/λ deflects by q/(EI k⁴) + q/(κ G_A A k²),
+    so it is as stiff as a shear-rigid beam of
+
+        EI_eff = EI / (1 + EI k² / (κ G_A A)),   A = π dk²/4, κ = 0.886
+
+    with EI the solid section's E_A π dk⁴/64 and G_A the record's axial shear modulus. A yarn whose
+    ``bending_stiffness`` is given keeps it: a bending test measures the effective stiffness.
+    """
+    import numpy as np
+
+    if yarn.bending_stiffness is not None:
+        return yarn.bending_stiffness
+    k = 2.0 * np.pi / wavelength
+    area = np.pi * yarn.dk**2 / 4.0
+    EI = yarn.EI
+    return float(EI / (1.0 + EI * k * k / (SHEAR_COEFFICIENT * yarn.G_A * area)))

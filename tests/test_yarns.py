@@ -311,3 +311,25 @@ def test_both_solvers_read_the_compaction_limit_and_core_modulus_of_the_record()
     assert soft["k_core"] == pytest.approx(rod_stiffness(cot, reg, RodPenalty())["k_core"] / 100)
     model = reg["yarn_model"]["transverse_isotropic"].from_yarn(cot)
     assert model.compaction == pytest.approx(cot.compaction) and model.core_modulus == 1200.0
+
+
+def test_effective_bending_is_the_timoshenko_stiffness_of_the_record():
+    """EI_eff = EI/(1 + EI k²/(κ G_A A)): the solid section for a stiff shear modulus, κ G_A A/k² for a
+    soft one, a measured bending stiffness unchanged; for pearl cotton the derived value is within 25 %
+    of the measured one at its stitch length."""
+    from knitframe.yarns import SHEAR_COEFFICIENT, effective_bending
+
+    reg = get_registry()
+    cot = reg["yarn"]["cotton"]
+    k = 2 * np.pi / 4.7
+    area = np.pi * cot.dk**2 / 4
+    assert effective_bending(cot, 4.7) == pytest.approx(
+        cot.EI / (1 + cot.EI * k**2 / (SHEAR_COEFFICIENT * cot.G_A * area))
+    )
+    assert effective_bending(cot, 4.7) == pytest.approx(SHEAR_COEFFICIENT * cot.G_A * area / k**2, rel=2e-3)
+    pet = reg["yarn"]["pet"]
+    assert effective_bending(pet, 1e3) == pytest.approx(pet.EI, rel=1e-5)
+    pearl = reg["yarn"]["pearl-cotton"]
+    assert effective_bending(pearl, 11.28) == 0.0708
+    derived = effective_bending(Yarn(**{**pearl.to_dict(), "bending_stiffness": None}), 11.28)
+    assert derived == pytest.approx(0.0708, rel=0.25)

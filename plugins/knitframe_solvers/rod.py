@@ -76,7 +76,7 @@ from knitframe.geometry import unit_cell
 from knitframe.numerics.cellrun import checkpoint_key
 from knitframe.numerics.settings import settings_field
 from knitframe.records import Fabric, Response, Scene
-from knitframe.yarns import yarn_model
+from knitframe.yarns import effective_bending, yarn_model
 from knitframe_solvers.newton_settings import RodNewton
 from knitframe_solvers.rod_contact import line_energy
 from knitframe_solvers.rod_model import RodEnergy, RodModel, from_cell
@@ -183,6 +183,10 @@ class RodSolver:
     newton: str | dict[str, Any] = settings_field(RodNewton)
     #: override axial stiffness, N
     EA: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: bend as a shear-deformable yarn: EI / (1 + EI k²/(κ G_A A)) at k = 2π/(yarn per stitch), the
+    #: Timoshenko stiffness of the yarn record's solid section and axial shear modulus (a yarn with a
+    #: given bending_stiffness keeps it); false: the solid section's EI
+    shear: bool = True
     #: override bending stiffness, N·mm²
     EI: float | None = attrs.field(default=None, validator=v.optional(v.positive))
     #: override the line contact stiffness at 5 % flattening, N/mm²
@@ -260,10 +264,13 @@ class RodSolver:
             law,
             line_stiffness=self.contact_stiffness or getattr(law, "stiffness", None),
         )
+        EI = stiff["EI"]
+        if self.shear:
+            EI = effective_bending(fabric.yarn, cell.arc_length_per_stitch)
         energy = RodEnergy(
             model,
             self.EA or stiff["EA"],
-            self.EI or stiff["EI"],
+            self.EI or EI,
             bending="bending" in scene.effects,
             law=law,
             dk=cell.dk,
