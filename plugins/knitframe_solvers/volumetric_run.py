@@ -40,8 +40,8 @@ IMBALANCE_NOTE = 10.0
 #: the warning of every P1 run that bends yarns (measured in docs/validation.md, "Is the reference
 #: converged?")
 P1_LOCKING = (
-    "volumetric order 1: linear tetrahedra lock in bending, so a knitted cell's P1 tensions are several "
-    "times too high even at seed r/3; use order = 2 for numbers and P1 only for a quick look"
+    "volumetric order 1: linear tetrahedra lock in bending, so a knitted cell's P1 tensions are too high "
+    "even at seed r/3; use order = 2 for numbers and P1 only for a quick look"
 )
 
 
