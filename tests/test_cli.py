@@ -45,3 +45,23 @@ def test_run_needs_a_config_or_example(cli):
         proc.returncode == 2
         and proc.stderr.strip() == "knitframe: error: give a CONFIG file or --example (not both)"
     )
+
+
+def test_yarn_shows_what_the_solvers_read_and_whether_it_is_measured(cli, tmp_path):
+    """`knitframe yarn NAME` lists the record's quantities with their status; a config's own yarn too;
+    an unknown name is a one-line error with exit code 2."""
+    proc = cli("yarn", "cotton")
+    assert proc.returncode == 0, proc.stderr
+    lines = {line.split()[0] + " " + line.split()[1]: line for line in proc.stdout.splitlines()[1:]}
+    assert "measured" in lines["knitted diameter"] and "0.444" in lines["knitted diameter"]
+    j_min = next(line for line in proc.stdout.splitlines() if " J_min " in line)
+    assert "0.2764" in j_min and "derived" in j_min and "hexagonal packing" in j_min
+    rows = json.loads(cli("yarn", "cotton", "--json").stdout)
+    assert {r["symbol"] for r in rows} >= {"dk", "E_A", "E_T", "G_A", "EI", "k_line", "J_min", "E_core"}
+    (tmp_path / "c.toml").write_text(
+        '[yarns.wool]\nlike = "cotton"\ncompaction_limit = 0.4\nmeasured = ["compaction_limit"]\n'
+    )
+    own = json.loads(cli("yarn", "wool", "--config", "c.toml", "--json").stdout)
+    assert next(r for r in own if r["symbol"] == "J_min")["status"] == "measured"
+    bad = cli("yarn", "woollen")
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "unknown yarn 'woollen'" in bad.stderr

@@ -49,6 +49,10 @@ def test_two_loads_are_simulated_and_compared_with_the_measured_curves(tmp_path,
     }  # both curves reach 30 % along the course
     assert "simulated/measured tension" in res.results["simulate"]["headline"]
     assert (tmp_path / "out" / "simulated.png").read_bytes()[:4] == b"\x89PNG"
+    # what the solver read from the yarn record, each value with its status
+    yarn_csv = (tmp_path / "out" / "yarn.csv").read_text(encoding="utf-8")
+    assert yarn_csv.startswith("# yarn: pearl-cotton")
+    assert ",EI,0.0708,N·mm²,measured,bending_stiffness," in yarn_csv and ",J_min," in yarn_csv
 
 
 def test_compare_uses_only_strains_inside_both_curves(singal_file):
