@@ -220,7 +220,7 @@ class Yarn(Record):
 
     def properties(self) -> list:
         """Every quantity the solvers read from this yarn, with its value and whether it is
-        measured, an estimate or derived (and from what): the table of ``knitframe yarns show``."""
+        measured, an estimate or derived (and from what): the table ``knitframe yarn NAME`` prints."""
         from knitframe.yarns import yarn_properties
 
         return yarn_properties(self)

@@ -46,6 +46,7 @@ __all__ = [
     "pretension",
     "line_contact_approach",
     "line_contact_load",
+    "line_contact_stiffness",
 ]
 
 COLUMNS = ("displacement_mm", "force_N")
@@ -106,6 +107,18 @@ def line_contact_load(
         hi = np.where(big, mid, hi)
         lo = np.where(big, lo, mid)
     return np.where(d > 0, np.exp(0.5 * (lo + hi)), 0.0)
+
+
+def line_contact_stiffness(f: np.ndarray, radius: float, E: float, nu: float) -> np.ndarray:
+    """Tangent stiffness df/dδ (N/mm per mm of length) of two identical parallel cylinders at line load f.
+
+    From δ(f) = (4f/π)(1 − ν²)/E (ln(4R/b) − 1/2) of :func:`line_contact_approach` with b ∝ √f:
+    dδ/df = (4/π)(1 − ν²)/E (ln(4R/b) − 1).
+    """
+    f = np.asarray(f, dtype=np.float64)
+    k = (1.0 - nu**2) / E
+    b = np.sqrt(4.0 * np.maximum(f, 1e-300) * 0.5 * radius * 2.0 * k / np.pi)
+    return 1.0 / (4.0 / np.pi * k * (np.log(4.0 * radius / b) - 1.0))
 
 
 def pretension(line_load: float, curvature_radius: float) -> float:

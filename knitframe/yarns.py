@@ -18,6 +18,7 @@ from collections.abc import Mapping
 from typing import Any
 
 import attrs
+import numpy as np
 
 from knitframe.errors import ConfigError, FieldError, UnknownPluginError
 from knitframe.records import Yarn
@@ -113,8 +114,11 @@ class YarnProperty:
     used_by: str
 
 
-def _given(yarn: Yarn, field: str) -> str:
-    return "measured" if field in yarn.measured else "estimate"
+def _source(yarn: Yarn, field: str, derived: str) -> tuple[str, str]:
+    """(status, how) of a quantity that is the Yarn ``field`` when given, else ``derived``."""
+    if getattr(yarn, field) is None:
+        return "derived", derived
+    return ("measured" if field in yarn.measured else "estimate"), field
 
 
 def yarn_properties(yarn: Yarn) -> list[YarnProperty]:
@@ -130,101 +134,63 @@ def yarn_properties(yarn: Yarn) -> list[YarnProperty]:
     * E_core = ``core_modulus``, else E_A.
     """
     from knitframe.records import MAX_PACKING
-    from knitframe.yarnfit import line_contact_load
+    from knitframe.yarnfit import line_contact_load, line_contact_stiffness
 
-    rows = [
-        YarnProperty("free diameter", "d0", yarn.d0, "mm", _given(yarn, "d0"), "d0", "both: the pre-stress"),
-        YarnProperty(
-            "knitted diameter",
-            "dk",
-            yarn.dk,
-            "mm",
-            _given(yarn, "dk"),
-            "dk",
-            "both: contact distance (rod), section (volumetric)",
-        ),
-        YarnProperty(
-            "axial modulus",
-            "E_A",
-            yarn.E_axial,
-            "MPa",
-            _given(yarn, "E_axial"),
-            "E_axial",
-            "both: EA (rod), the fibre term (volumetric)",
-        ),
-        YarnProperty(
+    def given(name, symbol, field, unit, used_by):
+        return YarnProperty(name, symbol, getattr(yarn, field), unit, *_source(yarn, field, ""), used_by)
+
+    r = 0.5 * yarn.dk
+    f5 = line_contact_load(np.array([0.05 * yarn.dk]), r, yarn.E_transverse, yarn.nu)
+    k_line = float(line_contact_stiffness(f5, r, yarn.E_transverse, yarn.nu)[0])
+    phi = yarn.packing
+    if yarn.compaction_limit is None and phi is None:
+        j_source = ("estimate", "default 0.5 (no tex or fibre density)")
+    else:
+        j_source = _source(
+            yarn, "compaction_limit", f"φk / φmax, φmax = {MAX_PACKING:.3f} (hexagonal packing)"
+        )
+    core_status, core_how = _source(yarn, "core_modulus", "E_A: packed fibres as stiff as the yarn along it")
+    return [
+        given("free diameter", "d0", "d0", "mm", "both: the pre-stress"),
+        given("knitted diameter", "dk", "dk", "mm", "both: contact distance (rod), section (volumetric)"),
+        given("axial modulus", "E_A", "E_axial", "MPa", "both: EA (rod), the fibre term (volumetric)"),
+        given(
             "transverse modulus",
             "E_T",
-            yarn.E_transverse,
-            "MPa",
-            _given(yarn, "E_transverse"),
             "E_transverse",
+            "MPa",
             "both: contact stiffness (rod), transverse law (volumetric)",
         ),
-        YarnProperty("Poisson ratio", "ν", yarn.nu, "-", _given(yarn, "nu"), "nu", "both"),
-    ]
-    if yarn.G_axial is not None:
-        rows.append(
-            YarnProperty(
-                "axial shear modulus",
-                "G_A",
-                yarn.G_A,
-                "MPa",
-                _given(yarn, "G_axial"),
-                "G_axial",
-                "volumetric (the rod is shear-rigid)",
-            )
-        )
-    else:
-        rows.append(
-            YarnProperty(
-                "axial shear modulus",
-                "G_A",
-                yarn.G_A,
-                "MPa",
-                "derived",
-                "E_T / (2(1 + ν)): fibres slide along the yarn as easily as across it",
-                "volumetric (the rod is shear-rigid)",
-            )
-        )
-    if yarn.bending_stiffness is not None:
-        rows.append(
-            YarnProperty(
-                "bending stiffness",
-                "EI",
-                yarn.EI,
-                "N·mm²",
-                _given(yarn, "bending_stiffness"),
+        given("Poisson ratio", "ν", "nu", "-", "both"),
+        YarnProperty(
+            "axial shear modulus",
+            "G_A",
+            yarn.G_A,
+            "MPa",
+            *_source(yarn, "G_axial", "E_T / (2(1 + ν)): fibres slide along the yarn as easily as across it"),
+            "both: axial shear (volumetric), the bending stiffness EI_eff (rod)",
+        ),
+        YarnProperty(
+            "bending stiffness",
+            "EI",
+            yarn.EI,
+            "N·mm²",
+            *_source(
+                yarn,
                 "bending_stiffness",
-                "rod (the volumetric yarn bends with E_A and G_A)",
-            )
-        )
-    else:
-        rows.append(
-            YarnProperty(
-                "bending stiffness",
-                "EI",
-                yarn.EI,
-                "N·mm²",
-                "derived",
                 "E_A π dk⁴ / 64 (solid section); the rod bends with EI / (1 + EI k²/(κ G_A A)), k = 2π/ℓ",
-                "rod (the volumetric yarn bends with E_A and G_A)",
-            )
-        )
-    delta = 0.05 * yarn.dk
-    rows.append(
+            ),
+            "rod (the volumetric yarn bends with E_A and G_A)",
+        ),
         YarnProperty(
             "line contact stiffness at 5 % flattening",
             "k_line",
-            _line_stiffness(yarn, delta, line_contact_load),
+            k_line,
             "N/mm²",
             "derived",
             "Hertz line contact of two yarns with E_T and ν",
             "rod: the contact penalty",
-        )
-    )
-    phi = yarn.packing
-    rows.append(
+        ),
         YarnProperty(
             "fibre volume fraction, knitted",
             "φk",
@@ -233,50 +199,27 @@ def yarn_properties(yarn: Yarn) -> list[YarnProperty]:
             "derived" if phi is not None else "unknown",
             "(tex/ρ) / (π dk²/4)" if phi is not None else "needs tex and fibre_density",
             "J_min",
-        )
-    )
-    if yarn.compaction_limit is not None:
-        status, how = _given(yarn, "compaction_limit"), "compaction_limit"
-    elif phi is not None:
-        status, how = "derived", f"φk / φmax, φmax = {MAX_PACKING:.3f} (hexagonal packing)"
-    else:
-        status, how = "estimate", "default 0.5 (no tex or fibre density)"
-    rows.append(
+        ),
         YarnProperty(
             "compaction limit (smallest section / knitted)",
             "J_min",
             yarn.compaction,
             "-",
-            status,
-            how,
+            *j_source,
             "rod: the contact core at J_min·dk (an isotropic solid yarn has no compaction barrier)"
             if yarn.isotropic
             else "both: the contact core at J_min·dk (rod), the compaction barrier (volumetric)",
-        )
-    )
-    rows.append(
+        ),
         YarnProperty(
             "modulus of the packed core",
             "E_core",
             yarn.core_E,
             "MPa",
-            _given(yarn, "core_modulus") if yarn.core_modulus is not None else "estimate",
-            "core_modulus"
-            if yarn.core_modulus is not None
-            else "E_A: packed fibres as stiff as the yarn along it",
+            "estimate" if core_status == "derived" else core_status,
+            core_how,
             "both: stiffness halfway through the compaction barrier",
-        )
-    )
-    return rows
-
-
-def _line_stiffness(yarn: Yarn, delta: float, line_contact_load) -> float:
-    """df/dδ of the Hertz line contact of two parallel yarns at approach δ (central difference), N/mm²."""
-    import numpy as np
-
-    r, h = 0.5 * yarn.dk, 1e-4 * delta
-    f = line_contact_load(np.array([delta - h, delta + h]), r, yarn.E_transverse, yarn.nu)
-    return float((f[1] - f[0]) / (2 * h))
+        ),
+    ]
 
 
 #: Timoshenko shear coefficient of a circular section, 6(1 + ν)/(7 + 6ν) at ν = 0.3 (Cowper 1966)
@@ -294,8 +237,6 @@ def effective_bending(yarn: Yarn, wavelength: float) -> float:
     with EI the solid section's E_A π dk⁴/64 and G_A the record's axial shear modulus. A yarn whose
     ``bending_stiffness`` is given keeps it: a bending test measures the effective stiffness.
     """
-    import numpy as np
-
     if yarn.bending_stiffness is not None:
         return yarn.bending_stiffness
     k = 2.0 * np.pi / wavelength

@@ -32,8 +32,7 @@ def main(args) -> int:
     if args.config is not None:
         from knitframe.config import load_toml
 
-        table = load_toml(args.config)
-        own = config_yarns(reg, table.get("yarns", {}), "yarns") if "yarns" in table else {}
+        own = config_yarns(reg, load_toml(args.config).get("yarns", {}), "yarns")
         yarn = own[args.name] if args.name in own else resolve_yarn(reg, args.name, "NAME")
     else:
         yarn = resolve_yarn(reg, args.name, "NAME")

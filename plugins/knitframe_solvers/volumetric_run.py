@@ -392,10 +392,10 @@ class VolumetricRun:
         """The Response, with the volumetric run's provenance (timings, residuals, penetration, …)."""
         fabric, model, lat, r = self.fabric, self.model, self.lat, self.r
         tightest = min(self.sections, default=1.0)
-        if tightest < fabric.yarn.compaction and getattr(model.forms.law.model, "compaction", None):
+        if tightest < fabric.yarn.compaction:
             self.run.notes.append(
                 f"the yarn was compacted to {tightest:.3g} of its section, past its limit "
-                f"J_min = {fabric.yarn.compaction:.3g} (the barrier's stiff quadratic continuation)"
+                f"J_min = {fabric.yarn.compaction:.3g}"
             )
         sl = fabric.stitch_length if fabric.stitch_length is not None else fabric.arc_length
         return self.run.response(

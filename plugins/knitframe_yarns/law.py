@@ -28,7 +28,7 @@ import numpy as np
 from knitframe import validators as v
 from knitframe.errors import NumericalError
 from knitframe.records import Yarn
-from knitframe.yarnfit import line_contact_approach, line_contact_load
+from knitframe.yarnfit import line_contact_approach, line_contact_load, line_contact_stiffness
 
 __all__ = ["linear_stiffness", "constants", "invariant_law", "YarnModelBase"]
 
@@ -255,10 +255,7 @@ class YarnModelBase:
         From δ(f) = (4f/π)(1 - ν²)/E_T (ln(4R/b) - 1/2) with b ∝ √f:
         dδ/df = (4/π)(1 - ν²)/E_T (ln(4R/b) - 1).
         """
-        f = np.asarray(f, dtype=np.float64)
-        k = (1.0 - self.nu**2) / self.transverse_modulus
-        b = np.sqrt(4.0 * np.maximum(f, 1e-300) * 0.5 * self.radius * 2.0 * k / np.pi)
-        return 1.0 / (4.0 / np.pi * k * (np.log(4.0 * self.radius / b) - 1.0))
+        return line_contact_stiffness(f, self.radius, self.transverse_modulus, self.nu)
 
     def energy(self, F: np.ndarray, fibre: np.ndarray | None = None) -> np.ndarray:
         """Strain energy density (...,), MPa."""
