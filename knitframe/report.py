@@ -18,6 +18,7 @@ __all__ = [
     "plot_comparison",
     "validate_uniaxial",
     "plot_validation",
+    "plot_sections",
 ]
 
 CSV_COLUMNS = (
@@ -344,3 +345,60 @@ def plot_validation(path: Path, panels: Sequence[dict], *, title: str = "", colu
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+
+
+# ------------------------------------------------------------------------ how far the yarn is squeezed
+def plot_sections(path: Path, responses: Sequence[Response], *, title: str = "") -> bool:
+    """How far the yarn is squeezed across along the load path: the section ratio det F / |F a|
+    (the yarn's cross-section over its knitted section) of every Response whose provenance carries
+    it (the volumetric solver's ``section_ratio``): its volume-weighted median (solid) and 5 %
+    quantile (dashed) against the loaded strain, the pre-stressed cell at 0, with the yarn's
+    compaction limit J_min (dotted), below which the fibres would be packed past solid. Returns
+    False, and writes nothing, when no Response has the section ratio."""
+    have = [r for r in responses if r.provenance.extra.get("section_ratio")]
+    if not have:
+        return False
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.8, 4.6), dpi=110)
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for k, r in enumerate(have):
+        c = colors[k % len(colors)]
+        rows = r.provenance.extra["section_ratio"]
+        d = r.loaded_direction or 0
+        e = np.array([(row["lambda1"], row["lambda2"])[d] - 1.0 for row in rows])
+        order = np.argsort(e, kind="stable")
+        label = f"{r.label} {r.load}".strip()
+        ax.plot(
+            e[order],
+            np.array([row["median"] for row in rows])[order],
+            "-",
+            marker=".",
+            color=c,
+            label=f"{label}: median",
+        )
+        ax.plot(
+            e[order],
+            np.array([row["p05"] for row in rows])[order],
+            "--",
+            color=c,
+            lw=1.0,
+            label=f"{label}: 5 % of the yarn below",
+        )
+        limit = r.provenance.extra.get("compaction_limit")
+        if limit is not None:
+            ax.axhline(limit, color=c, ls=":", lw=1.0)
+    ax.axhline(1.0, color="0.5", lw=0.6)
+    ax.set_xlabel("engineering strain in the loaded direction (0: the pre-stressed cell), -")
+    ax.set_ylabel("section ratio det F / |F a|, -")
+    ax.set_ylim(0.0, 1.1)
+    ax.set_title(title or "how far the yarn is squeezed across (dotted: its compaction limit J_min)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="lower left")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return True

@@ -23,6 +23,7 @@ import test_volumetric_solver as cells
 from knitframe.curves import nrmse_between
 from knitframe.plugins import get_registry, load_registry, reset_registry
 from knitframe.records import Fabric, LoadPath, Scene
+from knitframe.report import plot_sections
 
 
 @pytest.fixture
@@ -62,7 +63,7 @@ KNIT_EFFECTS = {
 }
 
 
-def test_the_volumetric_yarn_stops_compacting_at_the_records_limit():
+def test_the_volumetric_yarn_stops_compacting_at_the_records_limit(tmp_path):
     """Jersey SL11 cotton, coarse P1 cell, pre-stress and one 5 % equibiaxial step: the smallest section
     ratio det F/|F a| stays at or above J_min = φk/φmax = 0.276 (the rod's contact core is at J_min·dk)."""
     from knitframe_solvers.volumetric import VolumetricSolver
@@ -79,6 +80,17 @@ def test_the_volumetric_yarn_stops_compacting_at_the_records_limit():
     extra = r.provenance.extra
     assert extra["compaction_limit"] == pytest.approx(cot.compaction) == pytest.approx(0.2764, abs=1e-4)
     assert cot.compaction <= extra["min_section_ratio"] < 0.9  # squeezed, but not past the fibres' packing
+    # the section ratio after the pre-stress and after the step, each over the yarn's volume
+    pre, step = extra["section_ratio"]
+    assert (pre["phase"], step["phase"]) == ("prestress", "load")
+    assert (pre["lambda1"], pre["lambda2"]) == (1.0, 1.0)
+    assert step["lambda1"] == pytest.approx(1.05) and step["lambda2"] == pytest.approx(1.05)
+    for sec in (pre, step):
+        assert sec["min"] <= sec["p05"] <= sec["median"] <= 1.2
+    assert extra["min_section_ratio"] == min(pre["min"], step["min"])
+    assert plot_sections(tmp_path / "section.png", [r]) is True
+    assert (tmp_path / "section.png").read_bytes()[:4] == b"\x89PNG"
+    assert plot_sections(tmp_path / "none.png", []) is False and not (tmp_path / "none.png").exists()
 
 
 @pytest.mark.slow

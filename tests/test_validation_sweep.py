@@ -13,7 +13,7 @@ import knitframe
 from knitframe.cli import main
 from knitframe.examples import EXAMPLE_DIR
 from knitframe.records import Provenance, Response
-from knitframe.report import validate_uniaxial
+from knitframe.report import curve, validate_uniaxial
 
 JERSEY = ["cotton-stockinette-x.csv", "cotton-stockinette-y.csv"]
 
@@ -143,6 +143,17 @@ def test_two_measured_curves_and_a_failed_point_give_the_columns_and_the_figure(
     ]
     assert "2 of 3 measured tests simulated" in res.results["sweep"]["headline"]
     assert (out / "validation.png").read_bytes()[:4] == b"\x89PNG"
+    # the measured tension at 10 % is the test's own, and the goals are judged on these curves
+    reader = knitframe.get_registry()["reader"]["singal2024"]()
+    ((_, e, t, _),) = curve(reader.read(files[0])[0])
+    order = e.argsort()
+    assert float(curves[0]["measured_10"]) == pytest.approx(float(np.interp(0.1, e[order], t[order])))
+    goals = res.results["sweep"]["goals"]
+    assert set(goals) == {"median_ratio", "every_curve", "pattern_order", "lateral"}
+    assert goals["pattern_order"] == "undetermined"  # one pattern: nothing to order
+    md = (out / "goals.md").read_text()
+    assert "- pearl-cotton jersey course: not simulated (" in md  # the starved point, in the notes
+    assert f"goals met: {sum(v == 'met' for v in goals.values())} of 4" in res.results["sweep"]["headline"]
 
 
 def test_a_failed_load_keeps_the_other_curve_and_is_not_cached(tmp_path, singal_file, monkeypatch):

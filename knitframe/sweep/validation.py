@@ -33,6 +33,8 @@ __all__ = [
 
 #: the point key that carries measured tests
 MEASURED_KEY = "measured"
+#: the strain at which validation.csv gives the measured tension (``measured_10``)
+GOAL_ORDER_AT = 0.10
 #: per-curve columns of sweep.csv for points with measured tests, each once per direction
 #: (``_course``, ``_wale``)
 VALIDATION_COLUMNS = (
@@ -169,9 +171,14 @@ def validate_point(p: Point, res: Any) -> tuple[dict[str, Any], list[dict[str, A
         }
         for c in VALIDATION_COLUMNS[2:]:  # validate_uniaxial's "nrmse" is the column nrmse_measured
             curve_row[c] = metrics.get(c.replace("nrmse_measured", "nrmse")) if metrics is not None else None
+        ((_, e, t, _),) = curve(mea)
         if metrics is None:
-            ((_, e, _, _),) = curve(mea)
             curve_row["measured_to"] = float(np.max(e))
+        order = np.argsort(e)
+        # the measured tension at 10 % (N/mm), for the order of the patterns (knitframe.goals)
+        curve_row["measured_10"] = (
+            float(np.interp(GOAL_ORDER_AT, e[order], t[order])) if np.max(e) >= GOAL_ORDER_AT else None
+        )
         columns.update({f"{c}_{d}": curve_row[c] for c in VALIDATION_COLUMNS})
         curves.append(curve_row)
         panels.append(

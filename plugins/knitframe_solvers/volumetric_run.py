@@ -26,7 +26,7 @@ from knitframe.numerics.memory import retain_freed_memory
 from knitframe.numerics.newton import NewtonOptions, NewtonResult, minimise
 from knitframe.numerics.periodic import N_MACRO, macro_index
 from knitframe.records import Fabric, Response, Scene
-from knitframe_solvers.volumetric_model import section_ratio, write_solid_vtu
+from knitframe_solvers.volumetric_model import section_summary, write_solid_vtu
 
 if TYPE_CHECKING:
     from knitframe_solvers.volumetric import VolumetricSolver
@@ -85,7 +85,7 @@ class VolumetricRun:
         self.residuals: list[float] = []
         self.penetrations: list[float] = []
         #: smallest cross-section ratio det F/|F a| of each converged load step
-        self.sections: list[float] = []
+        self.sections: list[dict[str, Any]] = []
         self.shares: list[float] = []
         s0 = 1.0
         if self.with_prestress:
@@ -273,9 +273,18 @@ class VolumetricRun:
                 "(its tensions carry that imbalance)"
             )
         self.penetrations.append(float(res.info.get("max_penetration", 0.0)))
-        if where[0] != "pre-stress":  # s = 1: the section ratio is the elastic one the barrier limits
-            model = self.model
-            self.sections.append(float(section_ratio(model.forms, model.T @ res.x).min()))
+        # full-tolerance states only: the end of the pre-stress (s = 1, where the section ratio is the
+        # elastic one the barrier limits) and the load steps
+        model = self.model
+        hm = res.x[self.n_ind :]
+        self.sections.append(
+            {
+                "phase": where[0],
+                "lambda1": 1.0 + float(hm[macro_index(0, 0)]),
+                "lambda2": 1.0 + float(hm[macro_index(1, 1)]),
+                **section_summary(model.forms, model.T @ res.x),
+            }
+        )
 
     # ------------------------------------------------------------------------------- pre-stress
     def prestress_phase(self, q: np.ndarray, start_index: int) -> np.ndarray:
@@ -391,7 +400,7 @@ class VolumetricRun:
     def response(self) -> Response:
         """The Response, with the volumetric run's provenance (timings, residuals, penetration, …)."""
         fabric, model, lat, r = self.fabric, self.model, self.lat, self.r
-        tightest = min(self.sections, default=1.0)
+        tightest = min((sec["min"] for sec in self.sections), default=1.0)
         if tightest < fabric.yarn.compaction:
             self.run.notes.append(
                 f"the yarn was compacted to {tightest:.3g} of its section, past its limit "
@@ -409,7 +418,8 @@ class VolumetricRun:
                 "max_final_residual_N": max(self.residuals, default=0.0),
                 "max_penetration_over_r": max(self.penetrations, default=0.0) / r,
                 "max_stabilisation_share": max(self.shares, default=0.0),
-                "min_section_ratio": min(self.sections, default=1.0),
+                "min_section_ratio": tightest,
+                "section_ratio": self.sections,
                 "compaction_limit": fabric.yarn.compaction,
                 "prestress_start_radius_over_r": self.state["s0"],
                 "penalty_N_per_mm3": model.stiffness,

@@ -19,7 +19,9 @@ The scene's effects and load are checked against the solver before any work, the
 built once to refuse dimensions no stitch can have, and the solver's ``validate(fabric, scene,
 registry)`` makes its own checks (plugins by name, yarn model) then too. Writes ``simulated.csv``,
 ``simulated.png`` and ``yarn.csv`` (what the solver read from the yarn record, each value marked
-measured, estimate or derived, as ``knitframe yarn`` prints it), and ``vtu/`` when the scene's
+measured, estimate or derived, as ``knitframe yarn`` prints it), ``section.png`` when the solver
+reports the yarn's section ratio (the volumetric solver: how far the yarn is squeezed across along
+the path, against its compaction limit), and ``vtu/`` when the scene's
 outputs include "vtu" and the solver ``writes_vtu``; a solver that declares ``checkpoints``
 checkpoints every converged step, so ``knitframe run --resume`` continues a killed run.
 """
@@ -38,7 +40,7 @@ from knitframe.geometry import checked_cell
 from knitframe.interfaces import Stage
 from knitframe.progress import ProgressBar
 from knitframe.records import Fabric, Scene
-from knitframe.report import compare, plot_comparison, write_responses_csv
+from knitframe.report import compare, plot_comparison, plot_sections, write_responses_csv
 from knitframe.schema import build
 from knitframe.yarns import config_yarns, resolve_yarn
 
@@ -127,6 +129,12 @@ class SimulateStage(Stage):
             title=f"{self.solver_name}: {responses[0].label}",
             ratios=ratios,
         )
+        if any(r.provenance.extra.get("section_ratio") for r in responses):
+            plot_sections(
+                ctx.output("section.png"),
+                responses,
+                title=f"{self.solver_name}: {responses[0].label}: the yarn squeezed across (dotted: J_min)",
+            )
         headline = "; ".join(
             f"{r.label} {r.load}: {len(r)} steps, converged={r.provenance.converged}, "
             f"{r.provenance.wall_time or 0:.1f} s"

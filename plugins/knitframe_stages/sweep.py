@@ -70,8 +70,12 @@ base load's steps, and compared with :func:`knitframe.report.validate_uniaxial`.
 of such a point that fails is recorded and the rest of the point is kept. sweep.csv then gains
 per-curve columns (each ``_course`` and ``_wale``: the file, status, strain ranges, NRMSE against
 the measurement, the simulated/measured tension at 10/20/30 % and the lateral strains at 20 %),
-and the run writes ``validation.csv`` (one row per curve) and ``validation.png`` (the simulated
-curves over the measured ones).
+and the run writes ``validation.csv`` (one row per curve, with the measured tension at 10 %),
+``validation.png`` (the simulated curves over the measured ones) and ``goals.md``: the four
+validation goals judged on the curves (:mod:`knitframe.goals`): the median tension ratio within
+1.5× of 1, every curve within 3×, the patterns in the measured order of stiffness, and the
+lateral contraction within 0.05. ``[sweep.goals]`` sets the thresholds (``median_within``,
+``curve_within``, ``lateral_within``).
 """
 
 from __future__ import annotations
@@ -86,6 +90,7 @@ from knitframe import hookimpl
 from knitframe.config import PluginSpec, instantiate
 from knitframe.errors import ConfigError, KnitframeWarning
 from knitframe.executors import executor_from_config
+from knitframe.goals import MET, GoalSettings, goals_markdown, validation_goals
 from knitframe.interfaces import Stage
 from knitframe.report import plot_validation
 from knitframe.schema import build, field_names, to_dict
@@ -140,6 +145,8 @@ class SweepTable:
     scene: dict[str, Any] = attrs.Factory(dict)
     #: the reduced model and fitter for every point
     fit: SweepFit = attrs.Factory(SweepFit)
+    #: the thresholds of the validation goals judged in goals.md (points with measured tests)
+    goals: GoalSettings = attrs.Factory(GoalSettings)
 
 
 # ------------------------------------------------------------------------------------------ stage
@@ -315,6 +322,14 @@ class SweepStage(Stage):
         )
         ctx.results[self.label]["validation"] = curves
         ctx.results[self.label]["headline"] += "; " + validation_headline(curves)
+        goals = validation_goals(curves, self.settings.goals)
+        ctx.output("goals.md").write_text(
+            goals_markdown(goals, title=f"Validation goals: sweep {self.settings.name} ({solvers})"),
+            encoding="utf-8",
+        )
+        ctx.results[self.label]["goals"] = {g.key: g.verdict for g in goals}
+        met = sum(g.verdict == MET for g in goals)
+        ctx.results[self.label]["headline"] += f"; goals met: {met} of {len(goals)} (goals.md)"
 
 
 def _warn_failed(failed: list[dict[str, Any]]) -> None:

@@ -77,16 +77,16 @@ YARNS = (
         E_axial=79.0,
         E_transverse=0.0079,
         nu=0.3,
-        bending_stiffness=0.00996,
+        bending_stiffness=0.045,
         tex=502.0,
         fibre_density=1.17,
-        measured=("E_axial",),
+        measured=("E_axial", "bending_stiffness"),
         model="transverse_isotropic",
         source="Acrylic worsted (Knit Picks Brava Worsted, 100 % acrylic), "
-        "the acrylic of Singal et al. 2024 (Nat Commun 15:2622, Supplement): "
+        "the acrylic of Singal et al. 2024 (Nat Commun 15:2622): "
         "E_axial = stretching modulus 79.0 MPa measured (Ding 2023, cited by Singal); "
-        "bending_stiffness = their measured bending modulus 0.249 MPa times pi d^4/64 "
-        "(the diameter is estimated, so EI is derived); "
+        "bending_stiffness = B = 0.045 N mm2, the bending modulus of Singal et al.'s own simulations "
+        "of this yarn (sabetta/stitch-by-stitch, code/fabric_simulations/*config.dat, 'acrylic params'); "
         "d0 = dk = 0.95 mm estimated from the count (label: 100 g per 218 yd, about 502 tex) "
         "as a round yarn 60 % fibre by volume (Peirce's packing for cotton) of acrylic fibre 1.17 g/cm3; "
         "E_transverse = 1e-4 E_axial (the paper's ratio for cotton and nylon, an estimate); nu assumed",
