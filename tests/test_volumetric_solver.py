@@ -243,6 +243,9 @@ def test_pipeline_resume_after_a_kill(tmp_path, monkeypatch):
         },
     }
     reference = knitframe.run(config, tmp_path / "ref").responses[0]
+    # the simulate stage draws the section ratio the volumetric solver records
+    assert [s["phase"] for s in reference.provenance.extra["section_ratio"]] == ["load", "load"]
+    assert (tmp_path / "ref" / "section.png").read_bytes()[:4] == b"\x89PNG"
     save = StepCheckpoints.save
 
     def save_then_die(self, index, arrays, meta):
