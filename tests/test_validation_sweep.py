@@ -255,6 +255,26 @@ def test_bad_measured_tests_are_one_line_exit_2_and_no_output(tmp_path, singal_f
     assert sorted(tmp_path.rglob("*")) == before  # no output folder, no cache
 
 
+@pytest.mark.parametrize(
+    "goals, message",
+    [
+        ("median_within = 0.5", "sweep.goals.median_within: must be in (1.0, 100.0], got 0.5"),
+        ("lateral_within = -0.1", "sweep.goals.lateral_within: must be in (0.0, 1.0], got -0.1"),
+        ("order_at = 0.1", "sweep.goals.order_at"),
+    ],
+)
+def test_bad_goal_thresholds_are_one_line_exit_2(tmp_path, singal_file, capsys, goals, message):
+    x, _ = (singal_file(f) for f in JERSEY)
+    point = f'{{ pattern = "jersey", yarn = "pearl-cotton", {measured([x])} }}'
+    cfg = sweep_config(tmp_path, f"points = [{point}]")
+    cfg.write_text(cfg.read_text() + f"\n[sweep.goals]\n{goals}\n")
+    before = sorted(tmp_path.rglob("*"))
+    code = main(["run", str(cfg), "--out", str(tmp_path / "out"), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and message in err, err
+    assert sorted(tmp_path.rglob("*")) == before
+
+
 # ------------------------------------------------------------------------------------ the example
 @pytest.mark.slow
 def test_the_16_singal_curves_with_the_rod_solver(tmp_path):
@@ -272,3 +292,7 @@ def test_the_16_singal_curves_with_the_rod_solver(tmp_path):
         assert c["measured_status"] == "failed" or float(c["ratio_10"]) > 0.0, c
     assert res.results["sweep"]["points"] == 8
     assert (tmp_path / "out" / "validation.png").read_bytes()[:4] == b"\x89PNG"
+    goals = res.results["sweep"]["goals"]
+    assert set(goals) == {"median_ratio", "every_curve", "pattern_order", "lateral"}
+    assert "undetermined" not in goals.values()  # 16 curves, 4 patterns per yarn: every goal is judged
+    assert (tmp_path / "out" / "goals.md").read_text().startswith("# Validation goals: sweep singal2024-rod")
