@@ -6,7 +6,7 @@ import attrs
 import numpy as np
 import pytest
 import skfem
-from contact_solid_helpers import hertz_supports, iso, join, nodes, quarter_cylinder_on_flat, surface
+from contact_solid_helpers import hertz_supports, iso, join, nodes, quarter_cylinder_on_flat, solve, surface
 from knitframe_contact.ipc import SolidIPC
 from knitframe_contact.ipc_mesh import collision_mesh
 from knitframe_linsolvers.direct import direct
@@ -195,16 +195,22 @@ def test_step_limit_checks_half_steps_when_the_ccd_runs_out_of_memory(monkeypatc
     assert "\n" not in str(err.value)
 
 
-def test_hertz_cylinder_on_flat_with_the_barrier(cylinder):
-    """An elastic cylinder pushed onto a rigid flat through the barrier: axis approach within 5 % of Hertz."""
+HERTZ = {"E": 100.0, "nu": 0.3, "R": 1.0, "t": 0.05, "d": 0.02}
+
+
+def _hertz_h(mesh) -> float:
+    return 0.01 if isinstance(mesh, skfem.MeshTet1) and not isinstance(mesh, skfem.MeshTet2) else 0.02
+
+
+def pressed_with_the_barrier(cylinder) -> tuple[float, dict]:
+    """The quarter cylinder pushed d onto the rigid flat through ``ipc``: (line load N/mm, contact info)."""
     mesh, body, surf = cylinder
-    E, nu, R, t, d = 100.0, 0.3, 1.0, 0.05, 0.02
+    E, nu, t, d = HERTZ["E"], HERTZ["nu"], HERTZ["t"], HERTZ["d"]
     law = SolidIPC(dhat=0.003)  # d̂ ≈ 2e-4 R: the barrier's layer is 1 % of the indentation
     forms = SolidForms(mesh, iso(E, nu), None)
     X, fixed, sym = hertz_supports(mesh, body)
     free = ~fixed.ravel()
-    h_c = 0.01 if isinstance(mesh, skfem.MeshTet1) and not isinstance(mesh, skfem.MeshTet2) else 0.02
-    k = law.penalty(E / (1 - nu**2), h_c)
+    k = law.penalty(E / (1 - nu**2), _hertz_h(mesh))
     n = forms.ndof
 
     def fun(u, order):
@@ -236,15 +242,37 @@ def test_hertz_cylinder_on_flat_with_the_barrier(cylinder):
         )
         u = res.x
     reaction = forms.residual(u).reshape(-1, 3)
-    f = -2 * reaction[sym, 1].sum() / t  # line load on the whole cylinder, N/mm
-    info = fun(u, 1)[3]
+    return -2 * reaction[sym, 1].sum() / t, fun(u, 1)[3]  # line load on the whole cylinder, N/mm
+
+
+def test_hertz_cylinder_on_flat_with_the_barrier(cylinder):
+    """An elastic cylinder pushed onto a rigid flat through the barrier: axis approach within 5 % of Hertz."""
+    f, info = pressed_with_the_barrier(cylinder)
     assert info["min_distance"] > 0
-    ratio = d / line_contact_approach(np.array([f]), R, E, nu, rigid_partner=True)[0]
-    print(
-        f"Hertz with the barrier, P{2 if isinstance(mesh, skfem.MeshTet2) else 1}: "
-        f"approach / Hertz = {ratio:.4f}"
+    ratio = (
+        HERTZ["d"]
+        / line_contact_approach(np.array([f]), HERTZ["R"], HERTZ["E"], HERTZ["nu"], rigid_partner=True)[0]
     )
     assert ratio == pytest.approx(1.0, abs=0.05)
+
+
+@pytest.mark.parametrize("kind", ["penalty", "mortar"])
+def test_penalty_and_mortar_carry_the_load_of_ipc(cylinder, kind):
+    """The same small cell, the quarter cylinder pressed 2 % of its radius onto the flat: ``penalty`` and
+    ``mortar`` carry the line load of ``ipc`` within 5 % (each also within 5 % of Hertz)."""
+    mesh, body, surf = cylinder
+    E, nu = HERTZ["E"], HERTZ["nu"]
+    law = get_registry()["contact_law"][kind]()
+    forms = SolidForms(mesh, iso(E, nu), None)
+    X, fixed, sym = hertz_supports(mesh, body)
+    u = np.zeros((len(X), 3))
+    u[body == 0, 1] = -HERTZ["d"]
+    u, _ = solve(
+        forms, law, surf, u.ravel(), ~fixed.ravel(), law.penalty(E / (1 - nu**2), _hertz_h(mesh)), reach=0.2
+    )
+    f = -2 * forms.residual(u).reshape(-1, 3)[sym, 1].sum() / HERTZ["t"]
+    f_ipc, _ = pressed_with_the_barrier(cylinder)
+    assert f / f_ipc == pytest.approx(1.0, abs=0.05)
 
 
 def test_energy_stays_continuous_where_the_pair_types_switch():
