@@ -224,7 +224,11 @@ def validation_goals(curves: Iterable[Mapping[str, Any]], settings: GoalSettings
     s = settings or GoalSettings()
     rows = list(curves)
     done = [r for r in rows if r.get("measured_status") == "done"]
-    failed = [f"{_curve(r)}: not simulated ({r.get('reason') or 'failed'})" for r in rows if r not in done]
+    failed = [
+        f"{_curve(r)}: not simulated ({r.get('reason') or 'failed'})"
+        for r in rows
+        if r.get("measured_status") != "done"
+    ]
     goals = [_median_ratio(done, s), _every_curve(done, s), _pattern_order(done), _lateral(done, s)]
     if failed:
         goals = [attrs.evolve(g, notes=(*failed, *g.notes)) for g in goals]
