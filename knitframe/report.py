@@ -378,7 +378,7 @@ def plot_sections(path: Path, responses: Sequence[Response], *, title: str = "")
             "-",
             marker=".",
             color=c,
-            label=f"{label}: median",
+            label=label,
         )
         ax.plot(
             e[order],
@@ -386,18 +386,20 @@ def plot_sections(path: Path, responses: Sequence[Response], *, title: str = "")
             "--",
             color=c,
             lw=1.0,
-            label=f"{label}: 5 % of the yarn below",
         )
         limit = r.provenance.extra.get("compaction_limit")
         if limit is not None:
             ax.axhline(limit, color=c, ls=":", lw=1.0)
     ax.axhline(1.0, color="0.5", lw=0.6)
+    ax.plot([], [], "-", color="0.3", label="median over the yarn")
+    ax.plot([], [], "--", color="0.3", lw=1.0, label="5 % of the yarn below this")
+    ax.plot([], [], ":", color="0.3", lw=1.0, label="compaction limit J_min")
     ax.set_xlabel("engineering strain in the loaded direction (0: the pre-stressed cell), -")
     ax.set_ylabel("section ratio det F / |F a|, -")
     ax.set_ylim(0.0, 1.1)
     ax.set_title(title or "how far the yarn is squeezed across (dotted: its compaction limit J_min)")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="lower left")
+    ax.legend(fontsize=7, loc="lower left", framealpha=0.9)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
