@@ -283,6 +283,26 @@ def test_the_shipped_trends_config_is_the_24_fabric_rod_sweep_with_nothing_per_f
     assert stage.model_name == "hgo" and stage.fitter_name == "lbfgs"
 
 
+def test_the_shipped_volumetric_trends_config_is_the_same_24_fabrics_on_the_p1_cell():
+    from pathlib import Path
+
+    from knitframe.config import load_toml
+    from knitframe.pipeline import Pipeline
+
+    path = Path(__file__).resolve().parents[1] / "knitframe" / "examples" / "trends-volumetric-p1.toml"
+    (stage,) = Pipeline(load_toml(path), base_dir=path.parent, source=str(path)).stages
+    assert {
+        (p.stage.fabric.pattern, p.stage.fabric.stitch_length, p.stage.fabric.yarn.name) for p in stage.points
+    } == {(p, float(sl), y) for p in PATTERNS for sl in SLS for y in YARNS}
+    assert all(
+        j["solver"] == stage.jobs[0]["solver"] and j["scenes"] == stage.jobs[0]["scenes"] for j in stage.jobs
+    )
+    solver = stage.jobs[0]["solver"]
+    assert (solver["kind"], solver["order"], solver["seed"]) == ("volumetric", 1, 1.0)
+    load = stage.jobs[0]["scenes"][0]["load"]
+    assert (load["kind"], load["max_strain"], load["steps"]) == ("equibiaxial", 0.3, 6)
+
+
 def test_a_sweep_run_writes_trends_md_and_its_verdicts(tmp_path, monkeypatch):
     """The whole stage (run, outputs, results) with the point function replaced by fits whose trends are
     known."""
