@@ -33,7 +33,7 @@ from knitframe.records import Fabric, Response, Scene
 
 
 def fitted(reg, response: Response) -> dict:
-    """a (MPa), b (-), θ (deg) and NRMSE of the hgo reduced model fitted to one curve."""
+    """a (N/mm), b (-), θ (deg) and NRMSE of the hgo reduced model fitted to one curve."""
     fit = reg["fitter"]["lbfgs"]().fit(reg["homogenizer"]["hgo"](), [response])
     out = fit.to_json()
     return {"a": out["a"], "b": out["b"], "theta_deg": out["theta_deg"], "nrmse": out["nrmse"]["overall"]}
