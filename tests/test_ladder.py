@@ -69,7 +69,6 @@ def test_ladder_writes_every_output_with_the_measured_data(tmp_path):
     # the reduced rung is hgo2m (a free side) fitted to the best rung, and reproduces it closely
     assert json.loads(rows["reduced"]["options"])["model"] == "hgo2m"
     assert float(rows["reduced"]["nrmse_vs_best"]) < 0.05
-    assert float(rows["reduced"]["wall_time_s"]) < 0.1 * float(rows["rod:8"]["wall_time_s"])
     # the measured curve of the other load (wale) is not compared; the table names the one that is
     assert result.measured[0].label == "cotton-stockinette-x" and len(result.measured) == 1
     table = (out / "ladder.md").read_text()
