@@ -241,11 +241,15 @@ def goals_markdown(found: Sequence[Goal], *, title: str = "Validation goals") ->
     lines = [f"# {title}", "", f"{met} of {len(found)} goals met.", ""]
     lines += ["| goal | verdict | on what |", "|---|---|---|"]
     lines += [f"| {g.claim} | **{g.verdict}** | {g.summary} |" for g in found]
+    common = [n for n in (found[0].notes if found else ()) if all(n in g.notes for g in found)]
+    if common:
+        lines += ["", "Left out of every goal:", ""] + [f"- {n}" for n in common]
     for g in found:
         lines += ["", f"## {g.claim}: {g.verdict}", "", g.summary + ".", ""]
         if g.table:
             lines += ["| " + " | ".join(g.columns) + " |", "|" + "---|" * len(g.columns)]
             lines += ["| " + " | ".join(row) + " |" for row in g.table]
-        if g.notes:
-            lines += ["", "Left out:", ""] + [f"- {n}" for n in g.notes]
+        own = [n for n in g.notes if n not in common]
+        if own:
+            lines += ["", "Left out:", ""] + [f"- {n}" for n in own]
     return "\n".join(lines) + "\n"

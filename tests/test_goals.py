@@ -91,6 +91,9 @@ def test_failed_curves_and_csv_strings_are_read():
     goals = by_key(validation_goals(read))
     assert goals["median_ratio"].verdict == MET
     assert "a garter course: not simulated (mesh failed)" in goals["every_curve"].notes
+    md = goals_markdown(list(goals.values()))
+    assert md.count("a garter course: not simulated (mesh failed)") == 1  # once, for every goal
+    assert "Left out of every goal:" in md
 
 
 def test_no_curve_is_undetermined():
