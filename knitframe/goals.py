@@ -36,6 +36,7 @@ import attrs
 import numpy as np
 
 from knitframe import validators as v
+from knitframe.trends import verdicts_markdown
 
 __all__ = ["Goal", "GoalSettings", "validation_goals", "goals_markdown", "MET", "NOT_MET", "UNDETERMINED"]
 
@@ -236,20 +237,7 @@ def validation_goals(curves: Iterable[Mapping[str, Any]], settings: GoalSettings
 
 
 def goals_markdown(found: Sequence[Goal], *, title: str = "Validation goals") -> str:
-    """The goals as Markdown: a verdict line per goal, then each goal's table and notes."""
+    """The goals as Markdown: how many are met, a verdict line per goal, then each goal's table and
+    notes (:func:`knitframe.trends.verdicts_markdown`)."""
     met = sum(g.verdict == MET for g in found)
-    lines = [f"# {title}", "", f"{met} of {len(found)} goals met.", ""]
-    lines += ["| goal | verdict | on what |", "|---|---|---|"]
-    lines += [f"| {g.claim} | **{g.verdict}** | {g.summary} |" for g in found]
-    common = [n for n in (found[0].notes if found else ()) if all(n in g.notes for g in found)]
-    if common:
-        lines += ["", "Left out of every goal:", ""] + [f"- {n}" for n in common]
-    for g in found:
-        lines += ["", f"## {g.claim}: {g.verdict}", "", g.summary + ".", ""]
-        if g.table:
-            lines += ["| " + " | ".join(g.columns) + " |", "|" + "---|" * len(g.columns)]
-            lines += ["| " + " | ".join(row) + " |" for row in g.table]
-        own = [n for n in g.notes if n not in common]
-        if own:
-            lines += ["", "Left out:", ""] + [f"- {n}" for n in own]
-    return "\n".join(lines) + "\n"
+    return verdicts_markdown(found, title=title, noun="goal", lead=[f"{met} of {len(found)} goals met."])

@@ -46,7 +46,7 @@ from typing import Any
 
 import attrs
 
-__all__ = ["Trend", "trends", "trends_markdown", "spans_trends", "VERDICTS"]
+__all__ = ["Trend", "trends", "trends_markdown", "verdicts_markdown", "spans_trends", "VERDICTS"]
 
 REPRODUCED, NOT_REPRODUCED, UNDETERMINED = "reproduced", "not reproduced", "undetermined"
 VERDICTS = (REPRODUCED, NOT_REPRODUCED, UNDETERMINED)
@@ -394,13 +394,20 @@ def trends(
     return [attrs.evolve(t, notes=t.notes + tuple(left)) for t in out]
 
 
-def trends_markdown(found: Sequence[Trend], *, title: str = "The paper's trends") -> str:
-    """The trends as Markdown: a verdict line per trend, then each trend's table and notes."""
-    lines = [f"# {title}", "", "| trend | verdict | on what |", "|---|---|---|"]
+def verdicts_markdown(found: Sequence[Any], *, title: str, noun: str, lead: Sequence[str] = ()) -> str:
+    """Judged claims as Markdown: a verdict line per claim, then each claim's table and notes.
+
+    ``found`` holds records with ``claim``, ``verdict``, ``summary``, ``columns``, ``table`` and
+    ``notes`` (:class:`Trend`, :class:`knitframe.goals.Goal`); ``noun`` names them ("trend",
+    "goal"); ``lead`` lines go between the title and the table. A note every claim has is written
+    once, under "Left out of every <noun>".
+    """
+    lines = [f"# {title}", ""] + ([*lead, ""] if lead else [])
+    lines += [f"| {noun} | verdict | on what |", "|---|---|---|"]
     lines += [f"| {t.claim} | **{t.verdict}** | {t.summary} |" for t in found]
     common = [n for n in (found[0].notes if found else ()) if all(n in t.notes for t in found)]
     if common:
-        lines += ["", "Left out of every trend:", ""] + [f"- {n}" for n in common]
+        lines += ["", f"Left out of every {noun}:", ""] + [f"- {n}" for n in common]
     for t in found:
         lines += ["", f"## {t.claim}: {t.verdict}", "", t.summary + ".", ""]
         if t.table:
@@ -410,3 +417,8 @@ def trends_markdown(found: Sequence[Trend], *, title: str = "The paper's trends"
         if own:
             lines += ["", "Left out:", ""] + [f"- {n}" for n in own]
     return "\n".join(lines) + "\n"
+
+
+def trends_markdown(found: Sequence[Trend], *, title: str = "The paper's trends") -> str:
+    """The trends as Markdown: a verdict line per trend, then each trend's table and notes."""
+    return verdicts_markdown(found, title=title, noun="trend")

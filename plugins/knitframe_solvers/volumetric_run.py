@@ -84,7 +84,8 @@ class VolumetricRun:
         self.lat = model.lattice
         self.residuals: list[float] = []
         self.penetrations: list[float] = []
-        #: smallest cross-section ratio det F/|F a| of each converged load step
+        #: the section ratio det F/|F a| at each full-tolerance state (the end of the pre-stress, the load
+        #: steps): phase, stretches, volume-weighted median, 5 % quantile and smallest value
         self.sections: list[dict[str, Any]] = []
         self.shares: list[float] = []
         s0 = 1.0
