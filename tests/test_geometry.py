@@ -236,6 +236,19 @@ def test_cli_geometry_writes_outputs(cli, tmp_path):
     assert len(info["clearance"]["overlaps"]) > 0
 
 
+def test_cli_geometry_takes_pattern_options(capsys, tmp_path):
+    """`--option fold=1.5` reaches the pattern: the folded rib's cell is deeper and geometry.json says so."""
+    from knitframe.cli import main
+
+    for name, extra in (("flat", []), ("folded", ["--option", "fold=1.5"])):
+        args = ["geometry", "rib", "--stitch-length", "11", "--course-pitch", "0.8", *extra]
+        assert main([*args, "--out", str(tmp_path / name)]) == 0
+    flat, folded = (json.loads((tmp_path / n / "geometry.json").read_text()) for n in ("flat", "folded"))
+    assert folded["pattern_options"] == {"fold": 1.5} and flat["pattern_options"] == {}
+    assert folded["shape"]["fold"] == pytest.approx(1.5 * folded["dk"])
+    assert flat["shape"]["fold"] == 0.0
+
+
 @pytest.mark.parametrize(
     "args, message",
     [
@@ -244,6 +257,9 @@ def test_cli_geometry_writes_outputs(cli, tmp_path):
         (["jersy", "--stitch-length", "11"], "unknown pattern 'jersy'"),
         (["jersey", "--stitch-length", "11", "--yarn", "wool"], "unknown yarn 'wool'"),
         (["jersey"], "give stitch_length"),
+        (["rib", "--stitch-length", "11", "--option", "fold=-1"], "--option fold: must be in [0.0, 5.0]"),
+        (["rib", "--stitch-length", "11", "--option", "fold"], "--option: expects KEY=VALUE"),
+        (["rib", "--stitch-length", "11", "--option", "folds=1"], "--option folds: unknown key"),
     ],
 )
 def test_cli_geometry_bad_input_is_one_line_exit_2(capsys, tmp_path, args, message):
@@ -315,3 +331,27 @@ def test_bad_pattern_option_names_its_config_path():
         unit_cell(
             Fabric("jersey", get_registry()["yarn"]["cotton"], stitch_length=11, pattern_options={"loops": 3})
         )
+
+
+def test_a_folded_rib_keeps_its_stitches_and_yarn_and_puts_knit_wales_in_front():
+    """fold = F/dk moves knit columns F to the front and purl columns F behind; the arc length per stitch,
+    the knit/purl topology and the exact tangent are kept, and fold = 0 is the flat cell."""
+    from knitframe.errors import ConfigError
+    from knitframe.geometry import unit_cell
+
+    cotton = get_registry()["yarn"]["cotton"]
+    flat = unit_cell(Fabric("rib", cotton, stitch_length=11, course_pitch=0.8))
+    cell = unit_cell(Fabric("rib", cotton, stitch_length=11, course_pitch=0.8, pattern_options={"fold": 1.5}))
+    assert cell.arc_length_per_stitch == pytest.approx(4.7, rel=1e-9)
+    assert {(r, j): k for r, j, k in knit_topology(cell)} == {(r, j): cell.layout[r][j] for r in range(2) for j in range(2)}
+    F, D = 1.5 * cell.dk, cell.info["depth"]
+    assert cell.info["fold"] == pytest.approx(F)
+    for flat_yarn, yarn in zip(flat.yarns, cell.yarns):
+        heads = np.array([0.0, 2.0 * np.pi])  # knit column, purl column: z = ±(F - D) there (g = ±1 to 1e-4)
+        assert yarn.position(heads)[:, 2] == pytest.approx([F - D, -(F - D)], abs=1e-3 * F)
+        assert flat_yarn.position(heads)[:, 2] == pytest.approx([-D, D], abs=1e-3 * F)
+        t, h = np.linspace(yarn.t0, yarn.t1, 37), 1e-6
+        fd = (yarn.position(t + h) - yarn.position(t - h)) / (2 * h)
+        assert np.max(np.abs(fd - yarn.derivative(t))) < 1e-7
+    with pytest.raises(ConfigError, match=r"^fabric.pattern_options.fold: "):
+        unit_cell(Fabric("rib", cotton, stitch_length=11, pattern_options={"fold": -1.0}))

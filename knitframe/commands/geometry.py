@@ -2,13 +2,16 @@
 
 Example: ``knitframe geometry jersey --stitch-length 11 --yarn cotton --out jersey-geo`` writes
 ``centerlines.vtu`` and ``tubes.vtu`` (open in ParaView), ``preview.png`` and ``geometry.json``
-(arc length, pitches, minimum clearance and the places closer than the yarn diameter).
+(arc length, pitches, minimum clearance and the places closer than the yarn diameter). Pattern
+options go in as ``--option KEY=VALUE``, e.g. a folded rib:
+``knitframe geometry rib --stitch-length 11 --course-pitch 0.8 --option fold=1.5``.
 """
 
 from __future__ import annotations
 
 import json
 import re
+import tomllib
 
 from knitframe.outdir import OutputDir, add_overwrite_argument, fingerprint
 
@@ -18,10 +21,35 @@ MAX_SEGMENTS = 100_000
 _FABRIC_KEY = re.compile(r"\bfabric\.[a-z_]+")
 
 
+_OPTION_KEY = re.compile(r"\bfabric\.pattern_options\.([A-Za-z_][A-Za-z0-9_]*)")
+
+
 def _option(path: str) -> str:
-    """The command-line name of a ``fabric.*`` config path: ``fabric.arc_length`` -> ``--arc-length``."""
+    """The command-line name of a ``fabric.*`` config path: ``fabric.arc_length`` -> ``--arc-length``,
+    ``fabric.pattern_options.fold`` -> ``--option fold``."""
+    m = _OPTION_KEY.fullmatch(path)
+    if m:
+        return f"--option {m.group(1)}"
     key = path.removeprefix("fabric.")
     return "PATTERN" if key == "pattern" else "--" + key.replace("_", "-")
+
+
+def pattern_options(pairs: list[str]) -> dict:
+    """``["fold=1.5", "Kc=6"]`` -> ``{"fold": 1.5, "Kc": 6}``; each value is read as a TOML value
+    (a bare word as a string). ConfigError at ``--option`` on a malformed pair."""
+    from knitframe.errors import ConfigError
+
+    options: dict = {}
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        key = key.strip()
+        if not sep or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", key) or not value.strip():
+            raise ConfigError("--option", f"expects KEY=VALUE, e.g. fold=1.5, got {pair!r}")
+        try:
+            options[key] = tomllib.loads(f"v = {value}")["v"]
+        except tomllib.TOMLDecodeError:
+            options[key] = value.strip()
+    return options
 
 
 def add_parser(sub) -> None:
@@ -39,6 +67,13 @@ def add_parser(sub) -> None:
     p.add_argument("--out", default=None, help="output folder, new or empty (default: <pattern>-geometry)")
     add_overwrite_argument(p)
     p.add_argument("--segments", type=int, default=256, help="polyline segments per yarn in the VTU files")
+    p.add_argument(
+        "--option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a pattern option (see docs/configuration.md), e.g. fold=1.5; repeatable",
+    )
     p.set_defaults(func=main)
 
 
@@ -60,11 +95,15 @@ def main(args) -> int:
     for key in ("stitch_length", "arc_length", "course_pitch", "wale_pitch"):
         if getattr(args, key) is not None:
             table[key] = getattr(args, key)
+    options = pattern_options(args.option)
+    if options:
+        table["pattern_options"] = options
     try:
         cell = checked_cell(Fabric.from_dict(table, "fabric"), reg)  # every refusal before any output
     except ConfigError as e:
+        rename = lambda m: _option(m.group(0))  # noqa: E731
         raise ConfigError(
-            _option(e.path), _FABRIC_KEY.sub(lambda m: _option(m.group(0)), e.problem)
+            _option(e.path), _FABRIC_KEY.sub(rename, _OPTION_KEY.sub(rename, e.problem))
         ) from None
     clr = clearance(cell)
     with od:
@@ -92,6 +131,7 @@ def _write(od: OutputDir, cell, clr, args, yarn) -> None:
             "yarn": {"name": yarn.name, "d0": yarn.d0, "dk": yarn.dk, "source": yarn.source},
             "stitch_length": args.stitch_length,
             "arc_length_target": args.arc_length,
+            "pattern_options": pattern_options(args.option),
             "knitframe": __version__,
         }
     )

@@ -8,9 +8,11 @@ Here it is made dimensional and generalised to purl loops. For row r of the cell
 
     x(t) = p_c/(2π) · (t + a sin 2t)
     y(t) = r·p_w + H cos t
-    z(t) = -D cos 2t · g(t)
+    z(t) = g(t) · (F - D cos 2t)
 
-with course pitch p_c, wale pitch p_w, roundness a, loop-height amplitude H and depth D = depth·dk.
+with course pitch p_c, wale pitch p_w, roundness a, loop-height amplitude H, depth D = depth·dk and
+fold F = fold·dk (0 unless asked: knit stitches sit F in front, purl stitches F behind, as in a
+relaxed, folded rib).
 The head of column j sits at t = 2πj, its legs near t = 2πj ± π/2 and the sinker loops near
 t = 2πj ± π. ``g`` carries the knit/purl signs σ = +1 (knit) / -1 (purl):
 
@@ -83,6 +85,8 @@ class LoopRow:
     up: tuple[float, float]
     #: κ, -
     sharpness: float
+    #: F, mm: knit stitches sit F in front (+z), purl stitches F behind
+    fold: float = 0.0
 
     def _g(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         s1, ds1 = smooth_sign(np.cos(t), self.sharpness)
@@ -107,7 +111,7 @@ class LoopRow:
             [
                 sx * (t + self.roundness * np.sin(2.0 * t)),
                 self.y0 + self.height * np.cos(t),
-                -self.depth * np.cos(2.0 * t) * g,
+                g * (self.fold - self.depth * np.cos(2.0 * t)),
             ],
             axis=-1,
         )
@@ -121,7 +125,7 @@ class LoopRow:
             [
                 sx * (1.0 + 2.0 * self.roundness * np.cos(2.0 * t)),
                 -self.height * np.sin(t),
-                -self.depth * (-2.0 * np.sin(2.0 * t) * g + np.cos(2.0 * t) * dg),
+                dg * (self.fold - self.depth * np.cos(2.0 * t)) + 2.0 * self.depth * np.sin(2.0 * t) * g,
             ],
             axis=-1,
         )
@@ -165,6 +169,8 @@ class KnitLoopPattern:
     depth: float = attrs.field(default=0.625, validator=_DEPTH)
     #: knit/purl blend κ, -
     sharpness: float = attrs.field(default=3.0, validator=v.in_range(0.0, 50.0, lo_open=True))
+    #: knit stitches F = fold·dk in front, purl stitches F behind (a folded rib or garter), -
+    fold: float = attrs.field(default=0.0, validator=v.in_range(0.0, 5.0))
 
     def pitches(self, arc: float, fabric: Fabric) -> tuple[float, float]:
         """(course, wale) pitch in mm: the fabric's if given, else Munden's ℓ/Kw and ℓ/Kc."""
@@ -183,6 +189,7 @@ class KnitLoopPattern:
                 tuple(sig[r]),
                 tuple(sig[(r + 1) % 2]),
                 self.sharpness,
+                self.fold * dk,
             )
             for r in range(2)
         ]
@@ -221,6 +228,7 @@ class KnitLoopPattern:
                 "roundness": self.roundness,
                 "depth": self.depth * dk,
                 "sharpness": self.sharpness,
+                "fold": self.fold * dk,
                 "Kc": self.Kc,
                 "Kw": self.Kw,
             },
