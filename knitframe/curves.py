@@ -6,7 +6,22 @@ import numpy as np
 
 from knitframe.records import Provenance, Response
 
-__all__ = ["average_repeats", "uniaxial_response", "nrmse_between"]
+__all__ = ["average_repeats", "by_strain", "value_at", "uniaxial_response", "nrmse_between"]
+
+
+def by_strain(strain: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(strain, values)`` sorted by strain (stable: repeats of one strain keep their order)."""
+    order = np.argsort(strain, kind="stable")
+    return strain[order], values[order]
+
+
+def value_at(strain: np.ndarray, values: np.ndarray, at: float) -> float | None:
+    """The value at strain ``at``, linear between the points of the curve sorted by strain; None
+    when ``at`` lies outside the strains the curve covers."""
+    s, v = by_strain(np.asarray(strain, dtype=np.float64), np.asarray(values, dtype=np.float64))
+    if not s[0] <= at <= s[-1]:
+        return None
+    return float(np.interp(at, s, v))
 
 
 def average_repeats(

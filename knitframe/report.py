@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from knitframe.curves import by_strain
 from knitframe.records import Response
 
 __all__ = [
@@ -113,23 +114,18 @@ def compare(simulated: Sequence[Response], measured: Sequence[Response]) -> dict
         for mea in (m for m in measured if m.load == sim.load):
             for (name, es, Ts, _), (_, em, Tm, _) in zip(curve(sim), curve(mea), strict=False):
                 key = sim.load if sim.loaded_direction is not None else f"{sim.load} {name}"
-                es, Ts = from_origin(*_sorted(es, Ts))
+                es, Ts = from_origin(*by_strain(es, Ts))
                 row = {}
                 for e in COMPARE_AT:
                     if max(em.min(), 0.0) <= e <= min(es.max(), em.max()):
                         ts = np.interp(e, es, Ts)
-                        tm = np.interp(e, *_sorted(em, Tm))
+                        tm = np.interp(e, *by_strain(em, Tm))
                         if tm > 0:
                             row[f"{100 * e:.0f} %"] = float(ts / tm)
                 if row:
                     out[key] = row
             break
     return out
-
-
-def _sorted(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    order = np.argsort(x)
-    return x[order], y[order]
 
 
 def from_origin(strain: np.ndarray, tension: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -162,13 +158,13 @@ def plot_comparison(
         for name, e, T, _ in curve(sim):
             c = colors[k % len(colors)]
             k += 1
-            x, y = from_origin(*_sorted(e, T))
+            x, y = from_origin(*by_strain(e, T))
             ax.plot(x, y, "-", color=c, lw=1.6, marker=".", label=f"simulated {sim.load} ({name})")
             for m in same[:1]:
                 for mname, em, Tm, sd in curve(m):
                     if mname != name:
                         continue
-                    xm, ym = _sorted(em, Tm)
+                    xm, ym = by_strain(em, Tm)
                     ax.plot(xm, ym, "--", color=c, lw=1.2, label=f"measured {m.label or m.load} ({name})")
                     if sd is not None:
                         order = np.argsort(em)
@@ -216,7 +212,7 @@ def lateral(r: Response) -> tuple[np.ndarray, np.ndarray]:
     if d is None:
         raise ValueError(f"not a uniaxial test: {r.load}")
     axial, side = (r.lambda1, r.lambda2) if d == 0 else (r.lambda2, r.lambda1)
-    return _sorted(axial - 1.0, side - 1.0)
+    return by_strain(axial - 1.0, side - 1.0)
 
 
 def validate_uniaxial(
@@ -242,8 +238,8 @@ def validate_uniaxial(
         )
     ((_, es, Ts, _),) = curve(simulated)
     ((_, em, Tm, _),) = curve(measured)
-    es, Ts = from_origin(*_sorted(es, Ts))
-    em, Tm = _sorted(em, Tm)
+    es, Ts = from_origin(*by_strain(es, Ts))
+    em, Tm = by_strain(em, Tm)
     keep = (em >= 0.0) & (em <= es.max() + 1e-9)
     nrmse = None
     if keep.sum() >= 2 and np.abs(Tm[keep]).max() > 0:
@@ -289,14 +285,14 @@ def plot_validation(path: Path, panels: Sequence[dict], *, title: str = "", colu
     for ax, panel in zip(axes.flat, panels, strict=False):
         mea, sim, m = panel["measured"], panel.get("simulated"), panel.get("metrics")
         for _, e, T, sd in curve(mea):
-            x, y = _sorted(e, T)
+            x, y = by_strain(e, T)
             ax.plot(x, y, "--", color="0.2", lw=1.2, label="measured")
             if sd is not None:
                 order = np.argsort(e)
                 ax.fill_between(x, (T - sd)[order], (T + sd)[order], color="0.5", alpha=0.2, lw=0)
         if sim is not None:
             for _, e, T, _ in curve(sim):
-                x, y = from_origin(*_sorted(e, T))
+                x, y = from_origin(*by_strain(e, T))
                 ax.plot(x, y, "-", color="C3", lw=1.5, marker=".", ms=4, label="simulated")
         if m is not None:
             lines = [

@@ -343,7 +343,9 @@ def test_a_folded_rib_keeps_its_stitches_and_yarn_and_puts_knit_wales_in_front()
     flat = unit_cell(Fabric("rib", cotton, stitch_length=11, course_pitch=0.8))
     cell = unit_cell(Fabric("rib", cotton, stitch_length=11, course_pitch=0.8, pattern_options={"fold": 1.5}))
     assert cell.arc_length_per_stitch == pytest.approx(4.7, rel=1e-9)
-    assert {(r, j): k for r, j, k in knit_topology(cell)} == {(r, j): cell.layout[r][j] for r in range(2) for j in range(2)}
+    assert {(r, j): k for r, j, k in knit_topology(cell)} == {
+        (r, j): cell.layout[r][j] for r in range(2) for j in range(2)
+    }
     F, D = 1.5 * cell.dk, cell.info["depth"]
     assert cell.info["fold"] == pytest.approx(F)
     for flat_yarn, yarn in zip(flat.yarns, cell.yarns):

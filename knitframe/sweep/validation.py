@@ -13,6 +13,7 @@ import numpy as np
 
 from knitframe import validators as v
 from knitframe.config import instantiate
+from knitframe.curves import value_at
 from knitframe.errors import ConfigError, DataError, FieldError
 from knitframe.interfaces import DispatchingReader
 from knitframe.records import Response
@@ -174,11 +175,8 @@ def validate_point(p: Point, res: Any) -> tuple[dict[str, Any], list[dict[str, A
         ((_, e, t, _),) = curve(mea)
         if metrics is None:
             curve_row["measured_to"] = float(np.max(e))
-        order = np.argsort(e)
         # the measured tension at 10 % (N/mm), for the order of the patterns (knitframe.goals)
-        curve_row["measured_10"] = (
-            float(np.interp(GOAL_ORDER_AT, e[order], t[order])) if np.max(e) >= GOAL_ORDER_AT else None
-        )
+        curve_row["measured_10"] = value_at(e, t, GOAL_ORDER_AT)
         columns.update({f"{c}_{d}": curve_row[c] for c in VALIDATION_COLUMNS})
         curves.append(curve_row)
         panels.append(
