@@ -114,10 +114,11 @@ class YarnProperty:
     used_by: str
 
 
-def _source(yarn: Yarn, field: str, derived: str) -> tuple[str, str]:
-    """(status, how) of a quantity that is the Yarn ``field`` when given, else ``derived``."""
+def _source(yarn: Yarn, field: str, derived: str, status: str = "derived") -> tuple[str, str]:
+    """(status, how) of a quantity that is the Yarn ``field`` when given, else ``(status, derived)``:
+    "derived" when computed from other rows, "estimate" when that is an assumption."""
     if getattr(yarn, field) is None:
-        return "derived", derived
+        return status, derived
     return ("measured" if field in yarn.measured else "estimate"), field
 
 
@@ -149,7 +150,6 @@ def yarn_properties(yarn: Yarn) -> list[YarnProperty]:
         j_source = _source(
             yarn, "compaction_limit", f"φk / φmax, φmax = {MAX_PACKING:.3f} (hexagonal packing)"
         )
-    core_status, core_how = _source(yarn, "core_modulus", "E_A: packed fibres as stiff as the yarn along it")
     return [
         given("free diameter", "d0", "d0", "mm", "both: the pre-stress"),
         given("knitted diameter", "dk", "dk", "mm", "both: contact distance (rod), section (volumetric)"),
@@ -215,8 +215,7 @@ def yarn_properties(yarn: Yarn) -> list[YarnProperty]:
             "E_core",
             yarn.core_E,
             "MPa",
-            "estimate" if core_status == "derived" else core_status,
-            core_how,
+            *_source(yarn, "core_modulus", "E_A: packed fibres as stiff as the yarn along it", "estimate"),
             "both: stiffness halfway through the compaction barrier",
         ),
     ]
