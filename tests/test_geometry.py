@@ -234,6 +234,7 @@ def test_cli_geometry_writes_outputs(cli, tmp_path):
     assert info["course_pitch"] > 0 and info["wale_pitch"] > 0
     assert 0 < info["clearance"]["minimum"] < info["dk"]
     assert len(info["clearance"]["overlaps"]) > 0
+    assert info["bending_wavenumber"] == pytest.approx(2 * np.pi * info["bending_waves_per_stitch"] / 4.7)
 
 
 def test_cli_geometry_takes_pattern_options(capsys, tmp_path):
@@ -288,6 +289,19 @@ def helix_cell() -> UnitCell:
     return UnitCell(
         "helix", (y0, y1), (0.5, 0, 0), (0, 10.0, 0), 0.15, ((0, 1), (1, 0)), (("k",), ("k",)), 1.0, 0.25, 5.0
     )
+
+
+def test_bending_wavenumber_of_a_helix_and_of_the_knitted_loops():
+    """k_R² = ∮|κ′|²/∮|κ|²: a helix r = (c t, cos t, sin t) gives 1/√(1 + c²) (its curvature vector turns
+    at that rate per unit length); the jersey loop bends at about two waves per stitch."""
+    from knitframe.geometry import bending_wavenumber, unit_cell
+
+    c = 0.5 / np.pi
+    assert bending_wavenumber(helix_cell()) == pytest.approx(1.0 / np.sqrt(1.0 + c * c), rel=1e-5)
+    cell = unit_cell(Fabric("jersey", get_registry()["yarn"]["cotton"], stitch_length=12))
+    waves = bending_wavenumber(cell) * cell.arc_length_per_stitch / (2 * np.pi)
+    assert 1.8 < waves < 2.2
+    assert bending_wavenumber(cell, 512) == pytest.approx(bending_wavenumber(cell), rel=2e-3)
 
 
 def test_two_yarn_strand_frames_and_clearance():

@@ -2,7 +2,8 @@
 
 Example: ``knitframe geometry jersey --stitch-length 11 --yarn cotton --out jersey-geo`` writes
 ``centerlines.vtu`` and ``tubes.vtu`` (open in ParaView), ``preview.png`` and ``geometry.json``
-(arc length, pitches, minimum clearance and the places closer than the yarn diameter). Pattern
+(arc length, pitches, minimum clearance, the places closer than the yarn diameter and the
+bending wavenumber). Pattern
 options go in as ``--option KEY=VALUE``, e.g. a folded rib:
 ``knitframe geometry rib --stitch-length 11 --course-pitch 0.8 --option fold=1.5``.
 """
@@ -10,6 +11,7 @@ options go in as ``--option KEY=VALUE``, e.g. a folded rib:
 from __future__ import annotations
 
 import json
+import math
 import re
 import tomllib
 
@@ -79,7 +81,7 @@ def add_parser(sub) -> None:
 
 def main(args) -> int:
     from knitframe.errors import ConfigError
-    from knitframe.geometry import checked_cell, clearance
+    from knitframe.geometry import bending_wavenumber, checked_cell, clearance
     from knitframe.plugins import get_registry
     from knitframe.records import Fabric
     from knitframe.yarns import resolve_yarn
@@ -108,10 +110,12 @@ def main(args) -> int:
     clr = clearance(cell)
     with od:
         _write(od, cell, clr, args, yarn)
+    k = bending_wavenumber(cell)
     print(
         f"{cell.pattern}: {cell.arc_length_per_stitch:.6g} mm/stitch, pitches {cell.course_pitch:.4g} x "
         f"{cell.wale_pitch:.4g} mm, min clearance {clr.minimum:.4g} mm ({clr.minimum / cell.dk:.3g} dk), "
-        f"{len(clr.overlaps)} places closer than dk"
+        f"{len(clr.overlaps)} places closer than dk, bending wavenumber {k:.4g}/mm "
+        f"({k * cell.arc_length_per_stitch / (2 * math.pi):.3g} waves per stitch)"
     )
     print(f"wrote {', '.join(str(od.out / f) for f in od.committed)}")
     return 0

@@ -19,6 +19,8 @@ The package holds one concern per module; every public name is importable from h
   crossings of two yarns in the x-y projection (:func:`crossings`);
 - :mod:`knitframe.geometry.framing`: rotation-minimising frames closed over each strand
   (:func:`frames`, :class:`Frames`);
+- :mod:`knitframe.geometry.bending`: the length scale on which the yarns bend, the Rayleigh
+  wavenumber of their curvature (:func:`bending_wavenumber`);
 - :mod:`knitframe.geometry.proximity`: the minimum centerline-to-centerline clearance with
   periodic images and self-contact (:func:`clearance`, :class:`Clearance`, :class:`Contact`);
 - :mod:`knitframe.geometry.views`: writers for VTU (:func:`write_vtu`, :func:`tube_surface`) and a
@@ -28,6 +30,7 @@ The modules of frames and clearance are named ``framing`` and ``proximity`` so t
 differ from the functions :func:`frames` and :func:`clearance` exported here.
 """
 
+from knitframe.geometry.bending import bending_wavenumber
 from knitframe.geometry.cell import (
     ARC_LENGTH_RANGE_DK,
     MIN_PITCH_DK,
@@ -75,6 +78,7 @@ __all__ = [
     "arc_length",
     "frames",
     "clearance",
+    "bending_wavenumber",
     "crossings",
     "tube_surface",
     "write_vtu",

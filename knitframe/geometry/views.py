@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from knitframe.geometry.bending import bending_wavenumber
 from knitframe.geometry.cell import UnitCell
 from knitframe.geometry.framing import Frames, frames
 
@@ -162,6 +163,10 @@ def summary(cell: UnitCell, clr: Clearance | None = None) -> dict[str, Any]:
         "end_pairs": [list(p) for p in cell.end_pairs],
         "shape": dict(cell.info),
     }
+    k = bending_wavenumber(cell)
+    #: the Rayleigh wavenumber of the curvature, 1/mm, and in waves per stitch (k ℓ / 2π)
+    out["bending_wavenumber"] = k
+    out["bending_waves_per_stitch"] = k * cell.arc_length_per_stitch / (2.0 * np.pi)
     if clr is not None:
         out["clearance"] = clr.to_dict()
     return out
