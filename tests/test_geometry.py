@@ -261,6 +261,11 @@ def test_cli_geometry_takes_pattern_options(capsys, tmp_path):
         (["rib", "--stitch-length", "11", "--option", "fold=-1"], "--option fold: must be in [0.0, 5.0]"),
         (["rib", "--stitch-length", "11", "--option", "fold"], "--option: expects KEY=VALUE"),
         (["rib", "--stitch-length", "11", "--option", "folds=1"], "--option folds: unknown key"),
+        (["rib", "--stitch-length", "11", "--option", "fold=nan"], "--option fold: must be finite"),
+        (
+            ["rib", "--stitch-length", "11", "--option", 'stitch_lengths={"11"=-1}'],
+            "--option stitch_lengths.11: must be an arc length > 0 mm",
+        ),
     ],
 )
 def test_cli_geometry_bad_input_is_one_line_exit_2(capsys, tmp_path, args, message):

@@ -23,12 +23,12 @@ MAX_SEGMENTS = 100_000
 _FABRIC_KEY = re.compile(r"\bfabric\.[a-z_]+")
 
 
-_OPTION_KEY = re.compile(r"\bfabric\.pattern_options\.([A-Za-z_][A-Za-z0-9_]*)")
+_OPTION_KEY = re.compile(r"\bfabric\.pattern_options\.([A-Za-z_]\w*(?:\.\w+)*)")
 
 
 def _option(path: str) -> str:
     """The command-line name of a ``fabric.*`` config path: ``fabric.arc_length`` -> ``--arc-length``,
-    ``fabric.pattern_options.fold`` -> ``--option fold``."""
+    ``fabric.pattern_options.fold`` -> ``--option fold`` (nested keys keep their dots)."""
     m = _OPTION_KEY.fullmatch(path)
     if m:
         return f"--option {m.group(1)}"
