@@ -9,10 +9,11 @@ from knitframe.records import Provenance, Response
 __all__ = ["average_repeats", "by_strain", "value_at", "uniaxial_response", "nrmse_between"]
 
 
-def by_strain(strain: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(strain, values)`` sorted by strain (stable: repeats of one strain keep their order)."""
+def by_strain(strain: np.ndarray, *values: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``(strain, *values)`` sorted by strain, every array in the same order (stable: repeats of one
+    strain keep their order)."""
     order = np.argsort(strain, kind="stable")
-    return strain[order], values[order]
+    return (strain[order], *(np.asarray(v)[order] for v in values))
 
 
 def value_at(strain: np.ndarray, values: np.ndarray, at: float) -> float | None:

@@ -84,15 +84,14 @@ def plot_responses(
         for name, strain, T, sd in curve(r):
             ls = "-" if name == "course" else "--"
             label = f"{r.label or r.load} ({name})"
-            order = np.argsort(strain)
-            ax.plot(
-                strain[order], T[order], ls, color=c, lw=1.2, marker="." if len(r) < 40 else None, label=label
-            )
+            x, y = by_strain(strain, T)
+            ax.plot(x, y, ls, color=c, lw=1.2, marker="." if len(r) < 40 else None, label=label)
             if sd is not None:
-                ax.fill_between(strain[order], (T - sd)[order], (T + sd)[order], color=c, alpha=0.2, lw=0)
+                _, lo, hi = by_strain(strain, T - sd, T + sd)
+                ax.fill_between(x, lo, hi, color=c, alpha=0.2, lw=0)
             if pred is not None:
                 P = pred[0] if name == "course" else pred[1]
-                ax.plot(strain[order], np.asarray(P)[order], ls, color="k", lw=1.0, alpha=0.8)
+                ax.plot(x, by_strain(strain, P)[1], ls, color="k", lw=1.0, alpha=0.8)
     if model is not None:
         ax.plot([], [], "k-", lw=1.0, label="fitted model")
     _finish_tension_plot(fig, ax, path, title)
@@ -115,11 +114,12 @@ def compare(simulated: Sequence[Response], measured: Sequence[Response]) -> dict
             for (name, es, Ts, _), (_, em, Tm, _) in zip(curve(sim), curve(mea), strict=False):
                 key = sim.load if sim.loaded_direction is not None else f"{sim.load} {name}"
                 es, Ts = from_origin(*by_strain(es, Ts))
+                em, Tm = by_strain(em, Tm)
                 row = {}
                 for e in COMPARE_AT:
-                    if max(em.min(), 0.0) <= e <= min(es.max(), em.max()):
+                    if max(em[0], 0.0) <= e <= min(es[-1], em[-1]):
                         ts = np.interp(e, es, Ts)
-                        tm = np.interp(e, *by_strain(em, Tm))
+                        tm = np.interp(e, em, Tm)
                         if tm > 0:
                             row[f"{100 * e:.0f} %"] = float(ts / tm)
                 if row:
@@ -167,8 +167,8 @@ def plot_comparison(
                     xm, ym = by_strain(em, Tm)
                     ax.plot(xm, ym, "--", color=c, lw=1.2, label=f"measured {m.label or m.load} ({name})")
                     if sd is not None:
-                        order = np.argsort(em)
-                        ax.fill_between(xm, (Tm - sd)[order], (Tm + sd)[order], color=c, alpha=0.15, lw=0)
+                        _, lo, hi = by_strain(em, Tm - sd, Tm + sd)
+                        ax.fill_between(xm, lo, hi, color=c, alpha=0.15, lw=0)
     if ratios:
         text = "\n".join(
             f"{load}: " + ", ".join(f"{v:.2g}" for v in row.values()) + " at " + ", ".join(row)
@@ -288,8 +288,8 @@ def plot_validation(path: Path, panels: Sequence[dict], *, title: str = "", colu
             x, y = by_strain(e, T)
             ax.plot(x, y, "--", color="0.2", lw=1.2, label="measured")
             if sd is not None:
-                order = np.argsort(e)
-                ax.fill_between(x, (T - sd)[order], (T + sd)[order], color="0.5", alpha=0.2, lw=0)
+                _, lo, hi = by_strain(e, T - sd, T + sd)
+                ax.fill_between(x, lo, hi, color="0.5", alpha=0.2, lw=0)
         if sim is not None:
             for _, e, T, _ in curve(sim):
                 x, y = from_origin(*by_strain(e, T))
@@ -365,24 +365,13 @@ def plot_sections(path: Path, responses: Sequence[Response], *, title: str = "")
         c = colors[k % len(colors)]
         rows = r.provenance.extra["section_ratio"]
         d = r.loaded_direction or 0
-        e = np.array([(row["lambda1"], row["lambda2"])[d] - 1.0 for row in rows])
-        order = np.argsort(e, kind="stable")
-        label = f"{r.label} {r.load}".strip()
-        ax.plot(
-            e[order],
-            np.array([row["median"] for row in rows])[order],
-            "-",
-            marker=".",
-            color=c,
-            label=label,
+        e, median, p05 = by_strain(
+            np.array([(row["lambda1"], row["lambda2"])[d] - 1.0 for row in rows]),
+            np.array([row["median"] for row in rows]),
+            np.array([row["p05"] for row in rows]),
         )
-        ax.plot(
-            e[order],
-            np.array([row["p05"] for row in rows])[order],
-            "--",
-            color=c,
-            lw=1.0,
-        )
+        ax.plot(e, median, "-", marker=".", color=c, label=f"{r.label} {r.load}".strip())
+        ax.plot(e, p05, "--", color=c, lw=1.0)
         limit = r.provenance.extra.get("compaction_limit")
         if limit is not None:
             ax.axhline(limit, color=c, ls=":", lw=1.0)

@@ -3,15 +3,13 @@
 Example: ``knitframe geometry jersey --stitch-length 11 --yarn cotton --out jersey-geo`` writes
 ``centerlines.vtu`` and ``tubes.vtu`` (open in ParaView), ``preview.png`` and ``geometry.json``
 (arc length, pitches, minimum clearance, the places closer than the yarn diameter and the
-bending wavenumber). Pattern
-options go in as ``--option KEY=VALUE``, e.g. a folded rib:
+bending wavenumber). Pattern options go in as ``--option KEY=VALUE``, e.g. a folded rib:
 ``knitframe geometry rib --stitch-length 11 --course-pitch 0.8 --option fold=1.5``.
 """
 
 from __future__ import annotations
 
 import json
-import math
 import re
 import tomllib
 
@@ -21,8 +19,7 @@ from knitframe.outdir import OutputDir, add_overwrite_argument, fingerprint
 MAX_SEGMENTS = 100_000
 #: a ``fabric.<key>`` path in an error, named as the command's option instead
 _FABRIC_KEY = re.compile(r"\bfabric\.[a-z_]+")
-
-
+#: a ``fabric.pattern_options.<key>[.<sub>…]`` path, named as ``--option <key>[.<sub>…]``
 _OPTION_KEY = re.compile(r"\bfabric\.pattern_options\.([A-Za-z_]\w*(?:\.\w+)*)")
 
 
@@ -81,7 +78,7 @@ def add_parser(sub) -> None:
 
 def main(args) -> int:
     from knitframe.errors import ConfigError
-    from knitframe.geometry import bending_wavenumber, checked_cell, clearance
+    from knitframe.geometry import checked_cell, clearance
     from knitframe.plugins import get_registry
     from knitframe.records import Fabric
     from knitframe.yarns import resolve_yarn
@@ -109,20 +106,19 @@ def main(args) -> int:
         ) from None
     clr = clearance(cell)
     with od:
-        _write(od, cell, clr, args, yarn)
-    k = bending_wavenumber(cell)
+        info = _write(od, cell, clr, args, yarn, options)
     print(
         f"{cell.pattern}: {cell.arc_length_per_stitch:.6g} mm/stitch, pitches {cell.course_pitch:.4g} x "
         f"{cell.wale_pitch:.4g} mm, min clearance {clr.minimum:.4g} mm ({clr.minimum / cell.dk:.3g} dk), "
-        f"{len(clr.overlaps)} places closer than dk, bending wavenumber {k:.4g}/mm "
-        f"({k * cell.arc_length_per_stitch / (2 * math.pi):.3g} waves per stitch)"
+        f"{len(clr.overlaps)} places closer than dk, bending wavenumber {info['bending_wavenumber']:.4g}/mm "
+        f"({info['bending_waves_per_stitch']:.3g} waves per stitch)"
     )
     print(f"wrote {', '.join(str(od.out / f) for f in od.committed)}")
     return 0
 
 
-def _write(od: OutputDir, cell, clr, args, yarn) -> None:
-    """The geometry files, staged and then committed to the output folder."""
+def _write(od: OutputDir, cell, clr, args, yarn, options: dict) -> dict:
+    """The geometry files, staged and then committed to the output folder; the geometry.json data."""
     from knitframe import __version__
     from knitframe.geometry import plot_views, summary, write_vtu
 
@@ -135,9 +131,10 @@ def _write(od: OutputDir, cell, clr, args, yarn) -> None:
             "yarn": {"name": yarn.name, "d0": yarn.d0, "dk": yarn.dk, "source": yarn.source},
             "stitch_length": args.stitch_length,
             "arc_length_target": args.arc_length,
-            "pattern_options": pattern_options(args.option),
+            "pattern_options": options,
             "knitframe": __version__,
         }
     )
     (out / "geometry.json").write_text(json.dumps(info, indent=2) + "\n", encoding="utf-8")
     od.commit({"knitframe": __version__, "command": "geometry", "pattern": args.pattern})
+    return info
