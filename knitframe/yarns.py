@@ -32,6 +32,7 @@ __all__ = [
     "yarn_properties",
     "YarnProperty",
     "effective_bending",
+    "shear_stiffness",
 ]
 
 
@@ -129,6 +130,7 @@ def yarn_properties(yarn: Yarn) -> list[YarnProperty]:
 
     * G_A = ``G_axial``, else E_T / (2(1 + ν));
     * EI = ``bending_stiffness``, else E_A π dk⁴ / 64;
+    * ℓ_s = √(EI/(κ G_A A)) with the solid section's EI (:func:`shear_stiffness`);
     * k_line = df/dδ of the Hertz line contact of two parallel yarns (E_T, ν, radius dk/2) at the
       load that flattens them by 5 % of dk;
     * φk = (tex/ρ)/(π dk²/4), J_min = φk/φmax (φmax = π/(2√3)), else ``compaction_limit``, else 0.5;
@@ -181,6 +183,15 @@ def yarn_properties(yarn: Yarn) -> list[YarnProperty]:
                 "E_A π dk⁴ / 64 (solid section); the rod bends with EI / (1 + EI k²/(κ G_A A)), k = 2π/ℓ",
             ),
             "rod (the volumetric yarn bends with E_A and G_A)",
+        ),
+        YarnProperty(
+            "shear length",
+            "ℓ_s",
+            float(np.sqrt(yarn.E_axial * np.pi * yarn.dk**4 / 64.0 / shear_stiffness(yarn))),
+            "mm",
+            "derived",
+            "√(EI/(κ G_A A)) of the solid section: bent over a shorter length, the yarn bends in shear",
+            'rod: shear = "resolved" suits a yarn whose ℓ_s is short against a stitch',
         ),
         YarnProperty(
             "line contact stiffness at 5 % flattening",
@@ -239,6 +250,10 @@ def effective_bending(yarn: Yarn, wavelength: float) -> float:
     if yarn.bending_stiffness is not None:
         return yarn.bending_stiffness
     k = 2.0 * np.pi / wavelength
-    area = np.pi * yarn.dk**2 / 4.0
     EI = yarn.EI
-    return float(EI / (1.0 + EI * k * k / (SHEAR_COEFFICIENT * yarn.G_A * area)))
+    return float(EI / (1.0 + EI * k * k / shear_stiffness(yarn)))
+
+
+def shear_stiffness(yarn: Yarn) -> float:
+    """Transverse shear stiffness κ G_A A of the knitted section, N (A = π dk²/4, κ = 0.886)."""
+    return float(SHEAR_COEFFICIENT * yarn.G_A * np.pi * yarn.dk**2 / 4.0)

@@ -109,7 +109,7 @@ def test_auto_prestress_tries_the_knitted_start_after_the_straight_one_fails():
         "newton": {"min_step_fraction": 0.25},
         # the solid section's bending and a core at 0.5 dk: with the cotton record's Timoshenko bending
         # and compaction limit (0.28 dk) even two steps pass
-        "shear": False,
+        "shear": "none",
         "contact_law": {"kind": "rod_penalty", "core": 0.5},
     }  # too few steps for this tight cell
     with pytest.raises(NumericalError, match=r"rod solver \(jersey, cotton\): pre-stress \(contact distance"):

@@ -3,12 +3,14 @@
 The fast rung of the accuracy ladder. Each yarn centerline of the pattern's cell is a chain of
 straight segments no longer than dk/2 by default (:mod:`knitframe_solvers.rod_model`) with
 stretching EA and bending EI from the yarn model (straight rest shape, no twist: see
-:mod:`knitframe_solvers.rod_terms`). Yarns touch each other, their periodic images under the
-current F̄ and (with ``self_contact``) themselves through a rod contact-law plugin, whose energy
-density is integrated over both centerlines (:mod:`knitframe_solvers.rod_contact`) and scaled
-so that two parallel yarns have the yarn model's transverse line-contact stiffness
-(:func:`rod_stiffness`). F̄ enters through the macro DOFs of :mod:`knitframe.numerics.periodic`; the
-course and wale tensions per unit width are the macro reactions divided by the cell area.
+:mod:`knitframe_solvers.rod_terms`); option ``shear`` chooses how the yarn's axial shear enters:
+one effective EI, or every segment's section turning on its own (a shear-deformable rod). Yarns
+touch each other, their periodic images under the current F̄ and (with ``self_contact``)
+themselves through a rod contact-law plugin, whose energy density is integrated over both
+centerlines (:mod:`knitframe_solvers.rod_contact`) and scaled so that two parallel yarns have the
+yarn model's transverse line-contact stiffness (:func:`rod_stiffness`). F̄ enters through the
+macro DOFs of :mod:`knitframe.numerics.periodic`; the course and wale tensions per unit width are
+the macro reactions divided by the cell area.
 
 A run is
 
@@ -76,10 +78,10 @@ from knitframe.geometry import unit_cell
 from knitframe.numerics.cellrun import checkpoint_key
 from knitframe.numerics.settings import settings_field
 from knitframe.records import Fabric, Response, Scene
-from knitframe.yarns import effective_bending, yarn_model
+from knitframe.yarns import effective_bending, shear_stiffness, yarn_model
 from knitframe_solvers.newton_settings import RodNewton
 from knitframe_solvers.rod_contact import line_energy
-from knitframe_solvers.rod_model import RodEnergy, RodModel, from_cell
+from knitframe_solvers.rod_model import RodEnergy, RodModel, from_cell, with_directors
 from knitframe_solvers.rod_run import RodRun
 from knitframe_solvers.rod_starts import start_count
 
@@ -128,6 +130,17 @@ def rod_stiffness(yarn, registry=None, law=None, line_stiffness: float | None = 
     return out
 
 
+#: values of the rod's ``shear`` option
+SHEAR_MODES = ("resolved", "effective", "none")
+
+
+def _shear_mode(value: Any) -> Any:
+    """``shear`` as one of :data:`SHEAR_MODES`; true and false (older configs) are "effective" and "none"."""
+    if isinstance(value, bool):
+        return "effective" if value else "none"
+    return value
+
+
 @attrs.frozen
 class RodSolver:
     """Discrete elastic rods (EA, EI) on the periodic 2x2 cell with penalty contact and macro DOFs."""
@@ -157,7 +170,7 @@ class RodSolver:
     #: steps growing the contact radius, -
     prestress_steps: int = attrs.field(default=8, validator=v.in_range(1, 1000))
     #: yarn rest shape during the pre-stress: straight throughout, or the knitted shape released to straight;
-    #: "auto" tries straight, then knitted
+    #: "auto" tries straight, then knitted (knitted first with shear = "resolved")
     prestress_start: Literal["auto", "straight", "knitted"] = "auto"
     #: pre-stress starts explored, the first n of nominal, other rest shape (straight/knitted), 1.5x the
     #: pre-stress steps, loop depth x0.5, x1.5; the load continues from the lowest relaxed energy, or from the
@@ -183,10 +196,13 @@ class RodSolver:
     newton: str | dict[str, Any] = settings_field(RodNewton)
     #: override axial stiffness, N
     EA: float | None = attrs.field(default=None, validator=v.optional(v.positive))
-    #: bend as a shear-deformable yarn: EI / (1 + EI k²/(κ G_A A)) at k = 2π/(yarn per stitch), the
-    #: Timoshenko stiffness of the yarn record's solid section and axial shear modulus (a yarn with a
-    #: given bending_stiffness keeps it); false: the solid section's EI
-    shear: bool = True
+    #: how the yarn's axial shear enters its bending: "resolved", every segment shears on its own (a
+    #: Timoshenko–Reissner rod, EI of the solid section, κ G_A A in shear); "effective", one bending
+    #: stiffness EI / (1 + EI k²/(κ G_A A)) at k = 2π/(yarn per stitch); "none", the solid section's EI.
+    #: A yarn with a measured bending_stiffness bends with it, unsheared (true: "effective", false: "none")
+    shear: Literal["resolved", "effective", "none"] | bool = attrs.field(
+        default="effective", converter=_shear_mode, validator=attrs.validators.in_(SHEAR_MODES)
+    )
     #: override bending stiffness, N·mm²
     EI: float | None = attrs.field(default=None, validator=v.optional(v.positive))
     #: override the line contact stiffness at 5 % flattening, N/mm²
@@ -264,9 +280,12 @@ class RodSolver:
             law,
             line_stiffness=self.contact_stiffness or getattr(law, "stiffness", None),
         )
-        EI = stiff["EI"]
-        if self.shear:
+        EI, GA = stiff["EI"], 0.0
+        if self.shear == "effective":
             EI = effective_bending(fabric.yarn, cell.arc_length_per_stitch)
+        elif self.shear == "resolved" and fabric.yarn.bending_stiffness is None:
+            model = with_directors(model)
+            EI, GA = float(fabric.yarn.EI), shear_stiffness(fabric.yarn)
         energy = RodEnergy(
             model,
             self.EA or stiff["EA"],
@@ -282,6 +301,7 @@ class RodSolver:
             friction="friction" in scene.effects,
             quadrature=self.contact_quadrature,
             k_line=stiff["k_line"],
+            GA=GA,
         )
         return model, energy, cell
 

@@ -1,10 +1,11 @@
 """Rod discretisation of yarn centerlines and the total energy with its gradient and sparse Hessian.
 
 DOFs: ``q = [u (3 N), h (6)]`` — node displacements (mm) and the macro DOFs of
-:mod:`knitframe.numerics.periodic` (H = F̄ − I). An element point is a node at a periodic image, so an
-edge that crosses the cell boundary joins the last node of yarn i to the first node of its
-paired yarn j at image (1, 0), and contact with images is contact between points whose image
-shifts depend on F̄.
+:mod:`knitframe.numerics.periodic` (H = F̄ − I); a shear-deformable model (:func:`with_directors`)
+has ``q = [u (3 N), d − d₀ (3 E), h (6)]``, its edges' directors before the macro DOFs. An
+element point is a node at a periodic image, so an edge that crosses the cell boundary joins the
+last node of yarn i to the first node of its paired yarn j at image (1, 0), and contact with
+images is contact between points whose image shifts depend on F̄.
 
 The energy is the sum of the terms of the effects asked for: stretching (always), bending
 (``bending``), contact (``contact``; same-strand pairs only with ``self_contact``), lagged
@@ -25,9 +26,9 @@ import scipy.sparse as sp
 from knitframe.numerics.contact_search import SegmentTopology, find_pairs
 from knitframe.numerics.periodic import N_MACRO, Lattice, PointMap
 from knitframe_solvers.rod_contact import friction_energy, gauss_points, pair_weights, quadrature_contact
-from knitframe_solvers.rod_terms import bend, stretch
+from knitframe_solvers.rod_terms import bend, director_bend, director_norm, shear, stretch
 
-__all__ = ["RodModel", "RodEnergy", "from_cell", "open_rods", "write_rod_vtu"]
+__all__ = ["RodModel", "RodEnergy", "from_cell", "open_rods", "with_directors", "write_rod_vtu"]
 
 
 @attrs.frozen(eq=False)
@@ -53,14 +54,36 @@ class RodModel:
     #: (N,) yarn index of each node
     yarn: np.ndarray
     lattice: Lattice | None = None
+    #: (D, 3) reference director of each edge of a shear-deformable rod (:func:`with_directors`), None: none
+    directors: np.ndarray | None = None
+    #: (B, 2) the edges before and after each bending vertex (with ``directors``)
+    director_pairs: np.ndarray | None = None
 
     @property
     def n_nodes(self) -> int:
         return int(self.X.shape[0])
 
     @property
+    def n_directors(self) -> int:
+        return 0 if self.directors is None else int(self.directors.shape[0])
+
+    @property
+    def n_points(self) -> int:
+        """Nodes and directors: the 3-vectors among the DOFs, before the macro DOFs."""
+        return self.n_nodes + self.n_directors
+
+    @property
     def n_dof(self) -> int:
-        return 3 * self.n_nodes + N_MACRO
+        return 3 * self.n_points + N_MACRO
+
+    def macro(self, q: np.ndarray) -> np.ndarray:
+        """The macro DOFs h (6,) of state q."""
+        return q[3 * self.n_points :]
+
+    def director_vectors(self, q: np.ndarray) -> np.ndarray:
+        """Current directors (D, 3) in state q (not normalised)."""
+        n = self.n_nodes
+        return self.directors + q[3 * n : 3 * self.n_points].reshape(-1, 3)
 
     @property
     def n_strands(self) -> int:
@@ -71,10 +94,21 @@ class RodModel:
         x = self.positions(q)
         p = x[self.triplets]
         if self.lattice is not None:
-            p = p + self.lattice.shift(self.triplet_images, q[3 * self.n_nodes :])
+            p = p + self.lattice.shift(self.triplet_images, self.macro(q))
         a, b = p[:, 1] - p[:, 0], p[:, 2] - p[:, 1]
         c = np.einsum("ij,ij->i", a, b) / (np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1))
         return 2.0 * np.sqrt(np.maximum(1.0 - c, 0.0) / (1.0 + c))
+
+    def aligned(self, q: np.ndarray) -> np.ndarray:
+        """State q with every director set to its edge's current unit tangent (no shear); q if none."""
+        if self.directors is None:
+            return q
+        p0, p1 = self.segments(q)
+        t = p1 - p0
+        t /= np.linalg.norm(t, axis=1)[:, None]
+        out = q.copy()
+        out[3 * self.n_nodes : 3 * self.n_points] = (t - self.directors).reshape(-1)
+        return out
 
     def positions(self, q: np.ndarray) -> np.ndarray:
         """Current node positions (N, 3), mm."""
@@ -83,7 +117,7 @@ class RodModel:
     def segments(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Current edge end points (E, 3) each, with image shifts applied."""
         x = self.positions(q)
-        h = q[3 * self.n_nodes :]
+        h = self.macro(q)
         p = x[self.edges]
         if self.lattice is not None:
             p = p + self.lattice.shift(self.edge_images, h)
@@ -214,6 +248,24 @@ def from_cell(cell: Any, segments_per_stitch: int) -> RodModel:
     return RodModel(X, E, EI_, T, TI, l0, lbar, topo, node_yarn, lattice)
 
 
+def with_directors(model: RodModel) -> RodModel:
+    """The same rods made shear-deformable: every edge gets a director, its reference unit tangent.
+
+    The DOFs become ``q = [u (3N), d − d₀ (3E), h (6)]``; see :func:`knitframe_solvers.rod_terms.shear`.
+    """
+    P = model.X[model.edges]
+    if model.lattice is not None:
+        P = P + model.lattice.reference_shift(model.edge_images)
+    t = P[:, 1] - P[:, 0]
+    t /= np.linalg.norm(t, axis=1)[:, None]
+    start = -np.ones(model.n_nodes, np.int64)
+    start[model.edges[:, 0]] = np.arange(len(model.edges))
+    pairs = np.stack([start[model.triplets[:, 0]], start[model.triplets[:, 1]]], axis=1)
+    if np.any(pairs < 0) or np.any(model.edges[pairs[:, 0], 1] != model.triplets[:, 1]):
+        raise ValueError("every bending vertex needs the edges into and out of it")
+    return attrs.evolve(model, directors=t, director_pairs=pairs)
+
+
 @attrs.define(eq=False)
 class FrictionLag:
     """Contacting point pairs of the last converged state, whose normal force and normal friction uses."""
@@ -261,6 +313,8 @@ class RodEnergy:
     #: N·mm²
     EI: float
     bending: bool = True
+    #: shear stiffness κ G_A A of a model with directors, N
+    GA: float = 0.0
     law: Any = None
     #: contact distance, mm
     dk: float = 0.0
@@ -287,8 +341,22 @@ class RodEnergy:
 
     def __attrs_post_init__(self) -> None:
         m = self.model
-        self._stretch_map = PointMap(m.n_nodes, m.edges, m.edge_images, m.lattice)
-        self._bend_map = PointMap(m.n_nodes, m.triplets, m.triplet_images, m.lattice)
+        n_p = m.n_points
+        self._stretch_map = PointMap(n_p, m.edges, m.edge_images, m.lattice)
+        self._bend_map = PointMap(n_p, m.triplets, m.triplet_images, m.lattice)
+        if m.directors is not None:
+            n, E = m.n_nodes, len(m.edges)
+            own = n + np.arange(E)
+            self._shear_map = PointMap(
+                n_p,
+                np.concatenate([m.edges, own[:, None]], axis=1),
+                np.concatenate([m.edge_images, np.zeros((E, 1, 2), np.int64)], axis=1),
+                m.lattice,
+            )
+            self._director_bend_map = PointMap(n_p, n + m.director_pairs, None, m.lattice)
+            self._norm_map = PointMap(n_p, own[:, None], None, m.lattice)
+            # as stiff along the director as across it (shear and bending), so |d| stays near 1
+            self._norm_stiffness = self.GA * m.l0 + self.EI / m.l0
         self._rules: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self._l_max = float(m.l0.max(initial=0.0))
 
@@ -316,7 +384,7 @@ class RodEnergy:
         """Segment pairs closer than dk under the current state (one contact search)."""
         self.calls["contact_search"] += 1
         p0, p1 = self.model.segments(q)
-        h = q[3 * self.model.n_nodes :]
+        h = self.model.macro(q)
         return find_pairs(
             p0,
             p1,
@@ -332,7 +400,7 @@ class RodEnergy:
         m = self.model
         nodes = np.concatenate([m.edges[i], m.edges[j]], axis=1)
         images = np.concatenate([m.edge_images[i], m.edge_images[j] + k[:, None, :]], axis=1)
-        return PointMap(m.n_nodes, nodes, images, m.lattice)
+        return PointMap(m.n_points, nodes, images, m.lattice)
 
     def _lengths(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
         return self.model.l0[i] * self.model.l0[j]
@@ -341,7 +409,7 @@ class RodEnergy:
         """Freeze the contacting point pairs of state q (normal forces, normals, material points)."""
         pr = self.pairs(q)
         pm = self._pair_map(pr.i, pr.j, pr.k)
-        p = pm.points(self.model.positions(q), q[3 * self.model.n_nodes :])
+        p = pm.points(self.model.positions(q), self.model.macro(q))
         xa, xb, wq = self.rule()
         c = np.einsum("qi,mic->mqc", pair_weights(xa, xb), p)
         r = np.linalg.norm(c, axis=2)
@@ -355,7 +423,7 @@ class RodEnergy:
     def __call__(self, q: np.ndarray, order: int = 2):
         m = self.model
         x = m.positions(q)
-        h = q[3 * m.n_nodes :]
+        h = m.macro(q)
         E = 0.0
         g = np.zeros(m.n_dof) if order >= 1 else None
         coo: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
@@ -371,7 +439,16 @@ class RodEnergy:
 
         self.calls["stretch"] += 1
         add(self._stretch_map, *stretch(self._stretch_map.points(x, h), m.l0, self.EA, order))
-        if self.bending and len(m.triplets):
+        if m.directors is not None:
+            xd = np.vstack([x, m.director_vectors(q)])
+            self.calls["shear"] += 1
+            add(self._shear_map, *shear(self._shear_map.points(xd, h), m.l0, self.GA, order))
+            add(self._norm_map, *director_norm(self._norm_map.points(xd), self._norm_stiffness, order))
+            if self.bending and len(m.triplets):
+                self.calls["bending"] += 1
+                d = self._director_bend_map.points(xd)
+                add(self._director_bend_map, *director_bend(d, m.lbar, self.EI, order, self.kappa0))
+        elif self.bending and len(m.triplets):
             self.calls["bending"] += 1
             add(self._bend_map, *bend(self._bend_map.points(x, h), m.lbar, self.EI, order, self.kappa0))
         if self.law is not None:
@@ -429,7 +506,10 @@ class RodEnergy:
 def write_rod_vtu(
     path: Path, model: RodModel, q: np.ndarray, radius: float, cell_data: dict | None = None
 ) -> Path:
-    """Deformed centerlines as VTU line cells; segments crossing the cell boundary get their own end point."""
+    """Deformed centerlines as VTU line cells; segments crossing the cell boundary get their own end point.
+
+    A shear-deformable model adds each segment's shear angle (``shear_angle_deg``).
+    """
     import meshio
 
     x = model.positions(q)
@@ -441,6 +521,12 @@ def write_rod_vtu(
     cells = model.edges.copy()
     cells[cross, 1] = n + np.arange(int(cross.sum()))
     yarn = np.concatenate([model.yarn, model.yarn[model.edges[cross, 0]]])
+    cell_data = dict(cell_data or {})
+    if model.directors is not None:  # the angle between each segment and its section's normal
+        t = (p1 - p0) / np.linalg.norm(p1 - p0, axis=1)[:, None]
+        d = model.director_vectors(q)
+        c = np.einsum("ij,ij->i", t, d) / np.linalg.norm(d, axis=1)
+        cell_data.setdefault("shear_angle_deg", np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
     disp = pts - np.vstack([model.X, model.X[model.edges[cross, 1]]])
     meshio.write(
         path,
@@ -452,7 +538,7 @@ def write_rod_vtu(
                 "displacement": disp,
                 "radius": np.full(len(pts), radius),
             },
-            cell_data={k: [np.asarray(v_, dtype=np.float64)] for k, v_ in (cell_data or {}).items()},
+            cell_data={k: [np.asarray(v_, dtype=np.float64)] for k, v_ in cell_data.items()},
         ),
     )
     return path

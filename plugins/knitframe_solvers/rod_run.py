@@ -39,6 +39,9 @@ __all__ = ["RodRun"]
 
 #: decades over which the springs holding the lattice are released in the relaxation
 RELAX_DECADES = 6
+#: largest shear angle of a shear-deformable rod's sections before its curve is called suspect, degrees:
+#: its shear energy 2 κGA l0 tan²(γ/2) departs from the linear law ½ κGA l0 γ² by 4.8 % at 30°
+SHEAR_RANGE_DEG = 30.0
 
 
 class RodRun(MultiStart):
@@ -62,7 +65,9 @@ class RodRun(MultiStart):
         self.solver, self.fabric, self.scene = solver, fabric, scene
         self.model, self.energy, self.cell = model, energy, cell = self.solver.setup(fabric, scene, registry)
         self.lat = lat = model.lattice
-        self.n = n = model.n_nodes
+        self.n = model.n_nodes
+        #: where the macro DOFs start in q (after the nodes and any directors)
+        self.m0 = m0 = 3 * model.n_points
         self.solve = instantiate(registry, "linear_solver", self.solver.linear_solver, "solver.linear_solver")
         self.with_prestress = "prestress" in scene.effects and energy.law is not None
         self.opts = NewtonOptions(
@@ -74,10 +79,11 @@ class RodRun(MultiStart):
             xtol=1e-12 * float(np.linalg.norm(lat.L1) + np.linalg.norm(lat.L2)),
         )
         self.L_max = float(max(np.linalg.norm(lat.L1), np.linalg.norm(lat.L2)))
+        self.l_mean = float(model.l0.mean())
         self.base_free = np.ones(model.n_dof, bool)
         self.base_free[:3] = False  # pin node 0: the cell's free translation
         self.relax_free = self.base_free.copy()
-        self.relax_free[3 * n :] = ~lat.constraints(None, None)[0]
+        self.relax_free[m0:] = ~lat.constraints(None, None)[0]
         self.kappa_knitted = model.curvature(np.zeros(model.n_dof))
         self.dk_full = cell.dk
         # what a checkpoint carries besides q, rows and the starts' relaxed states, so a resumed run
@@ -166,10 +172,12 @@ class RodRun(MultiStart):
     # ---------------------------------------------------------------------------------- Newton
     def step_norm(self, dx: np.ndarray) -> float:
         # in units of the current contact distance, which is small early in the pre-stress
-        n = self.n
+        n, m0 = self.n, self.m0
         return max(
             float(np.max(np.linalg.norm(dx[: 3 * n].reshape(-1, 3), axis=1))),
-            float(np.max(np.abs(dx[3 * n :]))) * self.L_max,
+            float(np.max(np.abs(dx[m0:]))) * self.L_max,
+            # a director turned by Δd moves the end of its edge by about |Δd|·l0
+            float(np.max(np.abs(dx[3 * n : m0]), initial=0.0)) * self.l_mean,
         ) / max(self.energy.dk, 0.5 * self.cell.dk)
 
     def stabilise(self, info: dict) -> bool:
@@ -217,7 +225,7 @@ class RodRun(MultiStart):
         """
         energy, dk_full, opts = self.energy, self.dk_full, self.opts
         free = self.base_free.copy()
-        free[3 * self.n :] = False
+        free[self.m0 :] = False
         loose = attrs.evolve(opts, atol=1e3 * opts.atol, max_iter=2 * self.solver.max_iterations)
         record = label is None
         if label is None:
@@ -250,6 +258,14 @@ class RodRun(MultiStart):
             energy.kappa0 = None
             energy.dk = dk_full
 
+    def auto_order(self) -> list[str]:
+        """The rest shapes ``prestress_start = "auto"`` tries, in order.
+
+        Straight, then knitted; a shear-deformable rod starts knitted, because its directors,
+        straight at rest, would first have to turn across whole loops at the first step.
+        """
+        return ["knitted", "straight"] if self.model.directors is not None else ["straight", "knitted"]
+
     def prestress_phase(self, q: np.ndarray) -> np.ndarray:
         """Pre-stress (grow the contact distance at F̄ = I and constant yarn length), or check the start."""
         state, notes = self.state, self.run.notes
@@ -259,7 +275,7 @@ class RodRun(MultiStart):
             else:
                 state["dk0"] = self.initial_distance(q)
                 starts = (
-                    ["straight", "knitted"]
+                    self.auto_order()
                     if self.solver.prestress_start == "auto"
                     else [self.solver.prestress_start]
                 )
@@ -276,7 +292,7 @@ class RodRun(MultiStart):
                     notes.append(str(e))
                     q, state["target"] = np.zeros(self.model.n_dof), -1
             if notes:
-                notes[-1] = f"{notes[-1]}; converged from the knitted shape instead"
+                notes[-1] = f"{notes[-1]}; converged from the {state['start']} shape instead"
             state.update(phase="load", target=-1)
         elif self.energy.law is not None and state["phase"] == "prestress":
             problem = self.solver.knitted_overlap(self.energy, self.cell, q)
@@ -291,7 +307,7 @@ class RodRun(MultiStart):
         # it and are released in decades: the cell follows the nearest branch of equilibria
         # to zero tension instead of jumping in one long solve to whichever basin it meets.
         energy = self.energy
-        idx = 3 * self.n + np.array([macro_index(0, 0), macro_index(1, 1)])
+        idx = self.m0 + np.array([macro_index(0, 0), macro_index(1, 1)])
         h0 = q0[idx].copy()
         K0 = 10.0 * float(np.abs(energy(q0, 2)[2].diagonal()[idx]).max())
         x = q0
@@ -324,8 +340,8 @@ class RodRun(MultiStart):
         return self.relax_lattice(qv, self.relax_free) if self.solver.relax else qv
 
     def stretch_of(self, qv: np.ndarray) -> list[float]:
-        n = self.n
-        return [1.0 + float(qv[3 * n + macro_index(0, 0)]), 1.0 + float(qv[3 * n + macro_index(1, 1)])]
+        m0 = self.m0
+        return [1.0 + float(qv[m0 + macro_index(0, 0)]), 1.0 + float(qv[m0 + macro_index(1, 1)])]
 
     def relax_phase(self, q: np.ndarray) -> np.ndarray:
         """The relaxed lattice (course and wale stretches free, shear zero), of the start of lowest energy."""
@@ -355,16 +371,21 @@ class RodRun(MultiStart):
 
     def solve_load(self, tau: float, q0: np.ndarray) -> NewtonResult:
         """The load step at τ from q0: the affine predictor, Newton, and the branch watch."""
-        lat, n = self.lat, self.n
+        lat, n, m0, model = self.lat, self.n, self.m0, self.model
         pres, vals = self.prescribed(tau)
         qs = q0.copy()
-        qs[3 * n :][pres] = vals[pres]
+        qs[m0:][pres] = vals[pres]
         # predictor: carry the cell content along with the lattice (about the pinned node 0)
-        A = lat.F(qs[3 * n :]) @ np.linalg.inv(lat.F(q0[3 * n :]))
-        x = self.model.positions(q0)
-        qs[: 3 * n] = (x[0] + (x - x[0]) @ A.T - self.model.X).reshape(-1)
+        A = lat.F(qs[m0:]) @ np.linalg.inv(lat.F(q0[m0:]))
+        x = model.positions(q0)
+        qs[: 3 * n] = (x[0] + (x - x[0]) @ A.T - model.X).reshape(-1)
+        if model.directors is not None:  # directors turn with the lattice, keeping their length
+            d = model.director_vectors(q0)
+            dA = d @ A.T
+            dA *= (np.linalg.norm(d, axis=1) / np.linalg.norm(dA, axis=1))[:, None]
+            qs[3 * n : m0] = (dA - model.directors).reshape(-1)
         free = self.base_free.copy()
-        free[3 * n :] = ~pres
+        free[m0:] = ~pres
         res = self.newton_solve(qs, free)
         if self.watch:
             self.watch_branch(tau, q0, res.x)
@@ -395,9 +416,9 @@ class RodRun(MultiStart):
 
     def row(self, tau: float, res: NewtonResult) -> tuple[float, float, float, float]:
         """(λ1, λ2, T1, T2): stretches relative to the relaxed lattice; tensions per unit relaxed width."""
-        n, lam_ref = self.n, self.lam_ref
-        T1, T2 = self.lat.tensions(res.gradient[3 * n :])
-        h = res.x[3 * n :]
+        m0, lam_ref = self.m0, self.lam_ref
+        T1, T2 = self.lat.tensions(res.gradient[m0:])
+        h = res.x[m0:]
         l1, l2 = 1.0 + h[macro_index(0, 0)], 1.0 + h[macro_index(1, 1)]
         return (l1 / lam_ref[0], l2 / lam_ref[1], T1 / lam_ref[1], T2 / lam_ref[0])
 
@@ -444,6 +465,12 @@ class RodRun(MultiStart):
         # warnings point where simulate was called, as the fallback's does
         warn = functools.partial(self.run.warn, stacklevel=5)
         jumps = flag_jumps(self.run.rows_array(), scene.load, self.snaps, warn, self.run.where)
+        shear = self.max_shear_angle()
+        if shear is not None and shear > SHEAR_RANGE_DEG:
+            warn(
+                f"{self.run.where}: the yarn sections shear by up to {shear:.0f}° (the rod's shear law holds "
+                f"for small angles, up to about {SHEAR_RANGE_DEG:g}°); the curve is suspect"
+            )
         size = (
             f"SL{fabric.stitch_length:g}"
             if fabric.stitch_length is not None
@@ -469,5 +496,25 @@ class RodRun(MultiStart):
                 "relaxed_energy_Nmm": state["relaxed_energy"],
                 "starts": state["starts"],
                 "start_chosen": state["start_chosen"],
+                "shear_deformable": model.directors is not None,
+                "kGA_N": energy.GA if model.directors is not None else None,
+                "max_shear_angle_deg": shear,
             },
         )
+
+    def max_shear_angle(self) -> float | None:
+        """The largest angle between a segment and its director over the load path's states, degrees.
+
+        None for a rod without directors.
+        """
+        model = self.model
+        if model.directors is None or not self.path_states:
+            return None
+        worst = 0.0
+        for q in self.path_states:
+            p0, p1 = model.segments(q)
+            t = p1 - p0
+            d = model.director_vectors(q)
+            c = np.einsum("ij,ij->i", t, d) / (np.linalg.norm(t, axis=1) * np.linalg.norm(d, axis=1))
+            worst = max(worst, float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))).max()))
+        return worst

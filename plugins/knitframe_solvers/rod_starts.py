@@ -39,9 +39,10 @@ class Start:
     """One start of the pre-stress: a rest shape, a number of pre-stress steps and a loop depth.
 
     ``rest``: ``"option"`` is the rest shape of the ``prestress_start`` option (for ``"auto"``: straight,
-    knitted if that fails); ``"other"`` is the other of straight and knitted. ``steps`` multiplies
-    ``prestress_steps``. ``amplitude`` a scales the out-of-plane loop depth of the knitted
-    centerlines about the cell's mid-plane: z ↦ z̄ + a (z − z̄), with the rest lengths unchanged.
+    knitted if that fails; the other way round for a shear-deformable rod); ``"other"`` is the other
+    of straight and knitted. ``steps`` multiplies ``prestress_steps``. ``amplitude`` a scales the
+    out-of-plane loop depth of the knitted centerlines about the cell's mid-plane: z ↦ z̄ + a (z − z̄),
+    with the rest lengths unchanged.
     """
 
     name: str
@@ -71,12 +72,12 @@ SAME_ENERGY = 1e-4
 def loop_depth_start(model: RodModel, amplitude: float) -> np.ndarray:
     """State q whose centerlines have the loop depth scaled by ``amplitude``.
 
-    u_z = (a − 1)(z − z̄), no macro strain.
+    u_z = (a − 1)(z − z̄), no macro strain; directors (if any) along the new tangents.
     """
     q = np.zeros(model.n_dof)
     z = model.X[:, 2]
     q[2 : 3 * model.n_nodes : 3] = (amplitude - 1.0) * (z - z.mean())
-    return q
+    return model.aligned(q)
 
 
 def start_count(instance, attribute, value) -> None:

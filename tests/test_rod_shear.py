@@ -1,0 +1,68 @@
+"""The rod's ``shear`` modes on real cells: a shear-deformable (resolved) rod against the effective stiffness.
+
+The element-level references (finite differences, the Timoshenko beam) are in ``test_rod.py``.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from knitframe import get_registry
+from knitframe.config import instantiate
+from knitframe.errors import ConfigError, KnitframeWarning
+from knitframe.records import Fabric, LoadPath, Scene
+
+EFFECTS = ("large_deformation", "bending", "contact", "prestress")
+STEP = LoadPath(kind="equibiaxial", max_strain=0.05, steps=1)
+
+
+def run(yarn: str, sl: float, **options):
+    reg = get_registry()
+    fabric = Fabric(pattern="jersey", yarn=reg["yarn"][yarn], stitch_length=sl)
+    return reg["solver"]["rod"](starts=1, **options).simulate(fabric, Scene(load=STEP, effects=EFFECTS))
+
+
+def test_a_yarn_stiff_in_shear_bends_alike_resolved_or_effective():
+    """PET (shear length √(EI/κGA) = 0.08 mm, far below a stitch): its sections hardly shear, and the
+    resolved rod's relaxed lattice and tensions are those of the effective stiffness within 5 %.
+
+    They are not equal: the effective stiffness is taken at one wave number, 2π/(yarn per stitch), the
+    resolved rod bends each wave at its own.
+    """
+    eff = run("pet", 11)
+    res = run("pet", 11, shear="resolved")
+    assert res.provenance.extra["shear_deformable"] and not eff.provenance.extra["shear_deformable"]
+    assert res.provenance.extra["max_shear_angle_deg"] < 5.0
+    assert np.allclose(
+        res.provenance.extra["relaxed_stretch"], eff.provenance.extra["relaxed_stretch"], rtol=0.05
+    )
+    assert res.T1[-1] == pytest.approx(eff.T1[-1], rel=0.05) and res.T2[-1] == pytest.approx(
+        eff.T2[-1], rel=0.05
+    )
+    assert abs(res.T1[-1] - eff.T1[-1]) > 1e-4 * eff.T1[-1]  # a different model, not the same numbers
+
+
+def test_sections_sheared_beyond_the_small_angle_law_make_the_curve_suspect():
+    """Cotton's record (shear length 19 mm, four stitches): the sections of a resolved rod hardly turn with
+    the loop and shear far beyond 30°; the run says so, in a warning and in its notes."""
+    with pytest.warns(KnitframeWarning, match=r"shear by up to \d+° .* the curve is suspect"):
+        r = run("cotton", 12, shear="resolved", prestress_start="straight", prestress_steps=4)
+    assert r.provenance.extra["max_shear_angle_deg"] > 30.0
+    assert "the curve is suspect" in r.provenance.notes
+    assert np.all(np.isfinite(r.T1)) and np.all(np.isfinite(r.T2))
+
+
+@pytest.mark.parametrize(("value", "mode"), [("resolved", "resolved"), (True, "effective"), (False, "none")])
+def test_shear_modes_and_their_older_spelling(value, mode):
+    assert instantiate(get_registry(), "solver", {"kind": "rod", "shear": value}, "solver").shear == mode
+
+
+def test_an_unknown_shear_mode_names_the_key():
+    with pytest.raises(ConfigError, match=r"solver\.shear: expected 'resolved' \| 'effective' \| 'none'"):
+        instantiate(get_registry(), "solver", {"kind": "rod", "shear": "timoshenko"}, "solver")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # and the default stays the effective stiffness
+        assert get_registry()["solver"]["rod"]().shear == "effective"
