@@ -94,16 +94,18 @@ def branch_label(r, first) -> str:
     return f"{name} (λ {lam[0]:.2f}, {lam[1]:.2f})"
 
 
-def bench(repeats: int, cli: bool) -> None:
+def bench(repeats: int, cli: bool, options: dict | None = None) -> None:
+    options = options or {}
+    shown = f", `{json.dumps(options)}`" if options else ""
     print("| case | run | wall time, s | steps | T1 at 30 %, N/mm | T2 at 30 %, N/mm | converged |")
     print("|---|---|---|---|---|---|---|")
     for k in range(repeats):
         t0 = time.perf_counter()
-        r = run(fabric("jersey", "cotton", 11), EQUIBIAXIAL)
+        r = run(fabric("jersey", "cotton", 11), EQUIBIAXIAL, **options)
         dt = time.perf_counter() - t0
         print(
-            f"| jersey SL11 cotton, pre-stress + equibiaxial 0→30 % (Python API) | {k + 1} | {dt:.2f} | "
-            f"{len(r)} | "
+            f"| jersey SL11 cotton, pre-stress + equibiaxial 0→30 % (Python API{shown}) | {k + 1} | "
+            f"{dt:.2f} | {len(r)} | "
             f"{r.T1[-1]:.4g} | {r.T2[-1]:.4g} | {r.provenance.converged} |"
         )
     if cli:
@@ -297,6 +299,7 @@ def main() -> None:
     ap.add_argument("--science", action="store_true", help="run the validation sweep instead of the timing")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--cli", action="store_true", help="also time the example config through `knitframe run`")
+    ap.add_argument("--options", default="{}", help='rod options as JSON, e.g. \'{"shear": "resolved"}\'')
     default = ROOT.parent / "shared" / "data" / "knit-uniaxial-singal2024"
     ap.add_argument(
         "--singal",
@@ -306,7 +309,7 @@ def main() -> None:
     )
     args = ap.parse_args()
     print(f"cores: {os.cpu_count()}, load average: {os.getloadavg()[0]:.2f}\n")
-    science(args.singal) if args.science else bench(args.repeats, args.cli)
+    science(args.singal) if args.science else bench(args.repeats, args.cli, json.loads(args.options))
 
 
 if __name__ == "__main__":
