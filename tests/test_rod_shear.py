@@ -5,6 +5,7 @@ The element-level references (finite differences, the Timoshenko beam) are in ``
 
 from __future__ import annotations
 
+import re
 import warnings
 
 import numpy as np
@@ -36,6 +37,7 @@ def test_a_yarn_stiff_in_shear_bends_alike_resolved_or_effective():
     res = run("pet", 11, shear="resolved")
     assert res.provenance.extra["shear_deformable"] and not eff.provenance.extra["shear_deformable"]
     assert res.provenance.extra["max_shear_angle_deg"] < 5.0
+    assert "shear length" not in res.provenance.notes  # 0.08 mm: no warning
     assert np.allclose(
         res.provenance.extra["relaxed_stretch"], eff.provenance.extra["relaxed_stretch"], rtol=0.05
     )
@@ -48,10 +50,14 @@ def test_a_yarn_stiff_in_shear_bends_alike_resolved_or_effective():
 def test_sections_sheared_beyond_the_small_angle_law_make_the_curve_suspect():
     """Cotton's record (shear length 19 mm, four stitches): the sections of a resolved rod hardly turn with
     the loop and shear far beyond 30°; the run says so, in a warning and in its notes."""
-    with pytest.warns(KnitframeWarning, match=r"shear by up to \d+° .* the curve is suspect"):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
         r = run("cotton", 12, shear="resolved", prestress_start="straight", prestress_steps=4)
+    said = [str(w.message) for w in caught if issubclass(w.category, KnitframeWarning)]
+    assert re.search(r"shear length 19(\.\d+)? mm is longer than its stitch \(5\.9 mm\)", said[0])  # first
+    assert any(re.search(r"shear by up to \d+° .* the curve is suspect", m) for m in said)
     assert r.provenance.extra["max_shear_angle_deg"] > 30.0
-    assert "the curve is suspect" in r.provenance.notes
+    assert "the curve is suspect" in r.provenance.notes and "shear length" in r.provenance.notes
     assert np.all(np.isfinite(r.T1)) and np.all(np.isfinite(r.T2))
 
 

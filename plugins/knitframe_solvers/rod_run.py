@@ -127,6 +127,21 @@ class RodRun(MultiStart):
             t_start=t_start,
         )
         self.init_load_path()
+        self.warn_long_shear_length()
+
+    def warn_long_shear_length(self) -> None:
+        """Say before work starts when a shear-deformable rod's yarn has a shear length above its stitch."""
+        energy, cell = self.energy, self.cell
+        if self.model.directors is None:
+            return
+        ls, ell = float(np.sqrt(energy.EI / energy.GA)), float(cell.arc_length_per_stitch)
+        if ls > ell:
+            self.run.warn(
+                f'{self.run.where}: with shear = "resolved", the yarn\'s shear length {ls:.3g} mm is longer '
+                f"than its stitch ({ell:.3g} mm): its sections hardly turn with the loops and shear beyond a "
+                "rod's small-angle law, so the run may stall or its curve be suspect",
+                stacklevel=4,
+            )
 
     def init_load_path(self) -> None:
         """The load path's bookkeeping: reference lattice, kept jumps, states, and the branch watch."""
