@@ -48,3 +48,15 @@ def test_readme_config_runs(tmp_path, singal_file):
     params = json.loads((tmp_path / "out" / "simulated-params.json").read_text())
     assert params["model"] == "hgo" and 0 <= params["theta_deg"] <= 90
     assert [r.provenance.kind for r in res.responses].count("simulation") == 1
+
+
+def test_every_example_config_in_the_docs_builds():
+    """Each docs/examples/*.toml loads and validates into its stages, as `knitframe run` does first."""
+    from knitframe.config import load_toml
+    from knitframe.pipeline import Pipeline
+
+    configs = sorted((ROOT / "docs" / "examples").glob("*.toml"))
+    assert configs
+    for path in configs:
+        pipeline = Pipeline(load_toml(path), base_dir=path.parent, source=str(path))
+        assert pipeline.stages, path.name
