@@ -41,10 +41,10 @@ def average_repeats(
     grid = np.linspace(lo, hi, points)
     lat = np.empty((len(strain), points))
     ten = np.empty((len(strain), points))
-    for k, (s, l, t) in enumerate(zip(strain, lateral, tension)):
-        order = np.argsort(s, kind="stable")
-        lat[k] = np.interp(grid, s[order], l[order])
-        ten[k] = np.interp(grid, s[order], t[order])
+    for k, repeat in enumerate(zip(strain, lateral, tension)):
+        s, l, t = by_strain(*repeat)
+        lat[k] = np.interp(grid, s, l)
+        ten[k] = np.interp(grid, s, t)
     ddof = 1 if len(strain) > 1 else 0
     return grid, lat.mean(0), lat.std(0, ddof=ddof), ten.mean(0), ten.std(0, ddof=ddof)
 

@@ -38,6 +38,11 @@ def test_a_yarn_stiff_in_shear_bends_alike_resolved_or_effective():
     assert res.provenance.extra["shear_deformable"] and not eff.provenance.extra["shear_deformable"]
     assert res.provenance.extra["max_shear_angle_deg"] < 5.0
     assert "shear length" not in res.provenance.notes  # 0.08 mm: no warning
+    # the loop bends at about twice the wavenumber the effective stiffness is taken at
+    k_R, k_eff = (
+        eff.provenance.extra[k] for k in ("bending_wavenumber_per_mm", "effective_bending_wavenumber_per_mm")
+    )
+    assert 1.5 < k_R / k_eff < 3.0
     assert np.allclose(
         res.provenance.extra["relaxed_stretch"], eff.provenance.extra["relaxed_stretch"], rtol=0.05
     )

@@ -513,9 +513,24 @@ class RodRun(MultiStart):
                 "start_chosen": state["start_chosen"],
                 "shear_deformable": model.directors is not None,
                 "kGA_N": energy.GA if model.directors is not None else None,
+                # the knitted loop's Rayleigh wavenumber against the effective stiffness's 2π/ℓ
+                "bending_wavenumber_per_mm": self.bending_wavenumber(),
+                "effective_bending_wavenumber_per_mm": 2.0 * np.pi / float(cell.arc_length_per_stitch),
                 "max_shear_angle_deg": shear,
             },
         )
+
+    def bending_wavenumber(self) -> float | None:
+        """The knitted cell's Rayleigh wavenumber k_R (:func:`knitframe.geometry.bending_wavenumber`), 1/mm.
+
+        None for a cell whose yarns are straight.
+        """
+        from knitframe.geometry import bending_wavenumber
+
+        try:
+            return float(bending_wavenumber(self.cell))
+        except ValueError:
+            return None
 
     def max_shear_angle(self) -> float | None:
         """The largest angle between a segment and its director over the load path's states, degrees.
