@@ -163,12 +163,7 @@ def _bend_hessian(
     (m, 3) the gradients ∇_a c, ∇_b c, and ``f1``, ``f2`` (m,) E′ and E″ in c (see :func:`bend`):
     ∇²_aa E = E″ ∇_a c ∇_a cᵀ + E′ ∇²_aa c, likewise for bb and ab, then mapped to the points.
     """
-    Haa, Hbb, Hab = _cos_hessian(ah, bh, c, la, lb)
-    f1_ = f1[:, None, None]
-    f2_ = f2[:, None, None]
-    Eaa = f2_ * ga[:, :, None] * ga[:, None, :] + f1_ * Haa
-    Ebb = f2_ * gb[:, :, None] * gb[:, None, :] + f1_ * Hbb
-    Eab = f2_ * ga[:, :, None] * gb[:, None, :] + f1_ * Hab
+    Eaa, Ebb, Eab = _chain_in_c(ah, bh, c, la, lb, ga, gb, f1, f2)
     Eba = np.swapaxes(Eab, 1, 2)
     # a = x1 − x0, b = x2 − x1: d(a, b)/d(x0, x1, x2) = [[−I, I, 0], [0, −I, I]]
     H = np.empty((len(c), 3, 3, 3, 3))
@@ -196,6 +191,18 @@ def _cos_hessian(ah: np.ndarray, bh: np.ndarray, c: np.ndarray, la: np.ndarray, 
     Hbb = (3 * cc * bb - ba - ab - cc * eye) / (lb**2)[:, None, None]
     Hab = np.einsum("mij,mjk->mik", eye - aa, eye - bb) / (la * lb)[:, None, None]
     return Haa, Hbb, Hab
+
+
+def _chain_in_c(ah, bh, c, la, lb, ga, gb, f1, f2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """∇²_aa E, ∇²_bb E, ∇²_ab E (m, 3, 3) of an energy E(c), c = â·b̂, with E′ = f1 and E″ = f2 (m,):
+    ∇²_aa E = E″ ∇_a c ∇_a cᵀ + E′ ∇²_aa c, likewise for bb and ab (``ga``, ``gb`` = ∇_a c, ∇_b c)."""
+    Caa, Cbb, Cab = _cos_hessian(ah, bh, c, la, lb)
+    f1_, f2_ = f1[:, None, None], f2[:, None, None]
+    return (
+        f2_ * ga[:, :, None] * ga[:, None, :] + f1_ * Caa,
+        f2_ * gb[:, :, None] * gb[:, None, :] + f1_ * Cbb,
+        f2_ * ga[:, :, None] * gb[:, None, :] + f1_ * Cab,
+    )
 
 
 def director_bend(
@@ -255,11 +262,7 @@ def shear(p: np.ndarray, l0: np.ndarray, GA: np.ndarray | float, order: int = 2)
     g = np.stack([-Ga, Ga, Gb], axis=1)
     if order == 1:
         return E, g, None
-    Caa, Cbb, Cab = _cos_hessian(ah, bh, c, la, lb)
-    f1_, f2_ = f1[:, None, None], f2[:, None, None]
-    Haa = f2_ * ga[:, :, None] * ga[:, None, :] + f1_ * Caa
-    Hbb = f2_ * gb[:, :, None] * gb[:, None, :] + f1_ * Cbb
-    Hab = f2_ * ga[:, :, None] * gb[:, None, :] + f1_ * Cab
+    Haa, Hbb, Hab = _chain_in_c(ah, bh, c, la, lb, ga, gb, f1, f2)
     Hba = np.swapaxes(Hab, 1, 2)
     # a = x1 − x0, b = d
     H = np.empty((len(c), 3, 3, 3, 3))
