@@ -33,6 +33,7 @@ __all__ = [
     "YarnProperty",
     "effective_bending",
     "shear_stiffness",
+    "shear_length",
 ]
 
 
@@ -187,7 +188,7 @@ def yarn_properties(yarn: Yarn) -> list[YarnProperty]:
         YarnProperty(
             "shear length",
             "ℓ_s",
-            float(np.sqrt(yarn.E_axial * np.pi * yarn.dk**4 / 64.0 / shear_stiffness(yarn))),
+            shear_length(yarn),
             "mm",
             "derived",
             "√(EI/(κ G_A A)) of the solid section: bent over a shorter length, the yarn bends in shear",
@@ -257,3 +258,9 @@ def effective_bending(yarn: Yarn, wavelength: float) -> float:
 def shear_stiffness(yarn: Yarn) -> float:
     """Transverse shear stiffness κ G_A A of the knitted section, N (A = π dk²/4, κ = 0.886)."""
     return float(SHEAR_COEFFICIENT * yarn.G_A * np.pi * yarn.dk**2 / 4.0)
+
+
+def shear_length(yarn: Yarn) -> float:
+    """√(EI/(κ G_A A)) with the solid section's EI = E_A π dk⁴/64, mm: over a shorter length the
+    yarn bends mostly in shear (:func:`shear_stiffness`)."""
+    return float(np.sqrt(yarn.E_axial * np.pi * yarn.dk**4 / 64.0 / shear_stiffness(yarn)))

@@ -110,6 +110,14 @@ class RodModel:
         out[3 * self.n_nodes : 3 * self.n_points] = (t - self.directors).reshape(-1)
         return out
 
+    def shear_angles(self, q: np.ndarray) -> np.ndarray:
+        """Angle between each edge and its director (E,) in state q, degrees (directors required)."""
+        p0, p1 = self.segments(q)
+        t = p1 - p0
+        d = self.director_vectors(q)
+        c = np.einsum("ij,ij->i", t, d) / (np.linalg.norm(t, axis=1) * np.linalg.norm(d, axis=1))
+        return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
+
     def positions(self, q: np.ndarray) -> np.ndarray:
         """Current node positions (N, 3), mm."""
         return self.X + q[: 3 * self.n_nodes].reshape(-1, 3)
@@ -253,11 +261,8 @@ def with_directors(model: RodModel) -> RodModel:
 
     The DOFs become ``q = [u (3N), d − d₀ (3E), h (6)]``; see :func:`knitframe_solvers.rod_terms.shear`.
     """
-    P = model.X[model.edges]
-    if model.lattice is not None:
-        P = P + model.lattice.reference_shift(model.edge_images)
-    t = P[:, 1] - P[:, 0]
-    t /= np.linalg.norm(t, axis=1)[:, None]
+    p0, p1 = model.segments(np.zeros(model.n_dof))
+    t = (p1 - p0) / np.linalg.norm(p1 - p0, axis=1)[:, None]
     start = -np.ones(model.n_nodes, np.int64)
     start[model.edges[:, 0]] = np.arange(len(model.edges))
     pairs = np.stack([start[model.triplets[:, 0]], start[model.triplets[:, 1]]], axis=1)
@@ -523,10 +528,7 @@ def write_rod_vtu(
     yarn = np.concatenate([model.yarn, model.yarn[model.edges[cross, 0]]])
     cell_data = dict(cell_data or {})
     if model.directors is not None:  # the angle between each segment and its section's normal
-        t = (p1 - p0) / np.linalg.norm(p1 - p0, axis=1)[:, None]
-        d = model.director_vectors(q)
-        c = np.einsum("ij,ij->i", t, d) / np.linalg.norm(d, axis=1)
-        cell_data.setdefault("shear_angle_deg", np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
+        cell_data.setdefault("shear_angle_deg", model.shear_angles(q))
     disp = pts - np.vstack([model.X, model.X[model.edges[cross, 1]]])
     meshio.write(
         path,

@@ -28,6 +28,7 @@ from knitframe.numerics.continuation import StepCheckpoints, continuation
 from knitframe.numerics.newton import NewtonOptions, NewtonResult, minimise
 from knitframe.numerics.periodic import macro_index
 from knitframe.records import Fabric, Response, Scene
+from knitframe.yarns import shear_length
 from knitframe_solvers.rod_branches import CUT_RATIO, flag_jumps, is_jump
 from knitframe_solvers.rod_model import write_rod_vtu
 from knitframe_solvers.rod_starts import MultiStart
@@ -131,10 +132,9 @@ class RodRun(MultiStart):
 
     def warn_long_shear_length(self) -> None:
         """Say before work starts when a shear-deformable rod's yarn has a shear length above its stitch."""
-        energy, cell = self.energy, self.cell
         if self.model.directors is None:
             return
-        ls, ell = float(np.sqrt(energy.EI / energy.GA)), float(cell.arc_length_per_stitch)
+        ls, ell = shear_length(self.fabric.yarn), float(self.cell.arc_length_per_stitch)
         if ls > ell:
             self.run.warn(
                 f'{self.run.where}: with shear = "resolved", the yarn\'s shear length {ls:.3g} mm is longer '
@@ -540,11 +540,4 @@ class RodRun(MultiStart):
         model = self.model
         if model.directors is None or not self.path_states:
             return None
-        worst = 0.0
-        for q in self.path_states:
-            p0, p1 = model.segments(q)
-            t = p1 - p0
-            d = model.director_vectors(q)
-            c = np.einsum("ij,ij->i", t, d) / (np.linalg.norm(t, axis=1) * np.linalg.norm(d, axis=1))
-            worst = max(worst, float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))).max()))
-        return worst
+        return max(float(model.shear_angles(q).max()) for q in self.path_states)
