@@ -91,7 +91,13 @@ MEASURABLE = (
     "fibre_density",
     "compaction_limit",
     "core_modulus",
+    "shell_diameter",
+    "core_diameter",
+    "compression_k",
+    "compression_p",
 )
+#: Yarn fields of the compression law of a soft shell around a core; all four or none.
+COMPRESSION_FIELDS = ("shell_diameter", "core_diameter", "compression_k", "compression_p")
 _DIAMETER = attrs.validators.and_(v.positive, v.at_least(DIAMETER_RANGE[0]), v.at_most(DIAMETER_RANGE[1]))
 _MODULUS = attrs.validators.and_(v.positive, v.at_least(MODULUS_RANGE[0]), v.at_most(MODULUS_RANGE[1]))
 
@@ -133,6 +139,16 @@ class Yarn(Record):
     )
     #: modulus of the packed fibres across the yarn, MPa; unset: E_axial
     core_modulus: float | None = attrs.field(default=None, validator=v.optional(_MODULUS))
+    #: compression law (rod contact law ``rod_shell``): outer diameter of the yarn's soft shell, mm
+    shell_diameter: float | None = attrs.field(default=None, validator=v.optional(_DIAMETER))
+    #: compression law: diameter of the core the shell is squeezed onto, mm
+    core_diameter: float | None = attrs.field(default=None, validator=v.optional(_DIAMETER))
+    #: compression law: rigidity k of the shell's energy density, N/mm³
+    compression_k: float | None = attrs.field(default=None, validator=v.optional(v.positive))
+    #: compression law: exponent p (> 1) of the shell's energy density, -
+    compression_p: float | None = attrs.field(
+        default=None, validator=v.optional(v.in_range(1.0, 20.0, lo_open=True))
+    )
     #: names of the fields that are measured on this yarn; the others are estimates
     measured: frozenset[str] = attrs.field(default=frozenset(), converter=frozenset)
     #: yarn-model plugin name
@@ -153,6 +169,18 @@ class Yarn(Record):
                 "tex",
                 f"{self.tex:g} tex of fibre of {self.fibre_density:g} g/cm³ does not fit in a yarn of "
                 f"dk = {self.dk:g} mm (packing {self.packing:.3g} > 1)",
+            )
+        given = [f for f in COMPRESSION_FIELDS if getattr(self, f) is not None]
+        if given and len(given) < len(COMPRESSION_FIELDS):
+            missing = next(f for f in COMPRESSION_FIELDS if getattr(self, f) is None)
+            raise FieldError(
+                missing,
+                f"the compression law needs all of {', '.join(COMPRESSION_FIELDS)}; {', '.join(given)} given",
+            )
+        if given and self.core_diameter >= self.shell_diameter:
+            raise FieldError(
+                "core_diameter",
+                f"must be < shell_diameter = {self.shell_diameter:g} mm, got {self.core_diameter:g}",
             )
         solid = self.E_axial * np.pi * self.d0**4 / 64.0
         if self.bending_stiffness is not None and self.bending_stiffness > solid:
@@ -212,6 +240,11 @@ class Yarn(Record):
         if phi is None:
             return 0.5
         return float(min(phi / MAX_PACKING, 1.0))
+
+    @property
+    def has_compression_law(self) -> bool:
+        """True when the record carries the shell's compression law (:data:`COMPRESSION_FIELDS`)."""
+        return self.compression_k is not None
 
     @property
     def core_E(self) -> float:

@@ -230,6 +230,22 @@ def yarn_properties(yarn: Yarn) -> list[YarnProperty]:
             *_source(yarn, "core_modulus", "E_A: packed fibres as stiff as the yarn along it", "estimate"),
             "both: stiffness halfway through the compaction barrier",
         ),
+        *(
+            YarnProperty(
+                name,
+                symbol,
+                getattr(yarn, field),
+                unit,
+                *(_source(yarn, field, "") if yarn.has_compression_law else ("unknown", "not in the record")),
+                "rod: contact law rod_shell (the shell's compression law)",
+            )
+            for name, symbol, field, unit in (
+                ("compression law: shell diameter", "D", "shell_diameter", "mm"),
+                ("compression law: core diameter", "D_c", "core_diameter", "mm"),
+                ("compression law: rigidity", "k", "compression_k", "N/mm³"),
+                ("compression law: exponent", "p", "compression_p", "-"),
+            )
+        ),
     ]
 
 

@@ -250,10 +250,8 @@ def test_crossing_rods_pressed_together_follow_the_contact_law():
     assert (z0 - d) + F * span**3 / (48 * EIb) == pytest.approx(drop, rel=2e-3)
 
 
-def test_parallel_yarns_carry_the_line_load_of_the_contact_law():
-    """Two straight periodic yarns a distance d apart push each other with the line load −ψ′(d) of the law."""
-    law = RodPenalty()
-    dk, k, kc, gap = 0.4, 50.0, 800.0, 0.36
+def parallel_cell(gap: float, dk: float) -> UnitCell:
+    """Two straight periodic yarns 2 mm long along x, ``gap`` apart in y, with a 4 mm wale period."""
 
     def straight(y0, name):
         return Centerline(
@@ -265,7 +263,7 @@ def test_parallel_yarns_carry_the_line_load_of_the_contact_law():
             [2.0, 0, 0],
         )
 
-    cell = UnitCell(
+    return UnitCell(
         "parallel",
         (straight(0.0, "row0"), straight(gap, "row1")),
         [2.0, 0, 0],
@@ -277,13 +275,21 @@ def test_parallel_yarns_carry_the_line_load_of_the_contact_law():
         1.0,
         2.0,
     )
-    model = from_cell(cell, 10)
-    en = RodEnergy(model, EA, EI, law=law, dk=dk, k_contact=k, k_core=kc)
+
+
+def assert_parallel_line_load(law, gap, dk, k, k_core, segments=10, quadrature=4):
+    """Two parallel yarns ``gap`` apart store ψ(d) per mm and push each other with −ψ′(d)."""
+    model = from_cell(parallel_cell(gap, dk), segments)
+    en = RodEnergy(model, EA, EI, law=law, dk=dk, k_contact=k, k_core=k_core, quadrature=quadrature)
     E, g, _, _ = en(np.zeros(model.n_dof), 1)
-    row1 = model.yarn == 1
-    push = g[: 3 * model.n_nodes].reshape(-1, 3)[row1, 1].sum() / 2.0  # N per mm of yarn
-    assert E / 2.0 == pytest.approx(line_energy(law, gap, dk, k, kc), rel=1e-4)
-    assert push == pytest.approx(line_energy(law, gap, dk, k, kc, derivative=1), rel=2e-3)
+    push = g[: 3 * model.n_nodes].reshape(-1, 3)[model.yarn == 1, 1].sum() / 2.0  # N per mm of yarn
+    assert E / 2.0 == pytest.approx(line_energy(law, gap, dk, k, k_core), rel=1e-4)
+    assert push == pytest.approx(line_energy(law, gap, dk, k, k_core, derivative=1), rel=2e-3)
+
+
+def test_parallel_yarns_carry_the_line_load_of_the_contact_law():
+    """Two straight periodic yarns a distance d apart push each other with the line load −ψ′(d) of the law."""
+    assert_parallel_line_load(RodPenalty(), gap=0.36, dk=0.4, k=50.0, k_core=800.0)
 
 
 def test_contact_energy_has_no_jumps_when_a_rod_slides_through_a_bend():

@@ -212,6 +212,7 @@ def test_cache_key_changes_with_a_solver_option_and_covers_the_solver_code(tmp_p
         "knitframe_solvers.rod_model",
         "knitframe_solvers.rod_contact",
         "knitframe_contact.rod_penalty",
+        "knitframe_contact.rod_shell",  # contact_law = "auto" may pick either
         "knitframe_linsolvers.direct",
         "knitframe_patterns.jersey",
         "knitframe_homogenizers.hgo",

@@ -87,12 +87,15 @@ def run_point(job: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _plugin_module(registry: Any, kind: str, name: Any) -> str | None:
+def _registered(registry: Any, kind: str, name: Any) -> Any:
     try:
-        obj = registry[kind][name]
+        return registry[kind][name]
     except Exception:  # noqa: BLE001 - not a plugin of this kind
         return None
-    return getattr(obj, "__module__", None)
+
+
+def _plugin_module(registry: Any, kind: str, name: Any) -> str | None:
+    return getattr(_registered(registry, kind, name), "__module__", None)
 
 
 def point_modules(job: dict[str, Any]) -> list[str]:
@@ -109,10 +112,14 @@ def point_modules(job: dict[str, Any]) -> list[str]:
         _plugin_module(reg, "homogenizer", job["fit"]["model"].get("kind")),
         _plugin_module(reg, "fitter", job["fit"]["fitter"].get("kind")),
     ]
-    for value in job["solver"].values():  # options that name plugins: linear_solver, contact_law, ...
+    solver = _registered(reg, "solver", job["solver"].get("kind"))
+    choices = getattr(solver, "auto_plugins", {})  # option -> the plugins its "auto" may pick
+    for key, value in job["solver"].items():  # options that name plugins: linear_solver, contact_law, ...
         name = value.get("kind") if isinstance(value, dict) else value
-        if isinstance(name, str):
-            found += [_plugin_module(reg, kind, name) for kind in ("linear_solver", "contact_law")]
+        names = choices.get(key, ()) if name == "auto" else (name,)
+        for name in names:
+            if isinstance(name, str):
+                found += [_plugin_module(reg, kind, name) for kind in ("linear_solver", "contact_law")]
     return sorted({m for m in found if m})
 
 

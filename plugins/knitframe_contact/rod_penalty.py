@@ -40,8 +40,32 @@ from knitframe import validators as v
 from knitframe.numerics.contact.friction import friction_potential
 
 
+class CenterlineLaw:
+    """What every rod contact law derives from its ``normal(d, dk, k, k_core)``, and its friction.
+
+    A subclass has the attrs fields ``friction`` (μ) and ``slip`` (ε_s/dk).
+    """
+
+    friction: float
+    slip: float
+
+    def force(self, d: np.ndarray, dk: float, k: float, k_core: float | None = None) -> np.ndarray:
+        """Repulsion −de/dd at centre distances d (mm); zero when d ≥ dk."""
+        return -self.normal(d, dk, k, k_core)[1]
+
+    def friction_potential(
+        self, u: np.ndarray, lam: np.ndarray, dk: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Friction pseudo-potential D, its gradient (m, 3) and Hessian (m, 3, 3) in the slip u (m, 3) mm.
+
+        ``lam`` (m,) is the lagged normal force, N.
+        """
+        eps = np.full(len(u), self.slip * dk)
+        return friction_potential(u, self.friction * np.asarray(lam, dtype=np.float64), eps)
+
+
 @attrs.frozen
-class RodPenalty:
+class RodPenalty(CenterlineLaw):
     """Smooth penalty + stiffening barrier between rod centerlines, optional regularised Coulomb friction."""
 
     name: ClassVar[str] = "rod_penalty"
@@ -103,20 +127,6 @@ class RodPenalty:
             inside = y <= c
             e = np.where(inside, np.inf, e)
         return e, e1, e2
-
-    def force(self, d: np.ndarray, dk: float, k: float, k_core: float | None = None) -> np.ndarray:
-        """Repulsion −de/dd at centre distances d (mm); zero when d ≥ dk."""
-        return -self.normal(d, dk, k, k_core)[1]
-
-    def friction_potential(
-        self, u: np.ndarray, lam: np.ndarray, dk: float
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Friction pseudo-potential D, its gradient (m, 3) and Hessian (m, 3, 3) in the slip u (m, 3) mm.
-
-        ``lam`` (m,) is the lagged normal force, N.
-        """
-        eps = np.full(len(u), self.slip * dk)
-        return friction_potential(u, self.friction * np.asarray(lam, dtype=np.float64), eps)
 
 
 @hookimpl

@@ -92,8 +92,12 @@ def law_for_yarn(law: Any, yarn) -> Any:
     """The rod contact ``law`` with its core set to the yarn's compaction limit when it has none.
 
     Two yarns each squeezed to J_min of their knitted section (flattened at constant width) have
-    their centres J_min·dk apart: the centre distance the law's barrier forbids.
+    their centres J_min·dk apart: the centre distance the law's barrier forbids. A law that reads
+    the yarn's compression law (``for_yarn``, e.g. ``rod_shell``) takes its numbers from the
+    record instead, and a ConfigError at ``solver.contact_law`` if the record has none.
     """
+    if law is not None and hasattr(law, "for_yarn"):
+        return law.for_yarn(yarn)
     if law is not None and hasattr(law, "core") and law.core is None:
         return attrs.evolve(law, core=float(yarn.compaction))
     return law
@@ -110,7 +114,9 @@ def rod_stiffness(yarn, registry=None, law=None, line_stiffness: float | None = 
     (:func:`knitframe_solvers.rod_contact.line_energy`). The core (barrier) of the packed fibres
     gets ``k_core`` (N/mm³), which makes the line stiffness the yarn's core modulus
     (``yarn.core_E``, E_axial unless measured) halfway through the barrier's band. A ``law``
-    whose ``core`` is None takes the yarn's compaction limit (:func:`law_for_yarn`).
+    whose ``core`` is None takes the yarn's compaction limit (:func:`law_for_yarn`). A law with
+    its own ``rigidity`` (``rod_shell``) takes it from the yarn's compression law, and ``k_line``
+    is then its line stiffness at 5 % flattening of the shell.
     """
     registry = registry or get_registry()
     model = registry["yarn_model"][yarn.model].from_yarn(yarn)
@@ -118,7 +124,11 @@ def rod_stiffness(yarn, registry=None, law=None, line_stiffness: float | None = 
         f_ref = float(np.asarray(model.contact_load(np.array([0.05 * yarn.dk])))[0])
         line_stiffness = float(np.asarray(model.contact_stiffness(np.array([f_ref])))[0])
     out = {"EA": float(model.EA), "EI": float(model.EI), "k_line": float(line_stiffness)}
-    if law is not None:
+    if law is not None and hasattr(law, "rigidity"):  # the yarn's own compression law
+        law = law_for_yarn(law, yarn)
+        out["k_contact"] = law.rigidity(yarn)
+        out["k_line"] = line_energy(law, 0.95 * law.outer, law.outer, out["k_contact"], None, derivative=2)
+    elif law is not None:
         dk = yarn.dk
         out["k_contact"] = line_stiffness / line_energy(law, 0.95 * dk, dk, 1.0, 0.0, derivative=2)
         law = law_for_yarn(law, yarn)
@@ -160,13 +170,16 @@ class RodSolver:
     writes_vtu: ClassVar[bool] = True
     #: minutes per run: the conformance kit does not simulate it
     conformance_simulate: ClassVar[bool] = False
+    #: the plugins an option set to "auto" may pick (the sweep's cache hashes them all)
+    auto_plugins: ClassVar[dict[str, tuple[str, ...]]] = {"contact_law": ("rod_shell", "rod_penalty")}
 
     #: rod segments per stitch of yarn; unset: segments no longer than dk/2 (at least 16), -
     segments_per_stitch: int | None = attrs.field(default=None, validator=v.optional(v.in_range(4, 1000)))
     #: linear-solver plugin name or table with ``kind``
     linear_solver: str | dict[str, Any] = "direct"
-    #: rod contact-law plugin name or table with ``kind``
-    contact_law: str | dict[str, Any] = "rod_penalty"
+    #: rod contact-law plugin name or table with ``kind``; "auto": ``rod_shell`` for a yarn whose record has a
+    #: compression law (shell and core diameters, k, p), else ``rod_penalty``
+    contact_law: str | dict[str, Any] = "auto"
     #: steps growing the contact radius, -
     prestress_steps: int = attrs.field(default=8, validator=v.in_range(1, 1000))
     #: yarn rest shape during the pre-stress: straight throughout, or the knitted shape released to straight;
@@ -224,14 +237,14 @@ class RodSolver:
         registry = registry or get_registry()
         instantiate(registry, "linear_solver", self.linear_solver, "solver.linear_solver")
         yarn_model(registry, fabric.yarn)
-        law = self.make_contact_law(registry)
+        law = law_for_yarn(self.make_contact_law(registry, fabric.yarn), fabric.yarn)
         own = rod_stiffness(fabric.yarn, registry)
         try:
             v.near_own("EA", self.EA, own["EA"], "N")
             v.near_own("EI", self.EI, own["EI"], "N·mm²")
             for key, value in (
                 ("contact_stiffness", self.contact_stiffness),
-                ("contact_law.stiffness", law.stiffness),
+                ("contact_law.stiffness", getattr(law, "stiffness", None)),
             ):
                 v.near_own(key, value, own["k_line"], "N/mm²")
         except FieldError as e:
@@ -252,15 +265,23 @@ class RodSolver:
             E0 = energy(q, 0)[0]
         if np.isfinite(E0):
             return None
-        d_min = float(energy.pairs(q).distance.min(initial=cell.dk))
+        d_min = float(energy.pairs(q).distance.min(initial=energy.dk))
         return (
             f"rod: the knitted centerlines overlap (closest centre distance {d_min:.4g} mm < "
-            f"{energy.law.core * cell.dk:.4g} mm); add 'prestress' to scene.effects"
+            f"{energy.core:.4g} mm); add 'prestress' to scene.effects"
         )
 
-    def make_contact_law(self, registry=None) -> Any:
-        """The rod contact law named by ``contact_law``; ConfigError if it is unknown or not for rods."""
-        law = instantiate(registry or get_registry(), "contact_law", self.contact_law, "solver.contact_law")
+    def make_contact_law(self, registry=None, yarn=None) -> Any:
+        """The rod contact law named by ``contact_law``; ConfigError if it is unknown or not for rods.
+
+        ``"auto"`` is ``rod_shell`` for a ``yarn`` whose record has a compression law, else
+        ``rod_penalty``.
+        """
+        name = self.contact_law
+        if name == "auto":
+            shell, penalty = self.auto_plugins["contact_law"]
+            name = shell if yarn is not None and yarn.has_compression_law else penalty
+        law = instantiate(registry or get_registry(), "contact_law", name, "solver.contact_law")
         if law.discretisation != "rod":
             raise ConfigError(
                 "solver.contact_law", f"contact law '{law.name}' is for '{law.discretisation}', not rods"
@@ -272,7 +293,7 @@ class RodSolver:
         registry = registry or get_registry()
         cell = unit_cell(fabric, registry)
         model = from_cell(cell, self.segments(cell))
-        law = self.make_contact_law(registry) if "contact" in scene.effects else None
+        law = self.make_contact_law(registry, fabric.yarn) if "contact" in scene.effects else None
         law = law_for_yarn(law, fabric.yarn)
         stiff = rod_stiffness(
             fabric.yarn,
@@ -280,6 +301,8 @@ class RodSolver:
             law,
             line_stiffness=self.contact_stiffness or getattr(law, "stiffness", None),
         )
+        # the contact distance: dk, or the shell diameter of a law that reads the yarn's compression law
+        contact_dk = float(getattr(law, "outer", None) or cell.dk)
         EI, GA = stiff["EI"], 0.0
         if self.shear == "effective":
             EI = effective_bending(fabric.yarn, cell.arc_length_per_stitch)
@@ -292,8 +315,8 @@ class RodSolver:
             self.EI or EI,
             bending="bending" in scene.effects,
             law=law,
-            dk=cell.dk,
-            dk_full=cell.dk,
+            dk=contact_dk,
+            dk_full=contact_dk,
             k_contact=stiff.get("k_contact", 0.0),
             k_core=stiff.get("k_core"),
             self_contact="self_contact" in scene.effects,

@@ -86,7 +86,7 @@ class RodRun(MultiStart):
         self.relax_free = self.base_free.copy()
         self.relax_free[m0:] = ~lat.constraints(None, None)[0]
         self.kappa_knitted = model.curvature(np.zeros(model.n_dof))
-        self.dk_full = cell.dk
+        self.dk_full = float(energy.dk_full or cell.dk)
         # what a checkpoint carries besides q, rows and the starts' relaxed states, so a resumed run
         # retraces the same path: relaxed_step is the step index of the relaxed lattice (a fallback to
         # another start rewrites the steps from there); snaps are the jumps the load path kept
@@ -501,6 +501,7 @@ class RodRun(MultiStart):
                 "EI_Nmm2": energy.EI,
                 "k_line_N_per_mm2": energy.k_line,
                 "dk_mm": cell.dk,
+                "contact_distance_mm": self.dk_full,
                 "L1_mm": lat.L1.tolist(),
                 "L2_mm": lat.L2.tolist(),
                 "effects": sorted(scene.effects),

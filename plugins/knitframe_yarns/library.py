@@ -80,6 +80,10 @@ YARNS = (
         bending_stiffness=0.045,
         tex=502.0,
         fibre_density=1.17,
+        shell_diameter=1.48,
+        core_diameter=0.65,
+        compression_k=0.0006,
+        compression_p=2.4,
         measured=("E_axial", "bending_stiffness"),
         model="transverse_isotropic",
         source="Acrylic worsted (Knit Picks Brava Worsted, 100 % acrylic), "
@@ -89,7 +93,9 @@ YARNS = (
         "of this yarn (sabetta/stitch-by-stitch, code/fabric_simulations/*config.dat, 'acrylic params'); "
         "d0 = dk = 0.95 mm estimated from the count (label: 100 g per 218 yd, about 502 tex) "
         "as a round yarn 60 % fibre by volume (Peirce's packing for cotton) of acrylic fibre 1.17 g/cm3; "
-        "E_transverse = 1e-4 E_axial (the paper's ratio for cotton and nylon, an estimate); nu assumed",
+        "E_transverse = 1e-4 E_axial (the paper's ratio for cotton and nylon, an estimate); nu assumed; "
+        "compression law (contact law rod_shell) = that of Singal et al.'s jersey simulation of this yarn "
+        "(stockinetteconfig.dat): shell 2 x 0.74 mm, core 2 x 0.325 mm, k = 0.0006 N/mm3, p = 2.4",
     ),
     Yarn(
         name="pet",
