@@ -215,6 +215,10 @@ def lateral(r: Response) -> tuple[np.ndarray, np.ndarray]:
     return by_strain(axial - 1.0, side - 1.0)
 
 
+#: a simulated uniaxial curve whose tension falls below −this × its largest |tension| is suspect, -
+NEGATIVE_TENSION = 1e-3
+
+
 def validate_uniaxial(
     simulated: Response, measured: Response, *, lateral_at: float = LATERAL_AT
 ) -> dict[str, float | None]:
@@ -228,7 +232,9 @@ def validate_uniaxial(
     * ``lateral_at``: the axial strain where the lateral strains are compared, ``lateral_at`` or the
       end of the shorter curve; ``lateral_simulated`` and ``lateral_measured``: the lateral
       engineering strain there (negative: the side contracts);
-    * ``simulated_to`` and ``measured_to``: the largest axial strain of each curve.
+    * ``simulated_to`` and ``measured_to``: the largest axial strain of each curve;
+    * ``suspect``: None, or why the simulated curve is suspect: a pulled fabric that pushes back
+      (a tension below −:data:`NEGATIVE_TENSION` × its largest |tension| at a positive strain).
 
     Raises ValueError when the loads differ or are not uniaxial.
     """
@@ -252,6 +258,12 @@ def validate_uniaxial(
         "nrmse": nrmse,
     }
     out.update({f"ratio_{100 * e:.0f}": ratios.get(f"{100 * e:.0f} %") for e in COMPARE_AT})
+    pushes = np.flatnonzero((es > 0) & (Ts < -NEGATIVE_TENSION * np.abs(Ts).max(initial=0.0)))
+    out["suspect"] = (
+        f"negative tension {Ts[pushes[0]]:.3g} N/mm at {100 * es[pushes[0]]:.3g} % strain while pulled"
+        if len(pushes)
+        else None
+    )
     ls_e, ls = lateral(simulated)
     ls_e, ls = from_origin(ls_e, ls)
     lm_e, lm = lateral(measured)
@@ -311,6 +323,8 @@ def plot_validation(path: Path, panels: Sequence[dict], *, title: str = "", colu
                     f"lateral at {100 * m['lateral_at']:.0f} %: {m['lateral_simulated']:+.3f} sim, "
                     f"{m['lateral_measured']:+.3f} meas"
                 )
+            if m.get("suspect"):
+                lines.append(f"suspect: {m['suspect']}")
             ax.text(
                 0.03,
                 0.97,

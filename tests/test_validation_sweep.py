@@ -95,6 +95,19 @@ def test_validate_uniaxial_on_curves_with_known_answers():
     assert m["ratio_20"] is None and m["lateral_at"] == pytest.approx(0.12)
     with pytest.raises(ValueError):
         validate_uniaxial(uniaxial("uniaxial-course", e, -0.3 * e, e), mea)
+    assert m["suspect"] is None
+
+
+def test_a_pulled_fabric_that_pushes_back_is_suspect():
+    """A simulated tension below zero at a positive strain marks the curve suspect, with where; not noise."""
+    e = np.linspace(0.0, 0.4, 41)
+    mea = uniaxial("uniaxial-course", e, -0.3 * e, 0.5 * e)
+    s = e[5::5]
+    pushes = uniaxial("uniaxial-course", s, -0.3 * s, s * (s - 0.15))  # negative up to 15 %
+    m = validate_uniaxial(pushes, mea)
+    assert m["suspect"] == "negative tension -0.005 N/mm at 5 % strain while pulled"
+    noise = uniaxial("uniaxial-course", s, -0.3 * s, s - 0.05 - 1e-6)  # -1e-6 at 5 %, largest 0.35
+    assert validate_uniaxial(noise, mea)["suspect"] is None
 
 
 # ------------------------------------------------------------------------------------ a short run

@@ -50,6 +50,7 @@ VALIDATION_COLUMNS = (
     "lateral_at",
     "lateral_simulated",
     "lateral_measured",
+    "suspect",
 )
 
 
@@ -129,6 +130,9 @@ def validation_headline(curves: list[dict[str, Any]]) -> str:
     """The measured tests in one line: how many were simulated and the spread of the tension ratios."""
     done = [c for c in curves if c["measured_status"] == "done"]
     text = f"{len(done)} of {len(curves)} measured tests simulated"
+    suspect = [c for c in done if c.get("suspect")]
+    if suspect:
+        text += f" ({len(suspect)} suspect: see the column suspect of validation.csv)"
     for key in ("ratio_10", "ratio_20", "ratio_30"):
         values = [c[key] for c in done if c[key] is not None]
         if values:

@@ -50,12 +50,14 @@ class RodShell(CenterlineLaw):
     friction: float = attrs.field(default=0.3, validator=v.in_range(0.0, 10.0))
     #: regularisation slip ε_s / D, -
     slip: float = attrs.field(default=0.01, validator=v.in_range(0.0, 1.0, lo_open=True))
-    #: core diameter / shell diameter, -; set from the yarn (:meth:`for_yarn`)
-    core: float | None = attrs.field(default=None, init=False)
-    #: exponent p, -; set from the yarn
-    exponent: float | None = attrs.field(default=None, init=False)
-    #: shell diameter D, mm: the rod's contact distance; set from the yarn
+    #: core diameter / shell diameter, -; set from the yarn (:meth:`for_yarn`); until then acrylic's
+    core: float = attrs.field(default=0.65 / 1.48, init=False)
+    #: exponent p, -; set from the yarn; until then acrylic's
+    exponent: float = attrs.field(default=2.4, init=False)
+    #: shell diameter D, mm: the rod's contact distance; set from the yarn (None until then)
     outer: float | None = attrs.field(default=None, init=False)
+    #: the law's stiffness comes from the yarn's compression law (:meth:`rigidity`), never from here
+    stiffness: None = attrs.field(default=None, init=False)
 
     def for_yarn(self, yarn, path: str = "solver.contact_law") -> RodShell:
         """This law with the yarn's shell, core and exponent; ConfigError if the yarn has no such law."""
@@ -90,8 +92,6 @@ class RodShell(CenterlineLaw):
 
         Returns ``(φ, dφ/dd, d²φ/dd²)``, each (m,); φ is +inf at or inside the core.
         """
-        if self.core is None or self.exponent is None:
-            raise RuntimeError("rod_shell: call for_yarn(yarn) first")
         d = np.asarray(d, dtype=np.float64)
         p = self.exponent
         dd = (1.0 - self.core) * dk
