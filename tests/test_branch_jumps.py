@@ -77,8 +77,27 @@ def test_a_tension_that_falls_while_its_stretch_grows_is_a_snap():
         -1e-4,
     )  # a fall of 2e-4 N/mm when the path reaches 3 N/mm: below 1 % of the largest
     assert tension_drops(np.column_stack([lam, lam, tiny, T2]), eq) == []
-    # a uniaxial path is branch_jumps' business
+    # uniaxial: only the loaded direction (the free side's jumps are branch_jumps' business)
     assert (
         tension_drops(np.column_stack([lam, lam, T1, T2_snap]), LoadPath(kind="uniaxial", direction="course"))
         == []
     )
+    (drop,) = tension_drops(
+        np.column_stack([lam, lam, T2_snap, T1]), LoadPath(kind="uniaxial", direction="course")
+    )
+    assert drop["step"] == 9 and drop["direction"] == "course"
+
+
+def test_a_pulled_cell_that_sticks_then_slips_is_flagged():
+    """Pearl-cotton garter along the course with friction (rod, 2026-11-27): the tension rose to 0.011 N/mm
+    at 5 %, fell to -0.005 at 10 % while the free side moved by less than a jump."""
+    from knitframe_solvers.rod_branches import branch_jumps, tension_drops
+
+    lam1 = np.array([1.05, 1.10, 1.15, 1.20])
+    lam2 = np.array([0.967, 0.922, 0.826, 0.809])
+    T1 = np.array([0.01076, -0.00545, -0.00135, 0.00325])
+    load = LoadPath(kind="uniaxial", direction="course", max_strain=0.2, steps=4)
+    rows = np.column_stack([lam1, lam2, T1, np.zeros(4)])
+    assert branch_jumps(rows, load) == []  # at most 0.096 of free against 0.05 loaded: under 3x, no jump
+    (drop,) = tension_drops(rows, load)
+    assert drop == {"step": 2, "direction": "course", "from": 0.01076, "to": -0.00545, "kind": "tension drop"}

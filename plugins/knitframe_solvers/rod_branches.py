@@ -2,10 +2,10 @@
 
 Stiff yarns in tight cells are multistable, and a load path may snap from its branch of
 equilibria to another. Under a uniaxial load the free side's stretch jumps (:func:`branch_jumps`,
-cut back by the load path's ``follow_branch`` with :func:`is_jump`); with no free side a
-tension falls while its stretch grows (:func:`tension_drops`). :func:`locate_jumps` attaches where
-within a load step a kept snap happened, and :func:`flag_jumps` turns all of them into the
-run's warnings.
+cut back by the load path's ``follow_branch`` with :func:`is_jump`); and a tension falls while
+its stretch grows (:func:`tension_drops`: both tensions with no free side, the loaded one of a
+uniaxial path). :func:`locate_jumps` attaches where within a load step a kept snap happened,
+and :func:`flag_jumps` turns all of them into the run's warnings.
 """
 
 from __future__ import annotations
@@ -72,7 +72,7 @@ def branch_jumps(
 def tension_drops(
     rows: np.ndarray, load: Any, *, fraction: float = DROP_FRACTION, floor: float = DROP_FLOOR
 ) -> list[dict[str, Any]]:
-    r"""Load steps of a path with no free side (equibiaxial, general) where a tension falls.
+    r"""Load steps of a path where a tension falls while its stretch grows.
 
     ``rows`` holds (λ1, λ2, T1, T2) per converged load step. Along a direction d whose stretch
     grows in step k (Δλ_d > 0), the step is a snap to another equilibrium state when its tension
@@ -80,15 +80,21 @@ def tension_drops(
     the path's largest |T|:
     :math:`T_d^{k-1} - T_d^{k} > \max(\mathrm{fraction}\,|T_d^{k-1}|, \mathrm{floor}\,\max|T|)`.
     A cell that stays on one branch stiffens or softens smoothly under a growing stretch; its
-    tension does not fall. Uniaxial paths are checked by :func:`branch_jumps` instead.
+    tension does not fall. Under a uniaxial load only the loaded direction is checked (the free
+    side carries no tension; its jumps are :func:`branch_jumps`'): a pulled cell that sticks and
+    then slips, say with friction, drops its tension this way with its free side moving less
+    than a jump.
     """
-    if getattr(load, "kind", None) == "uniaxial" or len(rows) == 0:
+    if len(rows) == 0:
         return []
     lam = np.vstack([[1.0, 1.0], rows[:, :2]])
     T = np.vstack([[0.0, 0.0], rows[:, 2:4]])
     scale = floor * float(np.max(np.abs(T)))
     out = []
-    for d, name in ((0, "course"), (1, "wale")):
+    directions = ((0, "course"), (1, "wale"))
+    if getattr(load, "kind", None) == "uniaxial":
+        directions = directions[:1] if load.direction == "course" else directions[1:]
+    for d, name in directions:
         grows = np.diff(lam[:, d]) > 0
         fall = T[:-1, d] - T[1:, d]
         for k in np.flatnonzero(grows & (fall > np.maximum(fraction * np.abs(T[:-1, d]), scale))):
