@@ -77,3 +77,29 @@ def test_an_unknown_shear_mode_names_the_key():
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # and the default stays the effective stiffness
         assert get_registry()["solver"]["rod"]().shear == "effective"
+
+
+def test_a_resumed_run_judges_the_shear_of_its_whole_path(tmp_path):
+    """The largest shear angle of every load step is checkpointed: a run killed in its second load step
+    and resumed reports the angles of all three steps, as the run that was not interrupted does."""
+
+    class Killed(Exception):
+        pass
+
+    def die(done, total, message):
+        if message.startswith("load step 2"):
+            raise Killed
+
+    reg = get_registry()
+    fabric = Fabric(pattern="jersey", yarn=reg["yarn"]["pet"], stitch_length=11)
+    scene = Scene(load=LoadPath(kind="equibiaxial", max_strain=0.06, steps=3), effects=EFFECTS)
+    rod = reg["solver"]["rod"](starts=1, shear="resolved")
+    whole = rod.simulate(fabric, scene).provenance.extra
+    with pytest.raises(Killed):
+        rod.simulate(fabric, scene, progress=die, checkpoint_dir=tmp_path)
+    resumed = rod.simulate(fabric, scene, checkpoint_dir=tmp_path).provenance.extra
+    assert len(whole["max_shear_angle_by_step_deg"]) == 3
+    assert resumed["max_shear_angle_by_step_deg"] == pytest.approx(
+        whole["max_shear_angle_by_step_deg"], rel=1e-6
+    )
+    assert resumed["max_shear_angle_deg"] == max(resumed["max_shear_angle_by_step_deg"])

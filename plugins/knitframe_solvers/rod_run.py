@@ -102,6 +102,7 @@ class RodRun(MultiStart):
             "start_chosen": None,
             "relaxed_step": None,
             "snaps": [],
+            "shear_deg": [],  # the largest shear angle of each load step (with directors)
         }
         # the relaxed state of every start (row i: state["starts"][i]; NaN where it did not converge)
         self.start_states = np.zeros((0, model.n_dof))
@@ -182,7 +183,17 @@ class RodRun(MultiStart):
         return self.response()
 
     def accept(self, phase: str, index: int, q: np.ndarray, message: str, done: int) -> None:
+        if phase == "load":
+            self.record_shear(index, q)
         self.run.accept(phase, index, q, message, done)
+
+    def record_shear(self, index: int, q: np.ndarray) -> None:
+        """Keep load step ``index``'s largest shear angle in the checkpointed state, so a resumed run
+        judges its whole path; index −1 (the relaxed lattice) begins a path. Only with directors."""
+        if self.model.directors is None:
+            return
+        kept = list(self.state.get("shear_deg") or [])[: max(index, 0)]
+        self.state["shear_deg"] = kept + ([float(self.model.shear_angles(q).max())] if index >= 0 else [])
 
     # ---------------------------------------------------------------------------------- Newton
     def step_norm(self, dx: np.ndarray) -> float:
@@ -440,6 +451,7 @@ class RodRun(MultiStart):
     def on_load_step(self, k: int, res: NewtonResult) -> None:
         self.follow["cut"] = False
         self.path_states.append(res.x)
+        self.record_shear(k - 1, res.x)  # before the step is accepted and checkpointed
 
     def follow_load(self, t_at: float, q_at: np.ndarray) -> None:
         """The load path from load time ``t_at`` and state ``q_at`` to its end; NumericalError if it fails."""
@@ -518,6 +530,7 @@ class RodRun(MultiStart):
                 "bending_wavenumber_per_mm": self.bending_wavenumber(),
                 "effective_bending_wavenumber_per_mm": 2.0 * np.pi / float(cell.arc_length_per_stitch),
                 "max_shear_angle_deg": shear,
+                "max_shear_angle_by_step_deg": list(self.state.get("shear_deg") or []) or None,
             },
         )
 
@@ -534,11 +547,12 @@ class RodRun(MultiStart):
             return None
 
     def max_shear_angle(self) -> float | None:
-        """The largest angle between a segment and its director over the load path's states, degrees.
+        """The largest angle between a segment and its director over the load path's steps, degrees.
 
-        None for a rod without directors.
+        None for a rod without directors. A resumed run includes the steps before the resume (they
+        are in the checkpointed state).
         """
-        model = self.model
-        if model.directors is None or not self.path_states:
+        angles = self.state.get("shear_deg") or []
+        if self.model.directors is None or not angles:
             return None
-        return max(float(model.shear_angles(q).max()) for q in self.path_states)
+        return max(angles)
