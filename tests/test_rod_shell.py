@@ -112,6 +112,11 @@ def test_a_yarn_without_the_law_is_refused_before_any_work(tmp_path):
     with pytest.raises(ConfigError) as e:
         rod.validate(fabric, scene, reg)
     assert e.value.path == "solver.contact_law" and "cotton" in str(e.value)
+    acrylic = Fabric(pattern="jersey", arc_length=11.28, yarn=reg["yarn"]["acrylic"])
+    with pytest.raises(ConfigError) as e:  # the law's stiffness is the record's k: no override
+        reg["solver"]["rod"](contact_stiffness=0.01).validate(acrylic, scene, reg)
+    assert e.value.path == "solver.contact_stiffness" and "compression_k" in str(e.value)
+    reg["solver"]["rod"](contact_law="rod_penalty", contact_stiffness=0.004).validate(acrylic, scene, reg)
     cfg = tmp_path / "cell.toml"
     cfg.write_text(
         '[fabric]\npattern = "jersey"\nstitch_length = 11\nyarn = "cotton"\n'

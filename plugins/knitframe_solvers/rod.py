@@ -238,6 +238,12 @@ class RodSolver:
         instantiate(registry, "linear_solver", self.linear_solver, "solver.linear_solver")
         yarn_model(registry, fabric.yarn)
         law = law_for_yarn(self.make_contact_law(registry, fabric.yarn), fabric.yarn)
+        if self.contact_stiffness is not None and hasattr(law, "rigidity"):
+            raise ConfigError(
+                "solver.contact_stiffness",
+                f"contact law '{law.name}' takes its stiffness from the yarn's compression law "
+                "(compression_k); leave contact_stiffness unset, or set contact_law = 'rod_penalty'",
+            )
         own = rod_stiffness(fabric.yarn, registry)
         try:
             v.near_own("EA", self.EA, own["EA"], "N")
