@@ -142,20 +142,26 @@ def test_two_step_counts_end_on_one_branch_or_say_where_they_switched():
 
 
 @pytest.mark.slow
-def test_following_the_branch_gives_one_path_and_one_snap_for_two_step_counts():
-    """With ``follow_branch`` (default) both step counts follow the same branch and snap at the same place.
+def test_following_the_branch_gives_one_path_for_two_step_counts():
+    """With ``follow_branch`` (default) both step counts follow the same branch to the same end.
 
-    The last converged loaded stretch λa before the snap agrees within the 10-step run's smallest
-    increment, 0.03 / 64; the final tension agrees to 1 %. (77 s on a busy 2-core machine.)
+    The final tension agrees to 1 % and the free stretch to 0.01; a snap that either run keeps is kept
+    by both, at the same loaded stretch within the 10-step run's smallest increment, 0.03 / 64. The
+    course tension of this cell falls just after the relaxed state (0.0006 -> -0.0014 N/mm by 7.5 %
+    strain, 2026-11-27): both runs flag it, where it happens. (77 s on a busy 2-core machine.)
     """
     a, b = garter_runs()
     assert a.T1[-1] == pytest.approx(b.T1[-1], rel=0.01) and a.lambda2[-1] == pytest.approx(
         b.lambda2[-1], abs=0.01
     )
     ja, jb = ([j for j in r.provenance.extra["branch_jumps"] if "at_loaded_stretch" in j] for r in (a, b))
-    assert len(ja) == len(jb) >= 1
+    assert len(ja) == len(jb)
     for x, y in zip(ja, jb):
         assert abs(x["at_loaded_stretch"][0] - y["at_loaded_stretch"][0]) <= 0.03 / 64
+    for r in (a, b):
+        drops = [j for j in r.provenance.extra["branch_jumps"] if j.get("kind") == "tension drop"]
+        assert drops and all(j["direction"] == "course" and j["to"] < j["from"] for j in drops)
+        assert all(1.0 < r.lambda1[j["step"] - 1] <= 1.15 for j in drops)
 
 
 # ------------------------------------------------------------------------------------------------------------
@@ -406,12 +412,13 @@ def test_when_every_start_fails_the_run_fails_or_keeps_the_furthest(monkeypatch)
 
 
 @pytest.mark.slow
-def test_garter_pearl_cotton_finishes_from_the_next_start():
-    """The case that failed from the lowest start: garter pearl cotton, free sides, course to 0.58317 in 12
-    steps.
+def test_garter_pearl_cotton_finishes_from_the_lowest_start_or_the_next():
+    """Garter pearl cotton, free sides, course to 0.58317 in 12 steps: the run finishes, from the lowest start
+    or, if that start's load path fails, from the next, saying which start failed and why.
 
-    The lowest-energy relaxed state cannot be pulled past about 12 % strain; the run continues
-    from the next start, finishes, and says which start failed and why.
+    Until 2026-11 the lowest-energy relaxed state could not be pulled past about 12 % strain here and the
+    run fell back; with today's records it finishes from the lowest. The fallback itself is checked on
+    every run by the monkeypatched tests above.
     """
     fab = Fabric(yarn=get_registry()["yarn"]["pearl-cotton"], **GARTER)
     r, warned = run_recording_warnings(
@@ -421,7 +428,8 @@ def test_garter_pearl_cotton_finishes_from_the_next_start():
     starts = extra["starts"]
     lowest = min((k for k, s in enumerate(starts) if s["converged"]), key=lambda k: starts[k]["energy_Nmm"])
     assert r.provenance.converged and len(r) == 12 and r.lambda1[-1] == pytest.approx(1.58317, rel=1e-9)
-    assert extra["start_chosen"] != starts[lowest]["name"]
-    assert "load_error" in starts[lowest] and "Newton" in starts[lowest]["load_error"]
-    assert sum("could not follow the load path" in w for w in warned) == 1
+    fell_back = extra["start_chosen"] != starts[lowest]["name"]
+    assert sum("could not follow the load path" in w for w in warned) == int(fell_back)
+    if fell_back:
+        assert "load_error" in starts[lowest] and "Newton" in starts[lowest]["load_error"]
     assert np.all(np.isfinite(r.T1)) and r.T1[-1] > 0

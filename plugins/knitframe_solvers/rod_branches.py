@@ -157,9 +157,9 @@ def flag_jumps(
     drops = tension_drops(rows, load)
     for j in drops:
         warn(
-            f"{where}: load step {j['step']} snapped to another equilibrium state: the {j['direction']} "
-            f"tension fell {j['from']:.4g} -> {j['to']:.4g} N/mm while its stretch grew; the curve after it "
-            "is another state"
+            f"{where}: load step {j['step']}: the {j['direction']} tension fell {j['from']:.4g} -> "
+            f"{j['to']:.4g} N/mm while its stretch grew: the cell lost its stiffness or snapped to another "
+            "state there, so the curve from there is suspect"
         )
     jumps = sorted(jumps + drops, key=lambda j: j["step"])
     for j in (j for j in jumps if "free" in j):
