@@ -116,10 +116,9 @@ def point_modules(job: dict[str, Any]) -> list[str]:
     choices = getattr(solver, "auto_plugins", {})  # option -> the plugins its "auto" may pick
     for key, value in job["solver"].items():  # options that name plugins: linear_solver, contact_law, ...
         name = value.get("kind") if isinstance(value, dict) else value
-        names = choices.get(key, ()) if name == "auto" else (name,)
-        for name in names:
-            if isinstance(name, str):
-                found += [_plugin_module(reg, kind, name) for kind in ("linear_solver", "contact_law")]
+        for plugin in choices.get(key, ()) if name == "auto" else (name,):
+            if isinstance(plugin, str):
+                found += [_plugin_module(reg, kind, plugin) for kind in ("linear_solver", "contact_law")]
     return sorted({m for m in found if m})
 
 

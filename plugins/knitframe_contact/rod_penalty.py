@@ -40,14 +40,14 @@ from knitframe import validators as v
 from knitframe.numerics.contact.friction import friction_potential
 
 
+@attrs.frozen
 class CenterlineLaw:
-    """What every rod contact law derives from its ``normal(d, dk, k, k_core)``, and its friction.
+    """What every rod contact law derives from its ``normal(d, dk, k, k_core)``, and its friction."""
 
-    A subclass has the attrs fields ``friction`` (μ) and ``slip`` (ε_s/dk).
-    """
-
-    friction: float
-    slip: float
+    #: Coulomb coefficient μ, -
+    friction: float = attrs.field(default=0.3, validator=v.in_range(0.0, 10.0))
+    #: regularisation slip ε_s / the contact distance, -
+    slip: float = attrs.field(default=0.01, validator=v.in_range(0.0, 1.0, lo_open=True))
 
     def force(self, d: np.ndarray, dk: float, k: float, k_core: float | None = None) -> np.ndarray:
         """Repulsion −de/dd at centre distances d (mm); zero when d ≥ dk."""
@@ -80,10 +80,6 @@ class RodPenalty(CenterlineLaw):
     smoothing: float = attrs.field(default=0.05, validator=v.in_range(1e-3, 1.0))
     #: smallest centre distance / dk (0: no barrier), -; default: the yarn's compaction limit J_min
     core: float | None = attrs.field(default=None, validator=v.optional(v.in_range(0.0, 1.0, hi_open=True)))
-    #: Coulomb coefficient μ, -
-    friction: float = attrs.field(default=0.3, validator=v.in_range(0.0, 10.0))
-    #: regularisation slip ε_s / dk, -
-    slip: float = attrs.field(default=0.01, validator=v.in_range(0.0, 1.0, lo_open=True))
 
     def normal(
         self, d: np.ndarray, dk: float, k: float, k_core: float | None = None

@@ -31,7 +31,6 @@ import attrs
 import numpy as np
 
 from knitframe import hookimpl
-from knitframe import validators as v
 from knitframe.errors import ConfigError
 from knitframe_contact.rod_penalty import CenterlineLaw
 
@@ -46,10 +45,6 @@ class RodShell(CenterlineLaw):
     )
     discretisation: ClassVar[str] = "rod"
 
-    #: Coulomb coefficient μ, -
-    friction: float = attrs.field(default=0.3, validator=v.in_range(0.0, 10.0))
-    #: regularisation slip ε_s / D, -
-    slip: float = attrs.field(default=0.01, validator=v.in_range(0.0, 1.0, lo_open=True))
     #: core diameter / shell diameter, -; set from the yarn (:meth:`for_yarn`); until then acrylic's
     core: float = attrs.field(default=0.65 / 1.48, init=False)
     #: exponent p, -; set from the yarn; until then acrylic's
