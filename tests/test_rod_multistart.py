@@ -433,3 +433,65 @@ def test_garter_pearl_cotton_finishes_from_the_lowest_start_or_the_next():
     if fell_back:
         assert "load_error" in starts[lowest] and "Newton" in starts[lowest]["load_error"]
     assert np.all(np.isfinite(r.T1)) and r.T1[-1] > 0
+
+
+def failing_nominal_prestress(monkeypatch):
+    """Make the nominal start's pre-stress fail from every rest shape; the other starts' are the real ones.
+
+    The nominal start's pre-stress is the one run without a ``label`` (the others carry theirs).
+    """
+    from knitframe_solvers.rod_run import RodRun
+
+    real = RodRun.run_prestress
+
+    def run_prestress(self, start, *args, label=None, **kwargs):
+        if label is None:
+            raise NumericalError(f"pre-stress ({start} start): forced failure")
+        return real(self, start, *args, label=label, **kwargs)
+
+    monkeypatch.setattr(RodRun, "run_prestress", run_prestress)
+
+
+def test_a_failed_nominal_prestress_continues_from_another_start(monkeypatch, jersey_two_starts):
+    """The nominal pre-stress fails: the other starts are still tried, and the run continues from one.
+
+    With ``prestress_start = "straight"`` the second start (the knitted rest shape) is another path,
+    so it is tried; its relaxed state is the one the same start reaches when the nominal converges.
+    """
+    failing_nominal_prestress(monkeypatch)
+    r, warned = run_recording_warnings(jersey_cotton(), TWO_STEPS, starts=2, prestress_start="straight")
+    extra = r.provenance.extra
+    nominal, other = extra["starts"]
+    assert not nominal["converged"] and "forced failure" in nominal["error"]
+    assert other["converged"] and extra["start_chosen"] == "other rest shape"
+    _, multi = jersey_two_starts
+    assert other["energy_Nmm"] == pytest.approx(multi.provenance.extra["starts"][1]["energy_Nmm"], rel=1e-6)
+    assert r.provenance.converged and len(r) == 2 and np.all(np.isfinite(r.T1))
+    said = [w for w in warned if "the nominal pre-stress failed" in w]
+    assert len(said) == 1 and "continued from the start 'other rest shape'" in said[0]
+
+
+def test_when_no_start_can_be_prestressed_the_error_names_each(monkeypatch):
+    """Every start's pre-stress fails: one line naming each start and why. With ``starts = 1`` the
+    nominal start's own error, as before; with "auto" every start of the set has been tried."""
+    from knitframe_solvers.rod_run import RodRun
+
+    def failing(self, start, *args, label=None, **kwargs):
+        raise NumericalError(f"pre-stress{label or ''} ({start} start): forced failure")
+
+    monkeypatch.setattr(RodRun, "run_prestress", failing)
+    with pytest.raises(NumericalError) as one:
+        run_recording_warnings(jersey_cotton(), TWO_STEPS, starts=1)
+    with pytest.raises(NumericalError) as auto:
+        run_recording_warnings(jersey_cotton(), TWO_STEPS)
+    assert "no start" not in str(one.value)
+    assert str(one.value).startswith(
+        "rod solver (jersey, cotton): pre-stress (straight start): forced failure"
+    )
+    text = str(auto.value)
+    assert "\n" not in text and text.startswith(
+        "rod solver (jersey, cotton): no start could be pre-stressed: "
+    )
+    named = re.findall(r"'([a-z -]+)' ", text)
+    assert named == [s.name for s in START_SET]
+    assert "'other rest shape' not tried: the nominal start failed from the knitted shape" in text

@@ -40,8 +40,12 @@ Stiff yarns in tight cells can be multistable: different pre-stress paths relax 
 The solver therefore explores a small documented set of starts
 (:data:`~knitframe_solvers.rod_starts.START_SET`, option ``starts``): each is pre-stressed and
 relaxed, and the load path continues from the one of lowest relaxed energy E = Σ (stretching +
-bending + contact) at zero tension. If that start's load path fails (a NumericalError that would end
-or truncate the run), the path is followed again from the next converged start in order of E
+bending + contact) at zero tension. A start whose pre-stress fails is recorded with its reason; if
+that is the nominal one (from every rest shape of ``prestress_start``), the other starts are tried
+all the same (``starts = "auto"``: all of the set), the run continues from the lowest that
+converged and warns so, and only when none converges does it fail, naming each start's reason.
+If the chosen start's load path fails (a NumericalError that would end or truncate the run), the
+path is followed again from the next converged start in order of E
 (:func:`~knitframe_solvers.rod_starts.fallback_order`; a start within
 :data:`~knitframe_solvers.rod_starts.SAME_ENERGY` of a failed one is the same state and is passed
 over, :func:`~knitframe_solvers.rod_starts.next_start`), and so on: the first start whose path
@@ -187,7 +191,7 @@ class RodSolver:
     prestress_start: Literal["auto", "straight", "knitted"] = "auto"
     #: pre-stress starts explored, the first n of nominal, other rest shape (straight/knitted), 1.5x the
     #: pre-stress steps, loop depth x0.5, x1.5; the load continues from the lowest relaxed energy, or from the
-    #: next if that load path fails; "auto": the first 3
+    #: next if that load path fails; "auto": the first 3, or all 5 if the nominal pre-stress fails
     starts: int | Literal["auto"] = attrs.field(default="auto", validator=start_count)
     #: under a uniaxial load, cut back a step whose free side jumps so the path follows its branch; a jump
     #: left at the smallest increment is flagged with where it happened

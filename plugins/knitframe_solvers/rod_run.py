@@ -305,6 +305,7 @@ class RodRun(MultiStart):
                     if self.solver.prestress_start == "auto"
                     else [self.solver.prestress_start]
                 )
+            failures: list[str] = []
             for k, start in enumerate(starts):
                 state["start"] = start
                 try:
@@ -313,12 +314,18 @@ class RodRun(MultiStart):
                     )
                     break
                 except NumericalError as e:
-                    if k + 1 == len(starts):
-                        raise NumericalError("; after that ".join(notes + [str(e)])) from None
-                    notes.append(str(e))
+                    failures.append(str(e))
                     q, state["target"] = np.zeros(self.model.n_dof), -1
-            if notes:
-                notes[-1] = f"{notes[-1]}; converged from the {state['start']} shape instead"
+                    if k + 1 < len(starts):
+                        continue
+                    message = "; after that ".join(failures)
+                    if self.start_total() == 1:
+                        raise NumericalError(message) from None
+                    # the other starts of START_SET are tried before the run gives up (explore_starts)
+                    state.update(nominal_error=message, nominal_rests=list(starts), start=starts[0])
+                    failures = []
+            if failures:
+                notes.append(f"{'; '.join(failures)}; converged from the {state['start']} shape instead")
             state.update(phase="load", target=-1)
         elif self.energy.law is not None and state["phase"] == "prestress":
             problem = self.solver.knitted_overlap(self.energy, self.cell, q)
@@ -373,9 +380,15 @@ class RodRun(MultiStart):
         """The relaxed lattice (course and wale stretches free, shear zero), of the start of lowest energy."""
         state = self.state
         if state["lam_ref"] is None:  # the lattice the stretches are measured from
-            q = self.relaxed(q)
+            if state.get("nominal_error") is None:
+                try:
+                    q = self.relaxed(q)
+                except NumericalError as e:
+                    if not self.with_prestress or self.start_total() == 1:
+                        raise
+                    state.update(nominal_error=f"relaxing the lattice: {e}", nominal_rests=[state["start"]])
             if self.with_prestress:
-                q = self.explore_starts(q)
+                q = self.explore_starts(None if state.get("nominal_error") else q)
             state.update(
                 lam_ref=self.stretch_of(q),
                 relaxed_energy=float(self.energy(q, 0)[0]),

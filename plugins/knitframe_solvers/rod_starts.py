@@ -151,7 +151,11 @@ class MultiStart:
     (``state``, ``run``, ``energy``, ``run_prestress``, ``relaxed``, ``follow_load``, …).
     """
 
-    def explore_starts(self, q_nominal: np.ndarray) -> np.ndarray:
+    def start_total(self) -> int:
+        """The number of starts this run explores (option ``starts``)."""
+        return AUTO_STARTS if self.solver.starts == "auto" else int(self.solver.starts)
+
+    def explore_starts(self, q_nominal: np.ndarray | None) -> np.ndarray:
         """Pre-stress and relax the other starts of :data:`START_SET`; the state of lowest energy E.
 
         Records every start (rest shape, pre-stress steps, loop depth, converged, E, relaxed
@@ -160,24 +164,35 @@ class MultiStart:
         :data:`SAME_ENERGY` relative, so one state reached twice keeps the earlier start. The
         relaxed states go to ``start_states`` (checkpointed with every later step), from which
         a failed load path falls back to the next start (:func:`fallback_order`).
+
+        ``q_nominal`` None: the nominal start failed (``state["nominal_error"]``, from every rest
+        shape in ``state["nominal_rests"]``). The other starts are tried all the same (with
+        ``starts = "auto"``, all of :data:`START_SET`), the run
+        continues from the lowest of those that converge with a warning saying so, and only when
+        none converges does it fail, naming every start's reason.
         """
         state, energy, model = self.state, self.energy, self.model
-        count = AUTO_STARTS if self.solver.starts == "auto" else int(self.solver.starts)
-        chosen, q_best = 0, q_nominal
-        best = float(energy(q_nominal, 0)[0])
+        count = self.start_total()
+        if q_nominal is None and self.solver.starts == "auto":
+            count = len(START_SET)  # the nominal start failed: "auto" tries the whole set
+        failed_rests = (state.get("nominal_rests") or []) if q_nominal is None else []
+        chosen, q_best, best = None, None, np.inf
         self.start_states = np.full((count, model.n_dof), np.nan)
-        self.start_states[0] = q_nominal
-        entries = [
-            {
-                "name": START_SET[0].name,
-                "rest": state["start"],
-                "prestress_steps": self.solver.prestress_steps,
-                "amplitude": 1.0,
-                "converged": True,
-                "energy_Nmm": best,
-                "relaxed_stretch": self.stretch_of(q_nominal),
-            }
-        ]
+        entry0 = {
+            "name": START_SET[0].name,
+            "rest": state["start"],
+            "prestress_steps": self.solver.prestress_steps,
+            "amplitude": 1.0,
+        }
+        if q_nominal is None:
+            entry0.update(
+                converged=False, energy_Nmm=None, relaxed_stretch=None, error=state["nominal_error"]
+            )
+        else:
+            chosen, q_best, best = 0, q_nominal, float(energy(q_nominal, 0)[0])
+            self.start_states[0] = q_nominal
+            entry0.update(converged=True, energy_Nmm=best, relaxed_stretch=self.stretch_of(q_nominal))
+        entries = [entry0]
         for k, st in enumerate(START_SET[1:count], start=1):
             rest = (
                 state["start"]
@@ -187,6 +202,16 @@ class MultiStart:
             steps = max(1, int(round(st.steps * self.solver.prestress_steps)))
             entry = {"name": st.name, "rest": rest, "prestress_steps": steps, "amplitude": st.amplitude}
             t0 = time.perf_counter()
+            if st.steps == 1.0 and st.amplitude == 1.0 and rest in failed_rests:
+                # the nominal path from this rest shape, which has already failed
+                entry.update(
+                    converged=False,
+                    energy_Nmm=None,
+                    relaxed_stretch=None,
+                    error=f"not tried: the nominal start failed from the {rest} shape",
+                )
+                entries.append({**entry, "wall_time_s": 0.0})
+                continue
             try:
                 q0 = loop_depth_start(model, st.amplitude)
                 qk = self.relaxed(
@@ -208,12 +233,25 @@ class MultiStart:
             else:
                 entry.update(converged=True, energy_Nmm=E, relaxed_stretch=self.stretch_of(qk))
                 self.start_states[k] = qk
-                if E < best - SAME_ENERGY * abs(best):
+                if chosen is None or E < best - SAME_ENERGY * abs(best):
                     chosen, q_best, best = k, qk, E
             finally:
                 energy.dk = self.dk_full
             entries.append({**entry, "wall_time_s": time.perf_counter() - t0})
-        state.update(starts=entries, start_chosen=entries[chosen]["name"])
+        state.update(starts=entries)
+        if chosen is None:
+            raise NumericalError(
+                "no start could be pre-stressed: "
+                + "; ".join(f"'{e['name']}' {first_clause(e['error'])}" for e in entries)
+            )
+        state["start_chosen"] = entries[chosen]["name"]
+        if q_nominal is None:
+            self.run.warn(
+                f"{self.run.where}: the nominal pre-stress failed ({first_clause(state['nominal_error'])}); "
+                f"continued from the start '{entries[chosen]['name']}', the lowest of the "
+                f"{sum(bool(e['converged']) for e in entries)} of {count} starts that converged",
+                stacklevel=5,
+            )
         return q_best
 
     def switch_to(self, k: int) -> np.ndarray:
