@@ -147,11 +147,16 @@ class RodContactLaw(ContactLaw, Protocol):
 
     ``stiffness`` (N/mm², None: from the yarn model) and ``core`` (the smallest centre distance the
     law admits, as a fraction of dk; 0: none; None: the yarn's compaction limit ``Yarn.compaction``)
-    are read by the rod solver.
+    are read by the rod solver, after :meth:`for_yarn` has given the law what it reads from the
+    yarn. Subclass this protocol to inherit the defaults of ``outer``, ``for_yarn`` and
+    ``rigidity``.
     """
 
     stiffness: float | None
     core: float | None
+    #: the contact distance (mm) the law takes from the yarn in :meth:`for_yarn` (``rod_shell``: the
+    #: diameter of the yarn's shell); None: the knitted diameter dk
+    outer: float | None = None
 
     def normal(
         self, d: np.ndarray, dk: float, k: float, k_core: float | None = None
@@ -159,6 +164,25 @@ class RodContactLaw(ContactLaw, Protocol):
         """Energy e and its first and second derivatives in the centre distances d (m,), mm, for
         contact distance dk (mm), stiffness k and core stiffness k_core (default k); e is 0 for
         d >= dk."""
+
+    def for_yarn(self, yarn: Yarn) -> RodContactLaw:
+        """This law with what it reads from the yarn's record; the rod solver uses only what this returns.
+
+        The default: a ``core`` of None becomes the yarn's compaction limit ``yarn.compaction``. A
+        law that needs a record field the yarn lacks raises ConfigError at ``solver.contact_law``.
+        """
+        if self.core is None:
+            import attrs
+
+            return attrs.evolve(self, core=float(yarn.compaction))
+        return self
+
+    def rigidity(self, yarn: Yarn) -> float | None:
+        """The stiffness k (N/mm³) the rod passes to :meth:`normal`, from the yarn's own compression law.
+
+        None (the default): the rod scales k to the yarn model's line-contact stiffness.
+        """
+        return None
 
     def friction_potential(
         self, u: np.ndarray, lam: np.ndarray, dk: float

@@ -97,6 +97,29 @@ def test_kit_catches_a_solid_contact_law_without_its_barrier_members():
         check_contact_law(Bare)
 
 
+def test_kit_catches_a_rod_law_that_ignores_the_yarn():
+    """A rod law whose ``for_yarn`` leaves the core unset fails, and so does a negative ``rigidity``;
+    the shipped law it derives from passes."""
+    from knitframe_contact.rod_penalty import RodPenalty
+
+    from knitframe.testing.solvers import check_contact_law
+
+    check_contact_law(RodPenalty)
+
+    class Careless(RodPenalty):
+        def for_yarn(self, yarn):
+            return self
+
+    class Negative(RodPenalty):
+        def rigidity(self, yarn):
+            return -1.0
+
+    with pytest.raises(AssertionError, match="for_yarn must set the core"):
+        check_contact_law(Careless)
+    with pytest.raises(AssertionError, match="rigidity"):
+        check_contact_law(Negative)
+
+
 def test_kit_catches_a_non_boolean_flag():
     """A declared ClassVar[bool] flag must be True or False."""
     from knitframe.testing.solvers import check_contact_law

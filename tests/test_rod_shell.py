@@ -49,7 +49,7 @@ def test_parallel_yarns_carry_the_line_load_of_the_shell_law():
     """Two straight periodic yarns a distance d apart push each other with −ψ′(d), ψ = ∫ φ(√(d² + τ²)) dτ."""
     law = RodShell().for_yarn(shell_yarn())
     assert_parallel_line_load(
-        law, gap=0.3, dk=0.4, k=RodShell.rigidity(shell_yarn()), k_core=None, segments=20, quadrature=6
+        law, gap=0.3, dk=0.4, k=law.rigidity(shell_yarn()), k_core=None, segments=20, quadrature=6
     )
 
 

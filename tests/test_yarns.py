@@ -300,13 +300,13 @@ def test_compaction_barrier_matches_finite_differences_and_stops_at_the_limit():
 def test_both_solvers_read_the_compaction_limit_and_core_modulus_of_the_record():
     """The rod's contact core is J_min·dk with the yarn's core modulus; the solid's barrier the same J_min."""
     from knitframe_contact.rod_penalty import RodPenalty
-    from knitframe_solvers.rod import law_for_yarn, rod_stiffness
+    from knitframe_solvers.rod import rod_stiffness
 
     reg = get_registry()
     cot = reg["yarn"]["cotton"]
-    law = law_for_yarn(RodPenalty(), cot)
+    law = RodPenalty().for_yarn(cot)
     assert law.core == pytest.approx(cot.compaction)
-    assert law_for_yarn(RodPenalty(core=0.4), cot).core == 0.4  # an explicit core stays
+    assert RodPenalty(core=0.4).for_yarn(cot).core == 0.4  # an explicit core stays
     soft = rod_stiffness(Yarn(**{**cot.to_dict(), "core_modulus": 12.0}), reg, RodPenalty())
     assert soft["k_core"] == pytest.approx(rod_stiffness(cot, reg, RodPenalty())["k_core"] / 100)
     model = reg["yarn_model"]["transverse_isotropic"].from_yarn(cot)

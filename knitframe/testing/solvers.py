@@ -87,6 +87,22 @@ def _check_rod_law(inst: Any) -> None:
         "friction_potential must return D (m,), its gradient (m, 3) and Hessian (m, 3, 3)"
     )
     assert np.all(np.isfinite(D)) and np.all(D >= 0), "the friction potential must be finite and >= 0"
+    _check_rod_law_reads_the_yarn(inst)
+
+
+def _check_rod_law_reads_the_yarn(inst: Any) -> None:
+    """``for_yarn`` returns a rod law of the same kind with a core set (a yarn with every record
+    field, so that no law lacks what it reads); its ``rigidity`` is None or positive, its ``outer``
+    None or a positive distance."""
+    from knitframe.plugins import get_registry
+
+    yarn = get_registry()["yarn"]["acrylic"]  # carries a compression law too
+    law = inst.for_yarn(yarn)
+    assert type(law) is type(inst), f"for_yarn must return a {type(inst).__name__}, got {type(law).__name__}"
+    assert law.core is not None, "for_yarn must set the core (None means the yarn's compaction limit)"
+    k = law.rigidity(yarn)
+    assert k is None or (np.isfinite(k) and k > 0), f"rigidity(yarn) must be None or positive, got {k!r}"
+    assert law.outer is None or law.outer > 0, f"outer must be None or a positive distance, got {law.outer!r}"
 
 
 def _check_solid_law(inst: Any) -> None:
@@ -106,7 +122,7 @@ def check_contact_law(obj: Any) -> None:
     For ``discretisation == "rod"`` (:class:`~knitframe.interfaces.RodContactLaw`):
     ``normal(d, dk, k) -> (e, e', e'')`` vectorised over centre distances d; e = 0 for d ≥ dk,
     e ≥ 0, the force −e′ ≥ 0 grows as d shrinks, e′ and e″ match finite differences, and nothing
-    is NaN; ``friction_potential`` is finite. For ``"solid"``
+    is NaN; ``friction_potential`` is finite; ``for_yarn`` returns the law with its core set. For ``"solid"``
     (:class:`~knitframe.interfaces.SolidContactLaw`): a positive penalty stiffness.
     """
     inst = obj() if isinstance(obj, type) and attrs.has(obj) else obj

@@ -37,12 +37,16 @@ import numpy as np
 
 from knitframe import hookimpl
 from knitframe import validators as v
+from knitframe.interfaces import RodContactLaw
 from knitframe.numerics.contact.friction import friction_potential
 
 
 @attrs.frozen
-class CenterlineLaw:
-    """What every rod contact law derives from its ``normal(d, dk, k, k_core)``, and its friction."""
+class CenterlineLaw(RodContactLaw):
+    """What every rod contact law derives from its ``normal(d, dk, k, k_core)``, and its friction.
+
+    The protocol's defaults of ``outer``, ``for_yarn`` and ``rigidity`` are inherited.
+    """
 
     #: Coulomb coefficient μ, -
     friction: float = attrs.field(default=0.3, validator=v.in_range(0.0, 10.0))

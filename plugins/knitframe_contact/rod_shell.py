@@ -68,8 +68,7 @@ class RodShell(CenterlineLaw):
         object.__setattr__(new, "outer", float(yarn.shell_diameter))
         return new
 
-    @staticmethod
-    def rigidity(yarn) -> float:
+    def rigidity(self, yarn) -> float:
         """The density's stiffness 2k (N/mm³) that the rod solver passes as ``k`` (see the module)."""
         return 2.0 * float(yarn.compression_k)
 

@@ -89,22 +89,7 @@ from knitframe_solvers.rod_model import RodEnergy, RodModel, from_cell, with_dir
 from knitframe_solvers.rod_run import RodRun
 from knitframe_solvers.rod_starts import start_count
 
-__all__ = ["RodSolver", "rod_stiffness", "law_for_yarn"]
-
-
-def law_for_yarn(law: Any, yarn) -> Any:
-    """The rod contact ``law`` with its core set to the yarn's compaction limit when it has none.
-
-    Two yarns each squeezed to J_min of their knitted section (flattened at constant width) have
-    their centres J_min·dk apart: the centre distance the law's barrier forbids. A law that reads
-    the yarn's compression law (``for_yarn``, e.g. ``rod_shell``) takes its numbers from the
-    record instead, and a ConfigError at ``solver.contact_law`` if the record has none.
-    """
-    if law is not None and hasattr(law, "for_yarn"):
-        return law.for_yarn(yarn)
-    if law is not None and hasattr(law, "core") and law.core is None:
-        return attrs.evolve(law, core=float(yarn.compaction))
-    return law
+__all__ = ["RodSolver", "rod_stiffness"]
 
 
 def rod_stiffness(yarn, registry=None, law=None, line_stiffness: float | None = None) -> dict[str, float]:
@@ -118,9 +103,10 @@ def rod_stiffness(yarn, registry=None, law=None, line_stiffness: float | None = 
     (:func:`knitframe_solvers.rod_contact.line_energy`). The core (barrier) of the packed fibres
     gets ``k_core`` (N/mm³), which makes the line stiffness the yarn's core modulus
     (``yarn.core_E``, E_axial unless measured) halfway through the barrier's band. A ``law``
-    whose ``core`` is None takes the yarn's compaction limit (:func:`law_for_yarn`). A law with
-    its own ``rigidity`` (``rod_shell``) takes it from the yarn's compression law, and ``k_line``
-    is then its line stiffness at 5 % flattening of the shell.
+    is first given what it reads from the yarn (``law.for_yarn(yarn)``: a ``core`` of None becomes
+    the yarn's compaction limit). A law whose ``rigidity(yarn)`` is not None (``rod_shell``) takes
+    k from the yarn's compression law, and ``k_line`` is then its line stiffness at 5 %
+    flattening of its contact distance ``outer``.
     """
     registry = registry or get_registry()
     model = registry["yarn_model"][yarn.model].from_yarn(yarn)
@@ -128,15 +114,18 @@ def rod_stiffness(yarn, registry=None, law=None, line_stiffness: float | None = 
         f_ref = float(np.asarray(model.contact_load(np.array([0.05 * yarn.dk])))[0])
         line_stiffness = float(np.asarray(model.contact_stiffness(np.array([f_ref])))[0])
     out = {"EA": float(model.EA), "EI": float(model.EI), "k_line": float(line_stiffness)}
-    if law is not None and hasattr(law, "rigidity"):  # the yarn's own compression law
-        law = law_for_yarn(law, yarn)
-        out["k_contact"] = law.rigidity(yarn)
-        out["k_line"] = line_energy(law, 0.95 * law.outer, law.outer, out["k_contact"], None, derivative=2)
-    elif law is not None:
+    if law is None:
+        return out
+    law = law.for_yarn(yarn)
+    rigidity = law.rigidity(yarn)
+    if rigidity is not None:  # the yarn's own compression law
+        D = float(law.outer or yarn.dk)
+        out["k_contact"] = float(rigidity)
+        out["k_line"] = line_energy(law, 0.95 * D, D, out["k_contact"], None, derivative=2)
+    else:
         dk = yarn.dk
         out["k_contact"] = line_stiffness / line_energy(law, 0.95 * dk, dk, 1.0, 0.0, derivative=2)
-        law = law_for_yarn(law, yarn)
-        core = float(getattr(law, "core", 0.0) or 0.0)
+        core = float(law.core or 0.0)
         y_mid = 0.5 * (core + 0.5 * (1.0 + core))
         out["k_core"] = (
             float(yarn.core_E) / line_energy(law, y_mid * dk, dk, 0.0, 1.0, derivative=2) if core > 0 else 0.0
@@ -241,8 +230,8 @@ class RodSolver:
         registry = registry or get_registry()
         instantiate(registry, "linear_solver", self.linear_solver, "solver.linear_solver")
         yarn_model(registry, fabric.yarn)
-        law = law_for_yarn(self.make_contact_law(registry, fabric.yarn), fabric.yarn)
-        if self.contact_stiffness is not None and hasattr(law, "rigidity"):
+        law = self.make_contact_law(registry, fabric.yarn).for_yarn(fabric.yarn)
+        if self.contact_stiffness is not None and law.rigidity(fabric.yarn) is not None:
             raise ConfigError(
                 "solver.contact_stiffness",
                 f"contact law '{law.name}' takes its stiffness from the yarn's compression law "
@@ -254,7 +243,7 @@ class RodSolver:
             v.near_own("EI", self.EI, own["EI"], "N·mm²")
             for key, value in (
                 ("contact_stiffness", self.contact_stiffness),
-                ("contact_law.stiffness", getattr(law, "stiffness", None)),
+                ("contact_law.stiffness", law.stiffness),
             ):
                 v.near_own(key, value, own["k_line"], "N/mm²")
         except FieldError as e:
@@ -303,16 +292,19 @@ class RodSolver:
         registry = registry or get_registry()
         cell = unit_cell(fabric, registry)
         model = from_cell(cell, self.segments(cell))
-        law = self.make_contact_law(registry, fabric.yarn) if "contact" in scene.effects else None
-        law = law_for_yarn(law, fabric.yarn)
+        law = (
+            self.make_contact_law(registry, fabric.yarn).for_yarn(fabric.yarn)
+            if "contact" in scene.effects
+            else None
+        )
         stiff = rod_stiffness(
             fabric.yarn,
             registry,
             law,
-            line_stiffness=self.contact_stiffness or getattr(law, "stiffness", None),
+            line_stiffness=self.contact_stiffness or (law.stiffness if law is not None else None),
         )
         # the contact distance: dk, or the shell diameter of a law that reads the yarn's compression law
-        contact_dk = float(getattr(law, "outer", None) or cell.dk)
+        contact_dk = float((law.outer if law is not None else None) or cell.dk)
         EI, GA = stiff["EI"], 0.0
         if self.shear == "effective":
             EI = effective_bending(fabric.yarn, cell.arc_length_per_stitch)
