@@ -467,8 +467,29 @@ def test_a_failed_nominal_prestress_continues_from_another_start(monkeypatch, je
     _, multi = jersey_two_starts
     assert other["energy_Nmm"] == pytest.approx(multi.provenance.extra["starts"][1]["energy_Nmm"], rel=1e-6)
     assert r.provenance.converged and len(r) == 2 and np.all(np.isfinite(r.T1))
-    said = [w for w in warned if "the nominal pre-stress failed" in w]
+    said = [w for w in warned if "the nominal start failed" in w]
     assert len(said) == 1 and "continued from the start 'other rest shape'" in said[0]
+
+
+def test_a_nominal_lattice_that_cannot_relax_gives_way_to_the_next_start(monkeypatch):
+    """The nominal start pre-stresses but its lattice cannot be relaxed: the next start is tried and used."""
+    from knitframe_solvers.rod_run import RodRun
+
+    real, calls = RodRun.relax_lattice, []
+
+    def relax_lattice(self, q0, free):
+        calls.append(1)
+        if len(calls) == 1:  # the nominal start's relaxation
+            raise NumericalError("forced failure of the relaxation")
+        return real(self, q0, free)
+
+    monkeypatch.setattr(RodRun, "relax_lattice", relax_lattice)
+    r, warned = run_recording_warnings(jersey_cotton(), TWO_STEPS, starts=2)
+    nominal, other = r.provenance.extra["starts"]
+    assert not nominal["converged"] and nominal["error"].startswith("relaxing the lattice: forced failure")
+    assert other["converged"] and r.provenance.extra["start_chosen"] == "other rest shape"
+    assert len(calls) == 2 and r.provenance.converged and len(r) == 2
+    assert sum("the nominal start failed (relaxing the lattice" in w for w in warned) == 1
 
 
 def test_when_no_start_can_be_prestressed_the_error_names_each(monkeypatch):

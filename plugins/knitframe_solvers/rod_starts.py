@@ -166,10 +166,10 @@ class MultiStart:
         a failed load path falls back to the next start (:func:`fallback_order`).
 
         ``q_nominal`` None: the nominal start failed (``state["nominal_error"]``, from every rest
-        shape in ``state["nominal_rests"]``). The other starts are tried all the same (with
-        ``starts = "auto"``, all of :data:`START_SET`), the run
-        continues from the lowest of those that converge with a warning saying so, and only when
-        none converges does it fail, naming every start's reason.
+        shape in ``state["nominal_rests"]``, or while relaxing its lattice). The other starts are
+        tried all the same (with ``starts = "auto"``, all of :data:`START_SET`), the run continues
+        from the lowest of those that converge with a warning saying so, and only when none
+        converges does it fail, naming every start's reason.
         """
         state, energy, model = self.state, self.energy, self.model
         count = self.start_total()
@@ -247,7 +247,7 @@ class MultiStart:
         state["start_chosen"] = entries[chosen]["name"]
         if q_nominal is None:
             self.run.warn(
-                f"{self.run.where}: the nominal pre-stress failed ({first_clause(state['nominal_error'])}); "
+                f"{self.run.where}: the nominal start failed ({first_clause(state['nominal_error'])}); "
                 f"continued from the start '{entries[chosen]['name']}', the lowest of the "
                 f"{sum(bool(e['converged']) for e in entries)} of {count} starts that converged",
                 stacklevel=5,
