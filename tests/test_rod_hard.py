@@ -105,6 +105,7 @@ def test_auto_prestress_tries_the_knitted_start_after_the_straight_one_fails():
     fabric = Fabric(pattern="jersey", yarn=reg["yarn"]["cotton"], stitch_length=10)
     scene = Scene(load=LoadPath(kind="equibiaxial", max_strain=0.05, steps=1), effects=EFFECTS)
     hurried = {
+        "starts": 1,  # the rest shapes of one start (the other starts: test_rod_multistart.py)
         "prestress_steps": 2,
         "newton": {"min_step_fraction": 0.25},
         # the solid section's bending and a core at 0.5 dk: with the cotton record's Timoshenko bending
