@@ -16,7 +16,10 @@ rows:
 
 A curve that failed, or a ratio that one of the curves does not reach, is left out of the goal
 and counted in its notes; a goal with nothing to judge is ``undetermined``.
-:func:`goals_markdown` writes the verdicts as Markdown (the sweep stage's ``goals.md``)::
+:func:`goals_markdown` writes the verdicts as Markdown (the sweep stage's ``goals.md``), ending with
+what the run held fixed (:func:`held_fixed`): the settings every point shares, the yarn records,
+and whatever a point sets for itself, so that a reader sees at once whether anything was chosen
+per fabric::
 
     import csv
     from knitframe.goals import validation_goals, goals_markdown
@@ -28,6 +31,7 @@ and counted in its notes; a goal with nothing to judge is ``undetermined``.
 from __future__ import annotations
 
 import itertools
+import json
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
@@ -38,7 +42,16 @@ import numpy as np
 from knitframe import validators as v
 from knitframe.trends import verdicts_markdown
 
-__all__ = ["Goal", "GoalSettings", "validation_goals", "goals_markdown", "MET", "NOT_MET", "UNDETERMINED"]
+__all__ = [
+    "Goal",
+    "GoalSettings",
+    "validation_goals",
+    "goals_markdown",
+    "held_fixed",
+    "MET",
+    "NOT_MET",
+    "UNDETERMINED",
+]
 
 MET, NOT_MET, UNDETERMINED = "met", "not met", "undetermined"
 #: the strains of the tension ratios, in % (the columns ratio_10, ratio_20, ratio_30)
@@ -236,8 +249,78 @@ def validation_goals(curves: Iterable[Mapping[str, Any]], settings: GoalSettings
     return goals
 
 
-def goals_markdown(found: Sequence[Goal], *, title: str = "Validation goals") -> str:
+def goals_markdown(
+    found: Sequence[Goal], *, title: str = "Validation goals", fixed: Sequence[str] = ()
+) -> str:
     """The goals as Markdown: how many are met, a verdict line per goal, then each goal's table and
-    notes (:func:`knitframe.trends.verdicts_markdown`)."""
+    notes (:func:`knitframe.trends.verdicts_markdown`), and the lines of ``fixed``
+    (:func:`held_fixed`) under "What was held fixed"."""
     met = sum(g.verdict == MET for g in found)
-    return verdicts_markdown(found, title=title, noun="goal", lead=[f"{met} of {len(found)} goals met."])
+    text = verdicts_markdown(found, title=title, noun="goal", lead=[f"{met} of {len(found)} goals met."])
+    if fixed:
+        text += "\n".join(["", "## What was held fixed", "", *fixed]) + "\n"
+    return text
+
+
+def _inline(value: Any) -> str:
+    """A config value as inline TOML."""
+    if isinstance(value, Mapping):
+        return "{ " + ", ".join(f"{k} = {_inline(x)}" for k, x in value.items()) + " }"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_inline(x) for x in value) + "]"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    return repr(value) if isinstance(value, float) else str(value)
+
+
+#: the keys of a validation point that name what is compared, not how it is simulated
+OWN_KEYS = frozenset({"name", "pattern", "yarn", "measured"})
+
+
+def held_fixed(
+    *,
+    common: Mapping[str, Mapping[str, Any]],
+    points: Sequence[Mapping[str, Any]] = (),
+    grid: Mapping[str, Sequence[Any]] | None = None,
+    yarns: Sequence[str] = (),
+    own_yarns: Sequence[str] = (),
+) -> list[str]:
+    """Markdown lines saying what a validation sweep held fixed and what it set per point.
+
+    ``common`` maps a table name (``sweep.solver``) to the keys every point shares; ``points`` are
+    the config's point tables and ``grid`` its grid, whose keys other than the pattern, the yarn,
+    the measured tests and the name are set per point (listed with the point's name or index);
+    ``yarns`` are the yarn records used, ``own_yarns`` those the config defines itself. The
+    measured tests are only compared with, never fitted to, and the first line says so.
+    """
+    lines = [
+        "Nothing in this run was fitted to the measured tests: they are read only to be compared with "
+        "the simulations.",
+        "",
+    ]
+    for table, keys in common.items():
+        shown = ", ".join(f"{k} = {_inline(v)}" for k, v in keys.items()) or "nothing set"
+        lines.append(f"- the same for every point, `[{table}]`: {shown}; the defaults otherwise")
+    if yarns:
+        own = [y for y in yarns if y in set(own_yarns)]
+        lines.append(
+            "- the same yarn record for every point of a yarn: "
+            + ", ".join(f"`{y}`" + (" (this config's `[yarns]` table)" if y in own else "") for y in yarns)
+            + " (`knitframe yarn NAME` shows each value and whether it is measured)"
+        )
+    per_point = []
+    for i, point in enumerate(points):
+        extra = {k: v for k, v in point.items() if k not in OWN_KEYS}
+        if extra:
+            label = point.get("name") or f"point {i}"
+            per_point.append(f"  - {label}: " + ", ".join(f"{k} = {_inline(v)}" for k, v in extra.items()))
+    varied = [k for k in (grid or {}) if k not in OWN_KEYS]
+    if varied:
+        per_point.append("  - varied over the grid: " + ", ".join(f"`{k}`" for k in varied))
+    if per_point:
+        lines += ["- set per point:", *per_point]
+    else:
+        lines.append("- set per point: nothing but its pattern, its yarn and its measured tests")
+    return lines

@@ -166,6 +166,11 @@ def test_two_measured_curves_and_a_failed_point_give_the_columns_and_the_figure(
     assert goals["pattern_order"] == "undetermined"  # one pattern: nothing to order
     md = (out / "goals.md").read_text()
     assert "- pearl-cotton jersey course: not simulated (" in md  # the starved point, in the notes
+    # what was held fixed, and the one thing a point set for itself
+    fixed = md.split("## What was held fixed")[1]
+    assert fixed.lstrip().startswith("Nothing in this run was fitted to the measured tests")
+    assert "- the same yarn record for every point of a yarn: `pearl-cotton`" in fixed
+    assert "- set per point:\n  - starved: solver = { max_iterations = 2 }" in fixed
     assert f"goals met: {sum(v == 'met' for v in goals.values())} of 4" in res.results["sweep"]["headline"]
 
 
@@ -309,3 +314,30 @@ def test_the_16_singal_curves_with_the_rod_solver(tmp_path):
     assert set(goals) == {"median_ratio", "every_curve", "pattern_order", "lateral"}
     assert "undetermined" not in goals.values()  # 16 curves, 4 patterns per yarn: every goal is judged
     assert (tmp_path / "out" / "goals.md").read_text().startswith("# Validation goals: sweep singal2024-rod")
+
+
+def test_what_was_held_fixed_names_the_shared_settings_and_every_per_point_choice():
+    """The shared tables, the yarn records (a config's own marked) and whatever a point or the grid sets."""
+    from knitframe.goals import held_fixed
+
+    lines = held_fixed(
+        common={"sweep.solver": {"kind": "rod", "starts": 5}, "sweep.fabric": {}},
+        points=[
+            {"name": "a", "pattern": "rib", "yarn": "x", "measured": {}},
+            {"pattern": "seed", "arc_length": 12.0},
+        ],
+        grid={"pattern": ["rib"], "stitch_length": [10, 11]},
+        yarns=["x", "acrylic"],
+        own_yarns=["x"],
+    )
+    text = "\n".join(lines)
+    assert (
+        '- the same for every point, `[sweep.solver]`: kind = "rod", starts = 5; the defaults otherwise'
+        in text
+    )
+    assert "- the same for every point, `[sweep.fabric]`: nothing set; the defaults otherwise" in text
+    assert "`x` (this config's `[yarns]` table), `acrylic` (" in text
+    assert "  - point 1: arc_length = 12.0" in text and "  - a:" not in text
+    assert "  - varied over the grid: `stitch_length`" in text
+    quiet = held_fixed(common={}, points=[{"name": "a", "pattern": "rib", "yarn": "x"}])
+    assert quiet[-1] == "- set per point: nothing but its pattern, its yarn and its measured tests"

@@ -90,7 +90,7 @@ from knitframe import hookimpl
 from knitframe.config import PluginSpec, instantiate
 from knitframe.errors import ConfigError, KnitframeWarning
 from knitframe.executors import executor_from_config
-from knitframe.goals import MET, GoalSettings, goals_markdown, validation_goals
+from knitframe.goals import MET, GoalSettings, goals_markdown, held_fixed, validation_goals
 from knitframe.interfaces import Stage
 from knitframe.report import plot_validation
 from knitframe.schema import build, field_names, to_dict
@@ -171,6 +171,8 @@ class SweepStage(Stage):
     executor: Any
     executor_name: str
     source: str | None = None
+    #: the yarns this config defines itself (its ``[yarns]`` table)
+    own_yarns: tuple[str, ...] = ()
 
     @classmethod
     def from_config(cls, config, ctx) -> SweepStage:
@@ -198,7 +200,10 @@ class SweepStage(Stage):
         )
         jobs = tuple(point_job(p, fit) for p in points)
         executor, executor_name = executor_from_config(config, ctx)
-        return cls(table, points, jobs, model, model_name, fitter_name, executor, executor_name, src)
+        own_yarns = tuple(config.get("yarns", {}))
+        return cls(
+            table, points, jobs, model, model_name, fitter_name, executor, executor_name, src, own_yarns
+        )
 
     @property
     def label(self) -> str:
@@ -323,8 +328,21 @@ class SweepStage(Stage):
         ctx.results[self.label]["validation"] = curves
         ctx.results[self.label]["headline"] += "; " + validation_headline(curves)
         goals = validation_goals(curves, self.settings.goals)
+        fixed = held_fixed(
+            common={
+                "sweep.solver": self.settings.solver,
+                "sweep.fabric": self.settings.fabric,
+                "sweep.scene": self.settings.scene,
+            },
+            points=self.settings.points,
+            grid=self.settings.grid,
+            yarns=list(dict.fromkeys(p.stage.fabric.yarn.name for p in self.points)),
+            own_yarns=self.own_yarns,
+        )
         ctx.output("goals.md").write_text(
-            goals_markdown(goals, title=f"Validation goals: sweep {self.settings.name} ({solvers})"),
+            goals_markdown(
+                goals, title=f"Validation goals: sweep {self.settings.name} ({solvers})", fixed=fixed
+            ),
             encoding="utf-8",
         )
         ctx.results[self.label]["goals"] = {g.key: g.verdict for g in goals}
