@@ -471,6 +471,43 @@ def test_a_failed_nominal_prestress_continues_from_another_start(monkeypatch, je
     assert len(said) == 1 and "continued from the start 'other rest shape'" in said[0]
 
 
+def test_a_run_killed_after_a_failed_nominal_prestress_resumes_from_the_start_it_used(monkeypatch, tmp_path):
+    """Killed after its first load step, a run whose nominal pre-stress failed resumes (nothing forced any
+    more) from the start in its checkpoint without pre-stressing again, says again why, and ends as the
+    uninterrupted run does."""
+    import knitframe_solvers.rod_run as rod
+
+    options = dict(starts=2, prestress_start="straight")
+    failing_nominal_prestress(monkeypatch)
+    whole, _ = run_recording_warnings(jersey_cotton(), TWO_STEPS, **options)
+    real_save = rod.StepCheckpoints.save
+
+    def save(self, index, arrays, meta):
+        out = real_save(self, index, arrays, meta)
+        if meta["phase"] == "load" and meta["target"] == 0:
+            raise Killed
+        return out
+
+    monkeypatch.setattr(rod.StepCheckpoints, "save", save)
+    with pytest.raises(Killed):
+        run_recording_warnings(jersey_cotton(), TWO_STEPS, checkpoint_dir=tmp_path, **options)
+    monkeypatch.undo()
+    prestressed = []
+    real_prestress = rod.RodRun.run_prestress
+
+    def counting(self, *args, **kwargs):
+        prestressed.append(1)
+        return real_prestress(self, *args, **kwargs)
+
+    monkeypatch.setattr(rod.RodRun, "run_prestress", counting)
+    r, warned = run_recording_warnings(jersey_cotton(), TWO_STEPS, checkpoint_dir=tmp_path, **options)
+    assert not prestressed  # resumed after the relaxed lattice: no start is pre-stressed again
+    assert r.provenance.extra["start_chosen"] == "other rest shape" and len(r) == 2
+    assert "forced failure" in r.provenance.extra["starts"][0]["error"]
+    assert np.allclose(r.T1, whole.T1, rtol=1e-8) and np.allclose(r.T2, whole.T2, rtol=1e-8)
+    assert sum("the nominal start failed" in w for w in warned) == 1
+
+
 def test_a_nominal_lattice_that_cannot_relax_gives_way_to_the_next_start(monkeypatch):
     """The nominal start pre-stresses but its lattice cannot be relaxed: the next start is tried and used."""
     from knitframe_solvers.rod_run import RodRun

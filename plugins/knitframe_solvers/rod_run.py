@@ -103,6 +103,8 @@ class RodRun(MultiStart):
             "relaxed_step": None,
             "snaps": [],
             "shear_deg": [],  # the largest shear angle of each load step (with directors)
+            "nominal_error": None,  # why the nominal start failed (then the other starts are tried)
+            "nominal_rests": [],  # the rest shapes it failed from
         }
         # the relaxed state of every start (row i: state["starts"][i]; NaN where it did not converge)
         self.start_states = np.zeros((0, model.n_dof))
@@ -380,7 +382,7 @@ class RodRun(MultiStart):
         """The relaxed lattice (course and wale stretches free, shear zero), of the start of lowest energy."""
         state = self.state
         if state["lam_ref"] is None:  # the lattice the stretches are measured from
-            if state.get("nominal_error") is None:
+            if state["nominal_error"] is None:
                 try:
                     q = self.relaxed(q)
                 except NumericalError as e:
@@ -388,7 +390,7 @@ class RodRun(MultiStart):
                         raise
                     state.update(nominal_error=f"relaxing the lattice: {e}", nominal_rests=[state["start"]])
             if self.with_prestress:
-                q = self.explore_starts(None if state.get("nominal_error") else q)
+                q = self.explore_starts(None if state["nominal_error"] else q)
             state.update(
                 lam_ref=self.stretch_of(q),
                 relaxed_energy=float(self.energy(q, 0)[0]),

@@ -175,7 +175,7 @@ class MultiStart:
         count = self.start_total()
         if q_nominal is None and self.solver.starts == "auto":
             count = len(START_SET)  # the nominal start failed: "auto" tries the whole set
-        failed_rests = (state.get("nominal_rests") or []) if q_nominal is None else []
+        failed_rests = state["nominal_rests"] if q_nominal is None else []
         chosen, q_best, best = None, None, np.inf
         self.start_states = np.full((count, model.n_dof), np.nan)
         entry0 = {
@@ -245,14 +245,20 @@ class MultiStart:
                 + "; ".join(f"'{e['name']}' {first_clause(e['error'])}" for e in entries)
             )
         state["start_chosen"] = entries[chosen]["name"]
-        if q_nominal is None:
-            self.run.warn(
-                f"{self.run.where}: the nominal start failed ({first_clause(state['nominal_error'])}); "
-                f"continued from the start '{entries[chosen]['name']}', the lowest of the "
-                f"{sum(bool(e['converged']) for e in entries)} of {count} starts that converged",
-                stacklevel=5,
-            )
         return q_best
+
+    def warn_nominal_failed(self) -> None:
+        """If the nominal start failed, say so and which start the run continued from (also on resume)."""
+        state = self.state
+        if not state["nominal_error"]:
+            return
+        entries = state["starts"]
+        self.run.warn(
+            f"{self.run.where}: the nominal start failed ({first_clause(state['nominal_error'])}); "
+            f"continued from the start '{state['start_chosen']}', the lowest of the "
+            f"{sum(bool(e['converged']) for e in entries)} of {len(entries)} starts that converged",
+            stacklevel=5,
+        )
 
     def switch_to(self, k: int) -> np.ndarray:
         """Start k's relaxed state begins the load path: the steps from the relaxed lattice are rewritten."""
@@ -279,6 +285,7 @@ class MultiStart:
         entries = state["starts"]
         names = [e["name"] for e in entries]
         order = fallback_order(entries)
+        self.warn_nominal_failed()
         # a fallback needs the starts' relaxed states (a checkpoint of an older version has none)
         can_fall_back = (
             len(order) > 1
