@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from knitframe_solvers.rod import RodSolver
 from knitframe_solvers.rod_branches import is_jump, locate_jumps
-from knitframe_solvers.rod_starts import START_SET, fallback_order, next_start
+from knitframe_solvers.rod_starts import START_SET, fallback_order, first_clause, next_start
 
 from knitframe import get_registry
 from knitframe.errors import ConfigError, KnitframeWarning, NumericalError
@@ -553,3 +553,14 @@ def test_when_no_start_can_be_prestressed_the_error_names_each(monkeypatch):
     named = re.findall(r"'([a-z -]+)' ", text)
     assert named == [s.name for s in START_SET]
     assert "'other rest shape' not tried: the nominal start failed from the knitted shape" in text
+
+
+def test_a_failure_is_summed_up_by_the_first_clause_of_each_attempt():
+    """The Newton trace after the first "; " is left out, for each rest shape a start tried."""
+    one = "pre-stress (straight start): Newton: no convergence; it 1: E=1; it 2: E=0.9"
+    two = one + "; after that pre-stress (knitted start): Newton: stalled; it 1: E=2"
+    assert first_clause(one) == "pre-stress (straight start): Newton: no convergence"
+    assert first_clause(two) == (
+        "pre-stress (straight start): Newton: no convergence, "
+        "then pre-stress (knitted start): Newton: stalled"
+    )

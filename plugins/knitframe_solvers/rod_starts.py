@@ -140,8 +140,12 @@ def next_start(starts: list[dict[str, Any]], order: list[int]) -> int | None:
 
 
 def first_clause(message: str) -> str:
-    """A NumericalError's message up to its first "; " (the Newton trace after it is left out)."""
-    return message.split("; ", 1)[0]
+    """A NumericalError's message up to its first "; " (the Newton trace after it is left out).
+
+    A message of several attempts joined by "; after that " (the rest shapes of one start) keeps
+    the first clause of each, joined by ", then ".
+    """
+    return ", then ".join(part.split("; ", 1)[0] for part in message.split("; after that "))
 
 
 class MultiStart:
