@@ -304,7 +304,7 @@ def held_fixed(
         shown = ", ".join(f"{k} = {_inline(v)}" for k, v in keys.items()) or "nothing set"
         lines.append(f"- the same for every point, `[{table}]`: {shown}; the defaults otherwise")
     if yarns:
-        own = [y for y in yarns if y in set(own_yarns)]
+        own = set(own_yarns)
         lines.append(
             "- the same yarn record for every point of a yarn: "
             + ", ".join(f"`{y}`" + (" (this config's `[yarns]` table)" if y in own else "") for y in yarns)

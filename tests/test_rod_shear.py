@@ -79,12 +79,13 @@ def test_an_unknown_shear_mode_names_the_key():
         assert get_registry()["solver"]["rod"]().shear == "effective"
 
 
-def test_a_resumed_run_judges_the_shear_of_its_whole_path(tmp_path):
-    """The largest shear angle of every load step is checkpointed: a run killed in its second load step
-    and resumed reports the angles of all three steps, as the run that was not interrupted does."""
+class Killed(Exception):
+    pass
 
-    class Killed(Exception):
-        pass
+
+def resolved_pet_killed_in_step_2(checkpoints):
+    """Resolved-rod jersey SL11 PET, equibiaxial to 6 % in 3 steps, killed in its second load step with its
+    checkpoints in ``checkpoints``; returns the solver, fabric and scene to resume it with."""
 
     def die(done, total, message):
         if message.startswith("load step 2"):
@@ -94,12 +95,40 @@ def test_a_resumed_run_judges_the_shear_of_its_whole_path(tmp_path):
     fabric = Fabric(pattern="jersey", yarn=reg["yarn"]["pet"], stitch_length=11)
     scene = Scene(load=LoadPath(kind="equibiaxial", max_strain=0.06, steps=3), effects=EFFECTS)
     rod = reg["solver"]["rod"](starts=1, shear="resolved")
-    whole = rod.simulate(fabric, scene).provenance.extra
     with pytest.raises(Killed):
-        rod.simulate(fabric, scene, progress=die, checkpoint_dir=tmp_path)
+        rod.simulate(fabric, scene, progress=die, checkpoint_dir=checkpoints)
+    return rod, fabric, scene
+
+
+def test_a_resumed_run_judges_the_shear_of_its_whole_path(tmp_path):
+    """The largest shear angle of every load step is checkpointed: a run killed in its second load step
+    and resumed reports the angles of all three steps, as the run that was not interrupted does."""
+    rod, fabric, scene = resolved_pet_killed_in_step_2(tmp_path)
+    whole = rod.simulate(fabric, scene).provenance.extra
     resumed = rod.simulate(fabric, scene, checkpoint_dir=tmp_path).provenance.extra
     assert len(whole["max_shear_angle_by_step_deg"]) == 3
     assert resumed["max_shear_angle_by_step_deg"] == pytest.approx(
         whole["max_shear_angle_by_step_deg"], rel=1e-6
     )
     assert resumed["max_shear_angle_deg"] == max(resumed["max_shear_angle_by_step_deg"])
+
+
+def test_a_checkpoint_written_before_a_state_key_existed_still_resumes(tmp_path):
+    """A checkpoint without ``shear_deg`` (written before the key was declared) resumes: the key keeps its
+    initial value instead of becoming None, and the resumed steps' shear angles are reported."""
+    import json
+
+    rod, fabric, scene = resolved_pet_killed_in_step_2(tmp_path)
+    files = sorted(tmp_path.rglob("step-*.npz"))
+    assert files
+    for path in files:  # as an older version wrote them
+        with np.load(path) as data:
+            arrays = {k: data[k] for k in data.files}
+        meta = json.loads(str(arrays.pop("__meta__")))
+        assert meta.pop("shear_deg") is not None
+        with open(path, "wb") as fh:
+            np.savez(fh, **arrays, __meta__=np.array(json.dumps(meta)))
+    resumed = rod.simulate(fabric, scene, checkpoint_dir=tmp_path)
+    by_step = resumed.provenance.extra["max_shear_angle_by_step_deg"]
+    assert resumed.provenance.converged and len(resumed) == 3
+    assert by_step and resumed.provenance.extra["max_shear_angle_deg"] == max(by_step)

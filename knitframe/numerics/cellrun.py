@@ -159,14 +159,16 @@ class CellRun:
     def open(self) -> dict[str, np.ndarray] | None:
         """Resume from this run's latest checkpoint, if any, and open the VTU series.
 
-        Restores the rows, the state's keys and the step counter and logs ``resuming from step N
+        Restores the rows, the state's declared keys (those the checkpoint lacks keep their initial
+        values) and the step counter and logs ``resuming from step N
         of M``; returns the checkpoint's arrays (``q``, ``rows`` and the solver's own), or None.
         """
         saved = None if self.checkpoints is None else self.checkpoints.latest()
         if saved is not None:
             index, arrays, meta = saved
             self.rows[:] = [tuple(r) for r in arrays["rows"].tolist()]
-            self.state.update({k: meta.get(k) for k in self.state})
+            # a key the checkpoint lacks (written before the solver declared it) keeps its initial value
+            self.state.update({k: meta.get(k, v) for k, v in self.state.items()})
             self.step = index + 1
             self.checkpoints.announce(index, self.total)
         self.series = StepSeries(self.output_dir, self.prefix, self.step) if self.vtu else None

@@ -48,6 +48,8 @@ class CenterlineLaw(RodContactLaw):
     The protocol's defaults of ``outer``, ``for_yarn`` and ``rigidity`` are inherited.
     """
 
+    discretisation: ClassVar[str] = "rod"
+
     #: Coulomb coefficient μ, -
     friction: float = attrs.field(default=0.3, validator=v.in_range(0.0, 10.0))
     #: regularisation slip ε_s / the contact distance, -
@@ -76,7 +78,6 @@ class RodPenalty(CenterlineLaw):
     description: ClassVar[str] = (
         "smooth centerline penalty with a stiffening core, regularised Coulomb friction (rods)"
     )
-    discretisation: ClassVar[str] = "rod"
 
     #: line contact stiffness of two parallel yarns at 5 % flattening, N/mm²; default: the yarn model's
     stiffness: float | None = attrs.field(default=None, validator=v.optional(v.positive))

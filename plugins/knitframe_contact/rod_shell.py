@@ -43,7 +43,6 @@ class RodShell(CenterlineLaw):
     description: ClassVar[str] = (
         "a yarn's soft shell squeezed onto its core, the yarn's compression law (rods; Singal et al. 2024)"
     )
-    discretisation: ClassVar[str] = "rod"
 
     #: core diameter / shell diameter, -; set from the yarn (:meth:`for_yarn`); until then acrylic's
     core: float = attrs.field(default=0.65 / 1.48, init=False)

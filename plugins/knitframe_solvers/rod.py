@@ -230,7 +230,7 @@ class RodSolver:
         registry = registry or get_registry()
         instantiate(registry, "linear_solver", self.linear_solver, "solver.linear_solver")
         yarn_model(registry, fabric.yarn)
-        law = self.make_contact_law(registry, fabric.yarn).for_yarn(fabric.yarn)
+        law = self.make_contact_law(registry, fabric.yarn)
         if self.contact_stiffness is not None and law.rigidity(fabric.yarn) is not None:
             raise ConfigError(
                 "solver.contact_stiffness",
@@ -274,7 +274,8 @@ class RodSolver:
         """The rod contact law named by ``contact_law``; ConfigError if it is unknown or not for rods.
 
         ``"auto"`` is ``rod_shell`` for a ``yarn`` whose record has a compression law, else
-        ``rod_penalty``.
+        ``rod_penalty``. Given a ``yarn``, the law comes with what it reads from it
+        (``law.for_yarn(yarn)``).
         """
         name = self.contact_law
         if name == "auto":
@@ -285,18 +286,14 @@ class RodSolver:
             raise ConfigError(
                 "solver.contact_law", f"contact law '{law.name}' is for '{law.discretisation}', not rods"
             )
-        return law
+        return law if yarn is None else law.for_yarn(yarn)
 
     def setup(self, fabric: Fabric, scene: Scene, registry=None) -> tuple[RodModel, RodEnergy, Any]:
         """Rod model, energy and unit cell for a fabric and the effects of a scene."""
         registry = registry or get_registry()
         cell = unit_cell(fabric, registry)
         model = from_cell(cell, self.segments(cell))
-        law = (
-            self.make_contact_law(registry, fabric.yarn).for_yarn(fabric.yarn)
-            if "contact" in scene.effects
-            else None
-        )
+        law = self.make_contact_law(registry, fabric.yarn) if "contact" in scene.effects else None
         stiff = rod_stiffness(
             fabric.yarn,
             registry,

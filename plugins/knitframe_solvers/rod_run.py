@@ -194,7 +194,7 @@ class RodRun(MultiStart):
         judges its whole path; index −1 (the relaxed lattice) begins a path. Only with directors."""
         if self.model.directors is None:
             return
-        kept = list(self.state.get("shear_deg") or [])[: max(index, 0)]
+        kept = self.state["shear_deg"][: max(index, 0)]
         self.state["shear_deg"] = kept + ([float(self.model.shear_angles(q).max())] if index >= 0 else [])
 
     # ---------------------------------------------------------------------------------- Newton
@@ -545,7 +545,7 @@ class RodRun(MultiStart):
                 "bending_wavenumber_per_mm": self.bending_wavenumber(),
                 "effective_bending_wavenumber_per_mm": 2.0 * np.pi / float(cell.arc_length_per_stitch),
                 "max_shear_angle_deg": shear,
-                "max_shear_angle_by_step_deg": list(self.state.get("shear_deg") or []) or None,
+                "max_shear_angle_by_step_deg": list(self.state["shear_deg"]) or None,
             },
         )
 
@@ -567,7 +567,7 @@ class RodRun(MultiStart):
         None for a rod without directors. A resumed run includes the steps before the resume (they
         are in the checkpointed state).
         """
-        angles = self.state.get("shear_deg") or []
+        angles = self.state["shear_deg"]
         if self.model.directors is None or not angles:
             return None
         return max(angles)
