@@ -14,7 +14,13 @@ from knitframe.garment.limb.measured import _check_counts
 from knitframe.garment.limb.reading import _read_triangles
 from knitframe.garment.limb.record import Limb
 from knitframe.garment.limb.sections import _perpendicular
-from knitframe.garment.limb.shells import _canonical_sign, _choose_shell, _submesh, _surface_moments
+from knitframe.garment.limb.shells import (
+    _canonical_sign,
+    _choose_shell,
+    _Debris,
+    _submesh,
+    _surface_moments,
+)
 from knitframe.garment.limb.slicing import _closed_loops, _resample, _Slicer
 
 #: a scan shorter than this along its axis (in file units) is taken to be in metres (units="auto")
@@ -41,8 +47,9 @@ def _check_options(axis, trim, units) -> np.ndarray | None:
     return given_axis
 
 
-def _limb_shell(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """Vertices (n, 3) and faces (k, 3) of the limb's shell, merged and cleaned, and the notices."""
+def _limb_shell(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, list[str], _Debris | None]:
+    """Vertices (n, 3) and faces (k, 3) of the limb's shell, merged and cleaned, the notices, and the
+    shells dropped as debris (their notice needs the units)."""
     import trimesh
 
     vertices, faces = _read_triangles(path)
@@ -55,9 +62,9 @@ def _limb_shell(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, list[st
         raise DataError(label, "no triangles with a non-zero area")
     vertices = np.array(mesh.vertices, dtype=np.float64)
     faces = np.array(mesh.faces, dtype=np.int64)
-    faces, notes = _choose_shell(vertices, faces, label)
+    faces, notes, debris = _choose_shell(vertices, faces, label)
     shell = _submesh(vertices, faces)
-    return np.array(shell.vertices, dtype=np.float64), np.array(shell.faces, dtype=np.int64), notes
+    return np.array(shell.vertices, dtype=np.float64), np.array(shell.faces, dtype=np.int64), notes, debris
 
 
 def _axis_and_reference(
@@ -119,7 +126,7 @@ def _scan_to_limb(path: Path, *, axis, n_stations, n_around, trim, units, name, 
     label = str(path)
     _check_counts(n_stations, n_around)
     given_axis = _check_options(axis, trim, units)
-    vertices, faces, notes = _limb_shell(path, label)
+    vertices, faces, notes, debris = _limb_shell(path, label)
 
     _, center, cov = _surface_moments(vertices, faces)
     d, e1 = _axis_and_reference(cov, given_axis, reference)
@@ -127,6 +134,8 @@ def _scan_to_limb(path: Path, *, axis, n_stations, n_around, trim, units, name, 
     heights = (vertices - center) @ d
     length = float(heights.max() - heights.min())
     scale = _scale_to_mm(length, units, label, notes)
+    if debris is not None:
+        notes.append(debris.note(scale))
     vertices = vertices * scale
     center = center * scale
     length *= scale

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import attrs
 import numpy as np
 from scipy import sparse
 from scipy.sparse import csgraph
@@ -12,8 +13,16 @@ from knitframe.errors import DataError
 from knitframe.garment.limb.sections import _perpendicular
 from knitframe.garment.limb.slicing import _Slicer
 
-#: disconnected pieces with less than this fraction of the largest shell's area are scan debris
+# A disconnected shell tiny next to the limb (the largest shell by area) in any one of three ways is scan
+# debris, dropped with one notice; _debris says why each way is needed.
+#: 1. its area is under this fraction of the limb's
 FRAGMENT_AREA_FRACTION = 0.01
+#: 2. it has fewer triangles than this and than FEW_TRIANGLES_FRACTION of the limb's
+FEW_TRIANGLES = 50
+#: 2. (with FEW_TRIANGLES) the fraction of the limb's triangles
+FEW_TRIANGLES_FRACTION = 0.005
+#: 3. it is under this fraction of the limb's size across (the limb's length)
+SMALL_SIZE_FRACTION = 0.05
 
 
 def _surface_moments(vertices: np.ndarray, faces: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -59,21 +68,103 @@ def _submesh(vertices: np.ndarray, faces: np.ndarray) -> Any:
     return trimesh.Trimesh(vertices[used], inverse.reshape(faces.shape), process=False)
 
 
-def _choose_shell(vertices: np.ndarray, faces: np.ndarray, label: str) -> tuple[np.ndarray, list[str]]:
-    """Faces of the limb's shell, and notices. See :meth:`Limb.from_scan` step 2."""
+@attrs.frozen
+class _Debris:
+    """Shells dropped as scan debris: how many, their fewest and most triangles, the largest share of the
+    limb's area among them and the largest size across (in the scan's units)."""
+
+    count: int
+    triangles: tuple[int, int]
+    area_fraction: float
+    across: float
+
+    def note(self, scale: float) -> str:
+        """The one-line notice, sizes in mm (``scale``: the factor from the scan's units to mm)."""
+        few, most = self.triangles
+        tri = f"{few} triangle{'s' if most > 1 else ''}" if few == most else f"{few}–{most} triangles"
+        percent = 100.0 * self.area_fraction
+        share = shares = "under 0.01 %"
+        if percent >= 0.01:
+            share = f"{percent:.2g} %"
+            shares = f"at most {share}"
+        mm = self.across * scale
+        size = f"{mm:.0f} mm" if mm >= 10.0 else f"{mm:.2g} mm"
+        if self.count == 1:
+            detail = f"{tri}, {share} of the limb's area, {size} across"
+        else:
+            detail = f"{tri} each, {shares} of the limb's area, the largest {size} across"
+        plural = "s" if self.count > 1 else ""
+        return f"{self.count} small disconnected fragment{plural} dropped as scan debris ({detail})"
+
+
+def _sizes(vertices: np.ndarray, faces: np.ndarray, face_label: np.ndarray, count: int) -> np.ndarray:
+    """Each shell's size across: the longest side of its vertices' box along their own principal axes.
+
+    Whatever the shell's orientation this is within a factor √3 of its largest vertex-to-vertex
+    distance (the side is spanned by two vertices; the box, whose diagonal is at most √3 sides, holds
+    them all): a tube's length, a sphere's diameter, a sliver triangle's length.
+    """
+    shell = np.full(len(vertices), -1, dtype=np.int64)
+    shell[faces] = face_label[:, None]
+    used = np.flatnonzero(shell >= 0)
+    used = used[np.argsort(shell[used], kind="stable")]
+    shell = shell[used]
+    x = vertices[used] - vertices[used].mean(axis=0)
+    n = np.bincount(shell, minlength=count)
+    x -= (np.stack([np.bincount(shell, x[:, i], count) for i in range(3)], axis=1) / n[:, None])[shell]
+    cov = np.empty((count, 3, 3))
+    for i in range(3):
+        for j in range(i, 3):
+            cov[:, i, j] = cov[:, j, i] = np.bincount(shell, x[:, i] * x[:, j], count)
+    along = np.einsum("vi,vij->vj", x, np.linalg.eigh(cov)[1][shell])
+    starts = np.searchsorted(shell, np.arange(count))
+    return (np.maximum.reduceat(along, starts) - np.minimum.reduceat(along, starts)).max(axis=1)
+
+
+def _debris(areas: np.ndarray, triangles: np.ndarray, sizes: np.ndarray, main: int) -> np.ndarray:
+    """Whether each shell is scan debris next to the limb's shell ``main`` (never ``main`` itself).
+
+    Tiny next to the limb in any one of three ways. Area alone (under 1 % of the limb's) misses the
+    debris a scanner leaves that is not small in area. A long sliver triangle, or a few, spanning a gap
+    can exceed 1 % of the limb's area: it is caught by its triangle count, since a scanner meshes a
+    limb or a bone as finely as the limb, so a shell with under 50 triangles and under 0.5 % of the
+    limb's is neither (the relative bound keeps a coarse mesh's second limb a shell, to be refused). A
+    crumpled or doubled clump of noise can have much area in a small space: it is caught by its size,
+    since no limb or bone is under a twentieth of the limb's length across (20 mm on a 400 mm arm).
+    What remains is a shell: inside the limb it is ignored (bones), beside it the scan is refused.
+    """
+    tiny = (
+        (areas < FRAGMENT_AREA_FRACTION * areas[main])
+        | ((triangles < FEW_TRIANGLES) & (triangles < FEW_TRIANGLES_FRACTION * triangles[main]))
+        | (sizes < SMALL_SIZE_FRACTION * sizes[main])
+    )
+    tiny[main] = False
+    return tiny
+
+
+def _choose_shell(
+    vertices: np.ndarray, faces: np.ndarray, label: str
+) -> tuple[np.ndarray, list[str], _Debris | None]:
+    """Faces of the limb's shell, notices, and the shells dropped as debris (None if none).
+
+    See :meth:`Limb.from_scan` step 2: the limb is the largest shell by area; :func:`_debris` drops the
+    tiny ones; any other must lie inside it (bones, ignored with a notice), else the scan is refused.
+    The debris notice is :meth:`_Debris.note`, given once the scan's units are known.
+    """
     count, face_label = _components(faces, len(vertices))
     if count == 1:
-        return faces, []
+        return faces, [], None
     tri = vertices[faces]
     areas = np.bincount(
         face_label,
         weights=0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1),
         minlength=count,
     )
-    order = np.argsort(-areas)
-    main = int(order[0])
-    fragments = [int(s) for s in order[1:] if areas[s] < FRAGMENT_AREA_FRACTION * areas[main]]
-    others = [int(s) for s in order[1:] if areas[s] >= FRAGMENT_AREA_FRACTION * areas[main]]
+    triangles = np.bincount(face_label, minlength=count)
+    sizes = _sizes(vertices, faces, face_label, count)
+    main = int(np.argmax(areas))
+    debris = _debris(areas, triangles, sizes, main)
+    others = [int(s) for s in np.argsort(-areas) if s != main and not debris[s]]
     main_faces = faces[face_label == main]
     notes = []
     if others:
@@ -101,13 +192,15 @@ def _choose_shell(vertices: np.ndarray, faces: np.ndarray, label: str) -> tuple[
         notes.append(
             f"outer shell of {inner + 1} chosen; {inner} inner shell{'s' if inner > 1 else ''} ignored"
         )
-    if fragments:
-        k = len(fragments)
-        notes.append(
-            f"{k} small disconnected fragment{'s' if k > 1 else ''} (each under "
-            f"{FRAGMENT_AREA_FRACTION:.0%} of the limb's area) ignored"
+    dropped = None
+    if debris.any():
+        dropped = _Debris(
+            count=int(debris.sum()),
+            triangles=(int(triangles[debris].min()), int(triangles[debris].max())),
+            area_fraction=float(areas[debris].max() / areas[main]),
+            across=float(sizes[debris].max()),
         )
-    return main_faces, notes
+    return main_faces, notes, dropped
 
 
 def _inside_section(slicer: _Slicer, f1: np.ndarray, f2: np.ndarray, p: np.ndarray) -> bool:
