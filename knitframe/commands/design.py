@@ -43,6 +43,65 @@ def add_parser(sub) -> None:
         help="target pressure (at the distal end for pressure_profile), mmHg",
     )
     p.add_argument(
+        "--class",
+        default=None,
+        dest="compression_class",
+        metavar="I|II|III|IV",
+        help="pressure_profile: RAL-GZ 387 compression class; its middle is the distal target (default II)",
+    )
+    p.add_argument(
+        "--graduation",
+        default=None,
+        help="pressure_profile: linear (100 %% to 60 %%, default), arm-sleeve (100/70/40 %%) or flat",
+    )
+    p.add_argument(
+        "--tolerance",
+        type=float,
+        default=None,
+        help="pressure_profile: a station meets the prescription within this fraction of its target (0.2)",
+    )
+    p.add_argument(
+        "--ceiling-mmHg",
+        type=float,
+        default=60.0,
+        dest="ceiling_mmHg",
+        help="no station's mean pressure may exceed this, mmHg (default 60)",
+    )
+    p.add_argument(
+        "--limb-tolerance",
+        type=float,
+        default=0.03,
+        dest="limb_tolerance",
+        help="fraction the limb's circumference may change by (swelling): bands reported for it (0.03)",
+    )
+    p.add_argument(
+        "--robust",
+        action="store_true",
+        help="design for the worst case over the limb ± --limb-tolerance and every --also-limb",
+    )
+    p.add_argument(
+        "--also-limb",
+        action="append",
+        default=[],
+        dest="also_limb",
+        metavar="SCAN",
+        help="another scan of the same limb (flexed, swollen); the design holds for all (repeatable)",
+    )
+    p.add_argument(
+        "--gauge",
+        action="append",
+        default=[],
+        metavar="FABRIC=STITCHES,COURSES",
+        help="a library fabric's measured gauge: stitches and courses per 10 cm of a relaxed swatch "
+        "(repeatable)",
+    )
+    p.add_argument(
+        "--no-shaping",
+        action="store_true",
+        dest="no_shaping",
+        help="knit one needle count from end to end (default: shaped by increases and decreases)",
+    )
+    p.add_argument(
         "--ratios",
         default=None,
         metavar="R,R,...",
@@ -94,6 +153,20 @@ def _numbers(text: str, option: str) -> list[float]:
         raise ConfigError(option, f"expected comma-separated numbers, got {text!r}") from None
 
 
+def _gauges(items: list[str]) -> dict[str, list[float]]:
+    """``FABRIC=STITCHES,COURSES`` options as the ``[design.gauge]`` table."""
+    from knitframe.errors import ConfigError
+
+    out = {}
+    for item in items:
+        name, sep, numbers = item.partition("=")
+        values = _numbers(numbers, "--gauge") if sep else []
+        if not name.strip() or len(values) != 2:
+            raise ConfigError("--gauge", f"expected FABRIC=STITCHES,COURSES (per 10 cm), got {item!r}")
+        out[name.strip()] = values
+    return out
+
+
 def config_from_args(args) -> dict:
     """The ``[design]`` config table the command line stands for."""
     from pathlib import Path
@@ -117,6 +190,21 @@ def config_from_args(args) -> dict:
     objective: dict = {"kind": args.objective}
     if args.target_mmHg is not None:
         objective["target_mmHg"] = args.target_mmHg
+    if args.compression_class is not None and args.objective == "pressure_uniformity":
+        from knitframe.errors import FieldError
+        from knitframe.garment.prescription import class_target
+
+        try:
+            objective.setdefault("target_mmHg", class_target(args.compression_class))
+        except FieldError as e:
+            raise ConfigError("--class", e.problem) from None
+    elif args.compression_class is not None and args.objective != "pressure_profile":
+        raise ConfigError("--class", f"applies to a pressure objective, not {args.objective}")
+    for key in ("compression_class", "graduation", "tolerance"):
+        if getattr(args, key) is not None and args.objective == "pressure_profile":
+            objective[key] = getattr(args, key)
+        elif getattr(args, key) is not None and key != "compression_class":
+            raise ConfigError("--" + key, f"applies to --objective pressure_profile, not {args.objective}")
     if args.ratios is not None:
         ratios = _numbers(args.ratios, "--ratios")
         objective["ratios"] = ratios
@@ -131,7 +219,12 @@ def config_from_args(args) -> dict:
         "method": args.method,
         "pressure": args.pressure,
         "min_courses": args.min_courses,
-        "tube": {"mode": args.mode},
+        "tube": {"mode": args.mode, "shaping": not args.no_shaping},
+        "ceiling_mmHg": args.ceiling_mmHg,
+        "limb_tolerance": args.limb_tolerance,
+        "robust": args.robust,
+        "limbs": [str(Path(x).resolve()) for x in args.also_limb],
+        "gauge": _gauges(args.gauge),
     }
     if args.needles is not None:
         table["tube"]["needles"] = args.needles
@@ -147,6 +240,13 @@ _OPTION = {
     "design.objective.kind": "--objective",
     "design.objective.target_mmHg": "--target-mmHg",
     "design.objective.ratios": "--ratios",
+    "design.objective.compression_class": "--class",
+    "design.objective.graduation": "--graduation",
+    "design.objective.tolerance": "--tolerance",
+    "design.ceiling_mmHg": "--ceiling-mmHg",
+    "design.limb_tolerance": "--limb-tolerance",
+    "design.limbs": "--also-limb",
+    "design.gauge": "--gauge",
     "design.tube.needles": "--needles",
     "design.min_courses": "--min-courses",
     "design.max_fabrics": "--max-fabrics",
@@ -178,6 +278,9 @@ def main(args) -> int:
         args.out if args.out is not None else "design-out", overwrite=args.overwrite, quiet=args.quiet
     )
     if not args.quiet:
+        from knitframe.garment.outputs import station_table
+
+        print(station_table(result.objects["design"]))
         print(result.results["design"]["headline"])
         print(f"wrote {', '.join(result.summary['outputs'])} and summary.json to {result.out}")
     return 0

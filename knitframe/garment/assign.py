@@ -3,29 +3,30 @@ the exact course-band solve, the needle search, and the method that puts them to
 
 from __future__ import annotations
 
-import warnings
 from typing import Any
 
 import attrs
 import numpy as np
 
-from knitframe.errors import ConfigError, KnitframeWarning
+from knitframe.errors import ConfigError
+from knitframe.garment.laplace import laplace_mmhg
 from knitframe.garment.optimise import BandSolution, NoAssignment, solve_bands, solve_levels
 from knitframe.garment.paper import _paper_method
-from knitframe.garment.tube import MMHG_PER_MPA, ElementGeometry, Tube
+from knitframe.garment.tube import ElementGeometry, Tube
 
 
 def _evaluate(objective, T1: np.ndarray, geo: ElementGeometry, pressure_basis: str) -> np.ndarray:
     """The objective's field for tensions T1 (any leading shape, last two (R, A))."""
-    if objective.quantity == "tension":
-        return T1
-    if pressure_basis == "local":
-        return T1 * np.maximum(geo.curvature, 0.0) * MMHG_PER_MPA
-    return T1 / geo.equivalent_radius[:, None] * MMHG_PER_MPA
+    from knitframe.garment.knitted import _field
+
+    return _field(objective, T1, geo, pressure_basis)
 
 
-def _fabric_fields(library, tube: Tube, geo: ElementGeometry, distal: float, needles: int | None):
-    """λ1, λ2, T1, T2 of shape (F, R, A), courses (R, F) and the feasibility (F, R, A)."""
+def _fabric_fields(
+    library, tube: Tube, geo: ElementGeometry, distal: float, needles: int | None, ceiling: float = np.inf
+):
+    """λ1, λ2, T1, T2 of shape (F, R, A), courses (R, F) and the feasibility (F, R, A): within the
+    fabric's limits, in a row whose mean pressure (equivalent radius) is at most ``ceiling``."""
     entries = library.entries
     c = np.array([e.course_pitch for e in entries])
     w = np.array([e.wale_pitch for e in entries])
@@ -38,6 +39,8 @@ def _fabric_fields(library, tube: Tube, geo: ElementGeometry, distal: float, nee
     tmax = np.array([e.max_tension for e in entries])[:, None, None]
     smax = np.array([e.max_stretch or np.inf for e in entries])[:, None, None]
     feasible = np.isfinite(T1) & (T1 <= tmax) & (lam1 <= smax)
+    row_p = laplace_mmhg(T1, geo.equivalent_radius[:, None]).mean(axis=2, keepdims=True)
+    feasible &= row_p <= ceiling
     return np.asarray(lam1), np.asarray(lam2), T1, T2, courses, feasible
 
 
@@ -85,56 +88,6 @@ def _no_fit_message(library, feasible: np.ndarray, lam1: np.ndarray, geo: Elemen
     )
 
 
-def _search_needles(solve, library, geo: ElementGeometry, distal: float):
-    """Knitting mode without a needle count: search N with the assignment (grid, then integer refinement).
-
-    Candidates stretch the distal section by 0–80 % in the median fabric's relaxed course pitch.
-    """
-    c_med = float(np.median([e.course_pitch for e in library.entries]))
-    lo, hi = max(4, int(np.floor(distal / (c_med * 1.8)))), max(5, int(np.ceil(distal / c_med)))
-    tried: dict[int, tuple[float, Any]] = {}
-
-    def score(n: int) -> float:
-        if n not in tried:
-            try:
-                sol, fields, value = solve(n)
-            except NoAssignment:
-                tried[n] = (np.inf, None)
-            else:
-                tried[n] = (value, (sol, fields))
-        return tried[n][0]
-
-    grid = np.unique(np.round(np.geomspace(lo, hi, 12)).astype(int))
-    for n in grid:
-        score(int(n))
-    best = min(tried, key=lambda n: tried[n][0])
-    step = max(1, int(np.ceil((hi - lo) / 12)))
-    while step >= 1:
-        for n in (best - step, best + step):
-            if lo <= n <= hi:
-                score(n)
-        new = min(tried, key=lambda n: tried[n][0])
-        if new == best:
-            step //= 2
-        best = new
-    if not np.isfinite(tried[best][0]):
-        raise ConfigError(
-            "design",
-            f"no needle count from {lo} to {hi} gives a garment within the fabrics' "
-            "limits; give design.tube.needles or a more compliant library",
-        )
-    sol, fields = tried[best][1]
-    if best in (lo, hi):  # attributed to the caller of design (this, _assign, design, caller)
-        warnings.warn(
-            f"the best needle count, {best}, is at the end of the range searched ({lo}–{hi}: the "
-            "distal section stretched 80 % to 0 % in the median fabric); give design.tube.needles to go "
-            "beyond it",
-            KnitframeWarning,
-            stacklevel=4,
-        )
-    return sol, fields, best
-
-
 def _assign(
     library,
     objective,
@@ -151,47 +104,81 @@ def _assign(
     (the index of the base fabric) of :func:`~knitframe.garment.core.design`.
     """
     pressure, min_courses, max_fabrics = options["pressure"], options["min_courses"], options["max_fabrics"]
+    ceiling = options.get("ceiling", np.inf)
     where = np.broadcast_to(geo.position[:, None], geo.shape)
 
     def solve(n: int | None):
-        lam1, lam2, T1, T2, courses, feasible = _fabric_fields(library, tube, geo, distal, n)
+        lam1, lam2, T1, T2, courses, feasible = _fabric_fields(library, tube, geo, distal, n, ceiling)
         V = _evaluate(objective, T1, geo, pressure)
         sol = _solve_bands(objective, V, feasible, geo, courses, min_courses, max_fabrics)
         value = objective.evaluate(V[sol.rows, np.arange(len(sol.rows))], geo.area, where)
         return sol, (lam1, lam2, T1, T2, courses, feasible, V), float(value)
 
     if options["method"] == "paper":
-        lam1, lam2, T1, T2, courses, feasible = _fabric_fields(library, tube, geo, distal, None)
+        lam1, lam2, T1, T2, courses, feasible = _fabric_fields(library, tube, geo, distal, None, ceiling)
         min_elements = max(1, int(np.ceil(min_courses / courses.mean())))
         fab, more = _paper_method(objective, library, T1, feasible, geo, options["base_i"], min_elements)
         notes += more
-        return (
-            fab,
-            tube,
-            "none: the paper's per-element heuristic (steps 5–7)",
-            (lam1, lam2, T1, T2, courses, feasible),
-        )
-    if tube.mode == "knitting" and tube.needles is None:
-        sol, fields, n = _search_needles(solve, library, geo, distal)
-        made = attrs.evolve(tube, needles=n)
-        notes.append(f"{n} needles chosen with the assignment")
-    else:
+        guarantee = "none: the paper's per-element heuristic (steps 5–7)"
+        return fab, tube, guarantee, _chosen(fab, (lam1, lam2, T1, T2), courses), _base(options, T1, feasible)
+    if tube.mode == "knitting":
+        from knitframe.garment.knitted import design_fields, solve_knitted
+
         try:
-            sol, fields, _ = solve(None)
-        except NoAssignment:
-            lam1, _, _, _, _, feasible = _fabric_fields(library, tube, geo, distal, None)
-            raise ConfigError("design", _no_fit_message(library, feasible, lam1, geo)) from None
-        made = (
-            tube
-            if tube.mode == "knitting"
-            else attrs.evolve(
+            sol, _, courses = solve_knitted(
+                library,
+                objective,
                 tube,
-                circumference=tube.circumference or distal,
-                length=tube.length or float(geo.row_length.sum()),
+                [geo, *options.get("scenarios", [])],
+                options["rules"],
+                pressure=pressure,
+                min_courses=min_courses,
+                max_fabrics=max_fabrics,
+                ceiling=options.get("ceiling", np.inf),
             )
+        except NoAssignment as e:
+            raise ConfigError("design", str(e)) from None
+        lam1, lam2, T1, T2 = design_fields(library, geo, sol.rows, sol.needles, courses)
+        made = attrs.evolve(tube, needles=int(sol.needles[0]))
+        fab = np.repeat(sol.rows[:, None], geo.shape[1], axis=1)
+        guarantee = sol.guarantee + (
+            f"; level τ = {sol.level:.4g} searched on a grid and refined" if sol.level is not None else ""
         )
+        R = len(sol.rows)
+        chosen = (lam1, lam2, T1, T2, courses[np.arange(R), sol.rows].astype(float), sol.needles)
+        b = options["base_i"]
+        lb, _, Tb, _ = design_fields(library, geo, np.full(R, b), sol.needles, courses)
+        e = library.entries[b]
+        over = int(((Tb > e.max_tension) | (lb > (e.max_stretch or np.inf))).sum())
+        return fab, made, guarantee, chosen, (Tb, over)
+    try:
+        sol, fields, _ = solve(None)
+    except NoAssignment:
+        lam1, _, _, _, _, feasible = _fabric_fields(library, tube, geo, distal, None, ceiling)
+        raise ConfigError("design", _no_fit_message(library, feasible, lam1, geo)) from None
+    made = attrs.evolve(
+        tube,
+        circumference=tube.circumference or distal,
+        length=tube.length or float(geo.row_length.sum()),
+    )
     fab = np.repeat(sol.rows[:, None], geo.shape[1], axis=1)
     guarantee = sol.guarantee + (
         f"; level τ = {sol.level:.4g} searched on a grid and refined" if sol.level is not None else ""
     )
-    return fab, made, guarantee, fields[:6]
+    lam1, lam2, T1, T2, courses, feasible, _ = fields
+    return fab, made, guarantee, _chosen(fab, (lam1, lam2, T1, T2), courses), _base(options, T1, feasible)
+
+
+def _chosen(fab: np.ndarray, fields, courses: np.ndarray):
+    """(R, A) λ1, λ2, T1, T2 of the assignment ``fab`` from every fabric's (F, R, A) fields, the (R,)
+    courses of each row (its first element's fabric) and no needle counts (paper mode)."""
+    R, A = fab.shape
+    ii, jj = np.arange(R)[:, None], np.arange(A)[None, :]
+    picked = tuple(X[fab, ii, jj] for X in fields)
+    return (*picked, courses[np.arange(R), fab[:, 0]].astype(float), None)
+
+
+def _base(options, T1: np.ndarray, feasible: np.ndarray):
+    """The base fabric's tension everywhere and its count of elements over the limit."""
+    b = options["base_i"]
+    return T1[b], int((~feasible[b]).sum())

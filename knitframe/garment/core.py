@@ -24,27 +24,21 @@ import numpy as np
 
 from knitframe.errors import ConfigError, KnitframeWarning
 from knitframe.garment.assign import _assign, _evaluate
+from knitframe.garment.laplace import MMHG_PER_MPA
 from knitframe.garment.optimise import check_options
 from knitframe.garment.paper import _periodic_labels
-from knitframe.garment.tube import MMHG_PER_MPA, ElementGeometry, Tube, element_geometry
+from knitframe.garment.prescription import CLASSES, compression_class, graduation_report
+from knitframe.garment.safety import (
+    DEFAULT_CEILING,
+    check_safety,
+    default_level,
+    robust_scenarios,
+)
+from knitframe.garment.shaping import MachineRules, course_needles
+from knitframe.garment.tube import ElementGeometry, Tube, element_geometry
 from knitframe.interfaces import DesignObjective, declared
 
 __all__ = ["Design", "design", "compression_class", "CLASSES"]
-
-#: RAL-GZ 387 compression classes, mmHg (lower, upper); between them a pressure has no class
-CLASSES = (("I", 18.0, 21.0), ("II", 23.0, 32.0), ("III", 34.0, 46.0), ("IV", 49.0, np.inf))
-
-
-def compression_class(p: float) -> str:
-    """The RAL-GZ 387 class of a pressure in mmHg: I 18–21, II 23–32, III 34–46, IV ≥ 49."""
-    for name, lo, hi in CLASSES:
-        if lo <= p <= hi:
-            return name
-    if p < CLASSES[0][1]:
-        return "below I"
-    below = [name for name, lo, _ in CLASSES if lo > p][0]
-    above = [name for name, _, hi in CLASSES if hi < p][-1]
-    return f"between {above} and {below}"
 
 
 @attrs.frozen(eq=False)
@@ -83,6 +77,18 @@ class Design:
     pressure_basis: str
     wall_time: float = 0.0
     notes: tuple[str, ...] = ()
+    #: (R,) stitches of each row's first course (knitting mode), None in paper mode
+    row_needles: np.ndarray | None = None
+    #: the machine's shaping rules (knitting mode)
+    rules: MachineRules | None = None
+    #: the safety and robustness settings the design was made with
+    safety: dict[str, Any] = attrs.Factory(dict)
+
+    def needles_per_course(self) -> np.ndarray | None:
+        """(C,) stitches of every course of the knitted tube (None in paper mode)."""
+        if self.row_needles is None:
+            return None
+        return course_needles(self.row_needles, np.round(self.courses).astype(int), self.rules)
 
     @property
     def pressure_equivalent(self) -> np.ndarray:
@@ -140,10 +146,38 @@ class Design:
             )
         return out
 
+    def prescription(self) -> dict[str, Any] | None:
+        """How the station pressures meet the objective's target and tolerance (None without a target):
+        see :func:`~knitframe.garment.prescription.graduation_report`."""
+        target = declared(self.objective, DesignObjective, "target")(self.geometry.position)
+        if self.objective.quantity != "pressure" or target is None:
+            return None
+        tol = float(getattr(self.objective, "tolerance", 0.2))
+        return graduation_report(
+            self.geometry.position, self.geometry.z, self.pressure.mean(axis=1), target, tol
+        )
+
+    def bands(self) -> dict[str, Any]:
+        """Station pressure bands: limb circumference ±tolerance, course pitch ±pitch_error, and the
+        tests' scatter where the library knows it (:mod:`knitframe.garment.safety`)."""
+        from knitframe.garment.safety import circumference_band, pitch_band, scatter_band
+
+        x = self.safety.get("limb_tolerance", 0.03)
+        e = self.safety.get("pitch_error", 0.05)
+        out = {"circumference": circumference_band(self, x), "pitch": pitch_band(self, e), "scatter": None}
+        sb = scatter_band(self)
+        if sb is not None:
+            out["scatter"], out["scatter_unknown"] = sb
+        return out
+
     def stations(self) -> list[dict[str, Any]]:
-        """Per element row: position, circumference, tension, pressure mean/min/max and class."""
+        """Per element row: position, circumference, needles, tension, pressure mean/min/max, class,
+        the prescription's target and verdict, and the pressure bands."""
         g = self.geometry
         pe, pl = self.pressure_equivalent, self.pressure_local
+        rx = self.prescription()
+        target = declared(self.objective, DesignObjective, "target")(g.position)
+        bands = self.bands()
         rows = []
         for i in range(g.shape[0]):
             p = float(pe[i].mean())
@@ -164,6 +198,14 @@ class Design:
                         "local_max": float(pl[i].max()),
                     },
                     "class": compression_class(p),
+                    "needles": None if self.row_needles is None else int(self.row_needles[i]),
+                    "target_mmHg": None if target is None else float(target[i]),
+                    "inside_tolerance": None if rx is None else bool(rx["inside"][i]),
+                    "band_mmHg": {
+                        k: None if v is None else [float(v[i, 0]), float(v[i, 1])]
+                        for k, v in bands.items()
+                        if k != "scatter_unknown"
+                    },
                 }
             )
         return rows
@@ -184,6 +226,12 @@ class Design:
             }
             for k, i in where.items()
         }
+
+    def local_peaks(self) -> list[dict[str, Any]]:
+        """Stations whose local pressure peak exceeds the ceiling or ``peak_ratio`` × their mean."""
+        from knitframe.garment.safety import local_peaks
+
+        return local_peaks(self, self.safety.get("ceiling_mmHg", np.inf), self.safety.get("peak_ratio", 2.0))
 
     def stress_cv(self) -> float:
         return _cv(self.T1, self.geometry.area)
@@ -208,6 +256,14 @@ class Design:
                 "needles": t.needles,
                 "axial_stretch": t.axial_stretch,
                 "courses": int(self.courses.sum()),
+                "shaping": t.shaping if t.mode == "knitting" else None,
+                "rules": None if self.rules is None else self.rules.to_json(),
+                "needles_range": None
+                if self.row_needles is None
+                else [int(self.row_needles.min()), int(self.row_needles.max())],
+                "needles_per_course": None
+                if self.row_needles is None
+                else [int(n) for n in self.needles_per_course()],
             },
             "limb": {
                 "name": self.limb.name,
@@ -223,6 +279,15 @@ class Design:
                 "fabrics": [e.name for e in self.library.entries],
             },
             "regions": self.regions(),
+            "prescription": _prescription_json(self),
+            "safety": {**self.safety, "local_peaks": self.local_peaks()},
+            "pitches": {
+                e.name: {
+                    "course_pitch_mm": e.course_pitch,
+                    "estimate": bool(getattr(e, "pitch_is_estimate", True)),
+                }
+                for e in (self.library.entries[int(f)] for f in np.unique(self.fabric))
+            },
             "stations": self.stations(),
             "standard_positions": self.standard_positions(),
             "stress_cv": self.stress_cv(),
@@ -232,6 +297,17 @@ class Design:
             "notes": list(self.notes),
             "wall_time_s": self.wall_time,
         }
+
+
+def _prescription_json(d: Design) -> dict[str, Any] | None:
+    rx = d.prescription()
+    if rx is None:
+        return None
+    out = {k: v for k, v in rx.items() if k not in ("inside", "error", "target")}
+    cls = getattr(d.objective, "compression_class", None)
+    out["compression_class"] = cls
+    out["distal_class"] = compression_class(float(d.pressure_equivalent[0].mean()))
+    return out
 
 
 def _cv(x: np.ndarray, w: np.ndarray) -> float:
@@ -297,6 +373,13 @@ def design(
     min_courses: float = 10.0,
     max_fabrics: int | None = None,
     base: str | None = None,
+    rules: MachineRules | None = None,
+    ceiling: float = DEFAULT_CEILING,
+    tolerance: float = 0.03,
+    robust: bool = False,
+    limbs: list | None = None,
+    pitch_error: float = 0.05,
+    peak_ratio: float = 2.0,
 ) -> Design:
     """Design a sleeve: the fabric of every element, its stretches, tensions and pressures.
 
@@ -321,13 +404,33 @@ def design(
     base : str, optional
         The single fabric of the comparison garment and the paper method's start (default: the
         library's first cotton fabric, else its first).
+    rules : MachineRules, optional
+        Knitting mode: how the machine may shape the tube (default :class:`MachineRules`).
+    ceiling : float
+        No row's mean pressure (equivalent radius) may exceed this, mmHg (60 by default).
+    tolerance : float
+        Relative change of the limb's circumference the pressure band is reported for (±3 %), and
+        the robust design is made for.
+    robust : bool
+        Design for the worst case over the limb scaled by 1 ± ``tolerance`` (and ``limbs``).
+    limbs : list of Limb, optional
+        Other scans of the same limb (relaxed, flexed, evening): the design is made for the worst
+        case over all of them, row by row (the same number of stations).
+    pitch_error : float
+        Relative error of the fabrics' relaxed course pitch the pressure band is reported for (±5 %).
+    peak_ratio : float
+        Warn where a local pressure peak exceeds this multiple of its station's mean.
     """
     t0 = time.perf_counter()
     tube = tube or Tube()
+    rules = rules or MachineRules()
     base_i = _check_design(library, tube, method, pressure, min_courses, max_fabrics, base)
+    check_safety(ceiling, tolerance)
     geo = element_geometry(limb)
     distal = float(limb.circumference[0])
     notes: list[str] = list(limb.notes)
+    objective = default_level(objective, notes)
+    scenarios = robust_scenarios(geo, limbs, tolerance, robust, limb.n_stations)
 
     where = np.broadcast_to(geo.position[:, None], geo.shape)
     options = {
@@ -336,19 +439,16 @@ def design(
         "min_courses": min_courses,
         "max_fabrics": max_fabrics,
         "base_i": base_i,
+        "rules": rules,
+        "ceiling": ceiling,
+        "scenarios": scenarios,
     }
-    fab, made, guarantee, fields = _assign(library, objective, tube, geo, distal, options, notes)
-    lam1, lam2, T1, T2, courses, feasible = fields
+    fab, made, guarantee, chosen, (T1b, over) = _assign(library, objective, tube, geo, distal, options, notes)
+    lam1, lam2, T1, T2, rows_courses, row_needles = chosen
     if made.mode == "paper" and made.circumference is None:
         made = attrs.evolve(made, circumference=distal, length=float(geo.row_length.sum()))
-    R, A = geo.shape
-    ii, jj = np.arange(R)[:, None], np.arange(A)[None, :]
-    pick = lambda X: X[fab, ii, jj]  # noqa: E731
-    T1d = pick(T1)
-    value = objective.evaluate(_evaluate(objective, T1d, geo, pressure), geo.area, where)
-    rows_courses = courses[np.arange(R), fab[:, 0]]  # the course count of the row's first element
-    over = int((~feasible[base_i]).sum())
-    baseline = _baseline(library, objective, T1[base_i], over, geo, base_i, pressure)
+    value = objective.evaluate(_evaluate(objective, T1, geo, pressure), geo.area, where)
+    baseline = _baseline(library, objective, T1b, over, geo, base_i, pressure)
     d = Design(
         limb,
         library,
@@ -357,40 +457,76 @@ def design(
         method,
         geo,
         fab,
-        pick(lam1),
-        pick(lam2),
-        T1d,
-        pick(T2),
-        rows_courses.astype(float),
+        lam1,
+        lam2,
+        T1,
+        T2,
+        rows_courses,
         float(value),
         guarantee,
         baseline,
         pressure,
         time.perf_counter() - t0,
         tuple(notes),
+        row_needles=row_needles,
+        rules=rules if made.mode == "knitting" else None,
+        safety={
+            "ceiling_mmHg": ceiling,
+            "limb_tolerance": tolerance,
+            "robust": robust,
+            "scans": 1 + len(limbs or ()),
+            "pitch_error": pitch_error,
+            "peak_ratio": peak_ratio,
+        },
     )
-    for message in _suspect(d):
+    more = _suspect(d)
+    for message in more:
         warnings.warn(message, KnitframeWarning, stacklevel=2)
-    return attrs.evolve(d, notes=d.notes + tuple(_suspect(d)))
+    return attrs.evolve(d, notes=d.notes + tuple(more))
 
 
 def _suspect(d: Design) -> list[str]:
-    """What a user must know about a design that is the best the library allows but still poor."""
+    """What a user must know about a design: a prescription missed, a graduation that rises, a station
+    over the ceiling, a local pressure peak, a slack tube."""
     out = []
-    target = declared(d.objective, DesignObjective, "target")(d.geometry.position)
-    if d.objective.quantity == "pressure" and target is not None:
-        want = target[:, None]
-        err = float(
-            np.sqrt(np.sum(d.geometry.area * ((d.pressure - want) / want) ** 2) / d.geometry.area.sum())
-        )
-        if err > 0.25:
-            worst = int(np.argmax(np.abs(d.pressure.mean(axis=1) - want[:, 0])))
+    g = d.geometry
+    rx = d.prescription()
+    if rx is not None:
+        miss = ~rx["inside"]
+        if miss.any():
+            worst = int(np.argmax(np.abs(rx["error"])))
+            p = d.pressure.mean(axis=1)
             out.append(
-                f"the design misses the pressure target by {100 * err:.0f} % (RMS; worst at "
-                f"{d.geometry.z[worst]:.0f} mm: {d.pressure[worst].mean():.1f} mmHg against "
-                f"{want[min(worst, len(want) - 1), 0]:.1f}): library '{d.library.name}' cannot do better on "
-                "this limb; add fabrics of other stitch lengths or patterns, or change the tube"
+                f"{int(miss.sum())} of {len(miss)} stations are outside the prescription's ±"
+                f"{100 * rx['tolerance']:.0f} % (RMS miss {100 * rx['all']['rms_error']:.0f} %; worst at "
+                f"{g.z[worst]:.0f} mm: {p[worst]:.1f} mmHg against {rx['target'][worst]:.1f})"
+                + (
+                    f": library '{d.library.name}' cannot do better on this limb; add fabrics or relax "
+                    "the machine's rules"
+                    if rx["all"]["rms_error"] > 0.25
+                    else ""
+                )
             )
+        if rx["falls_steadily"] is False:
+            i = rx["largest_rise_row"]
+            out.append(
+                f"the pressure (averaged over {rx['probe_mm']:g} mm, a probe's size) rises by "
+                f"{rx['largest_rise_mmHg']:.1f} mmHg at {g.z[i]:.0f} mm: the graduation does not fall "
+                "steadily from the distal end"
+            )
+    ceiling = d.safety.get("ceiling_mmHg", np.inf)
+    pe = d.pressure_equivalent.mean(axis=1)
+    if np.any(pe > ceiling):
+        i = int(np.argmax(pe))
+        out.append(
+            f"station at {g.z[i]:.0f} mm has a mean pressure of {pe[i]:.1f} mmHg, above the ceiling "
+            f"{ceiling:g}"
+        )
+    for peak in d.local_peaks():
+        out.append(
+            f"local pressure peak of {peak['peak_mmHg']:.1f} mmHg at {peak['position_mm']:.0f} mm (station "
+            f"mean {peak['mean_mmHg']:.1f}): over {peak['over']}; a bony ridge there may need padding"
+        )
     if d.T1.max() == 0:
         out.append("every element is slack: the tube is wider than the limb everywhere")
     return out

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any
 
 import attrs
 import numpy as np
@@ -245,19 +246,22 @@ def solve_bands(
 
 def solve_levels(
     row_cost: Callable[[float], np.ndarray],
-    courses: np.ndarray,
+    courses: np.ndarray | None,
     levels: np.ndarray,
-    evaluate: Callable[[np.ndarray], float],
+    evaluate: Callable[[Any], float],
     *,
     min_courses: float = 0.0,
     max_fabrics: int | None = None,
     refine: int = 12,
-) -> BandSolution:
+    solve: Callable[[np.ndarray], Any] | None = None,
+) -> Any:
     """Minimise over a free level τ as well: exact assignment for each τ, τ on a grid then refined.
 
-    ``row_cost(τ)`` gives the (R, F) costs at level τ; ``evaluate(rows)`` the true objective of an
+    ``row_cost(τ)`` gives the costs at level τ; ``evaluate(rows)`` the true objective of an
     assignment, which picks the winner (for the CV objectives, the level sum is a monotone
-    function of the CV, see :func:`knitframe_objectives.stress_variance.level_cost`).
+    function of the CV, see :func:`knitframe_objectives.stress_variance.level_cost`). ``solve(cost)``
+    replaces :func:`solve_bands` (with ``courses``, ``min_courses`` and ``max_fabrics``) for another
+    exact assignment, such as a shaped tube's; ``evaluate`` then gets its whole solution.
     """
     levels = np.unique(np.asarray(levels, dtype=np.float64))
     levels = levels[np.isfinite(levels) & (levels > 0)]
@@ -268,11 +272,12 @@ def solve_levels(
     def trial(tau: float) -> float:
         if tau not in cache:
             try:
-                sol = solve_bands(row_cost(tau), courses, min_courses, max_fabrics)
+                cost = row_cost(tau)
+                sol = solve(cost) if solve else solve_bands(cost, courses, min_courses, max_fabrics)
             except NoAssignment:
                 cache[tau] = (math.inf, None)  # type: ignore[assignment]
             else:
-                cache[tau] = (evaluate(sol.rows), attrs.evolve(sol, level=tau))
+                cache[tau] = (evaluate(sol if solve else sol.rows), attrs.evolve(sol, level=tau))
         return cache[tau][0]
 
     scores = np.array([trial(float(t)) for t in levels])

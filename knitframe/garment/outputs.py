@@ -12,7 +12,29 @@ import numpy as np
 from knitframe.garment.core import CLASSES, Design
 from knitframe.interfaces import DesignObjective, declared
 
-__all__ = ["write_design", "plot_knit_map", "plot_pressure", "write_knit_map"]
+__all__ = ["write_design", "plot_knit_map", "plot_pressure", "write_knit_map", "station_table"]
+
+
+def station_table(d: Design) -> str:
+    """The stations as a text table: position, circumference, needles, fabric, pressure, target, the
+    band under the limb tolerance, and whether the station meets the prescription."""
+    rows = d.stations()
+    x = 100 * d.safety.get("limb_tolerance", 0.03)
+    head = (
+        f"{'mm':>5} {'circ':>5} {'st.':>4} {'fabric':<18} {'mmHg':>5} {'target':>6} {f'±{x:g}% limb':>12}  ok"
+    )
+    out = [head]
+    for r in rows:
+        band = r["band_mmHg"]["circumference"]
+        t = r["target_mmHg"]
+        ok = "" if r["inside_tolerance"] is None else ("yes" if r["inside_tolerance"] else "NO")
+        out.append(
+            f"{r['position_mm']:5.0f} {r['circumference_mm']:5.0f} "
+            f"{'' if r['needles'] is None else r['needles']:>4} {r['fabric'][:18]:<18} "
+            f"{r['pressure_mmHg']['equivalent']:5.1f} {'' if t is None else f'{t:6.1f}':>6} "
+            f"{band[0]:5.1f}–{band[1]:<6.1f}  {ok}"
+        )
+    return "\n".join(out)
 
 
 def write_design(d: Design, folder: Path) -> list[str]:

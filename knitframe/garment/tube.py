@@ -31,10 +31,9 @@ from typing import Literal
 import attrs
 import numpy as np
 
-__all__ = ["ElementGeometry", "Tube", "element_geometry", "MMHG_PER_MPA"]
+from knitframe.garment.laplace import MMHG_PER_MPA
 
-#: 1 MPa = 1e6 Pa = 7500.6 mmHg (1 mmHg = 133.322 Pa)
-MMHG_PER_MPA = 1e6 / 133.322
+__all__ = ["ElementGeometry", "Tube", "element_geometry", "MMHG_PER_MPA"]
 
 
 @attrs.frozen(eq=False)
@@ -115,9 +114,13 @@ class Tube:
     length : float, optional
         Paper mode: the tube's length, mm (default: the limb's length).
     needles : int, optional
-        Knitting mode: stitches per course (default: searched with the assignment).
+        Knitting mode: stitches of every course of an unshaped tube (default: chosen with the
+        assignment, course band by course band on a shaped tube).
     axial_stretch : float
         Knitting mode: the target wale stretch λ2* the courses per row are chosen for.
+    shaping : bool
+        Knitting mode: let the needle count change along the tube by increases and decreases
+        (:mod:`knitframe.garment.shaping`); False keeps one count from end to end.
     """
 
     mode: Literal["paper", "knitting"] = "knitting"
@@ -125,6 +128,7 @@ class Tube:
     length: float | None = None
     needles: int | None = None
     axial_stretch: float = 1.0
+    shaping: bool = True
 
     def stretches(
         self,

@@ -2,10 +2,13 @@
 
 Clinical sleeves and stockings are graduated: the pressure is highest distally and falls along
 the limb (a typical graded arm sleeve gives about 22 / 15 / 9 mmHg from forearm to shoulder). The
-target is ``target_mmHg`` at the distal end times a ratio that is interpolated linearly between
-the given positions (0 = distal end, 1 = top)::
+target is ``target_mmHg`` at the distal end, or the middle of a RAL-GZ 387 ``compression_class``
+(class II's 27.5 mmHg when neither is given), times a ratio that is interpolated linearly between
+the given positions (0 = distal end, 1 = top), or a named ``graduation``
+(:mod:`knitframe.garment.prescription`). A station meets the prescription within ``tolerance``::
 
     [design]
+    objective = { kind = "pressure_profile", compression_class = "II", graduation = "arm-sleeve" }
     objective = { kind = "pressure_profile", target_mmHg = 30, at = [0.0, 1.0], ratios = [1.0, 0.6] }
 """
 
@@ -31,14 +34,34 @@ class PressureProfile:
     )
     quantity: ClassVar[str] = "pressure"
 
-    #: target pressure at the distal end (wrist or ankle), mmHg (RAL class II)
-    target_mmHg: float = 25.0
+    #: target pressure at the distal end (wrist or ankle), mmHg (default: the class's middle)
+    target_mmHg: float | None = None
+    #: RAL-GZ 387 class I, II, III or IV (default II when no target_mmHg is given)
+    compression_class: str | None = None
+    #: a named graduation ("linear", "arm-sleeve", "flat") instead of at and ratios
+    graduation: str | None = None
     #: positions along the limb, 0 distal to 1 top
     at: list[float] = attrs.Factory(lambda: [0.0, 1.0])
     #: target / target_mmHg at those positions
     ratios: list[float] = attrs.Factory(lambda: [1.0, 0.6])
+    #: a station meets the prescription within this relative error of its target
+    tolerance: float = 0.2
 
     def __attrs_post_init__(self) -> None:
+        from knitframe.garment.prescription import class_target, graduation
+
+        if self.target_mmHg is None:
+            object.__setattr__(self, "target_mmHg", class_target(self.compression_class or "II"))
+        elif self.compression_class is not None:
+            class_target(self.compression_class)  # checked; the explicit target wins
+        if self.graduation is not None:
+            at, ratios = graduation(self.graduation)
+            object.__setattr__(self, "at", at)
+            object.__setattr__(self, "ratios", ratios)
+        if not (isinstance(self.tolerance, (int, float)) and 0 < self.tolerance < 1):
+            raise FieldError(
+                "tolerance", f"must be a fraction in (0, 1) (0.2 = ±20 %), got {self.tolerance!r}"
+            )
         if not (np.isfinite(self.target_mmHg) and self.target_mmHg > 0):
             raise FieldError("target_mmHg", f"must be a finite number > 0, got {self.target_mmHg}")
         if len(self.at) != len(self.ratios) or len(self.at) < 1:

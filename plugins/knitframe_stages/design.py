@@ -59,6 +59,8 @@ class TubeTable:
     needles: int | None = attrs.field(default=None, validator=v.optional(v.in_range(4, 10000)))
     #: knitting mode: target wale stretch on the limb
     axial_stretch: float = attrs.field(default=1.0, validator=v.in_range(0.5, 2.0))
+    #: knitting mode: shape the tube (the needle count follows the limb); false: one count throughout
+    shaping: bool = True
 
 
 @attrs.frozen
@@ -79,9 +81,27 @@ class MachineTable:
     dat: bool = False
     #: run sleeve.k through knitout-interpreter before writing it (about 25 s for the example)
     check: bool = True
+    #: write the machine program (false: only use the shaping rules below for the design)
+    knitout: bool = True
+    #: shaping: most stitches added or removed on one shaping course (both edges together)
+    max_change: int = 2
+    #: shaping: least courses from one shaping course to the next
+    every: int = 2
+    #: fewest stitches per course
+    min_needles: int = 8
+    #: most stitches per course (default: the bed width)
+    max_needles: int | None = None
 
     def __attrs_post_init__(self) -> None:
         self.spec()  # every field checked; a FieldError names it
+        self.rules()
+
+    def rules(self) -> Any:
+        """The :class:`~knitframe.garment.shaping.MachineRules` of this table."""
+        from knitframe.garment.shaping import MachineRules
+
+        top = self.max_needles if self.max_needles is not None else self.spec().bed_width
+        return MachineRules(self.max_change, self.every, self.min_needles, top)
 
     def spec(self) -> Any:
         """The :class:`~knitframe.garment.knitout.MachineSpec` of this table."""
@@ -120,16 +140,30 @@ class DesignTable:
     axis: list[float] | None = None
     #: how the tube is made
     tube: TubeTable = attrs.Factory(TubeTable)
-    #: knit it on a V-bed machine: sleeve.k, sleeve-chart.png (and sleeve.dat)
+    #: knit it on a V-bed machine: sleeve.k, sleeve-chart.png (and sleeve.dat); its shaping rules
     machine: MachineTable | None = None
+    #: no station's mean pressure may exceed this, mmHg
+    ceiling_mmHg: float = attrs.field(default=60.0, validator=v.in_range(1.0, 300.0))
+    #: relative change of the limb's circumference the pressure band is reported for (0.03 = ±3 %)
+    limb_tolerance: float = attrs.field(default=0.03, validator=v.in_range(0.0, 0.49))
+    #: design for the worst case over the limb ± limb_tolerance (and the other scans)
+    robust: bool = False
+    #: other scans of the same limb (relaxed, flexed, ...): designed for the worst case over all
+    limbs: list[str] = attrs.Factory(list)
+    #: relative error of the fabrics' relaxed course pitch the pressure band is reported for
+    pitch_error: float = attrs.field(default=0.05, validator=v.in_range(0.0, 0.49))
+    #: warn where a local pressure peak exceeds this multiple of its station's mean
+    peak_ratio: float = attrs.field(default=2.0, validator=v.in_range(1.0, 100.0))
+    #: knitter's gauge of library fabrics: name -> [stitches, courses] per 10 cm of a relaxed swatch
+    gauge: dict[str, list[float]] = attrs.Factory(dict)
 
     def __attrs_post_init__(self) -> None:
         if self.axis is not None and len(self.axis) != 3:
             raise FieldError("axis", f"must be 3 numbers, got {len(self.axis)}")
 
 
-def load_limb(value: Any, ctx: Any, table: DesignTable) -> Any:
-    """The Limb a ``limb`` value names (errors name ``design.limb``)."""
+def load_limb(value: Any, ctx: Any, table: DesignTable, field: str = "design.limb") -> Any:
+    """The Limb a ``limb`` value names (errors name ``field``)."""
     from knitframe.garment.limb import Limb, example_arm
 
     if value == "example":
@@ -139,13 +173,13 @@ def load_limb(value: Any, ctx: Any, table: DesignTable) -> Any:
         extra = sorted(set(value) - allowed)
         if extra:
             raise ConfigError(
-                f"design.limb.{extra[0]}",
+                f"{field}.{extra[0]}",
                 f"unknown key; expected one of {', '.join(sorted(allowed))}",
                 source=ctx.source,
             )
         for key in ("positions_mm", "circumferences_mm"):
             if key not in value:
-                raise ConfigError(f"design.limb.{key}", "required key is missing", source=ctx.source)
+                raise ConfigError(f"{field}.{key}", "required key is missing", source=ctx.source)
         try:
             return Limb.from_measurements(
                 value["positions_mm"],
@@ -156,11 +190,11 @@ def load_limb(value: Any, ctx: Any, table: DesignTable) -> Any:
                 name=value.get("name", "limb"),
             )
         except (ValueError, TypeError, FieldError) as e:
-            field = getattr(e, "field", "")
+            sub = getattr(e, "field", "")
             raise ConfigError(
-                f"design.limb{'.' + field if field else ''}", getattr(e, "problem", str(e)), source=ctx.source
+                f"{field}{'.' + sub if sub else ''}", getattr(e, "problem", str(e)), source=ctx.source
             ) from None
-    path = ctx.path(value, "design.limb")
+    path = ctx.path(value, field)
     return Limb.from_scan(path, axis=table.axis, n_stations=table.stations, n_around=table.around)
 
 
@@ -187,6 +221,7 @@ class DesignStage(Stage):
     library: Any
     objective: Any
     objective_name: str
+    others: tuple = ()
 
     @classmethod
     def from_config(cls, config, ctx) -> DesignStage:
@@ -209,12 +244,20 @@ class DesignStage(Stage):
                 "the paper's per-element method needs design.tube.mode = 'paper'",
                 source=ctx.source,
             )
-        if table.machine is not None:
+        if table.gauge:
+            library = library.with_gauges({k: tuple(g) for k, g in table.gauge.items()}, field="design.gauge")
+        if table.machine is not None and table.machine.knitout:
             library = check_machine(table, library, ctx)
         limb = load_limb(table.limb, ctx, table)
+        others = tuple(load_limb(x, ctx, table, f"design.limbs[{k}]") for k, x in enumerate(table.limbs))
         Tube(**attrs.asdict(table.tube))
         return cls(
-            table, limb, library, objective, PluginSpec.parse(table.objective, "design.objective").kind
+            table,
+            limb,
+            library,
+            objective,
+            PluginSpec.parse(table.objective, "design.objective").kind,
+            others,
         )
 
     def run(self, ctx) -> None:
@@ -235,12 +278,18 @@ class DesignStage(Stage):
             min_courses=t.min_courses,
             max_fabrics=t.max_fabrics,
             base=t.base,
+            rules=t.machine.rules() if t.machine is not None else None,
+            ceiling=t.ceiling_mmHg,
+            tolerance=t.limb_tolerance,
+            robust=t.robust or bool(self.others),
+            limbs=list(self.others),
+            pitch_error=t.pitch_error,
+            peak_ratio=t.peak_ratio,
         )
         for name in write_design(d, ctx.out):
             ctx.outputs.append(name)
-        machine = self._machine_outputs(d, ctx) if t.machine is not None else None
+        machine = self._machine_outputs(d, ctx) if t.machine is not None and t.machine.knitout else None
         ctx.objects[self.name] = d
-        pe = d.standard_positions()
         ctx.results[self.name] = {
             "objective": self.objective_name,
             "value": d.value,
@@ -249,13 +298,7 @@ class DesignStage(Stage):
             "stress_cv": d.stress_cv(),
             "baseline_stress_cv": d.baseline["stress_cv"],
             "guarantee": d.guarantee,
-            "headline": (
-                f"{len(d.regions())} regions, {self.objective_name} {d.value:.4g}; pressure "
-                f"{pe['distal']['pressure_equivalent_mmHg']:.1f} mmHg distal, "
-                f"{pe['top']['pressure_equivalent_mmHg']:.1f} mmHg top; stress CV "
-                f"{d.stress_cv():.3f} (one fabric: {d.baseline['stress_cv']:.3f}); "
-                f"limits {'respected' if d.limits_respected else 'EXCEEDED'}"
-            ),
+            "headline": headline(d, self.objective_name),
         }
         if machine is not None:
             ctx.results[self.name]["machine"] = machine
@@ -284,6 +327,33 @@ class DesignStage(Stage):
         names, info = write_machine_outputs(p, lines, ctx.out, dat=m.dat)
         ctx.outputs.extend(names)
         return {**info, "check": report}
+
+
+def headline(d: Any, objective_name: str) -> str:
+    """One line on a design: regions and needles, the pressures, the prescription, the limits."""
+    pe = d.standard_positions()
+    tube = ""
+    if d.row_needles is not None:
+        lo, hi = int(d.row_needles.min()), int(d.row_needles.max())
+        tube = f" on {lo}–{hi} stitches per course" if lo != hi else f" on {lo} stitches per course"
+    text = (
+        f"{len(d.regions())} regions{tube}, {objective_name} {d.value:.4g}; pressure "
+        f"{pe['distal']['pressure_equivalent_mmHg']:.1f} mmHg distal, "
+        f"{pe['top']['pressure_equivalent_mmHg']:.1f} mmHg top"
+    )
+    rx = d.prescription()
+    if rx is not None:
+        a = rx["all"]
+        text += (
+            f"; prescription: {a['stations_inside']} of {a['stations']} stations within "
+            f"±{100 * rx['tolerance']:.0f} % (RMS {100 * a['rms_error']:.1f} %), "
+            + {True: "falls steadily", False: "does NOT fall steadily", None: "flat target"}[
+                rx["falls_steadily"]
+            ]
+        )
+    else:
+        text += f"; stress CV {d.stress_cv():.3f} (one fabric: {d.baseline['stress_cv']:.3f})"
+    return text + f"; limits {'respected' if d.limits_respected else 'EXCEEDED'}"
 
 
 def check_machine(table: DesignTable, library: Any, ctx: Any) -> Any:
