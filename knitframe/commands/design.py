@@ -280,7 +280,10 @@ def main(args) -> int:
     if not args.quiet:
         from knitframe.garment.outputs import station_table
 
-        print(station_table(result.objects["design"]))
+        d = result.objects["design"]
+        print(station_table(d))
+        for note in d.limb.notes:
+            print(f"limb: {note}")
         print(result.results["design"]["headline"])
         print(f"wrote {', '.join(result.summary['outputs'])} and summary.json to {result.out}")
     return 0

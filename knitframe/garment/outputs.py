@@ -126,8 +126,25 @@ def _colours(n: int):
     return [cmap(k % cmap.N) for k in range(n)]
 
 
+def _row_edges(d: Design) -> np.ndarray:
+    """(R+1,) edges of the element rows along the limb, mm (the vertical axis of both pictures)."""
+    g = d.geometry
+    return np.concatenate([[g.z[0] - 0.5 * g.row_length[0]], g.z + 0.5 * g.row_length])
+
+
+def _course_axis(ax, d: Design, edges: np.ndarray) -> None:
+    """A secondary vertical axis in courses from the distal end, mapped from mm along the limb."""
+    courses = np.concatenate([[0.0], np.cumsum(d.courses)])
+    sec = ax.secondary_yaxis(
+        "right",
+        functions=(lambda mm: np.interp(mm, edges, courses), lambda c: np.interp(c, courses, edges)),
+    )
+    sec.set_ylabel("course, from the distal end")
+
+
 def plot_knit_map(d: Design, path: Path) -> None:
-    """The unrolled tube coloured by fabric: wales around (x), courses from the wrist (y)."""
+    """The unrolled tube coloured by fabric, as a knitter's shaped chart: stitches across (the width of
+    each row is its needle count, centred), mm along the limb up, courses on the right."""
     import matplotlib.pyplot as plt
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
@@ -135,23 +152,32 @@ def plot_knit_map(d: Design, path: Path) -> None:
     R, A = d.fabric.shape
     used = sorted(set(int(f) for f in np.unique(d.fabric)))
     colours = _colours(len(d.library.entries))
-    y = np.concatenate([[0], np.cumsum(d.courses)])
-    needles = d.tube.needles or A
-    x = np.linspace(0, needles, A + 1)
+    edges = _row_edges(d)
+    width = d.row_needles.astype(float) if d.row_needles is not None else np.full(R, float(A))
+    # one band of quads per row, with a zero-height band between rows, so rows can differ in width
+    X = np.repeat(width[:, None] * (np.linspace(0.0, 1.0, A + 1)[None, :] - 0.5), 2, axis=0)
+    Y = np.repeat(np.stack([edges[:-1], edges[1:]], axis=1).reshape(-1)[:, None], A + 1, axis=1)
+    C = np.ma.masked_all((2 * R - 1, A))
+    C[0::2] = d.fabric
     fig, ax = plt.subplots(figsize=(7.5, 8.5), layout="constrained")
     ax.pcolormesh(
-        x, y, d.fabric, cmap=ListedColormap(colours), vmin=-0.5, vmax=len(colours) - 0.5, edgecolors="none"
+        X, Y, C, cmap=ListedColormap(colours), vmin=-0.5, vmax=len(colours) - 0.5, edgecolors="none"
     )
-    for r in d.regions():
-        r0 = y[r["rows"][0]]
-        ax.axhline(r0, color="k", lw=0.6)
-    ax.set_xlabel("wale (needle) around the limb" if d.tube.needles else "element column around the limb")
-    ax.set_ylabel("course, from the distal end (wrist or ankle)")
-    ax.set_xlim(0, needles)
-    ax.set_ylim(0, y[-1])
+    for r in d.regions()[1:]:
+        ax.axhline(edges[r["rows"][0]], color="k", lw=0.6)
+    if d.row_needles is not None:
+        for sign in (-0.5, 0.5):
+            ax.stairs(sign * width, edges, orientation="horizontal", color="k", lw=1.0, baseline=None)
+    ax.set_xlabel("stitches across the tube (centred)" if d.row_needles is not None else "element column")
+    ax.set_ylabel("position along the limb (mm), distal at 0")
+    half = 0.55 * width.max()
+    ax.set_xlim(-half, half)
+    ax.set_ylim(edges[0], edges[-1])
+    _course_axis(ax, d, edges)
     title = f"knit map: {len(d.regions())} regions, {int(d.courses.sum())} courses"
-    if d.tube.needles:
-        title += f" × {d.tube.needles} needles"
+    if d.row_needles is not None:
+        lo, hi = int(d.row_needles.min()), int(d.row_needles.max())
+        title += f", {lo}–{hi} stitches per course" if lo != hi else f" × {lo} stitches"
     ax.set_title(title)
     ent = d.library.entries
     ax.legend(
@@ -182,7 +208,7 @@ def plot_pressure(d: Design, path: Path) -> None:
     pe, pl = d.pressure_equivalent, d.pressure_local
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 6.5), layout="constrained", width_ratios=[1, 1.2])
     A = d.fabric.shape[1]
-    edges = np.concatenate([[g.z[0] - 0.5 * g.row_length[0]], g.z + 0.5 * g.row_length])
+    edges = _row_edges(d)
     m = ax1.pcolormesh(np.arange(A + 1), edges, pl, cmap="viridis", shading="flat")
     fig.colorbar(m, ax=ax1, label="pressure, local radius (mmHg)")
     ax1.set_xlabel("element column around the limb")
@@ -201,8 +227,21 @@ def plot_pressure(d: Design, path: Path) -> None:
         alpha=0.3,
         label="local radius: min–max around",
     )
-    ax2.plot(pe.mean(axis=1), g.z, color="tab:blue", lw=2.0, label="equivalent radius C/2π")
-    ax2.plot(pl.mean(axis=1), g.z, color="tab:red", lw=1.2, ls=":", label="local radius: mean around")
+    band = d.bands()["circumference"]
+    x = 100 * d.safety.get("limb_tolerance", 0.03)
+    ax2.fill_betweenx(
+        g.z, band[:, 0], band[:, 1], color="tab:blue", alpha=0.18, label=f"equivalent, limb ±{x:g} %"
+    )
+    ax2.plot(pe.mean(axis=1), g.z, color="tab:blue", lw=2.4, zorder=3, label="equivalent radius C/2π")
+    ax2.plot(
+        pl.mean(axis=1),
+        g.z,
+        color="tab:red",
+        lw=1.6,
+        ls=(0, (2, 2)),
+        zorder=4,
+        label="local radius: mean around",
+    )
     want = declared(d.objective, DesignObjective, "target")(g.position)
     if want is not None and np.ptp(want) > 0:  # a profile along the limb
         ax2.plot(want, g.z, "k--", lw=1.2, label="target")
@@ -213,6 +252,6 @@ def plot_pressure(d: Design, path: Path) -> None:
     ax2.set_xlabel("pressure (mmHg)")
     ax2.set_ylabel("position along the limb (mm), distal at 0")
     ax2.set_title("pressure profile with RAL-GZ 387 classes")
-    ax2.legend(loc="lower right", fontsize=8)
+    ax2.legend(loc="lower right", fontsize=8, framealpha=0.95)
     fig.savefig(path, dpi=110)
     plt.close(fig)
