@@ -262,6 +262,9 @@ def main(args) -> int:
     config = config_from_args(args)
     try:
         pipeline = Pipeline(config, base_dir=Path.cwd())
+        result = pipeline.run(
+            args.out if args.out is not None else "design-out", overwrite=args.overwrite, quiet=args.quiet
+        )
     except ConfigError as e:  # name the command-line option rather than the config key it became
         option = next(
             (
@@ -274,9 +277,6 @@ def main(args) -> int:
         if option is None:
             raise
         raise ConfigError(option, e.problem) from None
-    result = pipeline.run(
-        args.out if args.out is not None else "design-out", overwrite=args.overwrite, quiet=args.quiet
-    )
     if not args.quiet:
         from knitframe.garment.outputs import station_table
 

@@ -31,6 +31,7 @@ from knitframe.garment.prescription import CLASSES, compression_class, graduatio
 from knitframe.garment.safety import (
     DEFAULT_CEILING,
     check_safety,
+    check_target,
     default_level,
     robust_scenarios,
 )
@@ -430,6 +431,7 @@ def design(
     distal = float(limb.circumference[0])
     notes: list[str] = list(limb.notes)
     objective = default_level(objective, notes)
+    check_target(objective, geo.position, ceiling)
     scenarios = robust_scenarios(geo, limbs, tolerance, robust, limb.n_stations)
 
     where = np.broadcast_to(geo.position[:, None], geo.shape)

@@ -30,6 +30,7 @@ from knitframe.garment.prescription import CLASS_TARGETS
 __all__ = [
     "DEFAULT_CEILING",
     "check_safety",
+    "check_target",
     "default_level",
     "robust_scenarios",
     "circumference_band",
@@ -77,6 +78,19 @@ def default_level(objective, notes: list[str]):
     warnings.warn(message, KnitframeWarning, stacklevel=3)
     notes.append(message)
     return attrs.evolve(objective, target_mmHg=target)
+
+
+def check_target(objective, position: np.ndarray, ceiling: float) -> None:
+    """Refuse, in one line, a pressure target above the ceiling (the user must raise the ceiling)."""
+    from knitframe.interfaces import DesignObjective, declared
+
+    target = declared(objective, DesignObjective, "target")(position)
+    if objective.quantity == "pressure" and target is not None and float(np.max(target)) > ceiling:
+        raise ConfigError(
+            "design.objective.target_mmHg",
+            f"asks for {float(np.max(target)):g} mmHg, above the safety ceiling of {ceiling:g} mmHg; raise "
+            "design.ceiling_mmHg (--ceiling-mmHg) to ask for it",
+        )
 
 
 def robust_scenarios(geo, limbs, tolerance: float, robust: bool, n_stations: int) -> list:
