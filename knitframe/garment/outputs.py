@@ -163,8 +163,9 @@ def plot_knit_map(d: Design, path: Path) -> None:
     ax.pcolormesh(
         X, Y, C, cmap=ListedColormap(colours), vmin=-0.5, vmax=len(colours) - 0.5, edgecolors="none"
     )
-    for r in d.regions()[1:]:
-        ax.axhline(edges[r["rows"][0]], color="k", lw=0.6)
+    for r in d.regions():
+        if r["rows"][0] > 0:
+            ax.axhline(edges[r["rows"][0]], color="k", lw=0.6)
     if d.row_needles is not None:
         for sign in (-0.5, 0.5):
             ax.stairs(sign * width, edges, orientation="horizontal", color="k", lw=1.0, baseline=None)
