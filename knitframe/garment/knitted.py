@@ -139,6 +139,20 @@ def solve_knitted(
         allowed_change(courses, rules) if tube.shaping and tube.needles is None else np.zeros_like(courses)
     )
     fields, allowed = _tables(library, objective, geos, needles, courses, pressure, ceiling)
+    blocked = ~allowed.any(axis=(1, 2))
+    if blocked.any():
+        i = int(np.flatnonzero(blocked)[0])
+        _, within = _tables(library, objective, geos, needles, courses, pressure, np.inf)
+        why = (
+            f"every fabric and needle count ({needles[0]}–{needles[-1]}) gives a mean pressure above the "
+            f"ceiling of {ceiling:g} mmHg there (raise design.ceiling_mmHg if that is meant)"
+            if within[i].any()
+            else f"every fabric is over its limit there on {needles[0]}–{needles[-1]} needles"
+        )
+        raise NoAssignment(
+            f"no design fits the row at {geo.z[i]:.0f} mm along the limb (circumference "
+            f"{geo.circumference[i]:.0f} mm): {why}"
+        )
     area = [g.area for g in geos]
     pos = np.broadcast_to(geo.position[:, None], geo.shape)
 

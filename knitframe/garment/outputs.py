@@ -67,7 +67,7 @@ def write_knit_map(d: Design, path: Path) -> None:
     """One row per element: course and wale ranges, fabric, stretches, tensions and pressures."""
     R, A = d.fabric.shape
     first = np.concatenate([[0], np.cumsum(d.courses)]).astype(int)
-    needles = d.tube.needles
+    row_needles = d.row_needles if d.row_needles is not None else np.zeros(R, dtype=int)
     pe, pl = d.pressure_equivalent, d.pressure_local
     with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
@@ -79,6 +79,7 @@ def write_knit_map(d: Design, path: Path) -> None:
                 "course_end",
                 "wale_start",
                 "wale_end",
+                "needles",
                 "position_mm",
                 "fabric",
                 "pattern",
@@ -95,6 +96,7 @@ def write_knit_map(d: Design, path: Path) -> None:
         for i in range(R):
             for j in range(A):
                 e = d.library.entries[int(d.fabric[i, j])]
+                needles = int(row_needles[i])
                 w0, w1 = ((j * needles) // A, ((j + 1) * needles) // A) if needles else ("", "")
                 w.writerow(
                     [
@@ -104,6 +106,7 @@ def write_knit_map(d: Design, path: Path) -> None:
                         first[i + 1],
                         w0,
                         w1,
+                        needles or "",
                         f"{d.geometry.z[i]:.3f}",
                         e.name,
                         e.pattern,
