@@ -305,6 +305,7 @@ def test_builtin_rebuild_reproduces_shipped(tmp_path):
             b.wale_pitch,
         )
         assert a.source == b.source and a.pitch_source == b.pitch_source
+        assert (a.tension_scatter, a.pitch_measured, a.gauge) == (b.tension_scatter, False, None)
 
 
 # ----------------------------------------------------------------------------------------- command

@@ -1,15 +1,18 @@
 """``knitframe library build|show|build-builtin``: fabric libraries for garment design.
 
 ``knitframe library build PARAMS.json... --out DIR [--name NAME] [--course-pitch MM ...]
-[--wale-pitch MM ...] [--max-tension N_PER_MM ...] [--max-stretch L ...] [--pattern P ...]
-[--yarn Y ...] [--stitch-length S ...] [--arc-length MM ...] [--entry-name NAME ...] [--overwrite]``
+[--wale-pitch MM ...] [--gauge STITCHES,COURSES] [--max-tension N_PER_MM ...] [--max-stretch L ...]
+[--pattern P ...] [--yarn Y ...] [--stitch-length S ...] [--arc-length MM ...] [--entry-name NAME ...]
+[--scatter S ...] [--overwrite]``
 writes ``DIR/library.json`` with one entry per fitted model (a ``params.json`` of ``knitframe
 fit``). Each per-fabric option takes one value per params file, or one for all. Pattern, yarn,
 stitch length, arc length and entry name come from the params file's metadata where present.
-Pitches not given are estimated by Munden's relations from the arc length or stitch length;
-``--max-tension`` is required.
+``--gauge 22,30`` (stitches and courses per 10 cm of a relaxed swatch, for every file) gives
+measured pitches 100/22 and 100/30 mm; given pitches count as measured too. Pitches not given are
+estimated by Munden's relations from the arc length or stitch length; ``--max-tension`` is required.
 
-``knitframe library show [LIB.json|builtin]`` prints a library as a table (default: the built-in one).
+``knitframe library show [LIB.json|builtin]`` prints a library as a table (default: the built-in one);
+estimated pitches are marked ``est``.
 
 ``knitframe library build-builtin --out DIR`` refits the built-in library from the Singal et al.
 2024 tests shipped with knitframe: ``DIR/library.json`` plus each fit's params.json and fit.png in
@@ -54,6 +57,13 @@ _PER_FILE = (
     ("--stitch-length", "stitch_length", float, "S", "machine stitch-length setting, if known"),
     ("--arc-length", "arc_length", float, "MM", "mm of yarn per stitch, if known"),
     ("--entry-name", "names", str, "NAME", "entry names (default: each params file's folder name)"),
+    (
+        "--scatter",
+        "tension_scatter",
+        float,
+        "S",
+        "scatter of the course tests' repeats, median relative half-spread of their tension (optional)",
+    ),
 )
 
 
@@ -81,6 +91,14 @@ def add_parser(sub) -> None:
             dest=key,
             help=f"{text}; one per params file or one for all",
         )
+    b.add_argument(
+        "--gauge",
+        default=None,
+        metavar="STITCHES,COURSES",
+        help="knitter's gauge of every fabric: stitches and courses per 10 cm of a relaxed swatch, "
+        "e.g. 22,30 (course pitch 100/STITCHES mm, wale pitch 100/COURSES mm); "
+        "not with --course-pitch/--wale-pitch",
+    )
     _output_arguments(b, main_build)
 
     s = actions.add_parser(
@@ -125,6 +143,10 @@ def main_build(args) -> int:
                 if isinstance(v, float) and not math.isfinite(v):
                     raise ConfigError(flag, f"must be finite, got {v!r}")
         kwargs[key] = values
+    kwargs["gauge"] = _gauge_option(args.gauge)
+    if kwargs["gauge"] is not None and (args.course_pitch is not None or args.wale_pitch is not None):
+        both = "--course-pitch" if args.course_pitch is not None else "--wale-pitch"
+        raise ConfigError("--gauge", f"give either --gauge or {both}, not both")
     if kwargs["max_tension"] is None:
         raise ConfigError(
             "--max-tension", "required: the largest course tension (N/mm) each fabric may carry"
@@ -139,7 +161,7 @@ def main_build(args) -> int:
     )
     od.check()  # before any work
     name = args.name if args.name is not None else od.out.name
-    flags = {key: flag for flag, key, *_ in _PER_FILE}
+    flags = {key: flag for flag, key, *_ in _PER_FILE} | {"gauge": "--gauge"}
     try:
         library = FabricLibrary.from_fits(args.params, name=name, **kwargs)
     except ConfigError as e:  # name the command-line option, not the keyword
@@ -160,6 +182,23 @@ def main_build(args) -> int:
         print(f"library '{library.name}': {len(library)} fabrics ({', '.join(library.names)})")
         print(f"wrote {od.out / 'library.json'}")
     return 0
+
+
+def _gauge_option(text: str | None) -> tuple[float, float] | None:
+    """``--gauge STITCHES,COURSES``: two finite numbers > 0, per 10 cm."""
+    if text is None:
+        return None
+    parts = text.split(",")
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        values = ()
+    if len(values) != 2:
+        raise ConfigError("--gauge", f"expected STITCHES,COURSES per 10 cm (e.g. 22,30), got {text!r}")
+    for what, v in zip(("stitches", "courses"), values):
+        if not (math.isfinite(v) and v > 0):
+            raise ConfigError("--gauge", f"{what} per 10 cm must be a finite number > 0, got {v!r}")
+    return values
 
 
 def main_build_builtin(args) -> int:
@@ -232,6 +271,7 @@ def format_table(library) -> str:
         "max T N/mm",
         "max l1",
         "NRMSE %",
+        "scatter %",
         "other params",
         "source",
     )
@@ -249,10 +289,11 @@ def format_table(library) -> str:
                 a,
                 b,
                 t,
-                f"{e.course_pitch:.3g}/{e.wale_pitch:.3g}",
+                f"{e.course_pitch:.3g}/{e.wale_pitch:.3g}" + (" est" if e.pitch_is_estimate else ""),
                 _g(e.max_tension),
                 _g(e.max_stretch),
                 "-" if nrmse is None else f"{100 * nrmse:.2f}",
+                "-" if e.tension_scatter is None else f"{100 * e.tension_scatter:.1f}",
                 other,
                 short[:60] + ("..." if len(short) > 60 else ""),
             )
@@ -266,6 +307,14 @@ def format_table(library) -> str:
         line(head),
         line(tuple("-" * w for w in widths)),
         *(line(r) for r in rows),
+        *(
+            [
+                "pitch est: estimated, not measured; measure them or give a knitter's gauge "
+                "(library build --gauge)"
+            ]
+            if any(e.pitch_is_estimate for e in library)
+            else []
+        ),
         "",
         "sources:",
     ]

@@ -27,12 +27,29 @@ entries with unique names, read from and written to ``library.json``.
           "wale_pitch": 2.128,                 # relaxed stitch height along the wale, mm per course
           "max_tension": 0.2996,               # N/mm, largest course tension the fabric may carry
           "max_stretch": 3.031,                # largest course stretch λ1 it may take, or null
+          "tension_scatter": 0.36,             # scatter of the course tests' repeats, or null (optional)
           "source": "...",                     # where the model and the limits came from
           "pitch_source": "...",               # where the pitches came from
+          "pitch_measured": false,             # pitches measured (true) or estimated, or null (optional)
+          "gauge": null,                       # knitter's gauge of the pitches, or null (optional):
+                                               #   {"stitches_per_10cm": 22, "courses_per_10cm": 30}
           "fit": {"nrmse": {...}, ...}         # how the model was fitted (optional; copied from params.json)
         }
       ]
     }
+
+Pitches: a knitter's gauge (stitches and courses per 10 cm of a relaxed swatch) gives course pitch =
+100/stitches mm and wale pitch = 100/courses mm (:meth:`FabricEntry.with_gauge`,
+:meth:`FabricLibrary.with_gauges`, ``knitframe library build --gauge 22,30``), and an entry with a
+gauge has exactly those pitches. :attr:`FabricEntry.pitch_is_estimate` is True unless a gauge or
+``pitch_measured: true`` says the pitches were measured; a file without these keys (written before
+them) is read by its ``pitch_source``, so Munden estimates are estimates. The three new keys are
+optional: files without them still load (format 1).
+
+``tension_scatter``: the median over the tested stretch range of the repeats' relative half-spread
+of course tension, (max − min)/(2 mean) among the repeats interpolated to common stretches, the toe
+below 10 % of the peak mean tension left out (:func:`tension_scatter`); a fraction (0.09: the repeats
+lie within about ±9 % of their mean). None when the entry's tests are unknown.
 
 Loading checks every field and names the JSON path of the first bad one in one line
 (``library.entries[3].params.a: must be in [1e-06, 100] (the bounds of model 'hgo'), got -1``):
@@ -70,6 +87,8 @@ course (x) and wale (y) tests of that fabric jointly (mean of the repeats, reade
   available figure for the acrylic, and the project's existing estimate for the pearl cotton
   (knitframe/examples/example.toml). The relations are for plain knit; rib (which relaxes
   narrower) and garter (shorter) get the same pitches and should be measured.
+* ``tension_scatter`` from the course test's repeats (:func:`course_scatter`): 0.049–0.098 for
+  seven fabrics, 0.36 for cotton rib, whose five repeats differ much more; ``pitch_measured`` false.
 * limits: ``max_tension`` = the peak tension measured in the fabric's course (x) tests over all
   repeats (the data's loading branch ends at peak force, so it is the end of the measured range,
   not a proven breaking strength); ``max_stretch`` = 1 + the largest course strain measured there.
@@ -81,7 +100,8 @@ Rebuild it (about 40 s on one core) and compare or replace the shipped file::
 
 ``builtin-out/fits/`` then also holds each fabric's ``params.json`` and ``fit.png``. The
 test ``test_builtin_rebuild_reproduces_shipped`` (marked slow) checks that a rebuild reproduces
-the shipped parameters.
+the shipped parameters. :func:`with_builtin_scatter` recomputes only the scatter (and marks the
+pitches estimated) from the shipped data, leaving every fitted number as it is.
 
 Your own library: fit your tests with ``knitframe fit DATA... --model hgo2m --out FIT`` (one fit
 per fabric), then ``knitframe library build FIT1/params.json FIT2/params.json --out LIB
@@ -104,10 +124,16 @@ from knitframe.garment.library.builtin import (
     BUILTIN_PATTERNS,
     BUILTIN_YARNS,
     DATA_DIR,
+    SCATTER_POINTS,
+    SCATTER_TOE,
     build_builtin,
     builtin_library,
     course_limits,
+    course_scatter,
+    tension_scatter,
+    with_builtin_scatter,
 )
+from knitframe.garment.library.checks import GAUGE_KEYS, gauge_pitches
 from knitframe.garment.library.entry import FabricEntry
 from knitframe.garment.library.record import LIBRARY_FORMAT, FabricLibrary
 
@@ -117,6 +143,13 @@ __all__ = [
     "builtin_library",
     "build_builtin",
     "course_limits",
+    "course_scatter",
+    "tension_scatter",
+    "with_builtin_scatter",
+    "gauge_pitches",
+    "GAUGE_KEYS",
+    "SCATTER_POINTS",
+    "SCATTER_TOE",
     "LIBRARY_FORMAT",
     "BUILTIN_DATA",
     "BUILTIN_FILE",

@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import functools
 import json
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
+
+import attrs
+import numpy as np
 
 from knitframe.garment.library.checks import _registry
 from knitframe.garment.library.record import FabricLibrary
@@ -49,17 +53,78 @@ def builtin_library() -> FabricLibrary:
 
 
 # ----------------------------------------------------------------------------------------- built-in
-def course_limits(x_file: Path) -> tuple[float, float, int]:
-    """``(peak tension N/mm, largest stretch, repeats)`` of a course (x) test file over all its repeats."""
+def _raw_reader() -> Any:
+    """The ``singal2024`` reader giving one Response per repeat."""
     from knitframe.config import instantiate
 
-    reader = instantiate(_registry(), "reader", {"kind": "singal2024", "average": False}, "reader")
-    repeats = reader.read(x_file)
+    return instantiate(_registry(), "reader", {"kind": "singal2024", "average": False}, "reader")
+
+
+def course_limits(x_file: Path) -> tuple[float, float, int]:
+    """``(peak tension N/mm, largest stretch, repeats)`` of a course (x) test file over all its repeats."""
+    repeats = _raw_reader().read(x_file)
     return (
         max(float(r.T1.max()) for r in repeats),
         max(float(r.lambda1.max()) for r in repeats),
         len(repeats),
     )
+
+
+#: grid of common stretches and toe cut-off of :func:`tension_scatter`
+SCATTER_POINTS, SCATTER_TOE = 100, 0.1
+
+
+def tension_scatter(repeats: Sequence[Any]) -> float | None:
+    r"""Scatter of the repeats of one course test: the median over stretch of their relative half-spread
+    of course tension; None for fewer than 2 repeats, repeats that share no stretch or no tension.
+
+    Each repeat ``k`` (a Response: ``lambda1``, ``T1``), sorted by stretch, is interpolated linearly
+    to :data:`SCATTER_POINTS` (100) stretches λ_j evenly spaced over the range every repeat covers,
+    [max_k min λ1, min_k max λ1] (as the reader's mean of the repeats). With the mean
+    T̄_j = mean_k T_k(λ_j)
+
+    .. math:: s = \operatorname{median}_{j:\ \bar T_j \ge 0.1 \max_i \bar T_i}
+              \frac{\max_k T_k(\lambda_j) - \min_k T_k(\lambda_j)}{2 \bar T_j}
+
+    the toe, where the mean tension is below :data:`SCATTER_TOE` (10 %) of its peak, left out. A
+    fraction: 0.09 means the repeats lie within about ±9 % of their mean.
+    """
+    from knitframe.curves import by_strain
+
+    if len(repeats) < 2:
+        return None
+    curves = [
+        by_strain(np.asarray(r.lambda1, dtype=np.float64), np.asarray(r.T1, dtype=np.float64))
+        for r in repeats
+    ]
+    lo, hi = max(lam[0] for lam, _ in curves), min(lam[-1] for lam, _ in curves)
+    if not hi > lo:
+        return None
+    grid = np.linspace(lo, hi, SCATTER_POINTS)
+    tension = np.array([np.interp(grid, lam, t) for lam, t in curves])
+    mean = tension.mean(axis=0)
+    if not mean.max() > 0:
+        return None
+    kept = mean >= SCATTER_TOE * mean.max()
+    spread = (tension.max(axis=0) - tension.min(axis=0))[kept] / (2 * mean[kept])
+    return float(np.median(spread))
+
+
+def course_scatter(x_file: Path) -> float | None:
+    """:func:`tension_scatter` of the repeats of a course (x) test file."""
+    return tension_scatter(_raw_reader().read(x_file))
+
+
+def with_builtin_scatter(library: FabricLibrary, data_dir: str | Path = BUILTIN_DATA) -> FabricLibrary:
+    """``library`` (the built-in one) with each entry's ``tension_scatter`` computed from its course test
+    in ``data_dir`` (:func:`course_scatter`) and its pitches recorded as estimated; nothing else changes."""
+    entries = []
+    for e in library:
+        x = next(f for f in e.fit["responses"] if f.endswith("-x"))
+        entries.append(
+            attrs.evolve(e, tension_scatter=course_scatter(Path(data_dir) / f"{x}.csv"), pitch_measured=False)
+        )
+    return attrs.evolve(library, entries=tuple(entries))
 
 
 def build_builtin(
@@ -97,6 +162,7 @@ def build_builtin(
             "max_stretch",
             "source",
             "pitch_source",
+            "tension_scatter",
         )
     }
     files = []
@@ -129,9 +195,11 @@ def build_builtin(
             )
             kw["source"].append(source)
             kw["pitch_source"].append(pitch_source)
+            kw["tension_scatter"].append(course_scatter(x))
     return FabricLibrary.from_fits(
         files,
         **kw,
+        pitch_measured=False,
         name="singal2024",
         library_source="Singal et al. 2024, Nat Commun 15:2622, doi:10.1038/s41467-024-46498-z: uniaxial "
         "tests of pearl cotton and acrylic in jersey, garter, rib and seed (sabetta/stitch-by-stitch, "

@@ -12,12 +12,16 @@ from knitframe.errors import ConfigError
 from knitframe.garment.library.checks import (
     _OPTIONAL,
     _REQUIRED,
+    GAUGE_KEYS,
     _at,
     _check_entry,
     _float_dict,
     _float_or_keep,
+    _pitch_is_estimate,
     _plain_dict,
     _shown,
+    gauge_pitches,
+    gauge_text,
 )
 
 
@@ -59,6 +63,16 @@ class FabricEntry:
     model_options: dict[str, Any] = attrs.field(factory=dict, converter=_plain_dict)
     #: how it was fitted (nrmse, fitter, ...)
     fit: dict[str, Any] = attrs.field(factory=dict, converter=_plain_dict)
+    #: scatter of the course tests' repeats, if known: the median over stretch of the repeats'
+    #: relative half-spread of course tension, max_k T_k − min_k T_k over 2 mean_k T_k (see
+    #: :func:`knitframe.garment.library.builtin.tension_scatter`); a fraction (0.09 = ±9 %)
+    tension_scatter: float | None = attrs.field(default=None, converter=_float_or_keep)
+    #: whether the pitches were measured (true) or estimated (false); None: not recorded (see
+    #: :attr:`pitch_is_estimate`)
+    pitch_measured: bool | None = None
+    #: the knitter's gauge the pitches come from, if any: ``{"stitches_per_10cm": s,
+    #: "courses_per_10cm": c}`` of a relaxed swatch; then course_pitch = 100/s, wale_pitch = 100/c
+    gauge: dict[str, float] | None = attrs.field(default=None, converter=_float_dict)
     _homogenizer: Any = attrs.field(init=False, default=None, eq=False, repr=False)
     _params_array: Any = attrs.field(init=False, default=None, eq=False, repr=False)
 
@@ -86,6 +100,38 @@ class FabricEntry:
     def homogenizer(self) -> Any:
         """The registered homogenizer instance (with ``model_options``)."""
         return self._homogenizer
+
+    @property
+    def pitch_is_estimate(self) -> bool:
+        """True unless the pitches were measured: a ``gauge`` or ``pitch_measured`` true says so.
+
+        When neither is recorded (a library.json written before they were), the ``pitch_source``
+        decides: an estimate unless it says measured, given or gauge and nothing of an estimate
+        ("estimat", "Munden", "not measured"); so the built-in library's Munden pitches are estimates.
+        """
+        return _pitch_is_estimate(self.pitch_measured, self.gauge, self.pitch_source)
+
+    def with_gauge(
+        self, stitches_per_10cm: float, courses_per_10cm: float, *, path: str | None = None
+    ) -> FabricEntry:
+        """This entry with the pitches of a knitter's gauge: ``stitches_per_10cm`` stitches along the
+        course and ``courses_per_10cm`` courses along the wale in 10 cm of relaxed fabric give
+        course_pitch = 100/stitches and wale_pitch = 100/courses mm, measured.
+
+        A number that is not finite and > 0 is refused in one line naming ``path``.stitches_per_10cm
+        (or .courses_per_10cm); ``path`` defaults to ``entry '<name>'.gauge``.
+        """
+        where = path if path is not None else f"entry '{self.name}'.gauge"
+        course_pitch, wale_pitch = gauge_pitches(stitches_per_10cm, courses_per_10cm, where)
+        gauge = dict(zip(GAUGE_KEYS, (float(stitches_per_10cm), float(courses_per_10cm))))
+        return attrs.evolve(
+            self,
+            course_pitch=course_pitch,
+            wale_pitch=wale_pitch,
+            gauge=gauge,
+            pitch_measured=True,
+            pitch_source=gauge_text(gauge),
+        )
 
     @property
     def params_array(self) -> np.ndarray:
@@ -128,8 +174,11 @@ class FabricEntry:
             "wale_pitch": self.wale_pitch,
             "max_tension": self.max_tension,
             "max_stretch": self.max_stretch,
+            "tension_scatter": self.tension_scatter,
             "source": self.source,
             "pitch_source": self.pitch_source,
+            "pitch_measured": self.pitch_measured,
+            "gauge": None if self.gauge is None else dict(self.gauge),
             "fit": dict(self.fit),
         }
 

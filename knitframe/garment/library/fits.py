@@ -12,13 +12,17 @@ import numpy as np
 
 from knitframe.errors import ConfigError, KnitframeWarning
 from knitframe.garment.library.checks import (
+    GAUGE_KEYS,
     _check_entry,
     _check_pattern,
+    _gauge_pair,
     _homogenizer,
     _is_number,
     _number,
     _registry,
     _shown,
+    gauge_pitches,
+    gauge_text,
 )
 from knitframe.garment.library.entry import FabricEntry
 from knitframe.garment.library.reading import _default_name, _metadata, _read_json
@@ -75,6 +79,32 @@ def _loop_length(
                 mm
             ), f"loop length {float(mm):g} mm (stitch length {stitch_length:g} in the pattern's table)"
     return None, ""
+
+
+def _is_pair(value: Any) -> bool:
+    """True for a pair of numbers, as a gauge (stitches, courses) is given."""
+    return (
+        isinstance(value, Sequence)
+        and not isinstance(value, str)
+        and len(value) == 2
+        and all(_is_number(v) for v in value)
+    )
+
+
+def _gauge_pitches(
+    values: dict[str, Any], cp: Any, wp: Any, gauge: Any, src: str
+) -> tuple[float, float, str]:
+    """Course and wale pitch (mm) of a knitter's gauge (stitches, courses) per 10 cm, recorded in
+    ``values["gauge"]``; pitches given as well are refused."""
+    if cp is not None or wp is not None:
+        given = "course_pitch" if cp is not None else "wale_pitch"
+        raise ConfigError(
+            "gauge", f"give a gauge or the pitches, not both ({given} is given too)", source=src
+        )
+    gauge = _gauge_pair(gauge, "gauge", src)
+    cp, wp = gauge_pitches(*gauge, "gauge", src)
+    values["gauge"] = dict(zip(GAUGE_KEYS, map(float, gauge)))
+    return cp, wp, gauge_text(values["gauge"])
 
 
 def _pitches(values: Mapping[str, Any], cp: Any, wp: Any, src: str) -> tuple[Any, Any, str]:
@@ -168,8 +198,16 @@ def _fit_entry(p: Path, i: int, opts: dict[str, list[Any]]) -> FabricEntry:
         "params": {k: data[k] for k in keys if k in data},
     }
     values.update(_fabric_metadata(data, p, i, opts))
-    cp, wp, basis = _pitches(values, opts["course_pitch"][i], opts["wale_pitch"][i], src)
+    cp, wp, gauge = opts["course_pitch"][i], opts["wale_pitch"][i], opts["gauge"][i]
+    measured = gauge is not None or (cp is not None and wp is not None)
+    if gauge is not None:
+        cp, wp, basis = _gauge_pitches(values, cp, wp, gauge, src)
+    else:
+        cp, wp, basis = _pitches(values, cp, wp, src)
     values["course_pitch"], values["wale_pitch"] = cp, wp
+    given = opts["pitch_measured"][i]
+    values["pitch_measured"] = measured if given is None else given
+    values["tension_scatter"] = opts["tension_scatter"][i]
     if opts["max_tension"][i] is None:
         raise ConfigError(
             "max_tension",
@@ -201,6 +239,9 @@ def _fit_entries(params_files: Sequence[str | Path], **options: Any) -> list[Fab
     if not files:
         raise ConfigError("params_files", "no params files given")
     n = len(files)
+    gauge = options.get("gauge")
+    gauge = gauge.tolist() if isinstance(gauge, np.ndarray) else gauge
+    options["gauge"] = [gauge] if _is_pair(gauge) else gauge  # one (stitches, courses) for all files
     opts = {k: _per_file(v, n, k) for k, v in options.items()}
     entries = []
     for i, p in enumerate(files):  # a loop, not a comprehension: the warning's stacklevel counts frames

@@ -10,7 +10,7 @@ from typing import Any
 import attrs
 
 from knitframe.errors import ConfigError
-from knitframe.garment.library.checks import _at, _is_number, _shown, _string
+from knitframe.garment.library.checks import _at, _gauge_pair, _is_number, _shown, _string
 from knitframe.garment.library.entry import FabricEntry
 from knitframe.garment.library.fits import _fit_entries
 from knitframe.garment.library.reading import _read_json
@@ -61,6 +61,31 @@ class FabricLibrary:
     def names(self) -> list[str]:
         """Entry names in library order."""
         return [e.name for e in self.entries]
+
+    def with_gauges(self, gauges: Mapping[str, Any], field: str = "design.gauge") -> FabricLibrary:
+        """This library with the pitches of knitter's gauges: ``gauges`` maps a fabric name to
+        ``(stitches_per_10cm, courses_per_10cm)`` of a relaxed swatch (:meth:`FabricEntry.with_gauge`);
+        the other entries are kept.
+
+        An unknown name (the names are listed), a value that is not a pair, or a number that is not
+        finite and > 0 is refused in one line naming ``field.<name>``.
+        """
+        if not isinstance(gauges, Mapping):
+            raise ConfigError(
+                field, f"expected a table of fabric name = [stitches, courses], got {_shown(gauges)}"
+            )
+        given = dict(gauges)
+        for name, value in given.items():
+            where = _at(field, str(name))
+            if name not in self.names:
+                raise ConfigError(
+                    where, f"no fabric '{name}' in library '{self.name}'; have {', '.join(self.names)}"
+                )
+            given[name] = _gauge_pair(value, where)
+        entries = [
+            e.with_gauge(*given[e.name], path=_at(field, e.name)) if e.name in given else e for e in self
+        ]
+        return attrs.evolve(self, entries=tuple(entries))
 
     def to_json(self) -> dict[str, Any]:
         """Plain data as in library.json."""
@@ -149,6 +174,9 @@ class FabricLibrary:
         arc_length: Any = None,
         source: Any = None,
         pitch_source: Any = None,
+        gauge: Any = None,
+        pitch_measured: Any = None,
+        tension_scatter: Any = None,
         name: str = "library",
         library_source: str = "",
     ) -> FabricLibrary:
@@ -160,8 +188,14 @@ class FabricLibrary:
         file's metadata where present (its ``fabric`` table, else its top level: ``pattern``,
         ``yarn``, ``stitch_length``, ``arc_length``, ``name``), else from these keywords; both given
         and different is an error. ``names`` defaults to the params file's folder name (or its
-        stem without ``-params``). Pitches not given are estimated by Munden's plain-knit relations
+        stem without ``-params``). ``gauge`` is a knitter's gauge ``(stitches_per_10cm,
+        courses_per_10cm)`` of a relaxed swatch (one pair for all files, or a sequence of one pair or
+        None per file); it gives the pitches (course 100/stitches, wale 100/courses mm) and cannot be
+        given with them. Pitches not given are estimated by Munden's plain-knit relations
         from the arc length, or from the stitch length through the pattern's stitch-length table.
+        ``pitch_measured`` records whether the pitches were measured; by default, true when both
+        pitches or a gauge are given and false when any is estimated. ``tension_scatter`` (default
+        None) is the scatter of the course tests' repeats (:attr:`FabricEntry.tension_scatter`).
         ``max_tension`` is required; ``max_stretch`` is optional. ``source`` defaults to the fit's
         model, fitter, data labels and NRMSE. A fit with a parameter at a bound warns.
         """
@@ -178,5 +212,8 @@ class FabricLibrary:
             arc_length=arc_length,
             source=source,
             pitch_source=pitch_source,
+            gauge=gauge,
+            pitch_measured=pitch_measured,
+            tension_scatter=tension_scatter,
         )
         return cls(name, tuple(entries), library_source)
