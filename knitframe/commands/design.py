@@ -284,6 +284,13 @@ def main(args) -> int:
         print(station_table(d))
         for note in d.limb.notes:
             print(f"limb: {note}")
+        est = [name for name, v in d.to_json()["pitches"].items() if v["estimate"]]
+        if est:
+            e = 100 * d.safety.get("pitch_error", 0.05)
+            print(
+                f"pitches: {', '.join(est)} use estimated relaxed pitches; design.json gives each station's "
+                f"pressure band for a ±{e:g} % pitch error (give measured gauges with --gauge)"
+            )
         print(result.results["design"]["headline"])
         print(f"wrote {', '.join(result.summary['outputs'])} and summary.json to {result.out}")
     return 0
