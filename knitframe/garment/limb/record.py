@@ -318,8 +318,8 @@ class Limb:
            file, one without triangles, or one with non-finite coordinates. Duplicate vertices
            are merged and zero-area triangles dropped.
         2. Split into connected shells. Shells tiny next to the largest are debris, dropped with
-           one notice: under 1 % of its area, under 50 triangles (and 0.5 % of its count), or under
-           a twentieth of its length across (:mod:`~knitframe.garment.limb.shells`). If the largest shell encloses every other one (skin around
+           one notice: under 1 % of its area, under 50 triangles (and 0.5 % of its count), or
+           under a twentieth of its length across (:mod:`~knitframe.garment.limb.shells`). If the largest shell encloses every other one (skin around
            bones: each other shell's sampled vertices lie inside its cross-section at their
            height) it is chosen with a notice; shells side by side are refused as ambiguous.
         3. Axis: the eigenvector of the largest eigenvalue of the shell's surface covariance
