@@ -319,9 +319,10 @@ class Limb:
            are merged and zero-area triangles dropped.
         2. Split into connected shells. Shells tiny next to the largest are debris, dropped with
            one notice: under 1 % of its area, under 50 triangles (and 0.5 % of its count), or
-           under a twentieth of its length across (:mod:`~knitframe.garment.limb.shells`). If the largest shell encloses every other one (skin around
-           bones: each other shell's sampled vertices lie inside its cross-section at their
-           height) it is chosen with a notice; shells side by side are refused as ambiguous.
+           under a twentieth of its length across (:mod:`~knitframe.garment.limb.shells`). If
+           the largest shell encloses every other one (skin around bones: each other shell's
+           sampled vertices lie inside its cross-section at their height) it is chosen with a
+           notice; shells side by side are refused as ambiguous.
         3. Axis: the eigenvector of the largest eigenvalue of the shell's surface covariance
            (exact second moments of the triangles, ∫xxᵀdA = Σ A/12 (ssᵀ + aaᵀ + bbᵀ + ccᵀ),
            s = a + b + c), through its area centroid, or ``axis`` if given (then taken as the
