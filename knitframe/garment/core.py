@@ -27,13 +27,19 @@ from knitframe.garment.assign import _assign, _evaluate
 from knitframe.garment.laplace import MMHG_PER_MPA
 from knitframe.garment.optimise import check_options
 from knitframe.garment.paper import _periodic_labels
-from knitframe.garment.prescription import CLASSES, compression_class, graduation_report
+from knitframe.garment.prescription import (
+    CLASSES,
+    compression_class,
+    graduation_report,
+    prescription_json,
+)
 from knitframe.garment.safety import (
     DEFAULT_CEILING,
     check_safety,
     check_target,
     default_level,
     robust_scenarios,
+    suspect,
 )
 from knitframe.garment.shaping import MachineRules, course_needles
 from knitframe.garment.tube import ElementGeometry, Tube, element_geometry
@@ -280,7 +286,7 @@ class Design:
                 "fabrics": [e.name for e in self.library.entries],
             },
             "regions": self.regions(),
-            "prescription": _prescription_json(self),
+            "prescription": prescription_json(self),
             "safety": {**self.safety, "local_peaks": self.local_peaks()},
             "pitches": {
                 e.name: {
@@ -298,17 +304,6 @@ class Design:
             "notes": list(self.notes),
             "wall_time_s": self.wall_time,
         }
-
-
-def _prescription_json(d: Design) -> dict[str, Any] | None:
-    rx = d.prescription()
-    if rx is None:
-        return None
-    out = {k: v for k, v in rx.items() if k not in ("inside", "error", "target")}
-    cls = getattr(d.objective, "compression_class", None)
-    out["compression_class"] = cls
-    out["distal_class"] = compression_class(float(d.pressure_equivalent[0].mean()))
-    return out
 
 
 def _cv(x: np.ndarray, w: np.ndarray) -> float:
@@ -481,54 +476,7 @@ def design(
             "peak_ratio": peak_ratio,
         },
     )
-    more = _suspect(d)
+    more = suspect(d)
     for message in more:
         warnings.warn(message, KnitframeWarning, stacklevel=2)
     return attrs.evolve(d, notes=d.notes + tuple(more))
-
-
-def _suspect(d: Design) -> list[str]:
-    """What a user must know about a design: a prescription missed, a graduation that rises, a station
-    over the ceiling, a local pressure peak, a slack tube."""
-    out = []
-    g = d.geometry
-    rx = d.prescription()
-    if rx is not None:
-        miss = ~rx["inside"]
-        if miss.any():
-            worst = int(np.argmax(np.abs(rx["error"])))
-            p = d.pressure.mean(axis=1)
-            out.append(
-                f"{int(miss.sum())} of {len(miss)} stations are outside the prescription's ±"
-                f"{100 * rx['tolerance']:.0f} % (RMS miss {100 * rx['all']['rms_error']:.0f} %; worst at "
-                f"{g.z[worst]:.0f} mm: {p[worst]:.1f} mmHg against {rx['target'][worst]:.1f})"
-                + (
-                    f": library '{d.library.name}' cannot do better on this limb; add fabrics or relax "
-                    "the machine's rules"
-                    if rx["all"]["rms_error"] > 0.25
-                    else ""
-                )
-            )
-        if rx["falls_steadily"] is False:
-            i = rx["largest_rise_row"]
-            out.append(
-                f"the pressure (averaged over {rx['probe_mm']:g} mm, a probe's size) rises by "
-                f"{rx['largest_rise_mmHg']:.1f} mmHg at {g.z[i]:.0f} mm: the graduation does not fall "
-                "steadily from the distal end"
-            )
-    ceiling = d.safety.get("ceiling_mmHg", np.inf)
-    pe = d.pressure_equivalent.mean(axis=1)
-    if np.any(pe > ceiling):
-        i = int(np.argmax(pe))
-        out.append(
-            f"station at {g.z[i]:.0f} mm has a mean pressure of {pe[i]:.1f} mmHg, above the ceiling "
-            f"{ceiling:g}"
-        )
-    for peak in d.local_peaks():
-        out.append(
-            f"local pressure peak of {peak['peak_mmHg']:.1f} mmHg at {peak['position_mm']:.0f} mm (station "
-            f"mean {peak['mean_mmHg']:.1f}): over {peak['over']}; a bony ridge there may need padding"
-        )
-    if d.T1.max() == 0:
-        out.append("every element is slack: the tube is wider than the limb everywhere")
-    return out

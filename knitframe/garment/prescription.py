@@ -31,6 +31,7 @@ __all__ = [
     "graduation",
     "graduation_report",
     "CUFF",
+    "prescription_json",
 ]
 
 #: RAL-GZ 387 compression classes, mmHg (lower, upper); between them a pressure has no class
@@ -137,3 +138,16 @@ def graduation_report(
         "largest_rise_mmHg": float(max(rise.max(), 0.0)) if len(rise) else 0.0,
         "largest_rise_row": worst_rise,
     }
+
+
+def prescription_json(d) -> dict | None:
+    """The ``prescription`` table of design.json: the report without its per-station arrays, the class
+    asked for and the class the distal station reached."""
+    rx = d.prescription()
+    if rx is None:
+        return None
+    out = {k: v for k, v in rx.items() if k not in ("inside", "error", "target")}
+    cls = getattr(d.objective, "compression_class", None)
+    out["compression_class"] = cls
+    out["distal_class"] = compression_class(float(d.pressure_equivalent[0].mean()))
+    return out

@@ -37,6 +37,7 @@ __all__ = [
     "pitch_band",
     "scatter_band",
     "local_peaks",
+    "suspect",
 ]
 
 #: no design's station mean pressure may exceed this, mmHg, unless the user raises it
@@ -172,4 +173,51 @@ def local_peaks(d, ceiling: float, ratio: float) -> list[dict]:
                 "over": "ceiling" if peak[i] > ceiling else f"{ratio:g}× the station mean",
             }
         )
+    return out
+
+
+def suspect(d) -> list[str]:
+    """What a user must know about a design: a prescription missed, a graduation that rises, a station
+    over the ceiling, a local pressure peak, a slack tube."""
+    out = []
+    g = d.geometry
+    rx = d.prescription()
+    if rx is not None:
+        miss = ~rx["inside"]
+        if miss.any():
+            worst = int(np.argmax(np.abs(rx["error"])))
+            p = d.pressure.mean(axis=1)
+            out.append(
+                f"{int(miss.sum())} of {len(miss)} stations are outside the prescription's ±"
+                f"{100 * rx['tolerance']:.0f} % (RMS miss {100 * rx['all']['rms_error']:.0f} %; worst at "
+                f"{g.z[worst]:.0f} mm: {p[worst]:.1f} mmHg against {rx['target'][worst]:.1f})"
+                + (
+                    f": library '{d.library.name}' cannot do better on this limb; add fabrics or relax "
+                    "the machine's rules"
+                    if rx["all"]["rms_error"] > 0.25
+                    else ""
+                )
+            )
+        if rx["falls_steadily"] is False:
+            i = rx["largest_rise_row"]
+            out.append(
+                f"the pressure (averaged over {rx['probe_mm']:g} mm, a probe's size) rises by "
+                f"{rx['largest_rise_mmHg']:.1f} mmHg at {g.z[i]:.0f} mm: the graduation does not fall "
+                "steadily from the distal end"
+            )
+    ceiling = d.safety.get("ceiling_mmHg", np.inf)
+    pe = d.pressure_equivalent.mean(axis=1)
+    if np.any(pe > ceiling):
+        i = int(np.argmax(pe))
+        out.append(
+            f"station at {g.z[i]:.0f} mm has a mean pressure of {pe[i]:.1f} mmHg, above the ceiling "
+            f"{ceiling:g}"
+        )
+    for peak in d.local_peaks():
+        out.append(
+            f"local pressure peak of {peak['peak_mmHg']:.1f} mmHg at {peak['position_mm']:.0f} mm (station "
+            f"mean {peak['mean_mmHg']:.1f}): over {peak['over']}; a bony ridge there may need padding"
+        )
+    if d.T1.max() == 0:
+        out.append("every element is slack: the tube is wider than the limb everywhere")
     return out
