@@ -336,8 +336,9 @@ def headline(d: Any, objective_name: str) -> str:
     if d.row_needles is not None:
         lo, hi = int(d.row_needles.min()), int(d.row_needles.max())
         tube = f" on {lo}–{hi} stitches per course" if lo != hi else f" on {lo} stitches per course"
+    n = len(d.regions())
     text = (
-        f"{len(d.regions())} regions{tube}, {objective_name} {d.value:.4g}; pressure "
+        f"{n} region{'s' if n != 1 else ''}{tube}, {objective_name} {d.value:.4g}; pressure "
         f"{pe['distal']['pressure_equivalent_mmHg']:.1f} mmHg distal, "
         f"{pe['top']['pressure_equivalent_mmHg']:.1f} mmHg top"
     )
