@@ -98,14 +98,18 @@ def run_program(lines: list[str]):
 
 
 def check_knitted(
-    lines: list[str], needles: int, bands: list[tuple[int, int, str, str]], carriers: dict[str, int]
+    lines: list[str],
+    needles: int | list[int],
+    bands: list[tuple[int, int, str, str]],
+    carriers: dict[str, int],
 ):
-    """Cast-on, then each course of the map with one loop per needle, each band in its yarn's carrier; no loop
-    left."""
+    """Cast-on, then each course of the map with one loop per needle (``needles``: of every course, or the
+    stitches of each course of a shaped tube), each band in its yarn's carrier; no loop left."""
     machine, graph = run_program(lines)
     courses = graph.get_courses()
     total = bands[-1][1]
-    assert [len(c) for c in courses[: total + 1]] == [needles] * (total + 1)
+    per_course = [needles] * total if isinstance(needles, int) else list(needles)
+    assert [len(c) for c in courses[: total + 1]] == per_course[:1] + per_course
     assert len(courses) > total + 1  # the bind-off follows
     for start, end, _, yarn in bands:
         made = {loop.yarn.carrier.carrier_id for c in courses[1 + start : 1 + end] for loop in c}
@@ -138,7 +142,8 @@ def test_example_design_runs_clean_in_the_interpreter_and_matches_its_knit_map(t
     out = tmp_path / "machine"
     summary = json.loads((out / "summary.json").read_text())
     assert summary["outputs"] == ["sleeve-chart.png", "sleeve.k"] and summary["check"] is None
-    needles = json.loads((tmp_path / "sleeve" / "design.json").read_text())["tube"]["needles"]
+    tube = json.loads((tmp_path / "sleeve" / "design.json").read_text())["tube"]
+    needles = tube.get("needles_per_course") or tube["needles"]
     bands = bands_of(tmp_path / "sleeve")
     lines = (out / "sleeve.k").read_text().splitlines()
     assert lines[:6] == [

@@ -4,7 +4,9 @@
 Turns a design folder (``design.json`` and ``knit-map.csv`` of ``knitframe design`` in knitting
 mode) into a knitout program for a V-bed machine: ``sleeve.k``, checked by knitout-interpreter (a
 simulated Shima SWG091N2) before it is written, its stitch chart ``sleeve-chart.png`` and, with
-``--dat``, a Shima DAT file ``sleeve.dat``. The same as a ``[design.machine]`` table in a config.
+``--dat``, a Shima DAT file ``sleeve.dat``. A shaped tube (``tube.needles_per_course`` in
+``design.json``) is knitted with increases and decreases at its edges. The same as a
+``[design.machine]`` table in a config.
 See docs/machine-output.md.
 """
 
@@ -190,9 +192,8 @@ def main(args) -> int:
             if report
             else "not checked (--no-check)"
         )
-        print(
-            f"a tube of {kmap.needles} stitches × {kmap.courses} courses in {len(kmap.bands)} bands "
-            f"({carriers_text}); {checked}"
-        )
+        print(f"{kmap.description} in {len(kmap.bands)} bands ({carriers_text}); {checked}")
+        for note in p.notes:
+            print(f"note: {note}")
         print(f"wrote {', '.join(names)} and summary.json to {od.out}")
     return 0

@@ -101,9 +101,10 @@ def run_interpreter(lines: Sequence[str]) -> tuple[Any, Any, Any, list[str]]:
 def verify(p: Plan, lines: Sequence[str]) -> dict[str, Any]:
     """Run the program through knitout-interpreter and check the knit graph it makes against the knit map.
 
-    The checks: no error, violation or warning; the graph's courses are the cast-on, then exactly
-    the map's courses with N loops each (then the bind-off); every loop of a band's courses is made
-    by that band's carrier; the machine ends with no loop on any needle. Returns what was checked.
+    The checks: no error, violation or warning; the graph's courses are the cast-on's loops, then
+    exactly the map's courses with the map's stitches on each (then the bind-off); every loop of a
+    band's courses is made by that band's carrier; the machine ends with no loop on any needle.
+    Returns what was checked.
     """
     program, machine, graph, warned = run_interpreter(lines)
     if warned:
@@ -111,18 +112,22 @@ def verify(p: Plan, lines: Sequence[str]) -> dict[str, Any]:
             f"knitout-interpreter warned: {warned[0]}; this is a knitframe bug, please report it"
         )
     km = p.kmap
-    N = km.needles
+    want = list(km.course_needles)
     courses = graph.get_courses()
     sizes = [len(c) for c in courses]
     body = courses[1 : 1 + km.courses]
     problems = []
-    if sizes[0] != N:
-        problems.append(f"the cast-on made {sizes[0]} loops, not {N}")
-    if len(body) != km.courses or any(len(c) != N for c in body):
-        problems.append(
-            f"the knit graph has {len(body)} courses after the cast-on, of {min(sizes[1:] or [0])} to "
-            f"{max(sizes[1:] or [0])} loops, not {km.courses} of {N}"
-        )
+    if sizes[0] != km.needles:
+        problems.append(f"the cast-on made {sizes[0]} loops, not {km.needles}")
+    if len(body) != km.courses:
+        problems.append(f"the knit graph has {len(body)} courses after the cast-on, not {km.courses}")
+    else:
+        wrong = [(c, len(body[c]), n) for c, n in enumerate(want) if len(body[c]) != n]
+        if wrong:
+            c, got, n = wrong[0]
+            problems.append(
+                f"{len(wrong)} courses have the wrong number of loops (course {c}: {got}, not {n})"
+            )
     carriers = p.band_carriers
     for k, b in enumerate(km.bands):
         got = {loop.yarn.carrier.carrier_id for course in body[b.start : b.end] for loop in course}
@@ -144,7 +149,9 @@ def verify(p: Plan, lines: Sequence[str]) -> dict[str, Any]:
         "errors": 0,
         "warnings": 0,
         "courses": km.courses,
-        "stitches_per_course": N,
+        "stitches_per_course": km.needles,
+        "stitches_range": [min(want), max(want)],
+        "shaping_courses": len(km.shaping_courses),
         "cast_on_loops": sizes[0],
         "bind_off_courses": len(courses) - 1 - km.courses,
         "loops": int(sum(sizes)),

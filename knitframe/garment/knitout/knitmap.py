@@ -1,4 +1,4 @@
-"""The knit map: a tube of N stitches per course made of course bands, from a design or its folder."""
+"""The knit map: a tube of course bands and the stitches of every course, from a design or its folder."""
 
 from __future__ import annotations
 
@@ -44,15 +44,50 @@ class Band:
 
 @attrs.frozen
 class KnitMap:
-    """A tube of ``needles`` stitches per course made of course bands, as a machine knits it."""
+    """A tube made of course bands, as a machine knits it: ``needles`` stitches cast on, and
+    ``course_needles[c]`` stitches on course c (``needles`` on every course unless given; a shaped
+    tube changes it by increases and decreases, see the package docstring)."""
 
     needles: int
     bands: tuple[Band, ...] = attrs.field(converter=tuple)
     source: str = ""
+    course_needles: tuple[int, ...] = attrs.field(
+        default=attrs.Factory(lambda self: (self.needles,) * self.bands[-1].end, takes_self=True),
+        converter=lambda v: tuple(int(x) for x in v),
+    )
+
+    def __attrs_post_init__(self) -> None:
+        problem = _course_needles_problem(self.course_needles, self.courses)
+        if problem is None and self.course_needles[0] != self.needles:
+            problem = f"starts at {self.course_needles[0]} stitches but the tube casts on {self.needles}"
+        if problem:
+            raise FieldError("tube.needles_per_course", problem)
 
     @property
     def courses(self) -> int:
         return self.bands[-1].end
+
+    @property
+    def shaped(self) -> bool:
+        """Whether the stitches per course change along the tube."""
+        return len(set(self.course_needles)) > 1
+
+    @property
+    def shaping_courses(self) -> list[int]:
+        """The courses whose stitches differ from the course below's."""
+        n = self.course_needles
+        return [c for c in range(1, len(n)) if n[c] != n[c - 1]]
+
+    @property
+    def description(self) -> str:
+        """The tube in words: its stitches and courses."""
+        n = self.course_needles
+        if not self.shaped:
+            return f"a tube of {self.needles} stitches × {self.courses} courses"
+        return (
+            f"a tube of {min(n)}–{max(n)} stitches (cast on with {self.needles}, "
+            f"{len(self.shaping_courses)} shaping courses) × {self.courses} courses"
+        )
 
     @property
     def yarns(self) -> list[str]:
@@ -64,6 +99,7 @@ class KnitMap:
         """The knit map of a :class:`~knitframe.garment.core.Design` (the rows of ``knit-map.csv``)."""
         if d.tube.mode != "knitting" or not d.tube.needles:
             raise FieldError("tube", PAPER_MODE)
+        per_course = getattr(d, "needles_per_course", None)
         first = np.concatenate([[0], np.cumsum(d.courses)]).astype(int)
         rows = []
         for i in range(d.fabric.shape[0]):
@@ -76,7 +112,11 @@ class KnitMap:
                     [(e.name, e.pattern, e.yarn, e.stitch_length) for e in used],
                 )
             )
-        return cls(int(d.tube.needles), _bands(rows, "design"), "design")
+        bands = _bands(rows, "design")
+        values = per_course() if callable(per_course) else per_course
+        if values is None:
+            return cls(int(d.tube.needles), bands, "design")
+        return cls(int(d.tube.needles), bands, "design", _integers(values))
 
     @classmethod
     def read(cls, folder: str | Path, option: str = "DESIGN_DIR") -> KnitMap:
@@ -102,12 +142,40 @@ class KnitMap:
         needles = tube["needles"]
         if isinstance(needles, bool) or not isinstance(needles, int) or needles < 4:
             raise DataError(dj, f"tube.needles must be an integer >= 4, got {needles!r}")
-        rows = _read_rows(km)
-        kmap = cls(needles, _bands(rows, str(km)), str(folder))
+        bands = _bands(_read_rows(km), str(km))
         total = tube.get("courses")
-        if total is not None and total != kmap.courses:
-            raise DataError(dj, f"tube.courses is {total} but {km.name} ends at course {kmap.courses}")
-        return kmap
+        if total is not None and total != bands[-1].end:
+            raise DataError(dj, f"tube.courses is {total} but {km.name} ends at course {bands[-1].end}")
+        per_course = tube.get("needles_per_course")
+        if per_course is None:
+            return cls(needles, bands, str(folder))
+        try:
+            return cls(needles, bands, str(folder), _integers(per_course))
+        except (TypeError, ValueError, FieldError) as e:
+            problem = e.problem if isinstance(e, FieldError) else "must be a list of integers, one per course"
+            raise DataError(dj, f"tube.needles_per_course {problem}") from None
+
+
+def _integers(values: Any) -> tuple[int, ...]:
+    """A sequence of whole numbers as ints (ValueError or TypeError for anything else)."""
+    out = []
+    for v in list(values):
+        if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)):
+            raise TypeError(v)
+        if not float(v).is_integer():
+            raise ValueError(v)
+        out.append(int(v))
+    return tuple(out)
+
+
+def _course_needles_problem(values: tuple[int, ...], courses: int) -> str | None:
+    """What is wrong with stitches per course for a tube of ``courses`` courses, or None."""
+    if len(values) != courses:
+        return f"has {len(values)} entries for {courses} courses"
+    low = [(c, n) for c, n in enumerate(values) if n < 4]
+    if low:
+        return f"gives course {low[0][0]} {low[0][1]} stitches; a course needs at least 4"
+    return None
 
 
 def _read_rows(path: Path) -> list[tuple[int, int, int, list[tuple[str, str, str, float | None]]]]:

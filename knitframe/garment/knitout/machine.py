@@ -9,6 +9,7 @@ import attrs
 
 from knitframe.errors import FieldError
 from knitframe.garment.knitout.knitmap import KnitMap
+from knitframe.garment.knitout.layout import MAX_COURSE_CHANGE, Layout, tube_layout
 
 #: machine model -> needles per bed and yarn carriers, as knitout-interpreter and the DAT writer model it
 MACHINES: dict[str, dict[str, int]] = {"SWG091N2": {"width": 540, "carriers": 10}}
@@ -142,10 +143,23 @@ class Plan:
     carriers: dict[str, int]
     #: per band
     stitch_numbers: tuple[int, ...]
+    #: the needles of every course
+    layout: Layout
 
     @property
     def band_carriers(self) -> list[int]:
         return [self.carriers[b.yarn] for b in self.kmap.bands]
+
+    @property
+    def notes(self) -> list[str]:
+        """What the user should know about the settings, one line each: the fabrics whose stitch number is
+        the table's default because the library gives them no stitch length."""
+        loose = list(dict.fromkeys(b.fabric for b in self.kmap.bands if b.stitch_length is None))
+        if not loose:
+            return []
+        what = f"fabric {loose[0]} has" if len(loose) == 1 else f"fabrics {', '.join(loose)} have"
+        number = self.spec.stitch_table["default"]
+        return [f"{what} no stitch length: x-stitch-number {number} is the table's default; calibrate it"]
 
 
 def check_patterns(patterns: Sequence[str]) -> None:
@@ -162,17 +176,29 @@ def check_patterns(patterns: Sequence[str]) -> None:
 def plan(kmap: KnitMap, spec: MachineSpec) -> Plan:
     """Resolve carriers and stitch numbers and check that the machine can knit the map.
 
-    Raises :class:`~knitframe.errors.FieldError` naming ``pattern``, ``width``, ``carriers`` or
-    ``stitch_numbers`` with a one-line reason: a pattern other than :data:`PATTERNS`, a tube wider
-    than the bed, more yarns than carriers, a stitch length the table does not hold.
+    Raises :class:`~knitframe.errors.FieldError` naming ``pattern``, ``tube.needles_per_course``, ``width``,
+    ``carriers`` or ``stitch_numbers`` with a one-line reason: a pattern other than :data:`PATTERNS`,
+    a course changing more than :data:`~.layout.MAX_COURSE_CHANGE` stitches, a tube wider than the
+    bed, more yarns than carriers, a stitch length the table does not hold.
     """
     check_patterns([b.pattern for b in kmap.bands])
-    if kmap.needles > spec.bed_width:
+    counts = kmap.course_needles
+    jumps = [c for c in kmap.shaping_courses if abs(counts[c] - counts[c - 1]) > MAX_COURSE_CHANGE]
+    if jumps:
+        c = jumps[0]
         raise FieldError(
-            "width",
-            f"the tube needs {kmap.needles} needles per bed (half gauge: one per stitch of "
-            f"the course) but the machine width is {spec.bed_width}",
+            "tube.needles_per_course",
+            f"course {c} changes from {counts[c - 1]} to {counts[c]} stitches; the machine output "
+            f"changes at most {MAX_COURSE_CHANGE} on one course (four at each edge)",
         )
+    layout = tube_layout(counts)
+    if layout.width > spec.bed_width:
+        widest = f"the tube needs {layout.width} needles per bed (half gauge: one per stitch of the course"
+        if kmap.shaped:
+            widest += (
+                f"; its {min(counts)} to {max(counts)} stitches per course move along the bed as it is shaped"
+            )
+        raise FieldError("width", f"{widest}) but the machine width is {spec.bed_width}")
     yarns = kmap.yarns
     n = spec.carrier_count
     if len(yarns) > n:
@@ -192,4 +218,4 @@ def plan(kmap: KnitMap, spec: MachineSpec) -> Plan:
         if y not in carriers:
             carriers[y] = next(free)
     numbers = tuple(spec.stitch_number(b.stitch_length, b.fabric) for b in kmap.bands)
-    return Plan(kmap, spec, {y: carriers[y] for y in yarns}, numbers)
+    return Plan(kmap, spec, {y: carriers[y] for y in yarns}, numbers, layout)

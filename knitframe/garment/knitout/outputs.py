@@ -24,8 +24,9 @@ def write_machine_outputs(
 ) -> tuple[list[str], dict[str, Any]]:
     """Write ``sleeve.k``, ``sleeve-chart.png`` and, with ``dat``, ``sleeve.dat`` into ``folder``.
 
-    Returns the file names and a summary: machine, needles, courses, bands with their carrier and
-    stitch number, and the DAT passes given a stitch number.
+    Returns the file names and a summary: machine, needles (cast on), the stitches of every course,
+    the needles of each bed the tube uses, courses, bands with their carrier and stitch number, the
+    notes of :attr:`~.machine.Plan.notes` (one line each) and the DAT passes given a stitch number.
     """
     folder = Path(folder)
     (folder / FILES["knitout"]).write_text("\n".join(lines) + "\n", encoding="utf-8")
@@ -37,6 +38,9 @@ def write_machine_outputs(
         "width": p.spec.bed_width,
         "half_gauge": True,
         "needles": p.kmap.needles,
+        "needles_per_course": list(p.kmap.course_needles),
+        "shaping_courses": len(p.kmap.shaping_courses),
+        "needles_used": p.layout.width,
         "courses": p.kmap.courses,
         "carriers": dict(p.carriers),
         "stitch_numbers": p.spec.stitch_table,
@@ -51,6 +55,7 @@ def write_machine_outputs(
             }
             for b, c, n in zip(p.kmap.bands, p.band_carriers, p.stitch_numbers, strict=False)
         ],
+        "notes": p.notes,
     }
     if dat:
         applied = write_dat(lines, folder / FILES["dat"])

@@ -1,9 +1,11 @@
-"""The knitout program writer: needles and layers, each pattern's purls, cast-on, courses, bind-off."""
+"""The knitout program writer: needles and layers, each pattern's purls, cast-on, courses, shaping,
+bind-off."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from knitframe.garment.knitout.layout import Layout
 from knitframe.garment.knitout.machine import Plan, check_patterns
 
 #: a yarn unused for more courses than this is cut and brought in again rather than carried up the tube
@@ -35,25 +37,35 @@ def purl_mask(pattern: str, courses: int, needles: int) -> np.ndarray:
 
     Course 0 is the band's first; columns are needle positions (:func:`front_layer`)
     """
-    c = np.arange(courses)[:, None]
-    w = wales(needles)[None, :]
+    return _purl(pattern, np.arange(courses)[:, None], wales(needles)[None, :])
+
+
+def _purl(pattern: str, c: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """True where the stitch of band course ``c`` on wale ``w`` is reverse (arrays that broadcast)."""
+    shape = np.broadcast_shapes(c.shape, w.shape)
     if pattern == "jersey":
-        return np.zeros((courses, needles), dtype=bool)
+        return np.zeros(shape, dtype=bool)
     if pattern == "rib":
-        return np.broadcast_to(w % 2 == 1, (courses, needles)).copy()
+        return np.broadcast_to(w % 2 == 1, shape).copy()
     if pattern == "garter":
-        return np.broadcast_to(c % 2 == 1, (courses, needles)).copy()
+        return np.broadcast_to(c % 2 == 1, shape).copy()
     if pattern == "seed":
-        return (w + c) % 2 == 1
+        return np.broadcast_to((w + c) % 2 == 1, shape).copy()
     check_patterns([pattern])
     raise AssertionError(pattern)  # pragma: no cover
 
 
 def front_bed(p: Plan) -> np.ndarray:
-    """(C, N) True where the loop of course c at needle position n is knitted on the front bed."""
-    N = p.kmap.needles
-    home = front_layer(N)
-    return np.concatenate([home[None, :] ^ purl_mask(b.pattern, b.courses, N) for b in p.kmap.bands])
+    """(C, W) True where the loop of course c at needle position n is knitted on the front bed.
+
+    W is the needles the tube uses (:attr:`.layout.Layout.width`, N for a tube that is not shaped);
+    False also where course c has no stitch (:meth:`.layout.Layout.mask`).
+    """
+    lay = p.layout
+    w = lay.wales()[None, :]
+    home = lay.front()[None, :]
+    purl = np.concatenate([_purl(b.pattern, np.arange(b.courses)[:, None], w) for b in p.kmap.bands])
+    return (home ^ purl) & lay.mask()
 
 
 def _needle(bed_front: bool, pos: int) -> str:
@@ -62,12 +74,20 @@ def _needle(bed_front: bool, pos: int) -> str:
 
 def knitout_lines(p: Plan) -> list[str]:
     """The knitout program of a plan, one instruction per line (see the module docstring)."""
-    km = p.kmap
-    N = km.needles
+    head, courses, tail = _program(p)
+    return head + [s for block in courses for s in block] + tail
+
+
+def transfers_before(p: Plan) -> np.ndarray:
+    """(C,) ``xfer`` instructions before each course: the loops whose bed changes, and on a shaping
+    course the moves of its edge stitches (the cast-on puts course 0's loops in place)."""
+    return np.array([sum(s.startswith("xfer ") for s in block) for block in _program(p)[1]], dtype=int)
+
+
+def _program(p: Plan) -> tuple[list[str], list[list[str]], list[str]]:
+    """The program in parts: the header and cast-on, the lines of each course, and the bind-off."""
+    km, lay = p.kmap, p.layout
     front = front_bed(p)
-    layer = front_layer(N)
-    front_order = [int(q) for q in np.flatnonzero(layer)[::-1]]  # front layer, leftward from the right edge
-    back_order = [int(q) for q in np.flatnonzero(~layer)]  # back layer, rightward from the left edge
     carriers = p.band_carriers
     band_of = np.repeat(np.arange(len(km.bands)), [b.courses for b in km.bands])
     out = _header(p)
@@ -82,42 +102,83 @@ def knitout_lines(p: Plan) -> list[str]:
 
     active: set[int] = set()
     c0 = carriers[0]
-    out += _cast_on(p, front[0], front_order, back_order)
+    out += _cast_on(p, front[0], *lay.orders(0))
     out.append(f"releasehook {c0}")
     active.add(c0)
     stitch = p.stitch_numbers[0]
-    beds = front[0].copy()
+    beds = np.where(lay.mask()[0], front[0], -1).astype(np.int8)  # 1 front, 0 back, -1 no loop
     hooked = None
+    blocks: list[list[str]] = []
     for course in range(km.courses):
+        block: list[str] = []
+        blocks.append(block)
         k = int(band_of[course])
         b = km.bands[k]
         c = carriers[k]
         if course == b.start:
-            out.append(f"; band {k}: {b.fabric}, carrier {c}")
+            block.append(f"; band {k}: {b.fabric}, carrier {c}")
             prev = carriers[k - 1] if k else None
             if prev is not None and prev != c:
                 nu = next_use(prev, k - 1)
                 if nu is None or nu - course > CARRY_COURSES:
-                    out.append(f"outhook {prev}")
+                    block.append(f"outhook {prev}")
                     active.discard(prev)
             if c not in active:
-                out.append(f"inhook {c}")
+                block.append(f"inhook {c}")
                 active.add(c)
                 hooked = c
         want = front[course]
-        move = np.flatnonzero(beds != want)
-        out += [f"xfer {_needle(True, q)} {_needle(False, q)}" for q in move if beds[q]]
-        out += [f"xfer {_needle(False, q)} {_needle(True, q)}" for q in move if not beds[q]]
-        beds = want
+        block += _shape(lay, course, beds, want)
+        move = np.flatnonzero((beds >= 0) & (beds != want))
+        block += [f"xfer {_needle(True, q)} {_needle(False, q)}" for q in move if beds[q]]
+        block += [f"xfer {_needle(False, q)} {_needle(True, q)}" for q in move if not beds[q]]
+        new = beds < 0  # the needles an increase left empty: tucked on this course
+        beds = np.where(lay.mask()[course], want, -1).astype(np.int8)
         if p.stitch_numbers[k] != stitch:
             stitch = p.stitch_numbers[k]
-            out.append(f"x-stitch-number {stitch}")
-        out += [f"knit - {_needle(want[q], q)} {c}" for q in front_order]
-        out += [f"knit + {_needle(want[q], q)} {c}" for q in back_order]
+            block.append(f"x-stitch-number {stitch}")
+        front_order, back_order = lay.orders(course)
+        block += [f"{'tuck' if new[q] else 'knit'} - {_needle(want[q], q)} {c}" for q in front_order]
+        block += [f"{'tuck' if new[q] else 'knit'} + {_needle(want[q], q)} {c}" for q in back_order]
         if hooked is not None:
-            out.append(f"releasehook {hooked}")
+            block.append(f"releasehook {hooked}")
             hooked = None
-    return out + _bind_off(beds, N, carriers[-1], front_order, back_order)
+    return out, blocks, _bind_off(beds == 1, carriers[-1], *lay.orders(km.courses - 1))
+
+
+def _shape(lay: Layout, course: int, beds: np.ndarray, want: np.ndarray) -> list[str]:
+    """The transfers of a shaping course (none on any other): each loop :meth:`.layout.Layout.moves`
+    names goes along its layer, through the empty needle opposite when it stays on its bed, at the
+    racking that aligns it with its new needle; ``beds`` is updated.
+
+    A loop stacked onto a stitch (a decrease) goes to that stitch's bed; a loop moved out to a new edge
+    (an increase) goes to the bed the course knits it on.
+    """
+    moves = lay.moves(course)
+    if not moves:
+        return []
+    old, new = lay.needles(course - 1), lay.needles(course)
+    what = "decrease" if new < old else "increase"
+    edges = [
+        f"{abs(a - b)} at the {side}"
+        for side, a, b in (
+            ("left", lay.left[course - 1], lay.left[course]),
+            ("right", lay.right[course - 1], lay.right[course]),
+        )
+        if a != b
+    ]
+    out = [f"; course {course}: {what} from {old} to {new} stitches ({' and '.join(edges)})"]
+    to_bed = [(q, t, bool(beds[q]), bool(beds[t]) if beds[t] >= 0 else bool(want[t])) for q, t in moves]
+    out += [f"xfer {_needle(f, q)} {_needle(not f, q)}" for q, _, f, g in to_bed if f == g]
+    racked: dict[int, list[str]] = {}
+    for q, t, _, g in to_bed:
+        racked.setdefault(t - q if g else q - t, []).append(f"xfer {_needle(not g, q)} {_needle(g, t)}")
+    for r in sorted(racked):
+        out += [f"rack {r}", *racked[r]]
+    out.append("rack 0")
+    for q, t, _, g in to_bed:
+        beds[q], beds[t] = -1, int(g)
+    return out
 
 
 def _header(p: Plan) -> list[str]:
@@ -125,6 +186,7 @@ def _header(p: Plan) -> list[str]:
     km, spec = p.kmap, p.spec
     N = km.needles
     carriers = p.band_carriers
+    counts = km.course_needles
     out = [
         ";!knitout-2",
         f";;Machine: {spec.machine}",
@@ -132,10 +194,24 @@ def _header(p: Plan) -> list[str]:
         f";;Width: {spec.bed_width}",
         ";;Carriers: " + " ".join(str(c) for c in range(1, spec.carrier_count + 1)),
         f";;Position: {POSITION}",
-        f"; knitframe sleeve: a tube of {N} stitches per course, {km.courses} courses, {len(km.bands)} bands",
-        f"; half gauge: needle {FIRST_NEEDLE}+p holds stitch p; p = N-1, N-3, ... front layer (home f), the "
-        "others back layer (home b); a course is the front layer leftward then the back layer rightward",
     ]
+    tube, layers = f"{km.courses} courses, {len(km.bands)} bands", "the others back layer (home b)"
+    course = "a course is the front layer leftward then the back layer rightward"
+    if not km.shaped:
+        out += [
+            f"; knitframe sleeve: a tube of {N} stitches per course, {tube}",
+            f"; half gauge: needle {FIRST_NEEDLE}+p holds stitch p; p = N-1, N-3, ... front layer (home f), "
+            f"{layers}; {course}",
+        ]
+    else:
+        out += [
+            f"; knitframe sleeve: a shaped tube cast on with {N} stitches, {min(counts)} to {max(counts)} "
+            f"stitches per course, {tube}, {len(km.shaping_courses)} shaping courses",
+            f"; half gauge: needle {FIRST_NEEDLE}+p holds stitch p; a course's rightmost stitch and every "
+            f"other one leftward are the front layer (home f), {layers}; {course}",
+            "; shaping: a decrease stacks an edge stitch onto its layer's next stitch, an increase moves a "
+            "layer's edge stitch out and tucks the needle it leaves",
+        ]
     for yarn, c in p.carriers.items():
         out.append(f"; carrier {c}: yarn {yarn}")
     for k, b in enumerate(km.bands):
@@ -144,7 +220,7 @@ def _header(p: Plan) -> list[str]:
             f"{'-' if b.stitch_length is None else f'{b.stitch_length:g}'}), carrier {carriers[k]}, "
             f"x-stitch-number {p.stitch_numbers[k]}"
         )
-    return out
+    return out + [f"; {note}" for note in p.notes]
 
 
 def _cast_on(p: Plan, beds: np.ndarray, front_order: list[int], back_order: list[int]) -> list[str]:
@@ -161,7 +237,7 @@ def _cast_on(p: Plan, beds: np.ndarray, front_order: list[int], back_order: list
     return out
 
 
-def _bind_off(beds: np.ndarray, N: int, c: int, front: list[int], back: list[int]) -> list[str]:
+def _bind_off(beds: np.ndarray, c: int, front: list[int], back: list[int]) -> list[str]:
     """Bring every loop home, then a chain bind-off around the tube with a tail on the last loop.
 
     ``front`` lists the front layer's positions right to left, ``back`` the back layer's left to right.
