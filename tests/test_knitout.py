@@ -157,7 +157,7 @@ def test_example_design_runs_clean_in_the_interpreter_and_matches_its_knit_map(t
     assert [s for s in lines if s.startswith("x-")] == ["x-stitch-number 7"]
     knitted = check_knitted(lines, needles, bands, summary["carriers"])
     assert len(knitted) == bands[-1][1] == 199
-    assert {p for *_, p, _ in bands} == {"jersey", "garter", "seed", "rib"}
+    assert {p for *_, p, _ in bands} == {"jersey", "garter", "seed"}
     assert (out / "sleeve-chart.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
@@ -200,6 +200,7 @@ def test_jersey_only_tube_from_a_config_is_checked_and_written(tmp_path):
         "pipeline": {"name": "design"},
         "design": {
             "limb": {"positions_mm": [0, 30], "circumferences_mm": [40, 44]},
+            "ceiling_mmHg": 100,  # a finger-sized tube on 12 stitches: about 80 mmHg
             "library": str(tmp_path / "lib.json"),
             "objective": "stress_variance",
             "stations": 4,
@@ -330,6 +331,7 @@ def test_unknit_patterns_are_left_out_of_the_library_when_machine_output_is_aske
         "pipeline": {"name": "design"},
         "design": {
             "limb": {"positions_mm": [0, 30], "circumferences_mm": [40, 44]},
+            "ceiling_mmHg": 100,  # a finger-sized tube on 12 stitches: about 80 mmHg
             "library": str(tmp_path / "lib.json"),
             "objective": "stress_variance",
             "stations": 4,

@@ -291,6 +291,8 @@ def main(args) -> int:
                 f"pitches: {', '.join(est)} use estimated relaxed pitches; design.json gives each station's "
                 f"pressure band for a ±{e:g} % pitch error (give measured gauges with --gauge)"
             )
+        for note in result.results["design"].get("machine", {}).get("notes", []):
+            print(f"note: {note}")
         print(result.results["design"]["headline"])
         print(f"wrote {', '.join(result.summary['outputs'])} and summary.json to {result.out}")
     return 0

@@ -302,8 +302,10 @@ class DesignStage(Stage):
         }
         if machine is not None:
             ctx.results[self.name]["machine"] = machine
+            per = machine.get("needles_per_course") or [machine["needles"]]
+            span = f"{min(per)}–{max(per)}" if min(per) != max(per) else f"{per[0]}"
             ctx.results[self.name]["headline"] += (
-                f"; sleeve.k: {machine['needles']} stitches × {machine['courses']} courses, "
+                f"; sleeve.k: {span} stitches × {machine['courses']} courses, "
                 + (f"checked by {machine['check']['interpreter']}" if machine["check"] else "not checked")
             )
 
@@ -319,9 +321,11 @@ class DesignStage(Stage):
                 kmap, attrs.evolve(spec, carriers={y: c for y, c in spec.carriers.items() if y in kmap.yarns})
             )
         except FieldError as e:
-            where = {"tube": "design.tube.mode", "pattern": "design.machine"}.get(
-                e.field, f"design.machine.{e.field}"
-            )
+            where = {
+                "tube": "design.tube.mode",
+                "pattern": "design.machine",
+                "tube.needles_per_course": "design.machine.max_change",
+            }.get(e.field, f"design.machine.{e.field}")
             raise ConfigError(where, e.problem) from None
         lines, report = program(p, check=m.check)
         names, info = write_machine_outputs(p, lines, ctx.out, dat=m.dat)
