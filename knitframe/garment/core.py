@@ -24,7 +24,7 @@ import numpy as np
 
 from knitframe.errors import ConfigError, KnitframeWarning
 from knitframe.garment.assign import _assign, _evaluate
-from knitframe.garment.laplace import MMHG_PER_MPA
+from knitframe.garment.laplace import laplace_mmhg
 from knitframe.garment.optimise import check_options
 from knitframe.garment.paper import _periodic_labels
 from knitframe.garment.prescription import (
@@ -100,12 +100,12 @@ class Design:
     @property
     def pressure_equivalent(self) -> np.ndarray:
         """(R, A) Laplace pressure with the section's equivalent radius C/2π, mmHg."""
-        return self.T1 / self.geometry.equivalent_radius[:, None] * MMHG_PER_MPA
+        return laplace_mmhg(self.T1, self.geometry.equivalent_radius[:, None])
 
     @property
     def pressure_local(self) -> np.ndarray:
         """(R, A) Laplace pressure with the local radius of curvature (0 where concave), mmHg."""
-        return self.T1 * np.maximum(self.geometry.curvature, 0.0) * MMHG_PER_MPA
+        return laplace_mmhg(self.T1 * np.maximum(self.geometry.curvature, 0.0), 1.0)
 
     @property
     def pressure(self) -> np.ndarray:

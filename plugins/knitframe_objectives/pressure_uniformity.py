@@ -10,10 +10,8 @@ import numpy as np
 from knitframe import hookimpl
 from knitframe import validators as v
 from knitframe.errors import NumericalError
+from knitframe.garment.laplace import laplace_mmhg
 from knitframe_objectives.stress_variance import level_cost, weighted_cv2
-
-#: 1 MPa in mmHg (1 mmHg = 133.322 Pa)
-MPA_TO_MMHG = 1e6 / 133.322
 
 
 def laplace_pressure(tension: np.ndarray, radius: np.ndarray) -> np.ndarray:
@@ -27,7 +25,7 @@ def laplace_pressure(tension: np.ndarray, radius: np.ndarray) -> np.ndarray:
     r = np.asarray(radius, dtype=np.float64)
     if np.any(~np.isfinite(r)) or np.any(r <= 0):
         raise NumericalError("radius must be finite and > 0 everywhere")
-    return np.asarray(tension, dtype=np.float64) / r * MPA_TO_MMHG
+    return laplace_mmhg(tension, r)
 
 
 def relative_error_cost(value: np.ndarray, area: np.ndarray, target: np.ndarray) -> np.ndarray:
