@@ -251,12 +251,15 @@ class Yarn(Record):
         """Modulus of the packed fibres across the yarn, MPa: ``core_modulus``, else E_axial."""
         return self.core_modulus if self.core_modulus is not None else self.E_axial
 
-    def properties(self) -> list:
-        """Every quantity the solvers read from this yarn, with its value and whether it is
-        measured, an estimate or derived (and from what): the table ``knitframe yarn NAME`` prints."""
-        from knitframe.yarns import yarn_properties
 
-        return yarn_properties(self)
+def _pattern_name(value: Any) -> Any:
+    """A pattern as its plugin is registered: an alias is recorded as the pattern it names
+    (``stockinette`` as ``jersey``); other names are left to the registry lookup to accept or refuse."""
+    if not isinstance(value, str):
+        return value
+    from knitframe.plugins import get_registry
+
+    return get_registry()["pattern"].canonical(value)
 
 
 @attrs.frozen
@@ -268,7 +271,7 @@ class Fabric(Record):
     """
 
     #: pattern plugin name, e.g. "jersey"
-    pattern: str
+    pattern: str = attrs.field(converter=_pattern_name)
     #: yarn record, or in a config a yarn-library name
     yarn: Yarn
     #: machine setting, -
@@ -305,7 +308,7 @@ class LoadPath(Record):
     #: load-path type
     kind: Literal["equibiaxial", "uniaxial", "general"] = "equibiaxial"
     #: engineering strain, -
-    max_strain: float = attrs.field(default=0.3, validator=v.in_range(0.0, 5.0, lo_open=True))
+    max_strain: float = attrs.field(default=0.3, validator=v.strain_limit)
     #: load increments, -
     steps: int = attrs.field(default=10, validator=v.in_range(1, MAX_LOAD_POINTS))
     #: loaded direction for ``uniaxial``

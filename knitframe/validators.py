@@ -15,19 +15,21 @@ import numpy as np
 from knitframe.errors import FieldError
 
 __all__ = [
+    "number_text",
     "shown",
     "positive",
     "non_negative",
     "at_least",
     "at_most",
     "in_range",
+    "strain_limit",
+    "MAX_STRAIN",
     "one_of",
     "finite",
     "optional",
     "subset_of",
     "finite_array",
     "boolean",
-    "within_model_bounds",
     "near_own",
     "OVERRIDE_FACTOR",
 ]
@@ -35,7 +37,7 @@ __all__ = [
 Validator = Callable[[Any, Any, Any], None]
 
 
-def _fmt(value: Any) -> str:
+def number_text(value: Any) -> str:
     """Numbers as the user would write them: -1 rather than -1.0."""
     if (
         isinstance(value, (float, np.floating))
@@ -65,13 +67,13 @@ def _num(attribute, value) -> float:
 def positive(instance, attribute, value) -> None:
     """Value is a finite number > 0."""
     if _num(attribute, value) <= 0:
-        raise FieldError(attribute.name, f"must be > 0, got {_fmt(value)}")
+        raise FieldError(attribute.name, f"must be > 0, got {number_text(value)}")
 
 
 def non_negative(instance, attribute, value) -> None:
     """Value is a finite number >= 0."""
     if _num(attribute, value) < 0:
-        raise FieldError(attribute.name, f"must be >= 0, got {_fmt(value)}")
+        raise FieldError(attribute.name, f"must be >= 0, got {number_text(value)}")
 
 
 def finite(instance, attribute, value) -> None:
@@ -79,17 +81,31 @@ def finite(instance, attribute, value) -> None:
     _num(attribute, value)
 
 
-def in_range(lo: float, hi: float, *, lo_open: bool = False, hi_open: bool = False) -> Validator:
-    """Value lies in [lo, hi]; ``lo_open``/``hi_open`` exclude an end."""
+def in_range(
+    lo: float, hi: float, *, lo_open: bool = False, hi_open: bool = False, unit: str = ""
+) -> Validator:
+    """Value lies in [lo, hi]; ``lo_open``/``hi_open`` exclude an end; ``unit`` follows the range in
+    the message, e.g. ``must be in (0.0, 5.0] (a fraction: 0.3 = 30 %), got 30``."""
 
     def check(instance, attribute, value) -> None:
         v = _num(attribute, value)
         bad = (v <= lo if lo_open else v < lo) or (v >= hi if hi_open else v > hi)
         if bad:
             lb, rb = ("(" if lo_open else "["), (")" if hi_open else "]")
-            raise FieldError(attribute.name, f"must be in {lb}{lo}, {hi}{rb}, got {_fmt(value)}")
+            note = f" {unit}" if unit else ""
+            raise FieldError(
+                attribute.name, f"must be in {lb}{lo}, {hi}{rb}{note}, got {number_text(value)}"
+            )
 
     return check
+
+
+#: The largest engineering strain a load may reach: a stretch of 6.
+MAX_STRAIN = 5.0
+
+#: An engineering strain a load goes to, in (0, MAX_STRAIN], as a fraction (0.3 is 30 %): its
+#: message says so, since a percentage is the likely slip.
+strain_limit: Validator = in_range(0.0, MAX_STRAIN, lo_open=True, unit="(a fraction: 0.3 = 30 %)")
 
 
 def at_least(lo: float) -> Validator:
@@ -97,7 +113,7 @@ def at_least(lo: float) -> Validator:
 
     def check(instance, attribute, value) -> None:
         if _num(attribute, value) < lo:
-            raise FieldError(attribute.name, f"must be >= {_fmt(lo)}, got {_fmt(value)}")
+            raise FieldError(attribute.name, f"must be >= {number_text(lo)}, got {number_text(value)}")
 
     return check
 
@@ -107,7 +123,7 @@ def at_most(hi: float) -> Validator:
 
     def check(instance, attribute, value) -> None:
         if _num(attribute, value) > hi:
-            raise FieldError(attribute.name, f"must be <= {_fmt(hi)}, got {_fmt(value)}")
+            raise FieldError(attribute.name, f"must be <= {number_text(hi)}, got {number_text(value)}")
 
     return check
 
@@ -163,33 +179,6 @@ def finite_array(instance, attribute, value) -> None:
     if not np.all(np.isfinite(arr)):
         i = int(np.flatnonzero(~np.isfinite(arr.ravel()))[0])
         raise FieldError(attribute.name, f"must be finite, got {arr.ravel()[i]} at index {i}")
-
-
-def within_model_bounds(model: Any, params: Any) -> None:
-    """Reduced-model parameters inside the model's own box ``model.bounds()``; FieldError names the first
-    outside.
-
-    The field is the parameter as a config or a params.json writes it (``a``, ``theta_deg``), and
-    the message gives the bounds the same way (angles in degrees). Values within 1e-9 (relative)
-    of a bound count as on it, so a fit that stopped at a bound is accepted. A model without
-    ``bounds`` takes any finite values.
-    """
-    from knitframe.fitting import params_to_json
-
-    if getattr(model, "bounds", None) is None:
-        return
-    lo, hi = (np.asarray(b, dtype=np.float64) for b in model.bounds())
-    p = np.asarray(params, dtype=np.float64)
-    names = tuple(model.param_names)
-    shown, low, high = (params_to_json(names, x) for x in (p, lo, hi))
-    slack = 1e-9 * np.maximum(np.abs(lo), np.abs(hi))
-    for i, key in enumerate(shown):
-        if not lo[i] - slack[i] <= p[i] <= hi[i] + slack[i]:
-            raise FieldError(
-                key,
-                f"must be in [{_fmt(low[key])}, {_fmt(high[key])}] (the bounds of model "
-                f"'{getattr(model, 'name', type(model).__name__)}'), got {_fmt(shown[key])}",
-            )
 
 
 #: Furthest a stiffness override may be from the value it replaces, as a factor either way.

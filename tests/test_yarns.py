@@ -20,6 +20,7 @@ from knitframe.yarnfit import (
     line_contact_load,
     pretension,
 )
+from knitframe.yarns import yarn_properties
 
 DATA = Path(__file__).parent / "data" / "yarn"
 _spec = importlib.util.spec_from_file_location("yarn_make", DATA / "make.py")
@@ -224,9 +225,9 @@ def test_compression_that_never_reaches_dk_is_a_data_error(tmp_path):
 
 
 def test_yarn_record_says_what_is_measured_and_derives_the_rest():
-    """Every quantity a solver reads is in ``properties()``, marked measured, estimate or derived."""
+    """Every quantity a solver reads is in ``yarn_properties``, marked measured, estimate or derived."""
     cot = get_registry()["yarn"]["cotton"]
-    rows = {p.symbol: p for p in cot.properties()}
+    rows = {p.symbol: p for p in yarn_properties(cot)}
     assert rows["dk"].status == "measured" and rows["E_A"].status == "estimate"
     assert rows["G_A"].status == "derived" and rows["G_A"].value == pytest.approx(0.12 / 2.6)
     assert rows["EI"].status == "derived" and rows["EI"].value == pytest.approx(1200 * np.pi * 0.444**4 / 64)
@@ -235,7 +236,7 @@ def test_yarn_record_says_what_is_measured_and_derives_the_rest():
     assert rows["φk"].value == pytest.approx(phi) and rows["J_min"].status == "derived"
     assert rows["J_min"].value == pytest.approx(phi / (np.pi / (2 * np.sqrt(3))))
     assert rows["E_core"].value == 1200.0
-    pearl = {p.symbol: p for p in get_registry()["yarn"]["pearl-cotton"].properties()}
+    pearl = {p.symbol: p for p in yarn_properties(get_registry()["yarn"]["pearl-cotton"])}
     assert pearl["EI"].status == "measured" and pearl["EI"].value == 0.0708
     given = Yarn(
         name="y",
@@ -246,7 +247,10 @@ def test_yarn_record_says_what_is_measured_and_derives_the_rest():
         compaction_limit=0.4,
         measured=["compaction_limit"],
     )
-    assert given.compaction == 0.4 and {p.symbol: p for p in given.properties()}["J_min"].status == "measured"
+    assert (
+        given.compaction == 0.4
+        and {p.symbol: p for p in yarn_properties(given)}["J_min"].status == "measured"
+    )
     assert Yarn(name="y", d0=0.5, dk=0.4, E_axial=100, E_transverse=0.01).compaction == 0.5  # nothing known
 
 

@@ -26,7 +26,7 @@ def add_parser(sub) -> None:
 
 def main(args) -> int:
     from knitframe.plugins import get_registry
-    from knitframe.yarns import config_yarns, resolve_yarn
+    from knitframe.yarns import config_yarns, resolve_yarn, yarn_properties
 
     reg = get_registry()
     if args.config is not None:
@@ -36,7 +36,7 @@ def main(args) -> int:
         yarn = own[args.name] if args.name in own else resolve_yarn(reg, args.name, "NAME")
     else:
         yarn = resolve_yarn(reg, args.name, "NAME")
-    rows = yarn.properties()
+    rows = yarn_properties(yarn)
     if args.json:
         print(json.dumps([attrs.asdict(r) for r in rows], indent=2, ensure_ascii=False))
         return 0

@@ -45,7 +45,7 @@ from knitframe.fitting.free_side import (
     solve_free_side,
 )
 from knitframe.fitting.outputs import plot_fit, predict, write_fit_outputs
-from knitframe.fitting.params import finite_json, params_from_json, params_to_json
+from knitframe.fitting.params import finite_json, params_from_json, params_to_json, within_model_bounds
 from knitframe.fitting.problem import RESIDUAL_CLIP, FitProblem
 from knitframe.fitting.result import AT_BOUND, FitResult, UnitBox, at_bound, finish, start_design
 
@@ -59,6 +59,7 @@ __all__ = [
     "bracketed_newton",
     "free_side_grad",
     "params_to_json",
+    "within_model_bounds",
     "params_from_json",
     "FitProblem",
     "FitResult",

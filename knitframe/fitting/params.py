@@ -10,7 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from knitframe.errors import ConfigError
+from knitframe.errors import ConfigError, FieldError
+from knitframe.validators import number_text
 
 
 def _is_angle(name: str) -> bool:
@@ -58,3 +59,28 @@ def finite_json(data: Any, path: str = "") -> tuple[Any, list[str]]:
     if isinstance(data, (float, np.floating)) and not math.isfinite(data):
         return None, [path]
     return data, []
+
+
+def within_model_bounds(model: Any, params: Any) -> None:
+    """Reduced-model parameters inside the model's own box ``model.bounds()``; FieldError names the first
+    outside.
+
+    The field is the parameter as a config or a params.json writes it (``a``, ``theta_deg``), and
+    the message gives the bounds the same way (angles in degrees). Values within 1e-9 (relative)
+    of a bound count as on it, so a fit that stopped at a bound is accepted. A model without
+    ``bounds`` takes any finite values.
+    """
+    if getattr(model, "bounds", None) is None:
+        return
+    lo, hi = (np.asarray(b, dtype=np.float64) for b in model.bounds())
+    p = np.asarray(params, dtype=np.float64)
+    names = tuple(model.param_names)
+    shown, low, high = (params_to_json(names, x) for x in (p, lo, hi))
+    slack = 1e-9 * np.maximum(np.abs(lo), np.abs(hi))
+    for i, key in enumerate(shown):
+        if not lo[i] - slack[i] <= p[i] <= hi[i] + slack[i]:
+            raise FieldError(
+                key,
+                f"must be in [{number_text(low[key])}, {number_text(high[key])}] (the bounds of model "
+                f"'{getattr(model, 'name', type(model).__name__)}'), got {number_text(shown[key])}",
+            )

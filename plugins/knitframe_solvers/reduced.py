@@ -30,9 +30,8 @@ import numpy as np
 from knitframe import get_registry, hookimpl
 from knitframe.effects import require_effects
 from knitframe.errors import ConfigError, FieldError, NumericalError
-from knitframe.fitting import FREE_MIN, FitResult, params_from_json, params_to_json
+from knitframe.fitting import FREE_MIN, FitResult, params_from_json, params_to_json, within_model_bounds
 from knitframe.records import Provenance, Response
-from knitframe.validators import within_model_bounds
 
 
 @attrs.frozen

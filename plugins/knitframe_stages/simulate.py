@@ -185,8 +185,10 @@ class SimulateStage(Stage):
 
 
 def write_yarn_csv(path, yarn) -> None:
-    """The yarn record's quantities (``Yarn.properties()``) as CSV, with the record's source."""
+    """The yarn record's quantities (``yarn_properties``) as CSV, with the record's source."""
     import csv
+
+    from knitframe.yarns import yarn_properties
 
     with open(path, "w", newline="", encoding="utf-8") as fh:
         fh.write(f"# yarn: {yarn.name}\n")
@@ -194,7 +196,7 @@ def write_yarn_csv(path, yarn) -> None:
             fh.write(f"# source: {yarn.source}\n")
         w = csv.writer(fh)
         w.writerow(["quantity", "symbol", "value", "unit", "status", "how", "used_by"])
-        for p in yarn.properties():
+        for p in yarn_properties(yarn):
             w.writerow(
                 [
                     p.name,
