@@ -40,6 +40,7 @@ __all__ = [
     "unit_cell",
     "pattern_for",
     "checked_cell",
+    "table_arc_length",
     "ARC_LENGTH_RANGE_DK",
     "MIN_PITCH_DK",
 ]
@@ -241,6 +242,12 @@ ARC_LENGTH_RANGE_DK = (np.pi, 200.0)
 MIN_PITCH_DK = 0.5
 
 
+def table_arc_length(table: dict[str, float], setting: float) -> float | None:
+    """Yarn per stitch, mm, that a ``stitch_lengths`` table gives for the machine ``setting``
+    (keys compared as numbers, "11" == 11.0), or None when the setting is not in the table."""
+    return next((float(length) for key, length in table.items() if float(key) == float(setting)), None)
+
+
 def checked_cell(fabric: Fabric, registry=None) -> UnitCell:
     """The unit cell of ``fabric``, its dimensions checked before it is built; errors name the
     ``fabric.*`` key.
@@ -263,7 +270,7 @@ def checked_cell(fabric: Fabric, registry=None) -> UnitCell:
     arc = None if fabric.arc_length is None else float(fabric.arc_length)
     if arc is None and isinstance(table, dict):
         setting = float(fabric.stitch_length)
-        arc = next((float(length) for key, length in table.items() if float(key) == setting), None)
+        arc = table_arc_length(table, setting)
         if arc is None:
             keys = ", ".join(sorted(table, key=float))
             raise ConfigError(

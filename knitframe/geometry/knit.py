@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from knitframe.errors import FieldError, GeometryError, NumericalError
-from knitframe.geometry.cell import Centerline, UnitCell
+from knitframe.geometry.cell import Centerline, UnitCell, table_arc_length
 
 if TYPE_CHECKING:
     from knitframe.records import Fabric
@@ -57,12 +57,12 @@ def check_stitch_lengths(instance, attribute, value) -> None:
 
 def arc_length_for(fabric: Fabric, table: dict[str, float]) -> float:
     """Yarn length per stitch, mm: ``fabric.arc_length`` if given, else the machine setting looked
-    up in ``table``."""
+    up in ``table`` (:func:`~knitframe.geometry.cell.table_arc_length`)."""
     if fabric.arc_length is not None:
         return float(fabric.arc_length)
-    for key, length in table.items():
-        if float(key) == float(fabric.stitch_length):
-            return float(length)
+    length = table_arc_length(table, fabric.stitch_length)
+    if length is not None:
+        return length
     known = ", ".join(f"{k} -> {val} mm" for k, val in sorted(table.items(), key=lambda kv: float(kv[0])))
     raise GeometryError(
         f"stitch_length {fabric.stitch_length:g} is not in the stitch-length table ({known}); "
