@@ -11,15 +11,7 @@ Public API::
 
 from __future__ import annotations
 
-from importlib.metadata import PackageNotFoundError
-from importlib.metadata import version as _version
-
-try:
-    __version__ = _version("knitframe")
-except PackageNotFoundError:  # running from a source tree that is not installed
-    __version__ = "0.0.0+unknown"
-
-from knitframe.errors import (  # noqa: E402
+from knitframe.errors import (
     ConfigError,
     DataError,
     GeometryError,
@@ -29,13 +21,14 @@ from knitframe.errors import (  # noqa: E402
     UnknownPluginError,
     UnsupportedEffectError,
 )
-from knitframe.examples import example_config  # noqa: E402
-from knitframe.garment.api import design  # noqa: E402
-from knitframe.hookspecs import hookimpl  # noqa: E402
-from knitframe.ladder import ladder  # noqa: E402
-from knitframe.pipeline import PipelineResult, run  # noqa: E402
-from knitframe.plugins import Registry, get_registry, load_registry  # noqa: E402
-from knitframe.records import EFFECTS, Fabric, LoadPath, Provenance, Response, Scene, Yarn  # noqa: E402
+from knitframe.examples import example_config
+from knitframe.garment.api import design
+from knitframe.hookspecs import hookimpl
+from knitframe.ladder import ladder
+from knitframe.pipeline import PipelineResult, run
+from knitframe.plugins import Registry, get_registry, load_registry
+from knitframe.records import EFFECTS, Fabric, LoadPath, Provenance, Response, Scene, Yarn
+from knitframe.version import __version__
 
 __all__ = [
     "__version__",

@@ -29,13 +29,13 @@ from typing import Any
 
 import attrs
 
-from knitframe import __version__
 from knitframe.config import load_toml
 from knitframe.errors import ConfigError, KnitframeWarning
 from knitframe.interfaces import Stage, declared
 from knitframe.outdir import OutputDir, fingerprint
 from knitframe.plugins import Registry, get_registry
 from knitframe.records import Response
+from knitframe.version import __version__
 
 __all__ = ["BuildContext", "RunContext", "Pipeline", "PipelineResult", "run", "RESERVED_TABLES"]
 

@@ -30,10 +30,10 @@ def add_parser(sub) -> None:
 
 
 def main(args) -> int:
-    from knitframe import __version__
     from knitframe.config import instantiate
     from knitframe.fitting import write_fit_outputs
     from knitframe.plugins import get_registry
+    from knitframe.version import __version__
 
     od = OutputDir(
         args.out,

@@ -130,9 +130,9 @@ def _stitch_numbers(text: str) -> dict:
 
 
 def main(args) -> int:
-    from knitframe import __version__
     from knitframe.errors import ConfigError, FieldError
     from knitframe.garment.knitout import KnitMap, MachineSpec, missing, plan, program, write_machine_outputs
+    from knitframe.version import __version__
 
     def field_error(e: FieldError) -> ConfigError:
         head, _, key = e.field.partition(".")

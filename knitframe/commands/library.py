@@ -127,8 +127,8 @@ def _output_arguments(parser, func) -> None:
 
 
 def main_build(args) -> int:
-    from knitframe import __version__
     from knitframe.garment.library import FabricLibrary
+    from knitframe.version import __version__
 
     n = len(args.params)
     kwargs = {}
@@ -202,8 +202,8 @@ def _gauge_option(text: str | None) -> tuple[float, float] | None:
 
 
 def main_build_builtin(args) -> int:
-    from knitframe import __version__
     from knitframe.garment.library import BUILTIN_FITTER, BUILTIN_MODEL, build_builtin
+    from knitframe.version import __version__
 
     od = OutputDir(
         args.out,

@@ -351,15 +351,17 @@ class Limb:
            second-moment aspect (√(λmin/λmax)) is under 0.2, or the circumferences vary more than
            5× along the axis.
         """
-        from knitframe.garment.limb.scan import _scan_to_limb  # scan builds a Limb: imported here
+        from knitframe.garment.limb.scan import read_scan
 
-        return _scan_to_limb(
-            Path(path),
-            axis=axis,
-            n_stations=n_stations,
-            n_around=n_around,
-            trim=trim,
-            units=units,
-            name=name,
-            reference=reference,
+        return cls(
+            **read_scan(
+                Path(path),
+                axis=axis,
+                n_stations=n_stations,
+                n_around=n_around,
+                trim=trim,
+                units=units,
+                name=name,
+                reference=reference,
+            )
         )

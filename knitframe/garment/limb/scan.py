@@ -12,7 +12,6 @@ from knitframe.errors import ConfigError, DataError, KnitframeWarning
 from knitframe.garment.limb.checks import _check_sections, _check_tubular
 from knitframe.garment.limb.measured import _check_counts
 from knitframe.garment.limb.reading import _read_triangles
-from knitframe.garment.limb.record import Limb
 from knitframe.garment.limb.sections import _perpendicular
 from knitframe.garment.limb.shells import (
     _canonical_sign,
@@ -103,7 +102,7 @@ def _scale_to_mm(length: float, units: str, label: str, notes: list[str]) -> flo
                 "coordinates multiplied by 1000"
             )
             notes.append(note)
-            # attributed to the caller of Limb.from_scan (this, _scan_to_limb, from_scan, caller)
+            # attributed to the caller of Limb.from_scan (this, read_scan, from_scan, caller)
             warnings.warn(f"{label}: {note}", KnitframeWarning, stacklevel=4)
     elif scale != 1.0:
         notes.append(f"converted from {units} to mm (x{scale:g})")
@@ -122,7 +121,9 @@ def _cut(slicer: _Slicer, center, f1, f2, length, trim, n_stations) -> tuple[np.
     return z, raw
 
 
-def _scan_to_limb(path: Path, *, axis, n_stations, n_around, trim, units, name, reference) -> Limb:
+def read_scan(path: Path, *, axis, n_stations, n_around, trim, units, name, reference) -> dict:
+    """The fields of the :class:`~knitframe.garment.limb.Limb` a scan gives (see :meth:`Limb.from_scan`):
+    name, sections (mm), axis origin and direction, source and notices."""
     label = str(path)
     _check_counts(n_stations, n_around)
     given_axis = _check_options(axis, trim, units)
@@ -164,11 +165,11 @@ def _scan_to_limb(path: Path, *, axis, n_stations, n_around, trim, units, name, 
 
     plane = center + np.outer(z, d)
     sections = plane[:, None, :] + xy[..., :1] * f1 + xy[..., 1:] * f2
-    return Limb(
-        name=path.stem if name is None else name,
-        sections=sections,
-        axis_origin=plane[0],
-        axis_direction=d,
-        source=f"scan: {path.name}",
-        notes=tuple(notes),
-    )
+    return {
+        "name": path.stem if name is None else name,
+        "sections": sections,
+        "axis_origin": plane[0],
+        "axis_direction": d,
+        "source": f"scan: {path.name}",
+        "notes": tuple(notes),
+    }
