@@ -29,7 +29,7 @@ import time
 from collections.abc import Callable, Mapping
 from typing import Any
 
-__all__ = ["executor_from_config", "Tally", "FAILURE_MODES", "check_failures"]
+__all__ = ["executor_from_config", "Tally", "FAILURE_MODES", "check_failures", "start_map"]
 
 FAILURE_MODES = ("raise", "keep")
 
@@ -100,3 +100,30 @@ class Tally:
 def check_failures(failures: str) -> None:
     if failures not in FAILURE_MODES:
         raise ValueError(f"failures must be one of {', '.join(FAILURE_MODES)}, got {failures!r}")
+
+
+def start_map(
+    fn: Callable[[Mapping[str, Any]], Any],
+    jobs: list[Mapping[str, Any]],
+    *,
+    cache_dir: str | None,
+    failures: str,
+    progress: Callable[..., Any] | None,
+) -> tuple[Any, list[str], list[Any], list[int], Tally]:
+    """What every executor's ``map`` does first: checks ``failures``, opens the result cache in
+    ``cache_dir`` and takes from it the jobs already done, and starts the :class:`Tally`.
+
+    Returns ``(cache, keys, results, todo, tally)``: the :class:`~knitframe.cache.JobCache`, each
+    job's cache key, the results in job order (cached ones filled in), the indices of the jobs
+    still to run, and the tally of those. When ``todo`` is empty every result came from the cache
+    and the tally has already reported it: the executor returns ``results``.
+    """
+    from knitframe.cache import JobCache
+
+    check_failures(failures)
+    cache = JobCache(cache_dir)
+    keys, results, todo = cache.split(fn, jobs)
+    tally = Tally(len(todo), len(jobs) - len(todo), progress)
+    if not todo:
+        tally.report(0)
+    return cache, keys, results, todo, tally

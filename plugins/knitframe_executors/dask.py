@@ -29,9 +29,9 @@ import attrs
 
 from knitframe import hookimpl
 from knitframe import validators as v
-from knitframe.cache import JobCache, JobFailure, failure_reason
+from knitframe.cache import JobFailure, failure_reason
 from knitframe.errors import ConfigError, FieldError, KnitframeWarning, PluginError
-from knitframe.executors import Tally, check_failures
+from knitframe.executors import start_map
 
 #: the nanny's setting that slows assembly in workers (see the module docstring)
 TRIM_KEY = "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_"
@@ -144,12 +144,10 @@ class DaskExecutor:
         ``failures = "keep"`` puts a JobFailure where a task erred."""
         from distributed import as_completed
 
-        check_failures(failures)
-        cache = JobCache(self.cache_dir)
-        keys, results, todo = cache.split(fn, jobs)
-        tally = Tally(len(todo), len(jobs) - len(todo), progress)
+        cache, keys, results, todo, tally = start_map(
+            fn, jobs, cache_dir=self.cache_dir, failures=failures, progress=progress
+        )
         if not todo:
-            tally.report(0)
             return results
         client, cluster = self._client()
         try:

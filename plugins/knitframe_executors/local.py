@@ -15,8 +15,8 @@ import attrs
 
 from knitframe import hookimpl
 from knitframe import validators as v
-from knitframe.cache import JobCache, JobFailure, failure_reason
-from knitframe.executors import Tally, check_failures
+from knitframe.cache import JobFailure, failure_reason
+from knitframe.executors import start_map
 
 
 @attrs.frozen
@@ -41,12 +41,10 @@ class LocalExecutor:
     ) -> list[Any]:
         """``[fn(job) for job in jobs]`` in order; ``failures = "keep"`` puts a JobFailure where a job
         raised."""
-        check_failures(failures)
-        cache = JobCache(self.cache_dir)
-        keys, results, todo = cache.split(fn, jobs)
-        tally = Tally(len(todo), len(jobs) - len(todo), progress)
+        cache, keys, results, todo, tally = start_map(
+            fn, jobs, cache_dir=self.cache_dir, failures=failures, progress=progress
+        )
         if not todo:
-            tally.report(0)
             return results
         if self.workers == 1 or len(todo) == 1:
             for n, i in enumerate(todo):
