@@ -54,11 +54,10 @@ from knitframe.numerics.contact import (
     FrictionState,
     P2Projection,
     SolidSurface,
-    assemble,
     barycentric,
     combine,
     facet_size,
-    friction_terms,
+    finish_evaluation,
     p2_gap_derivatives,
     p2_shape,
     penalty_terms,
@@ -299,37 +298,39 @@ class SolidMortar(SolidContactLaw):
         k = pr["N"].shape[1]
         images = np.zeros((len(nodes), 2 * k, 2), np.int64)
         images[:, k:] = pr["image"][:, None, :]
-        # the quadrature points of one slave facet on one master element (and image), with or
-        # without friction, form one element: summed before the assembly
         key = _element_key(surface.slave[f], pr["master"], pr["image"], len(elements))
-        info: dict[str, Any] = {}
-        if friction_state is not None and self.friction > 0 and len(friction_state):
-            Ef, gf, Hf, info = friction_terms(
-                friction_state, x, h, surface.lattice, self.friction, self.slip, order
+
+        def merge(terms: list) -> list:
+            """The quadrature points of one slave facet on one master element (and image), with or
+            without friction, summed into one element before the assembly."""
+            if order < 1:
+                return []
+            keys = [key]
+            if len(terms) > 1:  # the friction's pairs
+                fs = friction_state
+                keys.append(_element_key(fs.slave, fs.master, fs.image, len(elements)))
+            first, grad, hess = combine(
+                np.concatenate(keys), [t[2] for t in terms], [t[3] for t in terms] if order == 2 else None
             )
-            E += Ef
-            info["friction_energy"] = Ef
-            fs = friction_state
-            key = np.concatenate([key, _element_key(fs.slave, fs.master, fs.image, len(elements))])
-            nodes, images = np.concatenate([nodes, fs.nodes]), np.concatenate([images, fs.images])
-            grads, hesses = [grad, gf], [hess, Hf]
-        else:
-            grads, hesses = [grad], [hess]
-        terms = []
-        if order >= 1:
-            first, grad, hess = combine(key, grads, hesses if order == 2 else None)
-            terms.append((nodes[first], images[first], grad, hess))
-        E, G, Hm = assemble(surface.n_nodes, surface.lattice, E, terms, order)
-        info.update(
-            {
-                "active": int(g.size),
-                "max_penetration": float(-g.min()) if g.size else 0.0,
-                "pressure": _nodal_pressure(surface.n_nodes, pr, weight * pn),
-                "force": float(np.sum(weight * pn)),
-                "candidates": pr["candidates"],
-            }
+            nodes, images = (np.concatenate([t[i] for t in terms]) for i in (0, 1))
+            return [(nodes[first], images[first], grad, hess)]
+
+        return finish_evaluation(
+            surface,
+            x,
+            h,
+            order,
+            E,
+            (nodes, images, grad, hess),
+            friction=self.friction,
+            slip=self.slip,
+            friction_state=friction_state,
+            g=g,
+            pressure=_nodal_pressure(surface.n_nodes, pr, weight * pn),
+            force=float(np.sum(weight * pn)),
+            candidates=pr["candidates"],
+            merge=merge,
         )
-        return E, G, Hm, info
 
 
 def _element_key(slave: np.ndarray, master: np.ndarray, image: np.ndarray, n_elements: int) -> np.ndarray:

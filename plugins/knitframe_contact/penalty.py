@@ -46,11 +46,10 @@ from knitframe.numerics.contact import (
     FrictionState,
     P2Projection,
     SolidSurface,
-    assemble,
     barycentric,
     chain_facet_derivatives,
     facet_size,
-    friction_terms,
+    finish_evaluation,
     nagata_facets,
     node_normals,
     p2_gap_derivatives,
@@ -375,28 +374,23 @@ class SolidPenalty(SolidContactLaw):
         g = a["g"]
         weight = surface.tributary[a["node"]]
         E, grad, hess = penalty_terms(g, a["dg"], a["Hg"], weight, stiffness, order, self.band(reach))
-        terms = [(a["nodes"], a["images"], grad, hess)]
-        info: dict[str, Any] = {}
-        if friction_state is not None and self.friction > 0 and len(friction_state):
-            Ef, gf, Hf, info = friction_terms(
-                friction_state, x, h, surface.lattice, self.friction, self.slip, order
-            )
-            E += Ef
-            info["friction_energy"] = Ef
-            terms.append((friction_state.nodes, friction_state.images, gf, Hf))
-        E, G, H = assemble(surface.n_nodes, surface.lattice, E, terms, order)
         pressure = np.zeros(surface.n_nodes)
         pressure[a["node"]] = self.normal_pressure(g, stiffness, reach)
-        info.update(
-            {
-                "active": int(g.size),
-                "max_penetration": float(-g.min()) if g.size else 0.0,
-                "pressure": pressure,
-                "force": float(np.sum(weight * pressure[a["node"]])),
-                "candidates": a["candidates"],
-            }
+        return finish_evaluation(
+            surface,
+            x,
+            h,
+            order,
+            E,
+            (a["nodes"], a["images"], grad, hess),
+            friction=self.friction,
+            slip=self.slip,
+            friction_state=friction_state,
+            g=g,
+            pressure=pressure,
+            force=float(np.sum(weight * pressure[a["node"]])),
+            candidates=a["candidates"],
         )
-        return E, G, H, info
 
 
 @hookimpl

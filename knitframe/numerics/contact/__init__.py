@@ -22,10 +22,13 @@ module                 what it holds
                        :func:`friction_potential`, :func:`friction_terms`)
 ``assembly``           summing element terms and scattering them to the global gradient and
                        Hessian through the periodic point map
+``evaluation``         the end of a law's evaluation: lagged friction, assembly and the
+                       diagnostics (:func:`finish_evaluation`)
 =====================  =======================================================================
 """
 
 from knitframe.numerics.contact.assembly import assemble, combine
+from knitframe.numerics.contact.evaluation import finish_evaluation
 from knitframe.numerics.contact.friction import FrictionState, friction_potential, friction_terms
 from knitframe.numerics.contact.gaps import barycentric, distance_bound, plane_gap, point_triangle_distance
 from knitframe.numerics.contact.nagata import chain_facet_derivatives, nagata_facets, node_normals
@@ -47,6 +50,7 @@ __all__ = [
     "combine",
     "rim_edges",
     "assemble",
+    "finish_evaluation",
     "SolidSurface",
     "Candidates",
     "bezier_points",
