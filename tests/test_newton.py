@@ -601,7 +601,7 @@ def test_chord_steps_stop_near_convergence_and_when_the_factor_is_stale():
     """No chord step follows a Newton step within twice step_tol (the next Newton step may pass the step
     test), and a chord step larger than twice the last Newton step is refused (the kept factorisation no
     longer models the energy): the Hessian is evaluated instead."""
-    from knitframe.numerics.newton_steps import CHORD_SIZE_FACTOR, _chord_step
+    from knitframe.numerics.newton_steps import CHORD_SIZE_FACTOR, chord_step
 
     def size(dx):
         return float(np.max(np.abs(dx)))
@@ -626,13 +626,13 @@ def test_chord_steps_stop_near_convergence_and_when_the_factor_is_stale():
     entry = {}
     # a stale "factorisation" that sends the step 10⁴ times too far
     assert (
-        _chord_step(
+        chord_step(
             quartic, x, E, g, lambda b: 1e4 * b, np.ones(3, bool), opts, size, None, entry, max_size=1.0
         )
         is None
         and not entry
     )
-    step = _chord_step(
+    step = chord_step(
         quartic, x, E, g, lambda b: b / 76.0, np.ones(3, bool), opts, size, None, entry, max_size=10.0
     )
     assert step is not None and entry["chord"] and step[2] < E
@@ -718,7 +718,7 @@ def test_extrapolation_backs_off_where_the_energy_rises_beyond_the_full_step():
     """Where the energy along the step grows faster than quadratically past α = 1 (a barrier), the first
     trial α* fails and a shorter α between 1.5 and α* that lowers E is taken; where every α > 1 raises E,
     the full step stands."""
-    from knitframe.numerics.newton_steps import _extrapolated
+    from knitframe.numerics.newton_steps import extrapolated
 
     opts = NewtonOptions(extrapolate=8.0)
     x, dx = np.zeros(1), np.ones(1)
@@ -734,17 +734,17 @@ def test_extrapolation_backs_off_where_the_energy_rises_beyond_the_full_step():
     fun = walled(3.0)
     E0, E1 = fun(x)[0], fun(x + dx)[0]
     entry = {}
-    alpha, x_new, E_new = _extrapolated(fun, x, E0, dx, -1.0, np.nan, (1.0, x + dx, E1), opts, None, entry)
+    alpha, x_new, E_new = extrapolated(fun, x, E0, dx, -1.0, np.nan, (1.0, x + dx, E1), opts, None, entry)
     assert entry["alpha_star"] == pytest.approx(10.0)
     assert 1.5 <= alpha < 8.0 and E_new < E1 and entry["extrapolated"] == alpha
     fun = walled(1.0)
     full = (1.0, x + dx, fun(x + dx)[0])
     entry = {}
-    assert _extrapolated(fun, x, E0, dx, -1.0, np.nan, full, opts, None, entry) is full
+    assert extrapolated(fun, x, E0, dx, -1.0, np.nan, full, opts, None, entry) is full
     assert "extrapolated" not in entry
     # a shortened step (α < 1) is never extrapolated
     short = (0.5, x + 0.5 * dx, fun(x + 0.5 * dx)[0])
-    assert _extrapolated(fun, x, E0, dx, -1.0, np.nan, short, opts, None, {}) is short
+    assert extrapolated(fun, x, E0, dx, -1.0, np.nan, short, opts, None, {}) is short
 
 
 class _StaleFactors:

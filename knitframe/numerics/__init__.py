@@ -7,6 +7,7 @@ module                     what it holds
                            phases, checkpoints and resume, VTU files, truncate, the Response
 ``continuation``           load-path continuation with cut-back, and per-step checkpoints
 ``newton``                 Newton's method on an energy (:func:`minimise`), its options
+``newton_options``         the records of Newton's method: its options, result and problem
 ``newton_driver``          the state and stages of one :func:`minimise` iteration
 ``newton_steps``           the line search, extrapolated, halved and chord steps of Newton
 ``settings``               a solver's ``[solver.newton]`` tuning table: presets and overrides

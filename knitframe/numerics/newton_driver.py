@@ -13,29 +13,27 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 
 from knitframe.errors import NumericalError
+from knitframe.numerics.newton_options import NewtonOptions, Problem
 from knitframe.numerics.newton_steps import (
     CHORD_SIZE_FACTOR,
     STALL_FACTOR,
-    _capped,
-    _chord_step,
-    _diag_scale,
-    _extrapolated,
-    _failure,
-    _fmt,
-    _halved_reversal,
-    _line_search,
-    _report,
-    _step_ratio,
+    capped_step,
+    chord_step,
+    diag_scale,
+    extrapolated,
+    halved_reversal,
+    history_summary,
+    line_search,
+    newton_failure,
+    report_iteration,
+    step_ratio,
 )
-
-if TYPE_CHECKING:
-    from knitframe.numerics.newton import NewtonOptions, Problem
 
 __all__ = ["Minimiser"]
 
@@ -117,7 +115,7 @@ class Minimiser:
 
     def _result(self, it: int) -> Converged:
         """The converged state at iteration ``it``, after reporting its history entry."""
-        _report(self.on_iteration, self.history, self.t_it)
+        report_iteration(self.on_iteration, self.history, self.t_it)
         return self.x, float(self.E), self.g, it, tuple(self.history), self.info
 
     def iterate(self) -> Converged:
@@ -141,10 +139,10 @@ class Minimiser:
             done = self._newton_step(it, res)
             if done is not None:
                 return done
-        _report(self.on_iteration, self.history, self.t_it)
-        raise _failure(
+        report_iteration(self.on_iteration, self.history, self.t_it)
+        raise newton_failure(
             f"Newton: no convergence in {options.max_iter} iterations (residual "
-            f"{self.history[-1]['residual']:.3g} > tol {self.tol:.3g}); {_fmt(self.history)}",
+            f"{self.history[-1]['residual']:.3g} > tol {self.tol:.3g}); {history_summary(self.history)}",
             self.history,
         )
 
@@ -153,7 +151,9 @@ class Minimiser:
         finite)."""
         res = float(np.max(np.abs(self.g[self.free]), initial=0.0))
         if not np.isfinite(res):
-            raise NumericalError(f"Newton: non-finite gradient at iteration {it}; {_fmt(self.history)}")
+            raise NumericalError(
+                f"Newton: non-finite gradient at iteration {it}; {history_summary(self.history)}"
+            )
         self.history.append({"it": it, "energy": float(self.E), "residual": res, "shift": self.shift_rel})
         for key in ("flux", "active"):
             if key in self.info:
@@ -179,10 +179,10 @@ class Minimiser:
         best_before = min(h["residual"] for h in history[:-k])
         target = max(self.tol, ratio * float(self.info.get("flux", 0.0)))
         if min(window) >= best_before and best_before > STALL_FACTOR * target:
-            _report(self.on_iteration, history, self.t_it)
-            raise _failure(
+            report_iteration(self.on_iteration, history, self.t_it)
+            raise newton_failure(
                 f"Newton: stalled, no residual below {best_before:.3g} in the last {k} "
-                f"iterations (tol {self.tol:.3g}); {_fmt(history)}",
+                f"iterations (tol {self.tol:.3g}); {history_summary(history)}",
                 history,
             )
 
@@ -192,7 +192,7 @@ class Minimiser:
         self.chord_next = False
         if self.projecting:  # the kept factorisation is of the projected Hessian
             self.history[-1]["projected"] = True
-        chord = _chord_step(
+        chord = chord_step(
             self.fun,
             self.x,
             self.E,
@@ -217,7 +217,7 @@ class Minimiser:
             return False
         self.refused = 0
         alpha, x_new, E_new = chord
-        _report(self.on_iteration, self.history, self.t_it)
+        report_iteration(self.on_iteration, self.history, self.t_it)
         self.n_chord += 1
         self.n_chord_total += 1
         rate = (self.E - E_new) / max(self.history[-1]["wall_s"], 1e-9)
@@ -267,7 +267,7 @@ class Minimiser:
         """
         options, free, x, entry = self.options, self.free, self.x, self.history[-1]
         gf = self.g[free]
-        scale = _diag_scale(Hff)
+        scale = diag_scale(Hff)
         tried = 0.0
         for _ in range(options.max_shift_increases + 2):
             if self.shift_rel > self.max_shift * (1.0 + 1e-9):
@@ -293,7 +293,7 @@ class Minimiser:
                 entry["projected"] = True
                 self.H = self.fun(x, 2, projected=True)[2]
                 Hff = self.H[free][:, free].tocsc()
-                scale = _diag_scale(Hff)
+                scale = diag_scale(Hff)
                 continue
             if (
                 descent
@@ -304,7 +304,7 @@ class Minimiser:
             ):
                 # the Newton step would move nothing by more than step_tol: x is the solution to that accuracy
                 # (a projected step is H_p⁻¹g with H_p ⪰ the exact curvature's positive part: IPC's criterion)
-                entry["step"] = _step_ratio(size, options)
+                entry["step"] = step_ratio(size, options)
                 entry["step_converged"] = True
                 return None
             if descent:
@@ -315,10 +315,10 @@ class Minimiser:
                     alpha, x_new, E_new, dx = step
                     return alpha, x_new, E_new, dx, size
             self.shift_rel = max(10.0 * self.shift_rel, 1e-8)
-        _report(self.on_iteration, self.history, self.t_it)
-        raise _failure(
+        report_iteration(self.on_iteration, self.history, self.t_it)
+        raise newton_failure(
             f"Newton: no descent step at iteration {it} (residual {res:.3g} > tol {self.tol:.3g}, "
-            f"shift up to {tried:.2g}); {_fmt(self.history)}",
+            f"shift up to {tried:.2g}); {history_summary(self.history)}",
             self.history,
         )
 
@@ -341,18 +341,16 @@ class Minimiser:
             self.shift_rel = max(10.0 * self.shift_rel, 1e-8)
             return _SHIFT
         if np.isfinite(size):
-            entry["step"] = _step_ratio(size, options)
+            entry["step"] = step_ratio(size, options)
         x, fun = self.x, self.fun
-        dx, slope, alpha0 = _capped(x, dx, slope, size, options, self.step_limit)
+        dx, slope, alpha0 = capped_step(x, dx, slope, size, options, self.step_limit)
         entry["alpha0"] = alpha0
         step = (
-            _line_search(fun, x, self.E, self.g, dx, slope, options, self.free, alpha0)
-            if alpha0 > 0
-            else None
+            line_search(fun, x, self.E, self.g, dx, slope, options, self.free, alpha0) if alpha0 > 0 else None
         )
-        step = _extrapolated(fun, x, self.E, dx, slope, size, step, options, self.step_limit, entry)
+        step = extrapolated(fun, x, self.E, dx, slope, size, step, options, self.step_limit, entry)
         if options.halve_reversals:
-            step = _halved_reversal(fun, x, dx, step, self.last_move, self.free, entry)
+            step = halved_reversal(fun, x, dx, step, self.last_move, self.free, entry)
         return None if step is None else (*step, dx)
 
     def _advance(
@@ -363,7 +361,7 @@ class Minimiser:
         entry["alpha"] = alpha
         entry["step_energy"] = float(E_new)  # as the line search saw it: the next entry's energy may differ
         # wall_s: this iteration's evaluations, factorisations, line search
-        _report(self.on_iteration, self.history, self.t_it)
+        report_iteration(self.on_iteration, self.history, self.t_it)
         self._plan_chord(alpha, E_new, size)
         self.t_it = time.perf_counter()
         self.correction = self.measure(x_new - self.x)

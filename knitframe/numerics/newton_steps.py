@@ -1,10 +1,10 @@
 """The step helpers of :func:`knitframe.numerics.newton.minimise`: the line search and its refinements.
 
-What one Newton iteration does with a solved direction dx: cap it (:func:`_capped`), search along
-it (:func:`_line_search`: Armijo on the energy, then a residual-decrease fallback), lengthen a
-full step the energy shows was too short (:func:`_extrapolated`), halve a full step that reverses
-the last one (:func:`_halved_reversal`), and the chord steps on a kept factorisation
-(:func:`_chord_step`). Also the bookkeeping shared by the driver: the history's step ratio, its
+What one Newton iteration does with a solved direction dx: cap it (:func:`capped_step`), search along
+it (:func:`line_search`: Armijo on the energy, then a residual-decrease fallback), lengthen a
+full step the energy shows was too short (:func:`extrapolated`), halve a full step that reverses
+the last one (:func:`halved_reversal`), and the chord steps on a kept factorisation
+(:func:`chord_step`). Also the bookkeeping shared by the driver: the history's step ratio, its
 one-line summary, reporting an iteration and the failure that carries the history. The equations
 are in each function's docstring and in the module docstring of :mod:`knitframe.numerics.newton`.
 """
@@ -14,15 +14,31 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
 
 from knitframe.errors import NumericalError
+from knitframe.numerics.newton_options import NewtonOptions, Problem
 
-if TYPE_CHECKING:
-    from knitframe.numerics.newton import NewtonOptions, Problem
+__all__ = [
+    "CHORD_SIZE_FACTOR",
+    "EXTRAPOLATE_MIN",
+    "REVERSAL_COS",
+    "EXTRAPOLATE_TRIALS",
+    "STALL_FACTOR",
+    "diag_scale",
+    "history_summary",
+    "capped_step",
+    "halved_reversal",
+    "extrapolated",
+    "chord_step",
+    "report_iteration",
+    "step_ratio",
+    "newton_failure",
+    "line_search",
+]
+
 
 #: chord steps: none after a Newton step within this × step_tol, and none larger than this × that Newton step
 CHORD_SIZE_FACTOR = 2.0
@@ -39,12 +55,14 @@ EXTRAPOLATE_TRIALS = 3
 STALL_FACTOR = 10.0
 
 
-def _diag_scale(A: sp.spmatrix) -> float:
+def diag_scale(A: sp.spmatrix) -> float:
+    """The mean |diagonal| of A, the scale of the Levenberg shift μ·mean|diag H| (1 for a zero diagonal)."""
     d = np.abs(A.diagonal())
     return float(d.mean()) if d.size and d.mean() > 0 else 1.0
 
 
-def _fmt(history: Sequence[dict], last: int = 6) -> str:
+def history_summary(history: Sequence[dict], last: int = 6) -> str:
+    """The ``last`` iterations of ``history`` in one line (energy, residual, α, shift), for error messages."""
     rows = [
         f"it {h['it']}: E={h['energy']:.6g} |g|={h['residual']:.3g} alpha={h.get('alpha', 0):.3g} "
         f"shift={h.get('shift', 0):.2g}"
@@ -53,7 +71,7 @@ def _fmt(history: Sequence[dict], last: int = 6) -> str:
     return "; ".join(rows)
 
 
-def _capped(
+def capped_step(
     x: np.ndarray,
     dx: np.ndarray,
     slope: float,
@@ -69,7 +87,7 @@ def _capped(
     return dx, slope, 1.0 if step_limit is None else min(1.0, float(step_limit(x, dx)))
 
 
-def _halved_reversal(
+def halved_reversal(
     fun: Problem,
     x: np.ndarray,
     dx: np.ndarray,
@@ -105,7 +123,7 @@ def _halved_reversal(
     return step
 
 
-def _extrapolated(
+def extrapolated(
     fun: Problem,
     x: np.ndarray,
     E: float,
@@ -159,7 +177,7 @@ def _extrapolated(
     return step
 
 
-def _chord_step(
+def chord_step(
     fun: Problem,
     x: np.ndarray,
     E: float,
@@ -196,38 +214,40 @@ def _chord_step(
         return None
     if np.isfinite(size) and np.isfinite(max_size) and size > max_size:
         return None
-    dx, slope, alpha0 = _capped(x, dx, slope, size, options, step_limit)
-    step = _line_search(fun, x, E, g, dx, slope, options, free, alpha0) if alpha0 > 0 else None
-    step = _extrapolated(fun, x, E, dx, slope, size, step, options, step_limit, entry)
+    dx, slope, alpha0 = capped_step(x, dx, slope, size, options, step_limit)
+    step = line_search(fun, x, E, g, dx, slope, options, free, alpha0) if alpha0 > 0 else None
+    step = extrapolated(fun, x, E, dx, slope, size, step, options, step_limit, entry)
     if step is None:
         return None
     entry["chord"] = True
     if np.isfinite(size):
-        entry["step"] = _step_ratio(size, options)
+        entry["step"] = step_ratio(size, options)
     entry.update(alpha0=alpha0, alpha=step[0], step_energy=float(step[2]))
     return step
 
 
-def _report(on_iteration: Callable[[dict], None] | None, history: Sequence[dict], t_start: float) -> None:
+def report_iteration(
+    on_iteration: Callable[[dict], None] | None, history: Sequence[dict], t_start: float
+) -> None:
     """Close the last history entry (its wall time since ``t_start``) and pass a copy to ``on_iteration``."""
     history[-1]["wall_s"] = time.perf_counter() - t_start
     if on_iteration is not None:
         on_iteration(dict(history[-1]))
 
 
-def _step_ratio(size: float, options: NewtonOptions) -> float:
+def step_ratio(size: float, options: NewtonOptions) -> float:
     """A Newton step's size for the history: over the cap when there is one, else as is."""
     return size / options.max_step if np.isfinite(options.max_step) else size
 
 
-def _failure(message: str, history: Sequence[dict]) -> NumericalError:
+def newton_failure(message: str, history: Sequence[dict]) -> NumericalError:
     """A NumericalError that carries the whole iteration history as ``error.history``."""
     err = NumericalError(message)
     err.history = tuple(history)
     return err
 
 
-def _line_search(
+def line_search(
     fun: Problem,
     x: np.ndarray,
     E: float,
