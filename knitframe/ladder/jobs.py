@@ -39,7 +39,9 @@ def run_rung(job: Mapping[str, Any]) -> dict[str, Any]:
         job_path, out_path = Path(tmp) / "job.json", Path(tmp) / "result.json"
         job_path.write_text(json.dumps(job), encoding="utf-8")
         proc = subprocess.run(
-            [sys.executable, "-c", _CHILD, str(job_path), str(out_path)],
+            # -P: the working folder is not put first on the import path, so a folder named knitframe
+            # there (the parent of a clone) cannot shadow the installed package
+            [sys.executable, "-P", "-c", _CHILD, str(job_path), str(out_path)],
             stdout=subprocess.DEVNULL,
             stderr=subprocess.PIPE,
             text=True,
