@@ -27,7 +27,9 @@ def register_patterns(register: Register) -> None:
     """Register stitch patterns: unit-cell yarn centerlines and lattice vectors
     (:class:`~knitframe.interfaces.Pattern`).
 
-    :param register: call ``register(PatternClass)`` once per pattern.
+    :param register: call ``register(PatternClass)`` once per pattern. A class attribute
+        ``aliases`` (a tuple of names, e.g. jersey's ``("stockinette",)``) lets a config name the
+        pattern by those too; it is recorded under its own name.
     """
 
 

@@ -10,7 +10,9 @@ Loading them:
   keeps test runs hermetic.
 
 Other code asks the registry by kind and name: ``get_registry()["pattern"]["jersey"]``. An unknown
-name raises :class:`~knitframe.errors.UnknownPluginError` listing what is available.
+name raises :class:`~knitframe.errors.UnknownPluginError` listing what is available. An
+implementation's ``aliases`` (a tuple of other names, e.g. jersey's ``("stockinette",)``) find it
+too, and :meth:`Kind.canonical` turns an alias into the name it is registered under.
 """
 
 from __future__ import annotations
@@ -88,6 +90,8 @@ class Entry:
     package: str
     #: distribution version
     version: str
+    #: other names that find this implementation
+    aliases: tuple[str, ...] = ()
 
     @property
     def builtin(self) -> bool:
@@ -109,16 +113,22 @@ class Kind(Mapping[str, Any]):
     def __init__(self, kind: str):
         self.kind = kind
         self._entries: dict[str, Entry] = {}
+        self._aliases: dict[str, str] = {}  # alias -> registered name
 
     def __getitem__(self, name: str) -> Any:
         return self.entry(name).obj
 
     def entry(self, name: str) -> Entry:
-        """The :class:`Entry` for ``name``; unknown names list the available ones."""
+        """The :class:`Entry` for ``name`` or one of its aliases; unknown names list the available ones."""
         try:
-            return self._entries[name]
+            return self._entries[self.canonical(name)]
         except KeyError:
             raise UnknownPluginError(self.kind.replace("_", " "), name, list(self._entries)) from None
+
+    def canonical(self, name: str) -> str:
+        """The name ``name`` is registered under: an alias gives its implementation's name
+        (``stockinette`` -> ``jersey``); any other name is returned as it is."""
+        return self._aliases.get(name, name)
 
     def __iter__(self) -> Iterator[str]:
         return iter(sorted(self._entries))
@@ -131,13 +141,15 @@ class Kind(Mapping[str, Any]):
         return [self._entries[k] for k in sorted(self._entries)]
 
     def _add(self, entry: Entry) -> None:
-        if entry.name in self._entries:
-            old = self._entries[entry.name]
-            raise PluginError(
-                f"{self.kind} '{entry.name}' from {entry.package} ({entry.plugin}) clashes with the one from "
-                f"{old.package} ({old.plugin})"
-            )
+        for name in (entry.name, *entry.aliases):
+            if name in self._entries or name in self._aliases:
+                old = self.entry(name)
+                raise PluginError(
+                    f"{self.kind} '{name}' from {entry.package} ({entry.plugin}) clashes with the one from "
+                    f"{old.package} ({old.plugin})"
+                )
         self._entries[entry.name] = entry
+        self._aliases.update(dict.fromkeys(entry.aliases, entry.name))
 
 
 class Registry:
@@ -180,7 +192,10 @@ class Registry:
             key = name or getattr(impl, "name", None)
             if not isinstance(key, str) or not key:
                 raise PluginError(f"{kind} {impl!r} has no name; pass register(impl, name=...)")
-            entry = Entry(kind, key, impl, description or _describe(impl), plugin, dist, version)
+            aliases = getattr(impl, "aliases", ())
+            if not isinstance(aliases, tuple) or not all(isinstance(a, str) and a for a in aliases):
+                raise PluginError(f"{kind} '{key}': aliases must be a tuple of names, got {aliases!r}")
+            entry = Entry(kind, key, impl, description or _describe(impl), plugin, dist, version, aliases)
             self.kinds[kind]._add(entry)
 
         return register

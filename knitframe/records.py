@@ -252,16 +252,6 @@ class Yarn(Record):
         return self.core_modulus if self.core_modulus is not None else self.E_axial
 
 
-def _pattern_name(value: Any) -> Any:
-    """A pattern as its plugin is registered: an alias is recorded as the pattern it names
-    (``stockinette`` as ``jersey``); other names are left to the registry lookup to accept or refuse."""
-    if not isinstance(value, str):
-        return value
-    from knitframe.plugins import get_registry
-
-    return get_registry()["pattern"].canonical(value)
-
-
 @attrs.frozen
 class Fabric(Record):
     """A knitted fabric: pattern, stitch length and yarn.
@@ -271,7 +261,7 @@ class Fabric(Record):
     """
 
     #: pattern plugin name, e.g. "jersey"
-    pattern: str = attrs.field(converter=_pattern_name)
+    pattern: str
     #: yarn record, or in a config a yarn-library name
     yarn: Yarn
     #: machine setting, -

@@ -15,6 +15,7 @@ __all__ = [
     "write_responses_csv",
     "plot_responses",
     "curve",
+    "band_legend",
     "compare",
     "plot_comparison",
     "validate_uniaxial",
@@ -60,6 +61,22 @@ def curve(r: Response) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray | N
     return out
 
 
+def band_legend(ax, banded: Sequence[Response]) -> None:
+    """A legend entry for the shaded bands drawn around the curves of ``banded``: each is ± one
+    standard deviation over the Response's repeats (``n_samples``), as its ``*_sd`` arrays are.
+    Nothing when no band was drawn."""
+    if not banded:
+        return
+    counts = sorted({r.n_samples for r in banded})
+    if counts[0] < 2:
+        over = " of the repeats"
+    elif len(counts) == 1:
+        over = f" over {counts[0]} repeats"
+    else:
+        over = " over each test's repeats (" + " or ".join(map(str, counts)) + ")"
+    ax.fill_between([], [], [], color="0.5", alpha=0.3, lw=0, label=f"shaded: ± 1 standard deviation{over}")
+
+
 def plot_responses(
     path: Path,
     responses: Sequence[Response],
@@ -78,6 +95,7 @@ def plot_responses(
 
     fig, ax = plt.subplots(figsize=(6.4, 4.4), dpi=110)
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    banded = []
     for i, r in enumerate(responses):
         c = colors[i % len(colors)]
         pred = model(r) if model is not None else None
@@ -89,11 +107,13 @@ def plot_responses(
             if sd is not None:
                 _, lo, hi = by_strain(strain, T - sd, T + sd)
                 ax.fill_between(x, lo, hi, color=c, alpha=0.2, lw=0)
+                banded.append(r)
             if pred is not None:
                 P = pred[0] if name == "course" else pred[1]
                 ax.plot(x, by_strain(strain, P)[1], ls, color="k", lw=1.0, alpha=0.8)
     if model is not None:
         ax.plot([], [], "k-", lw=1.0, label="fitted model")
+    band_legend(ax, banded)
     _finish_tension_plot(fig, ax, path, title)
 
 
@@ -153,6 +173,7 @@ def plot_comparison(
     fig, ax = plt.subplots(figsize=(6.8, 4.6), dpi=110)
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     k = 0
+    banded = []
     for sim in simulated:
         same = [m for m in measured if m.load == sim.load]
         for name, e, T, _ in curve(sim):
@@ -169,6 +190,8 @@ def plot_comparison(
                     if sd is not None:
                         _, lo, hi = by_strain(em, Tm - sd, Tm + sd)
                         ax.fill_between(xm, lo, hi, color=c, alpha=0.15, lw=0)
+                        banded.append(m)
+    band_legend(ax, banded)
     if ratios:
         text = "\n".join(
             f"{load}: " + ", ".join(f"{v:.2g}" for v in row.values()) + " at " + ", ".join(row)
@@ -294,6 +317,7 @@ def plot_validation(path: Path, panels: Sequence[dict], *, title: str = "", colu
     cols = min(columns, n)
     rows = -(-n // cols)
     fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 2.9 * rows), dpi=100, squeeze=False)
+    banded = []
     for ax, panel in zip(axes.flat, panels, strict=False):
         mea, sim, m = panel["measured"], panel.get("simulated"), panel.get("metrics")
         for _, e, T, sd in curve(mea):
@@ -302,6 +326,7 @@ def plot_validation(path: Path, panels: Sequence[dict], *, title: str = "", colu
             if sd is not None:
                 _, lo, hi = by_strain(e, T - sd, T + sd)
                 ax.fill_between(x, lo, hi, color="0.5", alpha=0.2, lw=0)
+                banded.append(mea)
         if sim is not None:
             for _, e, T, _ in curve(sim):
                 x, y = from_origin(*by_strain(e, T))
@@ -350,6 +375,7 @@ def plot_validation(path: Path, panels: Sequence[dict], *, title: str = "", colu
     for ax in axes[:, 0]:
         ax.set_ylabel("tension, N/mm", fontsize=7)
     if panels:
+        band_legend(axes.flat[0], banded)
         axes.flat[0].legend(fontsize=6.5, loc="center left")
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()

@@ -93,9 +93,7 @@ def in_range(
         if bad:
             lb, rb = ("(" if lo_open else "["), (")" if hi_open else "]")
             note = f" {unit}" if unit else ""
-            raise FieldError(
-                attribute.name, f"must be in {lb}{lo}, {hi}{rb}{note}, got {number_text(value)}"
-            )
+            raise FieldError(attribute.name, f"must be in {lb}{lo}, {hi}{rb}{note}, got {number_text(value)}")
 
     return check
 

@@ -90,7 +90,7 @@ def main(args) -> int:
     yarn = resolve_yarn(reg, args.yarn, "--yarn")
     if not 8 <= args.segments <= MAX_SEGMENTS:
         raise ConfigError("--segments", f"must be in [8, {MAX_SEGMENTS}], got {args.segments}")
-    table = {"pattern": args.pattern, "yarn": yarn}
+    table = {"pattern": reg["pattern"].canonical(args.pattern), "yarn": yarn}  # stockinette: jersey
     for key in ("stitch_length", "arc_length", "course_pitch", "wale_pitch"):
         if getattr(args, key) is not None:
             table[key] = getattr(args, key)
@@ -124,7 +124,7 @@ def _write(od: OutputDir, cell, clr, args, yarn, options: dict) -> dict:
 
     out = od.staging
     write_vtu(cell, out, n=args.segments)
-    plot_views(cell, out / "preview.png")
+    plot_views(cell, out / "preview.png", clearance=clr)
     info = summary(cell, clr)
     info.update(
         {
@@ -136,5 +136,5 @@ def _write(od: OutputDir, cell, clr, args, yarn, options: dict) -> dict:
         }
     )
     (out / "geometry.json").write_text(json.dumps(info, indent=2) + "\n", encoding="utf-8")
-    od.commit({"knitframe": __version__, "command": "geometry", "pattern": args.pattern})
+    od.commit({"knitframe": __version__, "command": "geometry", "pattern": cell.pattern})
     return info

@@ -45,17 +45,21 @@ def predict(result: FitResult, response: Response) -> Response:
 
 
 def plot_fit(path: Path, result: FitResult, responses: Sequence[Response], *, title: str = "") -> None:
-    """Data (±1 sd band) against the fitted model; a second panel shows the transverse strain."""
+    """Data (±1 sd band) against the fitted model; a second panel shows the transverse strain of
+    the free side of the uniaxial tests, measured (±1 sd band) and, for a model that predicts it,
+    the model's."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from knitframe.report import curve
+    from knitframe.report import band_legend, curve
 
     uni = [r for r in responses if r.loaded_direction is not None]
+    lateral = result.model.predicts_lateral
     fig, axes = plt.subplots(1, 2 if uni else 1, figsize=(11 if uni else 6.4, 4.4), dpi=110, squeeze=False)
     ax, colors = axes[0, 0], plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    banded: dict[str, list[Response]] = {"tension": [], "lateral": []}
     for i, r in enumerate(responses):
         c = colors[i % len(colors)]
         pred = predict(result, r)
@@ -65,6 +69,7 @@ def plot_fit(path: Path, result: FitResult, responses: Sequence[Response], *, ti
             ax.plot(strain[o], T[o], ls, color=c, lw=1.2, alpha=0.9, label=f"{r.label or r.load} ({name})")
             if sd is not None:
                 ax.fill_between(strain[o], (T - sd)[o], (T + sd)[o], color=c, alpha=0.2, lw=0)
+                banded["tension"].append(r)
             ax.plot(strain[o], P[o], ls, color="k", lw=1.0)
         d = r.loaded_direction
         if d is not None:
@@ -73,13 +78,24 @@ def plot_fit(path: Path, result: FitResult, responses: Sequence[Response], *, ti
             lat = (r.lambda1, r.lambda2)[1 - d] - 1
             sd = (r.lambda1_sd, r.lambda2_sd)[1 - d]
             o = np.argsort(strain)
-            bx.plot(strain[o], lat[o], color=c, lw=1.2)
+            ls = "-" if d == 0 else "--"
+            pulled = "course" if d == 0 else "wale"
+            bx.plot(
+                strain[o],
+                lat[o],
+                ls,
+                color=c,
+                lw=1.2,
+                label=f"{r.label or r.load} (pulled along the {pulled})",
+            )
             if sd is not None:
                 bx.fill_between(strain[o], (lat - sd)[o], (lat + sd)[o], color=c, alpha=0.2, lw=0)
-            if result.model.predicts_lateral:
+                banded["lateral"].append(r)
+            if lateral:
                 plat = (pred.lambda1, pred.lambda2)[1 - d] - 1
-                bx.plot(strain[o], plat[o], "k-", lw=1.0)
+                bx.plot(strain[o], plat[o], ls, color="k", lw=1.0)
     ax.plot([], [], "k-", lw=1.0, label=f"fitted {result.model.name}")
+    band_legend(ax, banded["tension"])
     ax.set_xlabel("engineering strain in the loaded direction, -")
     ax.set_ylabel("tension per unit width, N/mm")
     ax.set_title(title or result.headline(), fontsize=8)
@@ -87,14 +103,22 @@ def plot_fit(path: Path, result: FitResult, responses: Sequence[Response], *, ti
     ax.legend(fontsize=7, loc="upper left")
     if uni:
         bx = axes[0, 1]
+        if lateral:
+            bx.plot([], [], "k-", lw=1.0, label=f"fitted {result.model.name}")
+        band_legend(bx, banded["lateral"])
         bx.set_xlabel("engineering strain in the loaded direction, -")
-        bx.set_ylabel("transverse strain, -")
+        bx.set_ylabel("transverse strain of the free side, -")
         bx.set_title(
-            "free side: measured"
-            + (" vs model" if result.model.predicts_lateral else " (imposed in the fit)"),
+            "transverse strain of the free side: measured"
+            + (
+                f" and fitted {result.model.name}"
+                if lateral
+                else f" ({result.model.name} does not predict it)"
+            ),
             fontsize=8,
         )
         bx.grid(alpha=0.3)
+        bx.legend(fontsize=7, loc="best")
     notes = result.to_json()["warnings"]
     if notes:  # suspect results say so on the figure, in red below the axes
         text = "\n".join(textwrap.fill(f"warning: {w}", 150 if uni else 95) for w in notes)

@@ -85,12 +85,15 @@ def write_vtu(cell: UnitCell, out: str | Path, *, n: int = 256, sides: int = 16)
     return paths
 
 
-def plot_views(cell: UnitCell, path: str | Path, *, tiles: int = 2, n: int = 400) -> Path:
+def plot_views(
+    cell: UnitCell, path: str | Path, *, tiles: int = 2, n: int = 400, clearance: Clearance | None = None
+) -> Path:
     """Three-view PNG (front x-y, top x-z, side y-z) of ``tiles`` x ``tiles`` copies of the cell.
 
     Yarns are drawn as segments of the knitted diameter's width, painted back to front and
     darker further back, so each view shows which yarn passes over which. Rows have their own
-    colours.
+    colours. With the cell's ``clearance`` the places closer than dk are circled in red in every
+    copy (the closest place when none is), and the legend below the views gives their count.
     """
     import matplotlib
 
@@ -139,12 +142,36 @@ def plot_views(cell: UnitCell, path: str | Path, *, tiles: int = 2, n: int = 400
         f"{cell.pattern}: {cell.arc_length_per_stitch:.3g} mm/stitch, pitches {cell.course_pitch:.3g} x "
         f"{cell.wale_pitch:.3g} mm, dk {cell.dk:.3g} mm ({tiles}x{tiles} cells)"
     )
-    fig.tight_layout()
+    if clearance is not None:
+        _mark_close_places(fig, axes, views, cell, clearance, tiles)
+        fig.tight_layout(rect=(0, 0.07, 1, 1))
+    else:
+        fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def _mark_close_places(fig, axes, views, cell: UnitCell, clr: Clearance, tiles: int) -> None:
+    """Red circles at the places closer than dk (the closest place when none is), in every copy of
+    the cell and every view, with one legend entry below the views that counts them."""
+    places = clr.overlaps or (clr.closest,)
+    shifts = [k1 * cell.L1 + k2 * cell.L2 for k1 in range(tiles) for k2 in range(tiles)]
+    pts = np.array([np.asarray(c.point) + s for c in places for s in shifts])
+    for ax, (hx, vy, _) in zip(axes, views, strict=True):
+        marks = ax.scatter(
+            pts[:, hx], pts[:, vy], s=36, facecolors="none", edgecolors="red", linewidths=1.4, zorder=5
+        )
+    ratio = f"{clr.minimum:.3g} mm = {clr.minimum / clr.dk:.2g} dk"
+    label = (
+        f"{len(clr.overlaps)} places per cell where the yarn centerlines are closer than dk "
+        f"({clr.dk:.3g} mm; the closest {ratio})"
+        if clr.overlaps
+        else f"no place closer than dk ({clr.dk:.3g} mm): the closest place, {ratio}"
+    )
+    fig.legend([marks], [label], loc="lower center", frameon=False, fontsize=10)
 
 
 def summary(cell: UnitCell, clr: Clearance | None = None) -> dict[str, Any]:

@@ -27,8 +27,8 @@ def _plt():
 def plot_pareto(path: Path, rows: Sequence[Mapping[str, Any]], *, title: str) -> None:
     """``ladder.png``: wall time against error, log axes, each rung labelled, the Pareto front dashed.
 
-    Error against the best rung (filled), and against the measurement (open) when there is one;
-    the front is drawn on the measured errors when there are any.
+    Error against the best rung (filled), and against the measurement (open) when there is one,
+    in % as in the ladder's tables; the front is drawn on the measured errors when there are any.
     """
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7.0, 4.8), dpi=110)
@@ -39,7 +39,7 @@ def plot_pareto(path: Path, rows: Sequence[Mapping[str, Any]], *, title: str) ->
     plotted = 0
     for key, label, marker, color, filled in series:
         pts = [
-            (r["wall_time_s"], r[key], r["rung"])
+            (r["wall_time_s"], 100 * r[key], r["rung"])
             for r in rows
             if r.get("wall_time_s") and r.get(key) is not None and r[key] > 0
         ]
@@ -61,8 +61,12 @@ def plot_pareto(path: Path, rows: Sequence[Mapping[str, Any]], *, title: str) ->
         if key == front_key:
             _draw_front(ax, pts, color)
     if plotted:
+        from matplotlib.ticker import LogFormatter
+
         ax.set_xscale("log")
         ax.set_yscale("log")
+        ax.yaxis.set_major_formatter(LogFormatter())  # 0.01, 1, 100: plain percentages
+        ax.yaxis.set_minor_formatter(LogFormatter(labelOnlyBase=False))
         ax.legend(fontsize=8, loc="best")
     else:
         ax.text(
@@ -75,7 +79,7 @@ def plot_pareto(path: Path, rows: Sequence[Mapping[str, Any]], *, title: str) ->
         )
     _mark_reference(ax, rows, plotted)
     ax.set_xlabel("wall time of the rung, s")
-    ax.set_ylabel("NRMSE of tension")
+    ax.set_ylabel("NRMSE of tension, %")
     ax.set_title(title, fontsize=9)
     ax.grid(True, which="both", alpha=0.25)
     fig.tight_layout()

@@ -64,9 +64,7 @@ class MeasuredTable:
     #: reader plugin name, or a table with ``kind`` and options
     reader: str | dict[str, Any] = "auto"
     #: simulate at most to this strain; unset: to the end of each test
-    max_strain: float | None = attrs.field(
-        default=None, validator=v.optional(v.in_range(0.0, 5.0, lo_open=True))
-    )
+    max_strain: float | None = attrs.field(default=None, validator=v.optional(v.strain_limit))
 
     def __attrs_post_init__(self) -> None:
         if not self.files:

@@ -16,6 +16,8 @@ class Jersey(KnitLoopPattern):
 
     name: ClassVar[str] = "jersey"
     description: ClassVar[str] = "jersey / plain knit: every stitch knit (Crane 2023 curve)"
+    #: the name of the shipped data files and of US usage; a fabric given it is recorded as jersey
+    aliases: ClassVar[tuple[str, ...]] = ("stockinette",)
     layout: ClassVar[tuple[tuple[str, str], tuple[str, str]]] = (("k", "k"), ("k", "k"))
 
 

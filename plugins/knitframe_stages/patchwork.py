@@ -86,7 +86,7 @@ class PatchworkTable:
     #: model regions: free side (P = 0) or fixed (λ = 1)
     lateral: Literal["free", "fixed"] = "free"
     #: engineering strain of the whole patchwork, -
-    max_strain: float = attrs.field(default=0.3, validator=v.in_range(0.0, 5.0, lo_open=True))
+    max_strain: float = attrs.field(default=0.3, validator=v.strain_limit)
     #: load steps
     steps: int = attrs.field(default=30, validator=v.in_range(1, 100000))
     #: grid: region names, rows across the load

@@ -83,6 +83,9 @@ class SimulateStage(Stage):
                 "fabric", "required table is missing (pattern, stitch_length, yarn)", source=src
             )
         table = dict(config["fabric"])
+        # an alias (stockinette) is recorded as the pattern it names (jersey)
+        if isinstance(table.get("pattern"), str):
+            table["pattern"] = ctx.registry["pattern"].canonical(table["pattern"])
         if "yarn" not in table:
             raise ConfigError("fabric.yarn", "required key is missing", source=src)
         try:
@@ -122,19 +125,10 @@ class SimulateStage(Stage):
         write_yarn_csv(ctx.output("yarn.csv"), self.fabric.yarn)
         measured = [r for r in ctx.responses if r.provenance.kind == "experiment"]
         ratios = compare(responses, measured)
-        plot_comparison(
-            ctx.output("simulated.png"),
-            responses,
-            measured,
-            title=f"{self.solver_name}: {responses[0].label}",
-            ratios=ratios,
-        )
+        title = self.figure_title()
+        plot_comparison(ctx.output("simulated.png"), responses, measured, title=title, ratios=ratios)
         if any(r.provenance.extra.get("section_ratio") for r in responses):
-            plot_sections(
-                ctx.output("section.png"),
-                responses,
-                title=f"{self.solver_name}: {responses[0].label}: the yarn squeezed across (dotted: J_min)",
-            )
+            plot_sections(ctx.output("section.png"), responses, title=f"{title}: squeezed across")
         headline = "; ".join(
             f"{r.label} {r.load}: {len(r)} steps, converged={r.provenance.converged}, "
             f"{r.provenance.wall_time or 0:.1f} s"
@@ -158,6 +152,13 @@ class SimulateStage(Stage):
             "simulated_over_measured": ratios,
             "headline": headline,
         }
+
+    def figure_title(self) -> str:
+        """The figures' title, each thing once: ``rod solver: jersey, 11.28 mm per stitch, pearl-cotton
+        yarn`` (a Response's label may start with the solver's name too)."""
+        f = self.fabric
+        size = f"SL{f.stitch_length:g}" if f.stitch_length is not None else f"{f.arc_length:g} mm per stitch"
+        return f"{self.solver_name} solver: {f.pattern}, {size}, {f.yarn.name} yarn"
 
     def _simulate(self, ctx, scene: Scene, several: bool) -> Any:
         """One scene through the solver, with progress, checkpoints and VTU files where asked."""
