@@ -119,8 +119,8 @@ def main(args) -> int:
 
 def _write(od: OutputDir, cell, clr, args, yarn, options: dict) -> dict:
     """The geometry files, staged and then committed to the output folder; the geometry.json data."""
-    from knitframe import __version__
     from knitframe.geometry import plot_views, summary, write_vtu
+    from knitframe.version import __version__
 
     out = od.staging
     write_vtu(cell, out, n=args.segments)
