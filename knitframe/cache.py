@@ -42,13 +42,14 @@ import os
 import pickle
 import re
 import sys
-import tempfile
 import types
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
 import attrs
+
+from knitframe.outdir import write_atomic
 
 __all__ = [
     "job_key",
@@ -386,14 +387,7 @@ class JobCache:
         """Keep a result (a :class:`JobFailure` is never kept)."""
         if self.directory is None or isinstance(value, JobFailure):
             return
-        fd, tmp = tempfile.mkstemp(dir=self.directory, prefix=".job-", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                pickle.dump(value, fh)
-            os.replace(tmp, self.directory / f"{key}.pkl")
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        write_atomic(self.directory / f"{key}.pkl", lambda fh: pickle.dump(value, fh), prefix=".job-")
 
     def entries(self) -> list[Path]:
         """The cache's own files: results (``<64 hex>.pkl``) and leftovers of interrupted writes."""

@@ -1,19 +1,23 @@
 """The ``knitframe`` command. Each subcommand lives in :mod:`knitframe.commands`.
 
 Errors caused by input print one line, ``knitframe: error: <what>``, and exit with code 2
-(3 for a numerical failure); there is never a traceback for them.
+(3 for a numerical failure); there is never a traceback for them. The file system refusing a write
+(a full disk, a quota, a read-only or removed folder, no permission) is one line too, naming the
+path and the way on, and exit code 1.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import logging
+import os
 import sys
 import warnings
 
 from knitframe import __version__
-from knitframe.errors import KnitframeError, KnitframeWarning
+from knitframe.errors import KnitframeError, KnitframeWarning, WriteError
 
 __all__ = ["main", "COMMANDS"]
 
@@ -67,8 +71,12 @@ def main(argv: list[str] | None = None) -> int:
         warnings.showwarning = _show_warning
         try:
             return int(args.func(args) or 0)
-        except KnitframeError as e:
-            print(f"knitframe: error: {e}", file=sys.stderr)
+        except (KnitframeError, OSError) as e:
+            if isinstance(e, OSError):
+                e = _write_error(e)
+            # --resume is named only by a command that has it
+            text = e.line(resume=hasattr(args, "resume")) if isinstance(e, WriteError) else str(e)
+            print(f"knitframe: error: {text}", file=sys.stderr)
             return e.exit_code
         except RuntimeWarning as e:
             print(f"knitframe: error: numerical failure (non-finite value): {e}", file=sys.stderr)
@@ -76,6 +84,20 @@ def main(argv: list[str] | None = None) -> int:
         except KeyboardInterrupt:
             print("knitframe: interrupted", file=sys.stderr)
             return 130
+
+
+def _write_error(error: OSError) -> WriteError:
+    """An OS error outside an output folder (which names its own files): the file it names or was
+    writing, or standard output when that is a file on a full file system."""
+    found = WriteError.of(error)
+    if found.path is None and found.errno == errno.ENOSPC:
+        try:
+            full = os.fstatvfs(sys.stdout.fileno()).f_bavail == 0
+        except (AttributeError, ValueError, OSError):  # io.UnsupportedOperation is an OSError
+            full = False
+        if full:
+            return WriteError(error, "standard output")
+    return found
 
 
 def _log_to_stderr(*, quiet: bool) -> None:

@@ -1,10 +1,16 @@
 """Every exception knitframe raises on purpose.
 
 User-facing errors derive from :class:`KnitframeError`; the CLI prints ``str(error)`` as a single
-line and exits with :attr:`KnitframeError.exit_code`, never a traceback.
+line and exits with :attr:`KnitframeError.exit_code`, never a traceback. An :class:`OSError` from
+writing becomes a :class:`WriteError` (exit code 1), which names the file and the way on.
 """
 
 from __future__ import annotations
+
+import errno
+import io
+import os
+from types import TracebackType
 
 __all__ = [
     "KnitframeError",
@@ -15,6 +21,7 @@ __all__ = [
     "UnsupportedEffectError",
     "GeometryError",
     "NumericalError",
+    "WriteError",
     "FieldError",
     "KnitframeWarning",
 ]
@@ -107,6 +114,98 @@ class NumericalError(KnitframeError):
     """A computation failed to converge or produced non-finite values; carries a diagnostic."""
 
     exit_code = 3
+
+
+#: what to do before running again, by errno (others: just run again)
+_WAY = {
+    errno.ENOSPC: "free space",
+    errno.EDQUOT: "free space or raise your quota",
+    errno.EROFS: "make the file system writable",
+    errno.EACCES: "allow writing there",
+    errno.EPERM: "allow writing there",
+}
+#: what a bare reason leaves unsaid, by errno
+_HINT = {errno.ENOENT: " (was the folder removed during the run?)"}
+#: errors that only a write can cause
+_WRITING = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS}
+
+
+class WriteError(KnitframeError, OSError):
+    """The file system refused to write an output or a checkpoint: a full disk, a quota, a read-only
+    or removed folder, no permission.
+
+    ``str()`` is one line naming the path and the way on,
+    ``writing results/fit.png: no space left on device; free space, then run again``, and, when the
+    run's checkpoints are kept, ``... then run again with --resume (its checkpoints are kept)``.
+    It is an :class:`OSError` too, with the ``errno`` of the refusal.
+    """
+
+    exit_code = 1
+
+    def __init__(
+        self, error: OSError, path: str | None = None, *, writing: bool = True, checkpoints: bool = False
+    ):
+        super().__init__(error.errno, error.strerror or str(error), path)
+        self.path = path
+        self.writing = writing
+        #: the failed run's checkpoints are kept: ``--resume`` continues from them
+        self.checkpoints = checkpoints
+
+    @classmethod
+    def of(cls, error: OSError) -> WriteError:
+        """The error as it stands, its path from the error or from the file it was writing."""
+        if isinstance(error, WriteError):
+            return error
+        found = written_file(error.__traceback__)
+        path = found if error.filename is None else os.fsdecode(error.filename)
+        writing = (path is not None and path == found) or error.errno in _WRITING
+        return cls(error, path, writing=writing)
+
+    def line(self, *, resume: bool = True) -> str:
+        """The message; ``resume``: the command has ``--resume`` (it is named when checkpoints are kept)."""
+        text = self.strerror or "failed"
+        reason = text[:1].lower() + text[1:] + _HINT.get(self.errno, "")
+        if self.errno == errno.EPIPE:
+            return reason if self.path is None else f"{self.path}: {reason}"
+        way = _WAY.get(self.errno)
+        again = "run again" if way is None else f"{way}, then run again"
+        if self.checkpoints:
+            again += " with --resume (its checkpoints are kept)" if resume else " with --overwrite"
+        if self.path is None:
+            return f"{reason}; {again}"
+        return f"{'writing ' if self.writing else ''}{self.path}: {reason}; {again}"
+
+    def __str__(self) -> str:
+        return self.line()
+
+    def __reduce__(self):  # pickled as made, not as OSError's (errno, strerror)
+        return type(self), (OSError(self.errno, self.strerror), self.path), dict(self.__dict__)
+
+
+def written_file(tb: TracebackType | None) -> str | None:
+    """The file a failed call was writing: the innermost file open for writing among the failed
+    frames' variables (an error from ``write`` or ``close`` does not name its file)."""
+    frames = []
+    while tb is not None:
+        frames.append(tb.tb_frame)
+        tb = tb.tb_next
+    for frame in reversed(frames):
+        for value in list(frame.f_locals.values()):
+            if not isinstance(value, io.IOBase):
+                continue
+            try:
+                name, mode = value.name, value.mode
+            except (AttributeError, ValueError):
+                continue
+            if isinstance(name, (str, bytes)) and isinstance(mode, str) and set(mode) & set("wax+"):
+                return os.fsdecode(name)
+    return None
+
+
+def name_written(error: BaseException, path: str | os.PathLike, *temporary: str) -> None:
+    """Name ``path`` in an :class:`OSError` raised while writing it (in place of its temporary file)."""
+    if isinstance(error, OSError) and (error.filename is None or error.filename in temporary):
+        error.filename = os.fspath(path)
 
 
 class KnitframeWarning(UserWarning):

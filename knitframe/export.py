@@ -39,7 +39,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from knitframe.errors import ConfigError, KnitframeError, NumericalError
+from knitframe.errors import ConfigError, KnitframeError, NumericalError, name_written
 
 __all__ = [
     "FORMATS",
@@ -289,8 +289,9 @@ def write_card(out: str | Path, text: str, *, overwrite: bool = False, option: s
             except OSError:  # a file system without hard links
                 os.replace(tmp, p)
             Path(tmp).unlink(missing_ok=True)
-    except BaseException:
+    except BaseException as e:
         Path(tmp).unlink(missing_ok=True)
+        name_written(e, out, tmp)
         raise
     return p
 

@@ -11,7 +11,10 @@ Every command that writes files (``run``, ``fit``, ``geometry``) goes through :c
 - work happens in ``DIR/.knitframe/`` (``staging/`` for outputs, ``checkpoints/`` for resumable
   state); the outputs move into ``DIR`` only when the whole run succeeded, then ``summary.json``
   is written last, listing exactly the files that are there;
-- a failed run removes what it created, except checkpoints worth resuming from.
+- a failed run removes what it created, except checkpoints worth resuming from;
+- the file system refusing a write (a full disk, a quota, a read-only or removed folder) is a
+  :class:`~knitframe.errors.WriteError` naming the file as the user will see it, with the partial
+  file removed; it says ``--resume`` when the run's checkpoints are kept.
 
 Layout while a run is going on (or after it was killed)::
 
@@ -23,17 +26,19 @@ Layout while a run is going on (or after it was killed)::
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import shutil
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
-from knitframe.errors import ConfigError
+from knitframe.errors import ConfigError, WriteError, name_written, written_file
 
-__all__ = ["OutputDir", "WORK", "fingerprint", "add_overwrite_argument"]
+__all__ = ["OutputDir", "WORK", "fingerprint", "add_overwrite_argument", "write_atomic"]
 
 #: the hidden folder that holds a run's work until it succeeds
 WORK = ".knitframe"
@@ -214,6 +219,8 @@ class OutputDir:
             self._mkdirs(self.work)
         except OSError as e:
             self._remove_created()
+            if e.errno in (errno.ENOSPC, errno.EDQUOT):
+                raise self._write_error(e, checkpoints=False) from None
             raise self._fail(f"cannot create it: {e.strerror}") from None
         self._acquire()
         try:
@@ -226,7 +233,7 @@ class OutputDir:
                 shutil.rmtree(self.checkpoints, ignore_errors=True)
             self.staging.mkdir(exist_ok=True)
             self.checkpoints.mkdir(exist_ok=True)
-            _write_atomic(
+            write_atomic(
                 self.work / "run.json",
                 json.dumps(
                     {
@@ -239,28 +246,59 @@ class OutputDir:
                 )
                 + "\n",
             )
-        except BaseException:
-            self._abandon(keep_checkpoints=False)
+        except BaseException as e:
+            self._failed(e)
             raise
         return self
 
     def __exit__(self, exc_type, exc, tb) -> None:
-        if self._lock is None:  # committed
-            return
-        self._abandon(keep_checkpoints=True)
+        if self._lock is not None:  # not committed
+            self._failed(exc)
 
-    def _mkdirs(self, path: Path) -> None:
+    def _failed(self, exc: BaseException | None) -> None:
+        """After a failure: remove what the run made but its checkpoints (an unfinished run's stay for
+        ``--resume``); the file system refusing a write is raised again as a :class:`WriteError`."""
+        if not isinstance(exc, OSError) or isinstance(exc, WriteError):
+            self._abandon()
+            return
+        partial = written_file(exc.__traceback__)
+        if partial is not None and Path(os.path.abspath(partial)).is_relative_to(self.work):
+            Path(partial).unlink(missing_ok=True)  # half written, and the run's own
+        kept = self._abandon()
+        raise self._write_error(exc, checkpoints=kept) from exc
+
+    def _write_error(self, error: OSError, *, checkpoints: bool) -> WriteError:
+        """``error`` as one line naming the file as the user will see it (no file: the folder)."""
+        found = WriteError.of(error)
+        if found.path is None:
+            return WriteError(error, self.given, checkpoints=checkpoints)
+        path = Path(os.path.abspath(found.path))
+        if path == self.work / "summary.json":
+            path = self.out / "summary.json"
+        elif path.is_relative_to(self.staging):  # a staged output: where it was going
+            path = self.out / path.relative_to(self.staging)
+        if not path.is_relative_to(self.out):
+            return WriteError(error, found.path, writing=found.writing, checkpoints=checkpoints)
+        rel = path.relative_to(self.out)
+        shown = self.given if rel == Path(".") else os.path.join(self.given, rel)
+        return WriteError(error, shown, checkpoints=checkpoints)
+
+    def _mkdirs(self, path: Path) -> list[Path]:
+        """Make ``path`` and its missing parents; the folders made, outermost first."""
         missing = []
         p = path
         while not p.exists():
             missing.append(p)
             p = p.parent
+        made = []
         for p in reversed(missing):
             try:
                 p.mkdir()
             except FileExistsError:
                 continue  # another process made it first: not ours
-            self._created.append(p)
+            made.append(p)
+        self._created += made
+        return made
 
     def _acquire(self) -> None:
         from filelock import FileLock, Timeout
@@ -283,18 +321,17 @@ class OutputDir:
             self._lock.release()
             self._lock = None
 
-    def _abandon(self, *, keep_checkpoints: bool) -> None:
-        """After a failure: keep resumable checkpoints, remove everything else this run made."""
-        has_checkpoints = (
-            keep_checkpoints
-            and self.checkpoints.is_dir()
-            and any(p.is_file() for p in self.checkpoints.rglob("*"))
-        )
+    def _abandon(self) -> bool:
+        """After a failure: keep resumable checkpoints, remove everything else this run made.
+
+        Returns whether checkpoints were kept."""
+        has_checkpoints = self.checkpoints.is_dir() and any(p.is_file() for p in self.checkpoints.rglob("*"))
         if not has_checkpoints:
             shutil.rmtree(self.work, ignore_errors=True)
         self._release()
         if not has_checkpoints:
             self._remove_created()
+        return has_checkpoints
 
     def _remove_created(self) -> None:
         for p in reversed(self._created):
@@ -310,7 +347,10 @@ class OutputDir:
     def commit(self, summary: dict[str, Any]) -> dict[str, Any]:
         """Move the staged outputs into the folder and write ``summary.json`` listing them.
 
-        Nothing moves if any output would replace a file that no earlier knitframe run wrote.
+        Nothing moves if any output would replace a file that no earlier knitframe run wrote. If a
+        move fails, the folder is put back as it was: the outputs go back to staging and the earlier
+        run's files they replaced (set aside until the end) return. ``summary.json`` is written
+        before anything moves (the only write that needs space) and renamed into place last.
         Returns the summary as written (``outputs`` is the sorted list of files moved).
         """
         staged = sorted(str(p.relative_to(self.staging)) for p in self.staging.rglob("*") if p.is_file())
@@ -321,21 +361,41 @@ class OutputDir:
             raise self._fail(
                 f"would replace '{clash[0]}', which no knitframe run wrote; move it or name another folder"
             )
+        summary = {**summary, "outputs": staged, "fingerprint": self.fingerprint}
+        write_atomic(self.work / "summary.json", json.dumps(summary, indent=2) + "\n")
+        aside = self.work / "replaced"
+        undo: list[tuple[Path, Path] | Path] = []  # (back to, from) of every move, and folders made
+        try:
+            for rel in staged:
+                target = self.out / rel
+                undo += self._mkdirs(target.parent)
+                if target.exists():  # an earlier run's output
+                    undo += self._mkdirs((aside / rel).parent)
+                    os.replace(target, aside / rel)
+                    undo.append((target, aside / rel))
+                os.replace(self.staging / rel, target)
+                undo.append((self.staging / rel, target))
+            missing = [s for s in staged if not (self.out / s).is_file()]
+            if missing:  # pragma: no cover - a file system that lost a rename
+                raise OSError(f"outputs missing after the move: {missing}")
+            os.replace(self.work / "summary.json", self.out / "summary.json")
+        except OSError:
+            for step in reversed(undo):
+                try:
+                    if isinstance(step, tuple):
+                        os.replace(step[1], step[0])
+                    else:
+                        step.rmdir()
+                except OSError:
+                    continue
+            (self.work / "summary.json").unlink(missing_ok=True)
+            raise
         for old in sorted(previous - set(staged) - {"summary.json"}):
             # an earlier run's own output that this run does not make again
             p = self.out / old
             if p.is_file():
                 p.unlink()
                 _prune_empty(p.parent, self.out)
-        summary = {**summary, "outputs": staged, "fingerprint": self.fingerprint}
-        for rel in staged:
-            target = self.out / rel
-            target.parent.mkdir(parents=True, exist_ok=True)
-            os.replace(self.staging / rel, target)
-        missing = [s for s in staged if not (self.out / s).is_file()]
-        if missing:  # pragma: no cover - a file system that lost a rename
-            raise OSError(f"outputs missing after the move: {missing}")
-        _write_atomic(self.out / "summary.json", json.dumps(summary, indent=2) + "\n")
         shutil.rmtree(self.work, ignore_errors=True)
         self._release()
         self.committed = staged
@@ -348,12 +408,29 @@ def _prune_empty(folder: Path, stop: Path) -> None:
         folder = folder.parent
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+def write_atomic(
+    path: Path, data: str | Callable[[IO[bytes]], object], *, prefix: str | None = None, suffix: str = ".tmp"
+) -> Path:
+    """Write a file whole or not at all: a temporary file in its folder (``prefix…suffix``), renamed.
+
+    ``data`` is text (written as UTF-8) or a function that writes into the open binary file. On any
+    failure the temporary file is removed, and an :class:`OSError` names ``path``.
+    """
+    path = Path(path)
+    tmp = ""
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
+        fd, tmp = tempfile.mkstemp(
+            dir=path.parent, prefix=f".{path.name}." if prefix is None else prefix, suffix=suffix
+        )
+        with os.fdopen(fd, "wb") as fh:
+            if callable(data):
+                data(fh)
+            else:
+                fh.write(data.encode("utf-8"))
         os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+    except BaseException as e:
+        if tmp:
+            Path(tmp).unlink(missing_ok=True)
+        name_written(e, path, tmp)
         raise
+    return path

@@ -11,8 +11,6 @@ from __future__ import annotations
 import json
 import logging
 import math
-import os
-import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -21,6 +19,7 @@ import numpy as np
 
 from knitframe.errors import NumericalError
 from knitframe.numerics.newton import NewtonResult
+from knitframe.outdir import write_atomic
 
 __all__ = ["continuation", "StepCheckpoints"]
 
@@ -92,12 +91,13 @@ class StepCheckpoints:
 
     def save(self, index: int, arrays: dict[str, np.ndarray], meta: dict[str, Any]) -> Path:
         """Store step ``index`` (arrays plus JSON-able metadata)."""
-        path = self.directory / f"step-{index:04d}.npz"
-        fd, tmp = tempfile.mkstemp(dir=self.directory, suffix=".npz.tmp")
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, **arrays, __meta__=np.array(json.dumps({**meta, "key": self.key, "index": index})))
-        os.replace(tmp, path)
-        return path
+        meta_json = np.array(json.dumps({**meta, "key": self.key, "index": index}))
+        return write_atomic(
+            self.directory / f"step-{index:04d}.npz",
+            lambda fh: np.savez(fh, **arrays, __meta__=meta_json),
+            prefix=".step-",
+            suffix=".npz.tmp",
+        )
 
     def announce(self, index: int, total: int) -> None:
         """Log the one line a resumed run prints: ``resuming from step N of M (checkpoint …)``."""

@@ -8,11 +8,11 @@ after its last checkpoint.
 
 from __future__ import annotations
 
-import os
 import re
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
+
+from knitframe.outdir import write_atomic
 
 __all__ = ["StepSeries"]
 
@@ -65,7 +65,4 @@ class StepSeries:
             f'<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n  <Collection>\n{rows}\n'
             "  </Collection>\n</VTKFile>\n"
         )
-        fd, tmp = tempfile.mkstemp(dir=self.folder, prefix=f".{self.prefix}.pvd.", suffix=".tmp")
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, self.pvd)
+        write_atomic(self.pvd, text)
