@@ -293,7 +293,7 @@ def _environment() -> dict[str, str]:
     import numpy
     import scipy
 
-    from knitframe import __version__
+    from knitframe.version import __version__
 
     return {"knitframe": __version__, "numpy": numpy.__version__, "scipy": scipy.__version__}
 

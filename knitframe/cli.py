@@ -16,8 +16,8 @@ import os
 import sys
 import warnings
 
-from knitframe import __version__
 from knitframe.errors import KnitframeError, KnitframeWarning, WriteError
+from knitframe.version import __version__
 
 __all__ = ["main", "COMMANDS"]
 
