@@ -68,6 +68,7 @@ happened. The run is :class:`knitframe_solvers.rod_run.RodRun` on the unit-cell 
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 from typing import Any, ClassVar, Literal
 
@@ -85,8 +86,8 @@ from knitframe.records import Fabric, Response, Scene
 from knitframe.yarns import effective_bending, shear_stiffness, yarn_model
 from knitframe_solvers.newton_settings import RodNewton
 from knitframe_solvers.rod_contact import line_energy
-from knitframe_solvers.rod_model import RodEnergy, RodModel, from_cell, with_directors
-from knitframe_solvers.rod_run import RodRun
+from knitframe_solvers.rod_model import RodEnergy, RodModel, from_cell, knitted_overlap, with_directors
+from knitframe_solvers.rod_run import RodRun, RodSetup
 from knitframe_solvers.rod_starts import start_count
 
 __all__ = ["RodSolver", "rod_stiffness"]
@@ -224,8 +225,8 @@ class RodSolver:
         scene has no contact: a wrong name is wrong either way), the yarn's model with its numbers,
         the stiffness overrides (``EA``, ``EI``, the contact stiffness) within
         :data:`~knitframe.validators.OVERRIDE_FACTOR` of the yarn's own, and, with contact but no
-        pre-stress, the knitted cell's overlap (:meth:`knitted_overlap`): everything
-        :meth:`simulate` builds or refuses before its first step.
+        pre-stress, the knitted cell's overlap (:func:`~knitframe_solvers.rod_model.knitted_overlap`):
+        everything :meth:`simulate` builds or refuses before its first step.
         """
         registry = registry or get_registry()
         instantiate(registry, "linear_solver", self.linear_solver, "solver.linear_solver")
@@ -249,26 +250,10 @@ class RodSolver:
         except FieldError as e:
             raise ConfigError(f"solver.{e.field}", e.problem) from None
         if "contact" in scene.effects and "prestress" not in scene.effects:
-            model, energy, cell = self.setup(fabric, scene, registry)
-            problem = self.knitted_overlap(energy, cell, np.zeros(model.n_dof))
+            model, energy, _ = self.setup(fabric, scene, registry)
+            problem = knitted_overlap(energy, np.zeros(model.n_dof))
             if problem is not None:
                 raise ConfigError("scene.effects", problem.removeprefix("rod: "))
-
-    @staticmethod
-    def knitted_overlap(energy: RodEnergy, cell: Any, q: np.ndarray) -> str | None:
-        """Why state ``q`` cannot start a run without the pre-stress (centerlines inside the contact core).
-
-        None if it can.
-        """
-        with np.errstate(all="ignore"):
-            E0 = energy(q, 0)[0]
-        if np.isfinite(E0):
-            return None
-        d_min = float(energy.pairs(q).distance.min(initial=energy.dk))
-        return (
-            f"rod: the knitted centerlines overlap (closest centre distance {d_min:.4g} mm < "
-            f"{energy.core:.4g} mm); add 'prestress' to scene.effects"
-        )
 
     def make_contact_law(self, registry=None, yarn=None) -> Any:
         """The rod contact law named by ``contact_law``; ConfigError if it is unknown or not for rods.
@@ -360,8 +345,16 @@ class RodSolver:
             Converged steps are saved there; a later call with the same inputs resumes after
             the last saved step.
         """
+        t_start = time.perf_counter()
+        model, energy, cell = self.setup(fabric, scene, get_registry())
+        key = self._key(fabric, scene) if checkpoint_dir is not None else None
         return RodRun(
-            self, fabric, scene, progress=progress, output_dir=output_dir, checkpoint_dir=checkpoint_dir
+            RodSetup(self, model, energy, cell, self.segments(cell), key, t_start),
+            fabric,
+            scene,
+            progress=progress,
+            output_dir=output_dir,
+            checkpoint_dir=checkpoint_dir,
         )()
 
 

@@ -28,7 +28,15 @@ from knitframe.numerics.periodic import N_MACRO, Lattice, PointMap
 from knitframe_solvers.rod_contact import friction_energy, gauss_points, pair_weights, quadrature_contact
 from knitframe_solvers.rod_terms import bend, director_bend, director_norm, shear, stretch
 
-__all__ = ["RodModel", "RodEnergy", "from_cell", "open_rods", "with_directors", "write_rod_vtu"]
+__all__ = [
+    "RodModel",
+    "RodEnergy",
+    "from_cell",
+    "open_rods",
+    "with_directors",
+    "knitted_overlap",
+    "write_rod_vtu",
+]
 
 
 @attrs.frozen(eq=False)
@@ -506,6 +514,22 @@ class RodEnergy:
                 f"contact distance {self.dk:.4g} mm)"
             )
         return E, g, H, info
+
+
+def knitted_overlap(energy: RodEnergy, q: np.ndarray) -> str | None:
+    """Why state ``q`` cannot start a run without the pre-stress (centerlines inside the contact core).
+
+    None if it can.
+    """
+    with np.errstate(all="ignore"):
+        E0 = energy(q, 0)[0]
+    if np.isfinite(E0):
+        return None
+    d_min = float(energy.pairs(q).distance.min(initial=energy.dk))
+    return (
+        f"rod: the knitted centerlines overlap (closest centre distance {d_min:.4g} mm < "
+        f"{energy.core:.4g} mm); add 'prestress' to scene.effects"
+    )
 
 
 def write_rod_vtu(

@@ -12,9 +12,8 @@ branch of a uniaxial path and the fallback to another start when a load path fai
 from __future__ import annotations
 
 import functools
-import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import attrs
 import numpy as np
@@ -30,19 +29,36 @@ from knitframe.numerics.periodic import macro_index
 from knitframe.records import Fabric, Response, Scene
 from knitframe.yarns import shear_length
 from knitframe_solvers.rod_branches import CUT_RATIO, flag_jumps, is_jump
-from knitframe_solvers.rod_model import write_rod_vtu
+from knitframe_solvers.rod_model import RodEnergy, RodModel, knitted_overlap, write_rod_vtu
 from knitframe_solvers.rod_starts import MultiStart
 
-if TYPE_CHECKING:
-    from knitframe_solvers.rod import RodSolver
-
-__all__ = ["RodRun"]
+__all__ = ["RodRun", "RodSetup"]
 
 #: decades over which the springs holding the lattice are released in the relaxation
 RELAX_DECADES = 6
 #: largest shear angle of a shear-deformable rod's sections before its curve is called suspect, degrees:
 #: its shear energy 2 κGA l0 tan²(γ/2) departs from the linear law ½ κGA l0 γ² by 4.8 % at 30°
 SHEAR_RANGE_DEG = 30.0
+
+
+@attrs.frozen
+class RodSetup:
+    """What a run takes from its solver, once, before it starts; the run calls nothing of the solver."""
+
+    #: the solver, whose options (its attrs fields, its tuning ``newton``) the run reads
+    solver: Any
+    #: the rods of the cell (``RodSolver.setup``)
+    model: RodModel
+    #: their energy
+    energy: RodEnergy
+    #: the knitted unit cell they discretise
+    cell: Any
+    #: rod segments per stitch
+    segments: int
+    #: what identifies the run's checkpoints (None: none are kept)
+    key: str | None
+    #: when the run began (``time.perf_counter()``), before the set-up
+    t_start: float
 
 
 class RodRun(MultiStart):
@@ -53,7 +69,7 @@ class RodRun(MultiStart):
 
     def __init__(
         self,
-        solver: RodSolver,
+        setup: RodSetup,
         fabric: Fabric,
         scene: Scene,
         *,
@@ -61,10 +77,10 @@ class RodRun(MultiStart):
         output_dir: str | Path | None = None,
         checkpoint_dir: str | Path | None = None,
     ):
-        t_start = time.perf_counter()
         registry = get_registry()
-        self.solver, self.fabric, self.scene = solver, fabric, scene
-        self.model, self.energy, self.cell = model, energy, cell = self.solver.setup(fabric, scene, registry)
+        self.solver, self.fabric, self.scene = setup.solver, fabric, scene
+        self.model, self.energy, self.cell = model, energy, cell = setup.model, setup.energy, setup.cell
+        self.segments = setup.segments
         self.lat = lat = model.lattice
         self.n = model.n_nodes
         #: where the macro DOFs start in q (after the nodes and any directors)
@@ -108,11 +124,7 @@ class RodRun(MultiStart):
         }
         # the relaxed state of every start (row i: state["starts"][i]; NaN where it did not converge)
         self.start_states = np.zeros((0, model.n_dof))
-        ckpt = (
-            StepCheckpoints(checkpoint_dir, self.solver._key(fabric, scene))
-            if checkpoint_dir is not None
-            else None
-        )
+        ckpt = StepCheckpoints(checkpoint_dir, setup.key) if checkpoint_dir is not None else None
         self.run = CellRun(
             self.solver.name,
             fabric,
@@ -128,7 +140,7 @@ class RodRun(MultiStart):
             meta=lambda: {"dk": energy.dk},
             progress=progress,
             on_failure=self.solver.on_failure,
-            t_start=t_start,
+            t_start=setup.t_start,
         )
         self.init_load_path()
         self.warn_long_shear_length()
@@ -330,7 +342,7 @@ class RodRun(MultiStart):
                 notes.append(f"{'; '.join(failures)}; converged from the {state['start']} shape instead")
             state.update(phase="load", target=-1)
         elif self.energy.law is not None and state["phase"] == "prestress":
-            problem = self.solver.knitted_overlap(self.energy, self.cell, q)
+            problem = knitted_overlap(self.energy, q)
             if problem is not None:
                 raise NumericalError(problem)
             state.update(phase="load", target=-1)
@@ -521,7 +533,7 @@ class RodRun(MultiStart):
         lat = self.lat
         return self.run.response(
             source=f"rod {fabric.pattern}",
-            mesh=f"{model.n_nodes} nodes, {len(model.edges)} segments ({self.solver.segments(cell)}/stitch)",
+            mesh=f"{model.n_nodes} nodes, {len(model.edges)} segments ({self.segments}/stitch)",
             label=f"rod {fabric.pattern} {size} {fabric.yarn.name}",
             extra={
                 "EA_N": energy.EA,

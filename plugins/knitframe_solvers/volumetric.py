@@ -54,6 +54,7 @@ from knitframe.config import instantiate
 from knitframe.errors import ConfigError, FieldError
 from knitframe.geometry import unit_cell
 from knitframe.numerics.cellrun import checkpoint_key
+from knitframe.numerics.memory import retain_freed_memory
 from knitframe.numerics.newton import NewtonOptions
 from knitframe.numerics.periodic import Lattice, periodic_transform
 from knitframe.numerics.settings import settings_field
@@ -62,7 +63,7 @@ from knitframe.yarns import yarn_model
 from knitframe_solvers.newton_settings import VolumetricNewton
 from knitframe_solvers.volumetric_material import SolidForms, YarnLaw
 from knitframe_solvers.volumetric_model import VolumetricModel, contact_surface
-from knitframe_solvers.volumetric_run import VolumetricRun
+from knitframe_solvers.volumetric_run import VolumetricRun, VolumetricSetup
 
 __all__ = ["VolumetricSolver"]
 
@@ -380,8 +381,14 @@ class VolumetricSolver:
             iteration's history entry), so a solve that is killed or never ends leaves its
             iterations. For reproducible convergence studies.
         """
+        t_start = time.perf_counter()
+        if self.newton.retain_freed_memory:
+            retain_freed_memory()
+        model = self.setup(fabric, scene, get_registry())
+        opts, loose = self.newton_options(fabric, model.cm.radius, model.barrier)
+        key = self._key(fabric, scene, model.law) if checkpoint_dir is not None else None
         return VolumetricRun(
-            self,
+            VolumetricSetup(self, model, opts, loose, key, t_start),
             fabric,
             scene,
             progress=progress,

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import attrs
 import numpy as np
@@ -22,16 +22,12 @@ from knitframe.config import instantiate
 from knitframe.errors import NumericalError
 from knitframe.numerics.cellrun import CellRun
 from knitframe.numerics.continuation import StepCheckpoints
-from knitframe.numerics.memory import retain_freed_memory
 from knitframe.numerics.newton import NewtonOptions, NewtonResult, minimise
 from knitframe.numerics.periodic import N_MACRO, macro_index
 from knitframe.records import Fabric, Response, Scene
-from knitframe_solvers.volumetric_model import section_summary, write_solid_vtu
+from knitframe_solvers.volumetric_model import VolumetricModel, section_summary, write_solid_vtu
 
-if TYPE_CHECKING:
-    from knitframe_solvers.volumetric import VolumetricSolver
-
-__all__ = ["IMBALANCE_NOTE", "P1_LOCKING", "VolumetricRun"]
+__all__ = ["IMBALANCE_NOTE", "P1_LOCKING", "VolumetricRun", "VolumetricSetup"]
 
 #: a converged state whose residual exceeds this × the average nodal force flux gets a note in the Response's
 #: provenance (the step test passed with large forces left: seen on the jammed SL10 cell, 29-800 × the flux;
@@ -45,6 +41,24 @@ P1_LOCKING = (
 )
 
 
+@attrs.frozen
+class VolumetricSetup:
+    """What a run takes from its solver, once, before it starts; the run calls nothing of the solver."""
+
+    #: the solver, whose options (its attrs fields, its tuning ``newton``) the run reads
+    solver: Any
+    #: the cell's discrete problem (``VolumetricSolver.setup``)
+    model: VolumetricModel
+    #: Newton options of the knitted state and the load steps
+    opts: NewtonOptions
+    #: the looser Newton options of the intermediate pre-stress states
+    loose: NewtonOptions
+    #: what identifies the run's checkpoints (None: none are kept)
+    key: str | None
+    #: when the run began (``time.perf_counter()``), before the set-up: its wall time includes the meshing
+    t_start: float
+
+
 class VolumetricRun:
     """The state of one :meth:`VolumetricSolver.simulate` call and its phases.
 
@@ -53,7 +67,7 @@ class VolumetricRun:
 
     def __init__(
         self,
-        solver: VolumetricSolver,
+        setup: VolumetricSetup,
         fabric: Fabric,
         scene: Scene,
         *,
@@ -62,25 +76,18 @@ class VolumetricRun:
         checkpoint_dir: str | Path | None = None,
         trace=None,
     ):
-        t_start = time.perf_counter()
-        self.solver, self.fabric, self.scene, self.trace = solver, fabric, scene, trace
-        if self.solver.newton.retain_freed_memory:
-            retain_freed_memory()
+        self.solver, self.fabric, self.scene, self.trace = setup.solver, fabric, scene, trace
         registry = get_registry()
-        self.model = model = self.solver.setup(fabric, scene, registry)
+        self.model = model = setup.model
         backend = instantiate(registry, "linear_solver", self.solver.linear_solver, "solver.linear_solver")
         self.solve = self.timed_solver(backend)
         self.with_prestress = "prestress" in scene.effects
         self.r = r = model.cm.radius
-        self.opts, self.loose = self.solver.newton_options(fabric, r, model.barrier)
+        self.opts, self.loose = setup.opts, setup.loose
         self.n_ind = 3 * len(model.independent)
         self.base_free = np.ones(self.n_ind + N_MACRO, bool)
         self.base_free[:3] = False  # pin one node: the cell's free translation
-        ckpt = (
-            StepCheckpoints(checkpoint_dir, self.solver._key(fabric, scene, model.law))
-            if checkpoint_dir is not None
-            else None
-        )
+        ckpt = StepCheckpoints(checkpoint_dir, setup.key) if checkpoint_dir is not None else None
         self.lat = model.lattice
         self.residuals: list[float] = []
         self.penetrations: list[float] = []
@@ -105,7 +112,7 @@ class VolumetricRun:
             write_vtu=self.write_step,
             progress=progress,
             on_failure=self.solver.on_failure,
-            t_start=t_start,
+            t_start=setup.t_start,
         )
         self.path: list[tuple[float, np.ndarray]] = []  # the last two converged load states (τ, q)
 
