@@ -86,7 +86,8 @@ from knitframe.records import Fabric, Response, Scene
 from knitframe.yarns import effective_bending, shear_stiffness, yarn_model
 from knitframe_solvers.newton_settings import RodNewton
 from knitframe_solvers.rod_contact import line_energy
-from knitframe_solvers.rod_model import RodEnergy, RodModel, from_cell, knitted_overlap, with_directors
+from knitframe_solvers.rod_geometry import RodModel, from_cell, with_directors
+from knitframe_solvers.rod_model import RodEnergy, knitted_overlap
 from knitframe_solvers.rod_run import RodRun, RodSetup
 from knitframe_solvers.rod_starts import start_count
 

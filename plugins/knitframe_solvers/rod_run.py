@@ -3,15 +3,16 @@
 :class:`RodRun` is what :meth:`knitframe_solvers.rod.RodSolver.simulate` does (the run is
 described there). The steps, checkpoints and resume, VTU files, rows, notes, truncate on failure
 and the Response are :class:`knitframe.numerics.cellrun.CellRun`'s; this module supplies the rod
-model's phase hooks and what is rod-specific: the two pre-stress rest shapes, the relaxation of
-the lattice, the exploration of the starts (:mod:`knitframe_solvers.rod_starts`), following the
-branch of a uniaxial path and the fallback to another start when a load path fails
-(:mod:`knitframe_solvers.rod_branches`).
+model's phase hooks and what is rod-specific: the pre-stress from its two rest shapes
+(:mod:`knitframe_solvers.rod_prestress`), the relaxation of the lattice, the exploration of the
+starts (:mod:`knitframe_solvers.rod_starts`), following the branch of a uniaxial path and the
+fallback to another start when a load path fails (:mod:`knitframe_solvers.rod_branches`), and
+the Response with the rod's provenance (:mod:`knitframe_solvers.rod_report`). This module holds
+the run's state, its Newton solves, the relaxation and the load path.
 """
 
 from __future__ import annotations
 
-import functools
 from pathlib import Path
 from typing import Any
 
@@ -27,18 +28,17 @@ from knitframe.numerics.continuation import StepCheckpoints, continuation
 from knitframe.numerics.newton import NewtonOptions, NewtonResult, minimise
 from knitframe.numerics.periodic import macro_index
 from knitframe.records import Fabric, Response, Scene
-from knitframe.yarns import shear_length
-from knitframe_solvers.rod_branches import CUT_RATIO, flag_jumps, is_jump
-from knitframe_solvers.rod_model import RodEnergy, RodModel, knitted_overlap, write_rod_vtu
+from knitframe_solvers.rod_branches import CUT_RATIO, is_jump
+from knitframe_solvers.rod_geometry import RodModel, write_rod_vtu
+from knitframe_solvers.rod_model import RodEnergy
+from knitframe_solvers.rod_prestress import RodPrestress
+from knitframe_solvers.rod_report import RodReport
 from knitframe_solvers.rod_starts import MultiStart
 
 __all__ = ["RodRun", "RodSetup"]
 
 #: decades over which the springs holding the lattice are released in the relaxation
 RELAX_DECADES = 6
-#: largest shear angle of a shear-deformable rod's sections before its curve is called suspect, degrees:
-#: its shear energy 2 κGA l0 tan²(γ/2) departs from the linear law ½ κGA l0 γ² by 4.8 % at 30°
-SHEAR_RANGE_DEG = 30.0
 
 
 @attrs.frozen
@@ -61,7 +61,7 @@ class RodSetup:
     t_start: float
 
 
-class RodRun(MultiStart):
+class RodRun(RodPrestress, MultiStart, RodReport):
     """The state of one :meth:`RodSolver.simulate` call and its phases.
 
     The phases read the solver's options from ``self.solver`` (its tuning from ``self.solver.newton``).
@@ -145,19 +145,6 @@ class RodRun(MultiStart):
         self.init_load_path()
         self.warn_long_shear_length()
 
-    def warn_long_shear_length(self) -> None:
-        """Say before work starts when a shear-deformable rod's yarn has a shear length above its stitch."""
-        if self.model.directors is None:
-            return
-        ls, ell = shear_length(self.fabric.yarn), float(self.cell.arc_length_per_stitch)
-        if ls > ell:
-            self.run.warn(
-                f'{self.run.where}: with shear = "resolved", the yarn\'s shear length {ls:.3g} mm is longer '
-                f"than its stitch ({ell:.3g} mm): its sections hardly turn with the loops and shear beyond a "
-                "rod's small-angle law, so the run may stall or its curve be suspect",
-                stacklevel=4,
-            )
-
     def init_load_path(self) -> None:
         """The load path's bookkeeping: reference lattice, kept jumps, states, and the branch watch."""
         # the load path: its reference lattice, the jumps it kept (snaps) and the states of this path
@@ -201,14 +188,6 @@ class RodRun(MultiStart):
             self.record_shear(index, q)
         self.run.accept(phase, index, q, message, done)
 
-    def record_shear(self, index: int, q: np.ndarray) -> None:
-        """Keep load step ``index``'s largest shear angle in the checkpointed state, so a resumed run
-        judges its whole path; index −1 (the relaxed lattice) begins a path. Only with directors."""
-        if self.model.directors is None:
-            return
-        kept = self.state["shear_deg"][: max(index, 0)]
-        self.state["shear_deg"] = kept + ([float(self.model.shear_angles(q).max())] if index >= 0 else [])
-
     # ---------------------------------------------------------------------------------- Newton
     def step_norm(self, dx: np.ndarray) -> float:
         # in units of the current contact distance, which is small early in the pre-stress
@@ -238,115 +217,6 @@ class RodRun(MultiStart):
             stabilise=self.stabilise,
             step_norm=self.step_norm,
         )
-
-    # ------------------------------------------------------------------------------- pre-stress
-    def initial_distance(self, q0: np.ndarray) -> float:
-        """Where the pre-stress from state q0 starts: small enough that no two centerlines overlap."""
-        self.energy.dk = self.dk_full
-        d_min = float(self.energy.pairs(q0).distance.min(initial=self.dk_full))
-        return min(self.solver.initial_radius * self.dk_full, 0.95 * d_min)
-
-    def run_prestress(
-        self,
-        start: str,
-        q0: np.ndarray,
-        first: int,
-        dk0: float,
-        n_steps: int,
-        label: str | None = None,
-        min_fraction: float | None = None,
-    ) -> np.ndarray:
-        """Grow the contact distance dk0 → dk geometrically at F̄ = I.
-
-        From pre-stress step ``first`` of ``n_steps``.
-
-        With a ``label`` (a start other than the nominal one) the steps are reported as progress
-        but neither checkpointed nor written: only the chosen start's relaxed state is.
-        """
-        energy, dk_full, opts = self.energy, self.dk_full, self.opts
-        free = self.base_free.copy()
-        free[self.m0 :] = False
-        loose = attrs.evolve(opts, atol=1e3 * opts.atol, max_iter=2 * self.solver.max_iterations)
-        record = label is None
-        if label is None:
-            label = "" if self.solver.prestress_start == "straight" else f" ({start} start)"
-
-        def solve_prestress(t: float, x0: np.ndarray) -> NewtonResult:
-            energy.dk = dk0 * (dk_full / dk0) ** t
-            if start == "knitted":
-                energy.kappa0 = (1.0 - t) * self.kappa_knitted
-            # the intermediate states are only a path to t = 1; where contacts barely touch, the
-            # smooth onset of the law makes Newton converge linearly, so they get a looser tolerance
-            return self.newton_solve(x0, free, loose if t < 1.0 - 1e-12 else opts)
-
-        try:
-            return self.run.prestress(
-                solve_prestress,
-                q0,
-                first=first,
-                n_steps=n_steps,
-                min_fraction=min_fraction or self.solver.newton.min_step_fraction,
-                label=label,
-                record=record,
-                follow=continuation,
-            )
-        except NumericalError as e:
-            raise NumericalError(
-                f"pre-stress{label} (contact distance {energy.dk:.4g} of {dk_full:.4g} mm): {e}"
-            ) from None
-        finally:
-            energy.kappa0 = None
-            energy.dk = dk_full
-
-    def auto_order(self) -> list[str]:
-        """The rest shapes ``prestress_start = "auto"`` tries, in order.
-
-        Straight, then knitted; a shear-deformable rod starts knitted, because its directors,
-        straight at rest, would first have to turn across whole loops at the first step.
-        """
-        return ["knitted", "straight"] if self.model.directors is not None else ["straight", "knitted"]
-
-    def prestress_phase(self, q: np.ndarray) -> np.ndarray:
-        """Pre-stress (grow the contact distance at F̄ = I and constant yarn length), or check the start."""
-        state, notes = self.state, self.run.notes
-        if self.with_prestress and state["phase"] == "prestress":
-            if state["start"] is not None:  # resuming
-                starts = [state["start"]]
-            else:
-                state["dk0"] = self.initial_distance(q)
-                starts = (
-                    self.auto_order()
-                    if self.solver.prestress_start == "auto"
-                    else [self.solver.prestress_start]
-                )
-            failures: list[str] = []
-            for k, start in enumerate(starts):
-                state["start"] = start
-                try:
-                    q = self.run_prestress(
-                        start, q, int(state["target"]) + 1, state["dk0"], self.solver.prestress_steps
-                    )
-                    break
-                except NumericalError as e:
-                    failures.append(str(e))
-                    q, state["target"] = np.zeros(self.model.n_dof), -1
-                    if k + 1 < len(starts):
-                        continue
-                    message = "; after that ".join(failures)
-                    if self.start_total() == 1:
-                        raise NumericalError(message) from None
-                    # the other starts of START_SET are tried before the run gives up (explore_starts)
-                    state.update(nominal_error=message, nominal_rests=list(starts), start=starts[0])
-                    failures = []
-            if failures:
-                notes.append(f"{'; '.join(failures)}; converged from the {state['start']} shape instead")
-            state.update(phase="load", target=-1)
-        elif self.energy.law is not None and state["phase"] == "prestress":
-            problem = knitted_overlap(self.energy, q)
-            if problem is not None:
-                raise NumericalError(problem)
-            state.update(phase="load", target=-1)
-        return q
 
     # ------------------------------------------------------------------------------- relaxation
     def relax_lattice(self, q0: np.ndarray, free: np.ndarray) -> np.ndarray:
@@ -504,82 +374,3 @@ class RodRun(MultiStart):
                     raise
                 t_at, q_at = last
                 follow.update(cut=False, lenient=float(np.floor(t_at) + 1))
-
-    # --------------------------------------------------------------------------------- response
-    def response(self) -> Response:
-        """The Response, with the branch jumps flagged and the rod's provenance."""
-        fabric, scene, model, cell, energy, state = (
-            self.fabric,
-            self.scene,
-            self.model,
-            self.cell,
-            self.energy,
-            self.state,
-        )
-        # warnings point where simulate was called, as the fallback's does
-        warn = functools.partial(self.run.warn, stacklevel=5)
-        jumps = flag_jumps(self.run.rows_array(), scene.load, self.snaps, warn, self.run.where)
-        shear = self.max_shear_angle()
-        if shear is not None and shear > SHEAR_RANGE_DEG:
-            warn(
-                f"{self.run.where}: the yarn sections shear by up to {shear:.0f}° (the rod's shear law holds "
-                f"for small angles, up to about {SHEAR_RANGE_DEG:g}°); the curve is suspect"
-            )
-        size = (
-            f"SL{fabric.stitch_length:g}"
-            if fabric.stitch_length is not None
-            else f"{fabric.arc_length:g} mm/stitch"
-        )
-        lat = self.lat
-        return self.run.response(
-            source=f"rod {fabric.pattern}",
-            mesh=f"{model.n_nodes} nodes, {len(model.edges)} segments ({self.segments}/stitch)",
-            label=f"rod {fabric.pattern} {size} {fabric.yarn.name}",
-            extra={
-                "EA_N": energy.EA,
-                "EI_Nmm2": energy.EI,
-                "k_line_N_per_mm2": energy.k_line,
-                "dk_mm": cell.dk,
-                "contact_distance_mm": self.dk_full,
-                "L1_mm": lat.L1.tolist(),
-                "L2_mm": lat.L2.tolist(),
-                "effects": sorted(scene.effects),
-                "options": attrs.asdict(self.solver),
-                "prestress_start": state["start"],
-                "relaxed_stretch": state["lam_ref"],
-                "branch_jumps": jumps,
-                "relaxed_energy_Nmm": state["relaxed_energy"],
-                "starts": state["starts"],
-                "start_chosen": state["start_chosen"],
-                "shear_deformable": model.directors is not None,
-                "kGA_N": energy.GA if model.directors is not None else None,
-                # the knitted loop's Rayleigh wavenumber against the effective stiffness's 2π/ℓ
-                "bending_wavenumber_per_mm": self.bending_wavenumber(),
-                "effective_bending_wavenumber_per_mm": 2.0 * np.pi / float(cell.arc_length_per_stitch),
-                "max_shear_angle_deg": shear,
-                "max_shear_angle_by_step_deg": list(self.state["shear_deg"]) or None,
-            },
-        )
-
-    def bending_wavenumber(self) -> float | None:
-        """The knitted cell's Rayleigh wavenumber k_R (:func:`knitframe.geometry.bending_wavenumber`), 1/mm.
-
-        None for a cell whose yarns are straight.
-        """
-        from knitframe.geometry import bending_wavenumber
-
-        try:
-            return float(bending_wavenumber(self.cell))
-        except ValueError:
-            return None
-
-    def max_shear_angle(self) -> float | None:
-        """The largest angle between a segment and its director over the load path's steps, degrees.
-
-        None for a rod without directors. A resumed run includes the steps before the resume (they
-        are in the checkpointed state).
-        """
-        angles = self.state["shear_deg"]
-        if self.model.directors is None or not angles:
-            return None
-        return max(angles)

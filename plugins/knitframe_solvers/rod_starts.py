@@ -17,7 +17,7 @@ import numpy as np
 
 from knitframe import validators as v
 from knitframe.errors import FieldError, NumericalError
-from knitframe_solvers.rod_model import RodModel
+from knitframe_solvers.rod_geometry import RodModel
 
 __all__ = [
     "AUTO_STARTS",
