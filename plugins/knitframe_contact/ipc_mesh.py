@@ -31,8 +31,8 @@ def ipctk_module():
     """The ipctk module, or a NumericalError that says how to install it."""
     try:
         import ipctk
-    except ImportError as e:  # pragma: no cover - ipctk is a dependency
-        raise NumericalError("contact law 'ipc' needs ipctk: pip install ipctk") from e
+    except ImportError as e:  # the volumetric extra
+        raise NumericalError("contact law 'ipc' needs ipctk: pip install \"knitframe[volumetric]\"") from e
     return ipctk
 
 

@@ -41,6 +41,8 @@ on the unit-cell run skeleton :class:`knitframe.numerics.cellrun.CellRun`; the d
 
 from __future__ import annotations
 
+import importlib.util
+import sys
 import time
 from pathlib import Path
 from typing import Any, ClassVar, Literal
@@ -65,7 +67,21 @@ from knitframe_solvers.volumetric_material import SolidForms, YarnLaw
 from knitframe_solvers.volumetric_model import VolumetricModel, contact_surface
 from knitframe_solvers.volumetric_run import VolumetricRun, VolumetricSetup
 
-__all__ = ["VolumetricSolver"]
+__all__ = ["VolumetricSolver", "EXTRA"]
+
+#: what installs the modules the volumetric solver needs beyond the core: gmsh (the yarn meshes) and ipctk
+#: (the ``ipc`` contact law)
+EXTRA = 'pip install "knitframe[volumetric]"'
+
+
+def _importable(name: str) -> bool:
+    """Whether ``import name`` would find the module, without importing it."""
+    if name in sys.modules:
+        return sys.modules[name] is not None
+    try:
+        return importlib.util.find_spec(name) is not None
+    except (ImportError, ValueError):
+        return False
 
 
 @attrs.frozen
@@ -128,10 +144,21 @@ class VolumetricSolver:
         resolved = None if law is None else [type(law).__name__, attrs.asdict(law)]
         return checkpoint_key(fabric, scene, attrs.asdict(self), resolved)
 
+    def check_extra(self, scene: Scene) -> None:
+        """Refuse in one line (ConfigError naming ``solver.kind``) when a module of the ``volumetric`` extra
+        that this scene needs is not installed: gmsh (the yarn meshes) always, ipctk with contact by the
+        ``ipc`` law; the message says :data:`EXTRA`."""
+        law = self.contact_law if isinstance(self.contact_law, str) else self.contact_law.get("kind")
+        needed = ["gmsh"] + (["ipctk"] if "contact" in scene.effects and law == "ipc" else [])
+        missing = [name for name in needed if not _importable(name)]
+        if missing:
+            raise ConfigError("solver.kind", f"the volumetric solver needs {' and '.join(missing)}: {EXTRA}")
+
     def setup(self, fabric: Fabric, scene: Scene, registry=None) -> VolumetricModel:
         """Mesh, material forms, periodic map and contact of a fabric's cell for the effects of a scene."""
         from knitframe.numerics.mesh import cell_mesh
 
+        self.check_extra(scene)
         registry = registry or get_registry()
         cell = unit_cell(fabric, registry)
         t0 = time.perf_counter()
@@ -187,13 +214,15 @@ class VolumetricSolver:
     def validate(self, fabric: Fabric, scene: Scene, registry=None) -> None:
         """The checks that need no mesh, made while the config is validated; ConfigErrors name the key.
 
-        The linear solver and the solid contact law by name with their options (the law even when
-        the scene has no contact: a wrong name is wrong either way), the yarn's model with its
+        The modules of the ``volumetric`` extra (:meth:`check_extra`), the linear solver and the
+        solid contact law by name with their options (the law even when the scene has no contact: a
+        wrong name is wrong either way), the yarn's model with its
         numbers, ``max_step`` against the contact reach, ``contact_modulus`` and the law's penalty
         within :data:`~knitframe.validators.OVERRIDE_FACTOR` of the yarn's transverse modulus and of
         the law's default penalty for this yarn and seed, and the cell's clearance
         (:meth:`check_clearance`): everything :meth:`simulate` builds or refuses before its first step.
         """
+        self.check_extra(scene)
         registry = registry or get_registry()
         instantiate(registry, "linear_solver", self.linear_solver, "solver.linear_solver")
         yarn_model(registry, fabric.yarn)

@@ -37,8 +37,8 @@ def section_mesh(h: float) -> Section:
     """
     try:
         import gmsh
-    except ImportError:  # pragma: no cover - gmsh is a dependency
-        raise GeometryError("meshing needs gmsh: pip install gmsh") from None
+    except ImportError:  # the volumetric extra
+        raise GeometryError('meshing needs gmsh: pip install "knitframe[volumetric]"') from None
     if not 0.02 <= h <= 1.5:
         raise GeometryError(f"mesh seed must be in [0.02, 1.5] radii, got {h}")
     started = gmsh.isInitialized()
