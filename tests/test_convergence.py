@@ -1,11 +1,11 @@
-"""Richardson extrapolation and the observed order (knitframe.convergence)."""
+"""Richardson extrapolation and the observed order (knitframe.ladder.convergence)."""
 
 import math
 
 import numpy as np
 import pytest
 
-from knitframe.convergence import convergence_table, mesh_convergence, richardson
+from knitframe.ladder.convergence import convergence_table, mesh_convergence, richardson
 from knitframe.records import Response
 
 

@@ -1,4 +1,4 @@
-"""The validation goals of a sweep against measured tests (knitframe.goals), on hand-made rows."""
+"""The validation goals of a sweep against measured tests (knitframe.sweep.goals), on hand-made rows."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import io
 
 import pytest
 
-from knitframe.goals import MET, NOT_MET, UNDETERMINED, GoalSettings, goals_markdown, validation_goals
+from knitframe.sweep.goals import MET, NOT_MET, UNDETERMINED, GoalSettings, goals_markdown, validation_goals
 
 
 def row(yarn, pattern, direction, ratios, measured_10, lateral=(-0.10, -0.08), status="done"):

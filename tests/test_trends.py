@@ -1,4 +1,4 @@
-"""knitframe.trends: the paper's four trends judged on hand-made sweep rows whose verdicts are known."""
+"""knitframe.sweep.trends: the paper's four trends judged on hand-made sweep rows whose verdicts are known."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import io
 
 import pytest
 
-from knitframe.trends import spans_trends, trends, trends_markdown
+from knitframe.sweep.trends import spans_trends, trends, trends_markdown
 
 PATTERNS = ("jersey", "garter", "rib", "seed")
 SLS = (10, 11, 12)

@@ -318,7 +318,7 @@ def test_the_16_singal_curves_with_the_rod_solver(tmp_path):
 
 def test_what_was_held_fixed_names_the_shared_settings_and_every_per_point_choice():
     """The shared tables, the yarn records (a config's own marked) and whatever a point or the grid sets."""
-    from knitframe.goals import held_fixed
+    from knitframe.sweep.goals import held_fixed
 
     lines = held_fixed(
         common={"sweep.solver": {"kind": "rod", "starts": 5}, "sweep.fabric": {}},

@@ -12,7 +12,8 @@ from knitframe_yarns.library import resolve_yarn
 
 from knitframe import ConfigError, DataError, NumericalError, Yarn, get_registry
 from knitframe.testing.patterns import derivative_errors
-from knitframe.yarnfit import (
+from knitframe.yarn import yarn_properties
+from knitframe.yarn.fit import (
     fit_compression,
     fit_tension,
     fit_yarn,
@@ -20,7 +21,6 @@ from knitframe.yarnfit import (
     line_contact_load,
     pretension,
 )
-from knitframe.yarns import yarn_properties
 
 DATA = Path(__file__).parent / "data" / "yarn"
 _spec = importlib.util.spec_from_file_location("yarn_make", DATA / "make.py")
@@ -321,7 +321,7 @@ def test_effective_bending_is_the_timoshenko_stiffness_of_the_record():
     """EI_eff = EI/(1 + EI k²/(κ G_A A)): the solid section for a stiff shear modulus, κ G_A A/k² for a
     soft one, a measured bending stiffness unchanged; for pearl cotton the derived value is within 25 %
     of the measured one at its stitch length."""
-    from knitframe.yarns import SHEAR_COEFFICIENT, effective_bending
+    from knitframe.yarn import SHEAR_COEFFICIENT, effective_bending
 
     reg = get_registry()
     cot = reg["yarn"]["cotton"]

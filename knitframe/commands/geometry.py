@@ -81,7 +81,7 @@ def main(args) -> int:
     from knitframe.geometry import checked_cell, clearance
     from knitframe.plugins import get_registry
     from knitframe.records import Fabric
-    from knitframe.yarns import resolve_yarn
+    from knitframe.yarn import resolve_yarn
 
     out = args.out if args.out is not None else f"{args.pattern}-geometry"
     od = OutputDir(out, command="geometry", overwrite=args.overwrite, fingerprint=fingerprint(vars(args)))

@@ -26,7 +26,7 @@ def add_parser(sub) -> None:
 
 def main(args) -> int:
     from knitframe.plugins import get_registry
-    from knitframe.yarns import config_yarns, resolve_yarn, yarn_properties
+    from knitframe.yarn import config_yarns, resolve_yarn, yarn_properties
 
     reg = get_registry()
     if args.config is not None:

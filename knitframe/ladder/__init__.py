@@ -14,7 +14,9 @@ options. The ``[ladder]`` stage (``knitframe_stages.ladder``), the ``knitframe l
 - :mod:`~knitframe.ladder.runner` runs the rungs in waves, cheapest first, and compares them;
 - :func:`tension_errors` (:mod:`~knitframe.ladder.compare`), :func:`write_table`
   (:mod:`~knitframe.ladder.outputs`), :func:`plot_pareto` and :func:`plot_curves`
-  (:mod:`~knitframe.ladder.plots`) make the outputs.
+  (:mod:`~knitframe.ladder.plots`) make the outputs;
+- :mod:`~knitframe.ladder.convergence`: the mesh convergence of the volumetric rungs (the
+  observed order and a Richardson estimate of the finest mesh's error).
 
 ``knitframe.ladder`` is the function :func:`ladder` (the Python twin of the command,
 :mod:`~knitframe.ladder.api`); import the helpers with ``from knitframe.ladder import RUNGS,

@@ -13,9 +13,9 @@ from typing import Any
 
 import numpy as np
 
-from knitframe.convergence import mesh_convergence
 from knitframe.errors import KnitframeWarning
 from knitframe.ladder.compare import tension_errors, within_range
+from knitframe.ladder.convergence import mesh_convergence
 from knitframe.ladder.cost import CostModel, TimingPoint, format_duration, format_memory
 from knitframe.ladder.jobs import curve_response, run_rung
 from knitframe.ladder.rungs import rung
@@ -310,7 +310,8 @@ def compare(rows, curves, reference, measured) -> None:
 
 
 def convergence_rows(curves: dict[str, Any], scene: Scene) -> list[dict[str, Any]]:
-    """Richardson rows of every volumetric order with three or more finished seeds (knitframe.convergence)."""
+    """Richardson rows of every volumetric order with three or more finished seeds
+    (knitframe.ladder.convergence)."""
     rows: list[dict[str, Any]] = []
     for family in sorted({rung(n).family for n in curves if rung(n).solver == "volumetric"}):
         sizes = {n: float(rung(n).options["seed"]) for n in curves if rung(n).family == family}

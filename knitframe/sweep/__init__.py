@@ -8,6 +8,8 @@
 - :mod:`~knitframe.sweep.rows`: a point's row of ``sweep.csv`` and its library entry;
 - :mod:`~knitframe.sweep.validation`: points against measured tests;
 - :mod:`~knitframe.sweep.outputs`: ``sweep.csv``, ``trends.md`` and ``params.png`` (Fig. 4);
+- :mod:`~knitframe.sweep.trends`: the paper's four trends judged from the fitted parameters;
+- :mod:`~knitframe.sweep.goals`: how a validation sweep meets its goals against measured tests;
 - :mod:`~knitframe.sweep.progress`: the progress line.
 """
 

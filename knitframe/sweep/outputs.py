@@ -35,11 +35,11 @@ def write_csv(path: Path, rows: list[dict[str, Any]]) -> None:
 def write_trends(
     output: Callable[[str], Path], rows: list[dict[str, Any]], param_keys: list[str], title: str
 ) -> dict[str, str]:
-    """trends.md: the paper's four trends judged on the fits (:mod:`knitframe.trends`), when the model
+    """trends.md: the paper's four trends judged on the fits (:mod:`knitframe.sweep.trends`), when the model
     has a, b and θ (``param_keys``) and the points span stitch lengths, patterns and yarns, one fit
     each; ``output(name)`` gives the file's path (and records it). Returns ``{trend: verdict}``,
     empty when nothing was judged."""
-    from knitframe.trends import spans_trends, trends, trends_markdown
+    from knitframe.sweep.trends import spans_trends, trends, trends_markdown
 
     if not {"a", "b", "theta_deg"} <= set(param_keys) or not spans_trends(rows):
         return {}

@@ -177,7 +177,7 @@ def validate_point(p: Point, res: Any) -> tuple[dict[str, Any], list[dict[str, A
         ((_, e, t, _),) = curve(mea)
         if metrics is None:
             curve_row["measured_to"] = float(np.max(e))
-        # the measured tension at 10 % (N/mm), for the order of the patterns (knitframe.goals)
+        # the measured tension at 10 % (N/mm), for the order of the patterns (knitframe.sweep.goals)
         curve_row["measured_10"] = value_at(e, t, GOAL_ORDER_AT)
         columns.update({f"{c}_{d}": curve_row[c] for c in VALIDATION_COLUMNS})
         curves.append(curve_row)

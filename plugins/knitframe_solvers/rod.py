@@ -83,7 +83,7 @@ from knitframe.geometry import unit_cell
 from knitframe.numerics.cellrun import checkpoint_key
 from knitframe.numerics.settings import settings_field
 from knitframe.records import Fabric, Response, Scene
-from knitframe.yarns import effective_bending, shear_stiffness, yarn_model
+from knitframe.yarn import effective_bending, shear_stiffness, yarn_model
 from knitframe_solvers.newton_settings import RodNewton
 from knitframe_solvers.rod_contact import line_energy
 from knitframe_solvers.rod_geometry import RodModel, from_cell, with_directors

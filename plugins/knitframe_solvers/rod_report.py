@@ -15,7 +15,7 @@ import attrs
 import numpy as np
 
 from knitframe.records import Response
-from knitframe.yarns import shear_length
+from knitframe.yarn import shear_length
 from knitframe_solvers.rod_branches import flag_jumps
 
 __all__ = ["RodReport", "SHEAR_RANGE_DEG"]

@@ -61,7 +61,7 @@ from knitframe.numerics.newton import NewtonOptions
 from knitframe.numerics.periodic import Lattice, periodic_transform
 from knitframe.numerics.settings import settings_field
 from knitframe.records import Fabric, Response, Scene
-from knitframe.yarns import yarn_model
+from knitframe.yarn import yarn_model
 from knitframe_solvers.newton_settings import VolumetricNewton
 from knitframe_solvers.volumetric_material import SolidForms, YarnLaw
 from knitframe_solvers.volumetric_model import VolumetricModel, contact_surface

@@ -48,7 +48,6 @@ import attrs
 from knitframe import __version__, hookimpl
 from knitframe import validators as v
 from knitframe.config import PluginSpec, instantiate
-from knitframe.convergence import convergence_table, write_convergence
 from knitframe.errors import ConfigError, KnitframeError, NumericalError
 from knitframe.executors import executor_from_config
 from knitframe.interfaces import Stage
@@ -66,6 +65,7 @@ from knitframe.ladder import (
     write_csv,
     write_table,
 )
+from knitframe.ladder.convergence import convergence_table, write_convergence
 from knitframe.ladder.runner import (
     compare,
     convergence_rows,

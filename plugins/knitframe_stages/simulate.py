@@ -42,7 +42,7 @@ from knitframe.progress import ProgressBar
 from knitframe.records import Fabric, Scene
 from knitframe.report import compare, plot_comparison, plot_sections, write_responses_csv
 from knitframe.schema import build
-from knitframe.yarns import config_yarns, resolve_yarn
+from knitframe.yarn import config_yarns, resolve_yarn
 
 
 @attrs.frozen
@@ -189,7 +189,7 @@ def write_yarn_csv(path, yarn) -> None:
     """The yarn record's quantities (``yarn_properties``) as CSV, with the record's source."""
     import csv
 
-    from knitframe.yarns import yarn_properties
+    from knitframe.yarn import yarn_properties
 
     with open(path, "w", newline="", encoding="utf-8") as fh:
         fh.write(f"# yarn: {yarn.name}\n")

@@ -60,7 +60,7 @@ Writes
   pattern (colour), markers per yarn.
 * ``trends.md``: when the model has a, b and θ (hgo) and the points span 2 or more stitch lengths,
   patterns and yarns (one fit each), the paper's four trends judged on the fits, with the numbers
-  (:func:`knitframe.trends.trends`).
+  (:func:`knitframe.sweep.trends.trends`).
 
 Against measured tests: a point may carry ``measured = { files = [...], reader = "singal2024",
 max_strain = 0.6 }`` (:class:`~knitframe.sweep.MeasuredTable`). The files are read (and
@@ -72,7 +72,7 @@ per-curve columns (each ``_course`` and ``_wale``: the file, status, strain rang
 the measurement, the simulated/measured tension at 10/20/30 % and the lateral strains at 20 %),
 and the run writes ``validation.csv`` (one row per curve, with the measured tension at 10 %),
 ``validation.png`` (the simulated curves over the measured ones) and ``goals.md``: the four
-validation goals judged on the curves (:mod:`knitframe.goals`): the median tension ratio within
+validation goals judged on the curves (:mod:`knitframe.sweep.goals`): the median tension ratio within
 1.5× of 1, every curve within 3×, the patterns in the measured order of stiffness, and the
 lateral contraction within 0.05. ``[sweep.goals]`` sets the thresholds (``median_within``,
 ``curve_within``, ``lateral_within``).
@@ -90,7 +90,6 @@ from knitframe import hookimpl
 from knitframe.config import PluginSpec, instantiate
 from knitframe.errors import ConfigError, KnitframeWarning
 from knitframe.executors import executor_from_config
-from knitframe.goals import MET, GoalSettings, goals_markdown, held_fixed, validation_goals
 from knitframe.interfaces import Stage
 from knitframe.report import plot_validation
 from knitframe.schema import build, field_names, to_dict
@@ -110,6 +109,7 @@ from knitframe.sweep import (
     write_csv,
     write_trends,
 )
+from knitframe.sweep.goals import MET, GoalSettings, goals_markdown, held_fixed, validation_goals
 
 #: failed points named one per line at the end of a run (the rest are in sweep.csv)
 SHOWN_FAILURES = 10

@@ -28,7 +28,7 @@ import numpy as np
 from knitframe import validators as v
 from knitframe.errors import NumericalError
 from knitframe.records import Yarn
-from knitframe.yarnfit import line_contact_approach, line_contact_load, line_contact_stiffness
+from knitframe.yarn.fit import line_contact_approach, line_contact_load, line_contact_stiffness
 
 __all__ = ["linear_stiffness", "constants", "invariant_law", "YarnModelBase"]
 
@@ -241,7 +241,7 @@ class YarnModelBase:
         """Approach (mm) of two touching parallel yarns under line load ``f`` (N/mm).
 
         Hertz line contact of two cylinders of radius dk/2 with the transverse modulus and ν
-        (:func:`knitframe.yarnfit.line_contact_approach`).
+        (:func:`knitframe.yarn.fit.line_contact_approach`).
         """
         return line_contact_approach(f, self.radius, self.transverse_modulus, self.nu)
 

@@ -1,7 +1,7 @@
 """The built-in yarn library and :func:`resolve_yarn`, which turns a config value into a Yarn.
 
 Diameters are the paper's measurements (du Pasquier et al. 2026). Moduli are representative
-estimates to be replaced by fits to the user's own tests (``knitframe.yarnfit``); docs/yarns.md
+estimates to be replaced by fits to the user's own tests (``knitframe.yarn.fit``); docs/yarns.md
 gives the source of every number.
 """
 
@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from knitframe import hookimpl
 from knitframe.records import Yarn
-from knitframe.yarns import resolve_yarn  # noqa: F401  (re-exported for plugin users)
+from knitframe.yarn import resolve_yarn  # noqa: F401  (re-exported for plugin users)
 
 __all__ = ["YARNS", "resolve_yarn"]
 

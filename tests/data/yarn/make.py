@@ -3,7 +3,7 @@
     python tests/data/yarn/make.py
 
 Each file is a forward model with known parameters plus Gaussian noise from a fixed seed, in
-the format of docs/yarns.md, so the fits in knitframe.yarnfit can be checked against the truth:
+the format of docs/yarns.md, so the fits in knitframe.yarn.fit can be checked against the truth:
 
 * tension: F = k (u - slack) between slack and failure (k = E_axial π dk²/4 / L0), a short
   toe below the slack, and a drop to 5 % of the peak after failure;
@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from knitframe.yarnfit import line_contact_load
+from knitframe.yarn.fit import line_contact_load
 
 HERE = Path(__file__).resolve().parent
 

@@ -22,7 +22,7 @@ and whatever a point sets for itself, so that a reader sees at once whether anyt
 per fabric::
 
     import csv
-    from knitframe.goals import validation_goals, goals_markdown
+    from knitframe.sweep.goals import validation_goals, goals_markdown
     rows = list(csv.DictReader(open("singal-validation-out/validation.csv")))
     for g in validation_goals(rows):
         print(g.key, g.verdict, g.summary)
@@ -40,7 +40,7 @@ import attrs
 import numpy as np
 
 from knitframe import validators as v
-from knitframe.trends import verdicts_markdown
+from knitframe.sweep.trends import verdicts_markdown
 
 __all__ = [
     "Goal",
@@ -253,7 +253,7 @@ def goals_markdown(
     found: Sequence[Goal], *, title: str = "Validation goals", fixed: Sequence[str] = ()
 ) -> str:
     """The goals as Markdown: how many are met, a verdict line per goal, then each goal's table and
-    notes (:func:`knitframe.trends.verdicts_markdown`), and the lines of ``fixed``
+    notes (:func:`knitframe.sweep.trends.verdicts_markdown`), and the lines of ``fixed``
     (:func:`held_fixed`) under "What was held fixed"."""
     met = sum(g.verdict == MET for g in found)
     text = verdicts_markdown(found, title=title, noun="goal", lead=[f"{met} of {len(found)} goals met."])

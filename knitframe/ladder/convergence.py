@@ -197,7 +197,7 @@ def convergence_table(rows: Sequence[Mapping[str, Any]]) -> str:
             "",
             f"Tension (N/mm) on {coarsest}, {middle} and {finest}; the observed order p and the "
             "Richardson estimate of the mesh-converged tension and of the finest mesh's error "
-            "(knitframe.convergence).",
+            "(knitframe.ladder.convergence).",
             "",
             "| direction | strain | coarsest | middle | finest | order p | extrapolated "
             "| error of the finest | GCI | behaviour |",

@@ -16,7 +16,7 @@ is left out of the comparison, and the trend says so. :func:`trends_markdown` wr
 Markdown report (the sweep stage's ``trends.md``)::
 
     import csv
-    from knitframe.trends import trends, trends_markdown
+    from knitframe.sweep.trends import trends, trends_markdown
     rows = list(csv.DictReader(open("sweep-out/sweep.csv")))
     for t in trends(rows):
         print(t.key, t.verdict, t.summary)
@@ -398,7 +398,7 @@ def verdicts_markdown(found: Sequence[Any], *, title: str, noun: str, lead: Sequ
     """Judged claims as Markdown: a verdict line per claim, then each claim's table and notes.
 
     ``found`` holds records with ``claim``, ``verdict``, ``summary``, ``columns``, ``table`` and
-    ``notes`` (:class:`Trend`, :class:`knitframe.goals.Goal`); ``noun`` names them ("trend",
+    ``notes`` (:class:`Trend`, :class:`knitframe.sweep.goals.Goal`); ``noun`` names them ("trend",
     "goal"); ``lead`` lines go between the title and the table. A note every claim has is written
     once, under "Left out of every <noun>".
     """
