@@ -11,8 +11,27 @@ from typing import Any
 import attrs
 import numpy as np
 
-from knitframe.garment.library.checks import _registry
+from knitframe.garment.library.checks import plugin_registry
 from knitframe.garment.library.record import FabricLibrary
+
+__all__ = [
+    "DATA_DIR",
+    "BUILTIN_FILE",
+    "BUILTIN_DATA",
+    "BUILTIN_MODEL",
+    "BUILTIN_FITTER",
+    "BUILTIN_LOOP_LENGTH",
+    "BUILTIN_YARNS",
+    "BUILTIN_PATTERNS",
+    "builtin_library",
+    "course_limits",
+    "SCATTER_POINTS",
+    "SCATTER_TOE",
+    "tension_scatter",
+    "course_scatter",
+    "with_builtin_scatter",
+    "build_builtin",
+]
 
 #: package data of the built-in library
 DATA_DIR = Path(__file__).parents[1] / "data"
@@ -57,7 +76,7 @@ def _raw_reader() -> Any:
     """The ``singal2024`` reader giving one Response per repeat."""
     from knitframe.config import instantiate
 
-    return instantiate(_registry(), "reader", {"kind": "singal2024", "average": False}, "reader")
+    return instantiate(plugin_registry(), "reader", {"kind": "singal2024", "average": False}, "reader")
 
 
 def course_limits(x_file: Path) -> tuple[float, float, int]:
@@ -139,7 +158,7 @@ def build_builtin(
     from knitframe.fitting import write_fit_outputs
     from knitframe.geometry import MUNDEN_KC, MUNDEN_KW
 
-    reg = _registry()
+    reg = plugin_registry()
     data_dir = Path(data_dir)
     fits = Path(folder) / "fits"
     fits.mkdir(parents=True, exist_ok=True)

@@ -10,19 +10,21 @@ import numpy as np
 
 from knitframe.errors import ConfigError
 from knitframe.garment.library.checks import (
-    _OPTIONAL,
-    _REQUIRED,
     GAUGE_KEYS,
-    _at,
-    _check_entry,
-    _float_dict,
-    _float_or_keep,
-    _pitch_is_estimate,
-    _plain_dict,
-    _shown,
+    OPTIONAL_KEYS,
+    REQUIRED_KEYS,
+    check_entry,
+    float_dict,
+    float_or_keep,
     gauge_pitches,
     gauge_text,
+    is_pitch_estimate,
+    json_path,
+    plain_dict,
+    short_repr,
 )
+
+__all__ = ["FabricEntry"]
 
 
 @attrs.frozen(hash=False)
@@ -40,45 +42,45 @@ class FabricEntry:
     #: yarn name
     yarn: str
     #: machine setting (e.g. 10, 11, 12), if known
-    stitch_length: float | None = attrs.field(converter=_float_or_keep)
+    stitch_length: float | None = attrs.field(converter=float_or_keep)
     #: mm of yarn per stitch, if known
-    arc_length: float | None = attrs.field(converter=_float_or_keep)
+    arc_length: float | None = attrs.field(converter=float_or_keep)
     #: homogenizer plugin name ("hgo", "hgo2m")
     model: str
     #: as in a params.json: angles as "<name>_deg"
-    params: dict[str, float] = attrs.field(converter=_float_dict)
+    params: dict[str, float] = attrs.field(converter=float_dict)
     #: relaxed stitch width along the course, mm per wale column
-    course_pitch: float = attrs.field(converter=_float_or_keep)
+    course_pitch: float = attrs.field(converter=float_or_keep)
     #: relaxed stitch height along the wale, mm per course
-    wale_pitch: float = attrs.field(converter=_float_or_keep)
+    wale_pitch: float = attrs.field(converter=float_or_keep)
     #: N/mm: the largest course tension the fabric may carry
-    max_tension: float = attrs.field(converter=_float_or_keep)
+    max_tension: float = attrs.field(converter=float_or_keep)
     #: largest course stretch λ1, if known
-    max_stretch: float | None = attrs.field(default=None, converter=_float_or_keep)
+    max_stretch: float | None = attrs.field(default=None, converter=float_or_keep)
     #: where the model and the limits came from
     source: str = ""
     #: where the pitches came from
     pitch_source: str = ""
     #: the homogenizer's options
-    model_options: dict[str, Any] = attrs.field(factory=dict, converter=_plain_dict)
+    model_options: dict[str, Any] = attrs.field(factory=dict, converter=plain_dict)
     #: how it was fitted (nrmse, fitter, ...)
-    fit: dict[str, Any] = attrs.field(factory=dict, converter=_plain_dict)
+    fit: dict[str, Any] = attrs.field(factory=dict, converter=plain_dict)
     #: scatter of the course tests' repeats, if known: the median over stretch of the repeats'
     #: relative half-spread of course tension, max_k T_k − min_k T_k over 2 mean_k T_k (see
     #: :func:`knitframe.garment.library.builtin.tension_scatter`); a fraction (0.09 = ±9 %)
-    tension_scatter: float | None = attrs.field(default=None, converter=_float_or_keep)
+    tension_scatter: float | None = attrs.field(default=None, converter=float_or_keep)
     #: whether the pitches were measured (true) or estimated (false); None: not recorded (see
     #: :attr:`pitch_is_estimate`)
     pitch_measured: bool | None = None
     #: the knitter's gauge the pitches come from, if any: ``{"stitches_per_10cm": s,
     #: "courses_per_10cm": c}`` of a relaxed swatch; then course_pitch = 100/s, wale_pitch = 100/c
-    gauge: dict[str, float] | None = attrs.field(default=None, converter=_float_dict)
+    gauge: dict[str, float] | None = attrs.field(default=None, converter=float_dict)
     _homogenizer: Any = attrs.field(init=False, default=None, eq=False, repr=False)
     _params_array: Any = attrs.field(init=False, default=None, eq=False, repr=False)
 
     def __attrs_post_init__(self) -> None:
         label = self.name if isinstance(self.name, str) and self.name else "?"
-        model, arr = _check_entry(attrs.asdict(self, recurse=False), f"entry '{label}'")
+        model, arr = check_entry(attrs.asdict(self, recurse=False), f"entry '{label}'")
         arr.setflags(write=False)
         object.__setattr__(self, "_homogenizer", model)
         object.__setattr__(self, "_params_array", arr)
@@ -109,7 +111,7 @@ class FabricEntry:
         decides: an estimate unless it says measured, given or gauge and nothing of an estimate
         ("estimat", "Munden", "not measured"); so the built-in library's Munden pitches are estimates.
         """
-        return _pitch_is_estimate(self.pitch_measured, self.gauge, self.pitch_source)
+        return is_pitch_estimate(self.pitch_measured, self.gauge, self.pitch_source)
 
     def with_gauge(
         self, stitches_per_10cm: float, courses_per_10cm: float, *, path: str | None = None
@@ -186,17 +188,17 @@ class FabricEntry:
     def from_json(cls, data: Any, path: str = "entry", *, source: str | None = None) -> FabricEntry:
         """Check an entry as written in library.json (errors name ``path``) and build it."""
         if not isinstance(data, Mapping):
-            raise ConfigError(path, f"expected a table (JSON object), got {_shown(data)}", source=source)
-        for key in _REQUIRED:
+            raise ConfigError(path, f"expected a table (JSON object), got {short_repr(data)}", source=source)
+        for key in REQUIRED_KEYS:
             if key not in data:
-                raise ConfigError(_at(path, key), "required key is missing", source=source)
-        unknown = sorted(set(data) - set(_REQUIRED) - set(_OPTIONAL))
+                raise ConfigError(json_path(path, key), "required key is missing", source=source)
+        unknown = sorted(set(data) - set(REQUIRED_KEYS) - set(OPTIONAL_KEYS))
         if unknown:
             raise ConfigError(
-                _at(path, str(unknown[0])),
-                f"unknown key; an entry has {', '.join(_REQUIRED + _OPTIONAL)}",
+                json_path(path, str(unknown[0])),
+                f"unknown key; an entry has {', '.join(REQUIRED_KEYS + OPTIONAL_KEYS)}",
                 source=source,
             )
-        _check_entry(data, path, source)
-        values = {k: data.get(k) for k in _REQUIRED + _OPTIONAL if k in data}
+        check_entry(data, path, source)
+        values = {k: data.get(k) for k in REQUIRED_KEYS + OPTIONAL_KEYS if k in data}
         return cls(**values)

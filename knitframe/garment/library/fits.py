@@ -13,19 +13,21 @@ import numpy as np
 from knitframe.errors import ConfigError, KnitframeWarning
 from knitframe.garment.library.checks import (
     GAUGE_KEYS,
-    _check_entry,
-    _check_pattern,
-    _gauge_pair,
-    _homogenizer,
-    _is_number,
-    _number,
-    _registry,
-    _shown,
+    build_homogenizer,
+    check_entry,
+    check_number,
+    check_pattern,
+    gauge_pair,
     gauge_pitches,
     gauge_text,
+    is_number,
+    plugin_registry,
+    short_repr,
 )
 from knitframe.garment.library.entry import FabricEntry
-from knitframe.garment.library.reading import _default_name, _metadata, _read_json
+from knitframe.garment.library.reading import default_name, params_metadata, read_json
+
+__all__ = ["fit_entries"]
 
 #: the keys of a params.json copied into an entry's ``fit``
 _FIT_KEYS = (
@@ -55,7 +57,7 @@ def _per_file(value: Any, n: int, option: str) -> list[Any]:
         raise ConfigError(
             option, f"got {len(value)} values for {n} params files; give one per file or one for all"
         )
-    raise ConfigError(option, f"expected a value or a list of values, got {_shown(value)}")
+    raise ConfigError(option, f"expected a value or a list of values, got {short_repr(value)}")
 
 
 def _loop_length(
@@ -70,7 +72,7 @@ def _loop_length(
     from knitframe.geometry import STITCH_LENGTHS
 
     table = (
-        getattr(instantiate(_registry(), "pattern", pattern, "pattern"), "stitch_lengths", None)
+        getattr(instantiate(plugin_registry(), "pattern", pattern, "pattern"), "stitch_lengths", None)
         or STITCH_LENGTHS
     )
     for key, mm in table.items():
@@ -87,7 +89,7 @@ def _is_pair(value: Any) -> bool:
         isinstance(value, Sequence)
         and not isinstance(value, str)
         and len(value) == 2
-        and all(_is_number(v) for v in value)
+        and all(is_number(v) for v in value)
     )
 
 
@@ -101,7 +103,7 @@ def _gauge_pitches(
         raise ConfigError(
             "gauge", f"give a gauge or the pitches, not both ({given} is given too)", source=src
         )
-    gauge = _gauge_pair(gauge, "gauge", src)
+    gauge = gauge_pair(gauge, "gauge", src)
     cp, wp = gauge_pitches(*gauge, "gauge", src)
     values["gauge"] = dict(zip(GAUGE_KEYS, map(float, gauge)))
     return cp, wp, gauge_text(values["gauge"])
@@ -139,33 +141,33 @@ def _pitches(values: Mapping[str, Any], cp: Any, wp: Any, src: str) -> tuple[Any
 def _fabric_metadata(data: Mapping[str, Any], p: Path, i: int, opts: dict[str, list[Any]]) -> dict[str, Any]:
     """Name, pattern, yarn, stitch and arc length of file ``i``: its metadata, else the options.
 
-    Both given and different is an error; the name defaults to :func:`_default_name`.
+    Both given and different is an error; the name defaults to :func:`default_name`.
     """
     src = str(p)
     values: dict[str, Any] = {}
 
     def pick(key: str, meta_key: str | None = None) -> Any:
-        meta = _metadata(data, meta_key or key)
+        meta = params_metadata(data, meta_key or key)
         given = opts[key][i]
         if meta is not None and given is not None and meta != given:
             raise ConfigError(
                 key,
-                f"the params file says {_shown(meta)}, the option says {_shown(given)}",
+                f"the params file says {short_repr(meta)}, the option says {short_repr(given)}",
                 source=src,
             )
         return meta if meta is not None else given
 
     values["name"] = pick("names", "name")
     if values["name"] is None:
-        values["name"] = _default_name(p)
+        values["name"] = default_name(p)
     for key in ("pattern", "yarn"):
         values[key] = pick(key)
         if values[key] is None:
             raise ConfigError(key, f"not in the params file's metadata; give the {key}", source=src)
-    _check_pattern(values["pattern"], "pattern", src)
+    check_pattern(values["pattern"], "pattern", src)
     for key in ("stitch_length", "arc_length"):
         values[key] = pick(key)
-        _number(values[key], key, optional=True, source=src)
+        check_number(values[key], key, optional=True, source=src)
     return values
 
 
@@ -175,7 +177,7 @@ def _default_source(data: Mapping[str, Any], fit: Mapping[str, Any], p: Path) ->
     return (
         f"fit of {', '.join(map(str, fit.get('responses', []))) or 'data'}: {data['model']} by "
         f"{fit.get('fitter', '?')}"
-        + (f", NRMSE {100 * nrmse:.2f} %" if _is_number(nrmse) else "")
+        + (f", NRMSE {100 * nrmse:.2f} %" if is_number(nrmse) else "")
         + f" ({p.name})"
     )
 
@@ -185,12 +187,12 @@ def _fit_entry(p: Path, i: int, opts: dict[str, list[Any]]) -> FabricEntry:
     from knitframe.fitting import params_to_json
 
     src = str(p)
-    data = _read_json(p, "params file")
+    data = read_json(p, "params file")
     if not isinstance(data, Mapping):
-        raise ConfigError("", f"expected a params.json object, got {_shown(data)}", source=src)
+        raise ConfigError("", f"expected a params.json object, got {short_repr(data)}", source=src)
     if "model" not in data:
         raise ConfigError("model", "required key is missing (not a params.json of a fit)", source=src)
-    model = _homogenizer(data["model"], data.get("options") or {}, "", src)
+    model = build_homogenizer(data["model"], data.get("options") or {}, "", src)
     keys = params_to_json(model.param_names, [0.0] * len(model.param_names))
     values: dict[str, Any] = {
         "model": data["model"],
@@ -220,9 +222,9 @@ def _fit_entry(p: Path, i: int, opts: dict[str, list[Any]]) -> FabricEntry:
     values["fit"] = fit
     values["source"] = opts["source"][i] if opts["source"][i] is not None else _default_source(data, fit, p)
     values["pitch_source"] = opts["pitch_source"][i] if opts["pitch_source"][i] is not None else basis
-    _check_entry(values, "", src)
+    check_entry(values, "", src)
     if fit.get("at_bound"):
-        # attributed to the caller of FabricLibrary.from_fits (this, _fit_entries, from_fits, caller)
+        # attributed to the caller of FabricLibrary.from_fits (this, fit_entries, from_fits, caller)
         warnings.warn(
             f"{src}: fitted {', '.join(map(str, fit['at_bound']))} at a bound of the model's box: "
             "the data do not determine it",
@@ -232,7 +234,7 @@ def _fit_entry(p: Path, i: int, opts: dict[str, list[Any]]) -> FabricEntry:
     return FabricEntry(**values)
 
 
-def _fit_entries(params_files: Sequence[str | Path], **options: Any) -> list[FabricEntry]:
+def fit_entries(params_files: Sequence[str | Path], **options: Any) -> list[FabricEntry]:
     """One entry per params file, the keyword ``options`` of :meth:`FabricLibrary.from_fits` spread
     over the files (:func:`_per_file`); two entries of one name are refused."""
     files = [Path(p) for p in params_files]

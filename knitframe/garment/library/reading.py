@@ -9,8 +9,11 @@ from typing import Any
 
 from knitframe.errors import ConfigError
 
+__all__ = ["read_json", "params_metadata", "default_name"]
 
-def _read_json(path: Path, what: str) -> Any:
+
+def read_json(path: Path, what: str) -> Any:
+    """The JSON of the file at ``path`` (``what`` names it in errors), else a one-line ConfigError."""
     if not path.exists():
         raise ConfigError("", f"{what} not found: {path}")
     if not path.is_file():
@@ -29,7 +32,7 @@ def _read_json(path: Path, what: str) -> Any:
         raise ConfigError("", "not valid JSON: nested too deeply", source=str(path)) from None
 
 
-def _metadata(data: Mapping[str, Any], key: str) -> Any:
+def params_metadata(data: Mapping[str, Any], key: str) -> Any:
     """A fabric metadata value of a params.json: in its ``fabric`` table, else at the top level."""
     fabric = data.get("fabric")
     if isinstance(fabric, Mapping) and fabric.get(key) is not None:
@@ -37,7 +40,8 @@ def _metadata(data: Mapping[str, Any], key: str) -> Any:
     return data.get(key)
 
 
-def _default_name(path: Path) -> str:
+def default_name(path: Path) -> str:
+    """An entry's name from its params file: a params.json's folder, else the stem less ``-params``."""
     if path.name == "params.json" and path.parent.name:
         return path.parent.resolve().name
     stem = path.stem

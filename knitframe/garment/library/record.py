@@ -10,10 +10,12 @@ from typing import Any
 import attrs
 
 from knitframe.errors import ConfigError
-from knitframe.garment.library.checks import _at, _gauge_pair, _is_number, _shown, _string
+from knitframe.garment.library.checks import check_string, gauge_pair, is_number, json_path, short_repr
 from knitframe.garment.library.entry import FabricEntry
-from knitframe.garment.library.fits import _fit_entries
-from knitframe.garment.library.reading import _read_json
+from knitframe.garment.library.fits import fit_entries
+from knitframe.garment.library.reading import read_json
+
+__all__ = ["LIBRARY_FORMAT", "FabricLibrary"]
 
 #: version written as ``knitframe_library`` and the only one :meth:`FabricLibrary.from_json` reads
 LIBRARY_FORMAT = 1
@@ -28,14 +30,14 @@ class FabricLibrary:
     source: str = ""
 
     def __attrs_post_init__(self) -> None:
-        _string(self.name, "library.name")
-        _string(self.source, "library.source", empty=True)
+        check_string(self.name, "library.name")
+        check_string(self.source, "library.source", empty=True)
         if not self.entries:
             raise ConfigError("library.entries", "the library has no entries")
         seen: dict[str, int] = {}
         for i, e in enumerate(self.entries):
             if not isinstance(e, FabricEntry):
-                raise ConfigError(f"library.entries[{i}]", f"expected a FabricEntry, got {_shown(e)}")
+                raise ConfigError(f"library.entries[{i}]", f"expected a FabricEntry, got {short_repr(e)}")
             if e.name in seen:
                 raise ConfigError(
                     f"library.entries[{i}].name", f"duplicate name '{e.name}' (also entries[{seen[e.name]}])"
@@ -72,18 +74,19 @@ class FabricLibrary:
         """
         if not isinstance(gauges, Mapping):
             raise ConfigError(
-                field, f"expected a table of fabric name = [stitches, courses], got {_shown(gauges)}"
+                field, f"expected a table of fabric name = [stitches, courses], got {short_repr(gauges)}"
             )
         given = dict(gauges)
         for name, value in given.items():
-            where = _at(field, str(name))
+            where = json_path(field, str(name))
             if name not in self.names:
                 raise ConfigError(
                     where, f"no fabric '{name}' in library '{self.name}'; have {', '.join(self.names)}"
                 )
-            given[name] = _gauge_pair(value, where)
+            given[name] = gauge_pair(value, where)
         entries = [
-            e.with_gauge(*given[e.name], path=_at(field, e.name)) if e.name in given else e for e in self
+            e.with_gauge(*given[e.name], path=json_path(field, e.name)) if e.name in given else e
+            for e in self
         ]
         return attrs.evolve(self, entries=tuple(entries))
 
@@ -101,45 +104,52 @@ class FabricLibrary:
         """Check library.json data (one-line ConfigError naming the JSON path of the first bad field) and
         build it."""
         if not isinstance(data, Mapping):
-            raise ConfigError(path, f"expected a JSON object, got {_shown(data)}", source=source)
+            raise ConfigError(path, f"expected a JSON object, got {short_repr(data)}", source=source)
         if "knitframe_library" not in data:
             raise ConfigError(
-                _at(path, "knitframe_library"),
+                json_path(path, "knitframe_library"),
                 "required key is missing (not a knitframe library file)",
                 source=source,
             )
         version = data["knitframe_library"]
-        if not _is_number(version) or version != LIBRARY_FORMAT:
+        if not is_number(version) or version != LIBRARY_FORMAT:
             raise ConfigError(
-                _at(path, "knitframe_library"),
-                f"unsupported library format {_shown(version)}; this knitframe reads format {LIBRARY_FORMAT}",
+                json_path(path, "knitframe_library"),
+                f"unsupported library format {short_repr(version)}; "
+                f"this knitframe reads format {LIBRARY_FORMAT}",
                 source=source,
             )
         keys = ("knitframe_library", "name", "source", "entries")
         unknown = sorted(set(data) - set(keys))
         if unknown:
             raise ConfigError(
-                _at(path, str(unknown[0])), f"unknown key; a library has {', '.join(keys)}", source=source
+                json_path(path, str(unknown[0])),
+                f"unknown key; a library has {', '.join(keys)}",
+                source=source,
             )
         for key in ("name", "entries"):
             if key not in data:
-                raise ConfigError(_at(path, key), "required key is missing", source=source)
-        name = _string(data["name"], _at(path, "name"), source=source)
-        lib_source = _string(data.get("source", ""), _at(path, "source"), empty=True, source=source)
+                raise ConfigError(json_path(path, key), "required key is missing", source=source)
+        name = check_string(data["name"], json_path(path, "name"), source=source)
+        lib_source = check_string(
+            data.get("source", ""), json_path(path, "source"), empty=True, source=source
+        )
         raw = data["entries"]
         if not isinstance(raw, list):
             raise ConfigError(
-                _at(path, "entries"), f"expected a list of entries, got {_shown(raw)}", source=source
+                json_path(path, "entries"),
+                f"expected a list of entries, got {short_repr(raw)}",
+                source=source,
             )
         if not raw:
-            raise ConfigError(_at(path, "entries"), "the library has no entries", source=source)
+            raise ConfigError(json_path(path, "entries"), "the library has no entries", source=source)
         entries, seen = [], {}
         for i, item in enumerate(raw):
-            where = f"{_at(path, 'entries')}[{i}]"
+            where = f"{json_path(path, 'entries')}[{i}]"
             entry = FabricEntry.from_json(item, where, source=source)
             if entry.name in seen:
                 raise ConfigError(
-                    _at(where, "name"),
+                    json_path(where, "name"),
                     f"duplicate name '{entry.name}' (also entries[{seen[entry.name]}])",
                     source=source,
                 )
@@ -156,7 +166,7 @@ class FabricLibrary:
     def load(cls, path: str | Path) -> FabricLibrary:
         """Read and check a library.json; errors name the file and the JSON path."""
         p = Path(path)
-        return cls.from_json(_read_json(p, "library file"), "library", source=str(p))
+        return cls.from_json(read_json(p, "library file"), "library", source=str(p))
 
     @classmethod
     def from_fits(
@@ -199,7 +209,7 @@ class FabricLibrary:
         ``max_tension`` is required; ``max_stretch`` is optional. ``source`` defaults to the fit's
         model, fitter, data labels and NRMSE. A fit with a parameter at a bound warns.
         """
-        entries = _fit_entries(
+        entries = fit_entries(
             params_files,
             names=names,
             course_pitch=course_pitch,

@@ -6,6 +6,14 @@ import numpy as np
 
 from knitframe.errors import DataError
 
+__all__ = [
+    "MIN_LENGTH_OVER_DIAMETER",
+    "MIN_SECTION_ASPECT",
+    "MAX_CIRCUMFERENCE_RATIO",
+    "check_sections",
+    "check_tubular",
+]
+
 #: tubularity: the scan's length along its axis must be at least this many mean section diameters
 MIN_LENGTH_OVER_DIAMETER = 1.5
 #: tubularity: the thinnest/widest second-moment ratio of every section must be at least this
@@ -14,11 +22,11 @@ MIN_SECTION_ASPECT = 0.2
 MAX_CIRCUMFERENCE_RATIO = 5.0
 
 
-def _check_sections(label: str, found: list[tuple[list[np.ndarray], int]], positions: np.ndarray) -> None:
+def check_sections(label: str, found: list[tuple[list[np.ndarray], int]], positions: np.ndarray) -> None:
     """Refuse a scan unless every station's section is one closed loop (names the first bad station).
 
     ``found`` holds, per station, the closed loops and the count of open pieces from
-    :func:`~knitframe.garment.limb.slicing._closed_loops`; ``positions`` (n_stations,) mm.
+    :func:`~knitframe.garment.limb.slicing.closed_loops`; ``positions`` (n_stations,) mm.
     """
     if not any(loops for loops, _ in found):
         raise DataError(
@@ -41,7 +49,7 @@ def _check_sections(label: str, found: list[tuple[list[np.ndarray], int]], posit
         raise DataError(label, problems[0] + more)
 
 
-def _check_tubular(
+def check_tubular(
     label: str, length: float, perimeter: np.ndarray, xy: np.ndarray, positions: np.ndarray
 ) -> None:
     """Refuse a scan that is short for its width, has a flat section, or whose sections vary too much.

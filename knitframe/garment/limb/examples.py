@@ -12,6 +12,8 @@ import numpy as np
 from knitframe.errors import ConfigError
 from knitframe.garment.limb.record import Limb
 
+__all__ = ["EXAMPLE_ARM_MEASUREMENTS", "example_arm", "load_limb"]
+
 #: (distance from the wrist mm, circumference mm, minor/major ratio) of the built-in arm
 EXAMPLE_ARM_MEASUREMENTS = (
     (0.0, 160.0, 0.70),  # wrist

@@ -12,10 +12,13 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from knitframe.errors import ConfigError
-from knitframe.garment.limb.sections import _ellipse_points, _perpendicular, ellipse_semi_axes
+from knitframe.garment.limb.sections import ellipse_points, ellipse_semi_axes, perpendicular
+
+__all__ = ["check_counts", "measured_sections"]
 
 
-def _check_counts(n_stations: int, n_around: int) -> None:
+def check_counts(n_stations: int, n_around: int) -> None:
+    """Refuse fewer than 2 stations or 8 points around (a ConfigError naming the option)."""
     if isinstance(n_stations, bool) or not isinstance(n_stations, (int, np.integer)) or n_stations < 2:
         raise ConfigError("n_stations", f"must be an integer >= 2, got {n_stations!r}")
     if isinstance(n_around, bool) or not isinstance(n_around, (int, np.integer)) or n_around < 8:
@@ -83,7 +86,7 @@ def _stations(
     return grid, c_st, k_st
 
 
-def _measured_sections(
+def measured_sections(
     positions_mm: Sequence[float],
     circumferences_mm: Sequence[float],
     ellipticity: float | Sequence[float],
@@ -97,7 +100,7 @@ def _measured_sections(
     """
     pos = np.asarray(positions_mm, dtype=np.float64).reshape(-1)
     circ = np.asarray(circumferences_mm, dtype=np.float64).reshape(-1)
-    _check_counts(n_stations, n_around)
+    check_counts(n_stations, n_around)
     _check_measurements(pos, circ)
     ell = np.asarray(ellipticity, dtype=np.float64).reshape(-1)
     _check_ellipticity(ell, pos, n_stations)
@@ -106,11 +109,11 @@ def _measured_sections(
     a, b = ellipse_semi_axes(c_st, k_st)
     z = grid - pos[0]
     d = np.array([0.0, 0.0, 1.0])
-    f1 = _perpendicular(d)  # +x
+    f1 = perpendicular(d)  # +x
     f2 = np.cross(f1, d)  # -y: loops counter-clockwise seen along +z
     sections = np.empty((n_stations, n_around, 3))
     for i in range(n_stations):  # one vectorised ellipse per station
-        xy = _ellipse_points(float(a[i]), float(b[i]), n_around)
+        xy = ellipse_points(float(a[i]), float(b[i]), n_around)
         sections[i] = z[i] * d + np.outer(xy[:, 0], f1) + np.outer(xy[:, 1], f2)
     notes = []
     if pos[0] != 0.0:

@@ -9,13 +9,15 @@ import numpy as np
 
 from knitframe.errors import DataError
 
+__all__ = ["read_triangles"]
+
 
 def _one_line(exc: BaseException) -> str:
     text = str(exc).strip().splitlines()
     return (text[0][:160] if text else "") or type(exc).__name__
 
 
-def _read_triangles(path: Path) -> tuple[np.ndarray, np.ndarray]:
+def read_triangles(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (n, 3) float64 and triangles (k, 3) int64 of a mesh file, or a one-line DataError."""
     label = str(path)
     if not path.exists():

@@ -11,8 +11,10 @@ import attrs
 import numpy as np
 
 from knitframe.errors import GeometryError
-from knitframe.garment.limb.measured import _measured_sections
-from knitframe.garment.limb.sections import _UPSAMPLE, _perpendicular, _trig_eval, loop_curvature_radius
+from knitframe.garment.limb.measured import measured_sections
+from knitframe.garment.limb.sections import UPSAMPLE, loop_curvature_radius, perpendicular, trig_eval
+
+__all__ = ["Limb"]
 
 
 def _frozen_array(value: Any) -> np.ndarray:
@@ -104,7 +106,7 @@ class Limb:
         this one is the world axis least aligned with d, made orthogonal to it.
         """
         d = self.axis_direction
-        f1 = _perpendicular(d)
+        f1 = perpendicular(d)
         return f1, np.cross(f1, d)
 
     @functools.cached_property
@@ -122,8 +124,8 @@ class Limb:
     @functools.cached_property
     def _fine(self) -> tuple[np.ndarray, np.ndarray]:
         """The trigonometric interpolant w and w' on 8·n_around equal steps of θ."""
-        m = _UPSAMPLE * self.n_around
-        return _trig_eval(self._coeffs, m, 0), _trig_eval(self._coeffs, m, 1)
+        m = UPSAMPLE * self.n_around
+        return trig_eval(self._coeffs, m, 0), trig_eval(self._coeffs, m, 1)
 
     def _area_raw(self) -> np.ndarray:
         w, dw = self._fine
@@ -286,7 +288,7 @@ class Limb:
         reproduced exactly at a station (two measurements closer than the spacing are refused).
         Station 0 is the first measurement; ``positions`` count from it.
         """
-        sections, d, notes = _measured_sections(
+        sections, d, notes = measured_sections(
             positions_mm, circumferences_mm, ellipticity, n_stations, n_around
         )
         return cls(

@@ -9,18 +9,20 @@ from pathlib import Path
 import numpy as np
 
 from knitframe.errors import ConfigError, DataError, KnitframeWarning
-from knitframe.garment.limb.checks import _check_sections, _check_tubular
-from knitframe.garment.limb.measured import _check_counts
-from knitframe.garment.limb.reading import _read_triangles
-from knitframe.garment.limb.sections import _perpendicular
+from knitframe.garment.limb.checks import check_sections, check_tubular
+from knitframe.garment.limb.measured import check_counts
+from knitframe.garment.limb.reading import read_triangles
+from knitframe.garment.limb.sections import perpendicular
 from knitframe.garment.limb.shells import (
-    _canonical_sign,
-    _choose_shell,
-    _Debris,
-    _submesh,
-    _surface_moments,
+    Debris,
+    canonical_sign,
+    choose_shell,
+    submesh,
+    surface_moments,
 )
-from knitframe.garment.limb.slicing import _closed_loops, _resample, _Slicer
+from knitframe.garment.limb.slicing import Slicer, closed_loops, resample
+
+__all__ = ["METRES_BELOW", "ROUND_SPREAD", "read_scan"]
 
 #: a scan shorter than this along its axis (in file units) is taken to be in metres (units="auto")
 METRES_BELOW = 3.0
@@ -46,12 +48,12 @@ def _check_options(axis, trim, units) -> np.ndarray | None:
     return given_axis
 
 
-def _limb_shell(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, list[str], _Debris | None]:
+def _limb_shell(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, list[str], Debris | None]:
     """Vertices (n, 3) and faces (k, 3) of the limb's shell, merged and cleaned, the notices, and the
     shells dropped as debris (their notice needs the units)."""
     import trimesh
 
-    vertices, faces = _read_triangles(path)
+    vertices, faces = read_triangles(path)
     tri = vertices[faces]
     nondegenerate = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1) > 0.0
     mesh = trimesh.Trimesh(vertices, faces[nondegenerate], process=False)
@@ -61,8 +63,8 @@ def _limb_shell(path: Path, label: str) -> tuple[np.ndarray, np.ndarray, list[st
         raise DataError(label, "no triangles with a non-zero area")
     vertices = np.array(mesh.vertices, dtype=np.float64)
     faces = np.array(mesh.faces, dtype=np.int64)
-    faces, notes, debris = _choose_shell(vertices, faces, label)
-    shell = _submesh(vertices, faces)
+    faces, notes, debris = choose_shell(vertices, faces, label)
+    shell = submesh(vertices, faces)
     return np.array(shell.vertices, dtype=np.float64), np.array(shell.faces, dtype=np.int64), notes, debris
 
 
@@ -71,14 +73,14 @@ def _axis_and_reference(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Axis direction d and reference direction e1 ⊥ d (see :meth:`Limb.from_scan` steps 3 and 6)."""
     if given_axis is None:
-        d = _canonical_sign(np.linalg.eigh(cov)[1][:, 2])
+        d = canonical_sign(np.linalg.eigh(cov)[1][:, 2])
     else:
         d = given_axis
     if reference is None:
         proj = np.eye(3) - np.outer(d, d)
         lam, vec = np.linalg.eigh(proj @ cov @ proj)
         # a nearly round limb has no widest direction: take a fixed world direction instead
-        e1 = vec[:, 2] if lam[2] - lam[1] > ROUND_SPREAD * lam[2] else _perpendicular(d)
+        e1 = vec[:, 2] if lam[2] - lam[1] > ROUND_SPREAD * lam[2] else perpendicular(d)
     else:
         e1 = np.asarray(reference, dtype=np.float64).reshape(-1)
         if e1.size != 3 or not np.all(np.isfinite(e1)) or not np.any(e1):
@@ -87,7 +89,7 @@ def _axis_and_reference(
     e1 = e1 - (e1 @ d) * d
     if np.linalg.norm(e1) < 1e-3:  # within 0.06° of the axis: no azimuth
         raise ConfigError("reference", "must not be parallel to the axis")
-    return d, _canonical_sign(e1 / np.linalg.norm(e1))
+    return d, canonical_sign(e1 / np.linalg.norm(e1))
 
 
 def _scale_to_mm(length: float, units: str, label: str, notes: list[str]) -> float:
@@ -109,7 +111,7 @@ def _scale_to_mm(length: float, units: str, label: str, notes: list[str]) -> flo
     return scale
 
 
-def _cut(slicer: _Slicer, center, f1, f2, length, trim, n_stations) -> tuple[np.ndarray, list[np.ndarray]]:
+def _cut(slicer: Slicer, center, f1, f2, length, trim, n_stations) -> tuple[np.ndarray, list[np.ndarray]]:
     """Station heights z (n_stations,) and each station's section segments (k, 2, 2) in (X, Y)."""
     zmin, zmax = float(slicer.hsorted[0]), float(slicer.hsorted[-1])
     inset = max(float(trim) * length, 1e-6 * length)
@@ -125,11 +127,11 @@ def read_scan(path: Path, *, axis, n_stations, n_around, trim, units, name, refe
     """The fields of the :class:`~knitframe.garment.limb.Limb` a scan gives (see :meth:`Limb.from_scan`):
     name, sections (mm), axis origin and direction, source and notices."""
     label = str(path)
-    _check_counts(n_stations, n_around)
+    check_counts(n_stations, n_around)
     given_axis = _check_options(axis, trim, units)
     vertices, faces, notes, debris = _limb_shell(path, label)
 
-    _, center, cov = _surface_moments(vertices, faces)
+    _, center, cov = surface_moments(vertices, faces)
     d, e1 = _axis_and_reference(cov, given_axis, reference)
 
     heights = (vertices - center) @ d
@@ -141,7 +143,7 @@ def read_scan(path: Path, *, axis, n_stations, n_around, trim, units, name, refe
     center = center * scale
     length *= scale
 
-    slicer = _Slicer(_submesh(vertices, faces), center, d)
+    slicer = Slicer(submesh(vertices, faces), center, d)
     f1 = e1
     f2 = np.cross(f1, d)
     tol = 1e-8 * float(np.ptp(vertices, axis=0).max())
@@ -155,13 +157,13 @@ def read_scan(path: Path, *, axis, n_stations, n_around, trim, units, name, refe
             raw = [s * np.array([1.0, -1.0]) for s in raw[::-1]]
     positions = z - z[0]
 
-    found = [_closed_loops(s, tol) for s in raw]
-    _check_sections(label, found, positions)
+    found = [closed_loops(s, tol) for s in raw]
+    check_sections(label, found, positions)
     xy = np.empty((n_stations, n_around, 2))
     perimeter = np.empty(n_stations)
     for i, (loops, _) in enumerate(found):
-        xy[i], perimeter[i] = _resample(loops[0], n_around)
-    _check_tubular(label, length, perimeter, xy, positions)
+        xy[i], perimeter[i] = resample(loops[0], n_around)
+    check_tubular(label, length, perimeter, xy, positions)
 
     plane = center + np.outer(z, d)
     sections = plane[:, None, :] + xy[..., :1] * f1 + xy[..., 1:] * f2

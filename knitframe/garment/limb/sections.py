@@ -13,15 +13,25 @@ from __future__ import annotations
 import numpy as np
 from scipy import special
 
-_UPSAMPLE = 8
+__all__ = [
+    "UPSAMPLE",
+    "wavenumbers",
+    "trig_eval",
+    "loop_curvature_radius",
+    "ellipse_semi_axes",
+    "ellipse_points",
+    "perpendicular",
+]
+
+UPSAMPLE = 8
 
 
-def _wavenumbers(n: int) -> np.ndarray:
+def wavenumbers(n: int) -> np.ndarray:
     """Integer wavenumbers of an n-point FFT, k = 0, 1, …, -1."""
     return np.rint(np.fft.fftfreq(n) * n).astype(np.int64)
 
 
-def _trig_eval(coeffs: np.ndarray, m: int, order: int = 0) -> np.ndarray:
+def trig_eval(coeffs: np.ndarray, m: int, order: int = 0) -> np.ndarray:
     """Evaluate the ``order``-th θ-derivative of the trigonometric interpolant on m equal steps.
 
     ``coeffs`` (..., n) are c_k = fft(w)/n. For even n the Nyquist coefficient is split evenly
@@ -29,7 +39,7 @@ def _trig_eval(coeffs: np.ndarray, m: int, order: int = 0) -> np.ndarray:
     minimum-oscillation one. ``m`` ≥ n. Returns (..., m) complex.
     """
     n = coeffs.shape[-1]
-    k = _wavenumbers(n)
+    k = wavenumbers(n)
     c = np.array(coeffs, dtype=np.complex128, copy=True)
     padded = np.zeros(coeffs.shape[:-1] + (m,), dtype=np.complex128)
     if n % 2 == 0:
@@ -47,7 +57,7 @@ def _lowpass(n: int, max_harmonic: int) -> np.ndarray:
 
     The Nyquist mode (even n) is always removed: its derivative is not defined by the samples.
     """
-    k = np.abs(_wavenumbers(n)).astype(np.float64)
+    k = np.abs(wavenumbers(n)).astype(np.float64)
     kk = float(max_harmonic)
     sigma = np.where(k <= kk, 1.0, 0.5 * (1.0 + np.cos(np.pi * np.clip((k - kk) / kk, 0.0, 1.0))))
     if n % 2 == 0:
@@ -106,7 +116,7 @@ def loop_curvature_radius(loops_xy: np.ndarray, max_harmonic: int | None = None)
     c = np.fft.fft(w, axis=-1) / n
     if max_harmonic is None:
         cut = _adaptive_cutoff(c)
-        absk = np.abs(_wavenumbers(n))
+        absk = np.abs(wavenumbers(n))
         c = c * (absk <= cut[..., None])
         if n % 2 == 0:
             c[..., n // 2] = 0.0
@@ -115,8 +125,8 @@ def loop_curvature_radius(loops_xy: np.ndarray, max_harmonic: int | None = None)
         if not 1 <= kmax <= n // 2:
             raise ValueError(f"max_harmonic must be in [1, {n // 2}], got {max_harmonic}")
         c = c * _lowpass(n, kmax)
-    d1 = _trig_eval(c, n, 1)
-    d2 = _trig_eval(c, n, 2)
+    d1 = trig_eval(c, n, 1)
+    d2 = trig_eval(c, n, 2)
     speed = np.abs(d1)
     kappa = np.imag(np.conj(d1) * d2) / speed**3
     length = 2.0 * np.pi * speed.mean(axis=-1, keepdims=True)
@@ -138,7 +148,7 @@ def ellipse_semi_axes(circumference: np.ndarray, ratio: np.ndarray) -> tuple[np.
     return a, k * a
 
 
-def _ellipse_points(a: float, b: float, n: int) -> np.ndarray:
+def ellipse_points(a: float, b: float, n: int) -> np.ndarray:
     """n points (n, 2) on the ellipse (a cos t, b sin t), equally spaced by arc length from t = 0.
 
     Arc length s(t) = ∫₀ᵗ √(a² sin²τ + b² cos²τ) dτ = a [E(t + π/2 | m) - E(m)], m = 1 - (b/a)²
@@ -158,7 +168,7 @@ def _ellipse_points(a: float, b: float, n: int) -> np.ndarray:
     return np.column_stack((a * np.cos(t), b * np.sin(t)))
 
 
-def _perpendicular(d: np.ndarray) -> np.ndarray:
+def perpendicular(d: np.ndarray) -> np.ndarray:
     """A unit vector perpendicular to unit d: the world axis least aligned with d, made orthogonal."""
     axis = np.zeros(3)
     axis[int(np.argmin(np.abs(d)))] = 1.0

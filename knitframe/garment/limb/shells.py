@@ -10,8 +10,20 @@ from scipy import sparse
 from scipy.sparse import csgraph
 
 from knitframe.errors import DataError
-from knitframe.garment.limb.sections import _perpendicular
-from knitframe.garment.limb.slicing import _Slicer
+from knitframe.garment.limb.sections import perpendicular
+from knitframe.garment.limb.slicing import Slicer
+
+__all__ = [
+    "FRAGMENT_AREA_FRACTION",
+    "FEW_TRIANGLES",
+    "FEW_TRIANGLES_FRACTION",
+    "SMALL_SIZE_FRACTION",
+    "surface_moments",
+    "canonical_sign",
+    "submesh",
+    "Debris",
+    "choose_shell",
+]
 
 # A disconnected shell tiny next to the limb (the largest shell by area) in any one of three ways is scan
 # debris, dropped with one notice; _debris says why each way is needed.
@@ -25,7 +37,7 @@ FEW_TRIANGLES_FRACTION = 0.005
 SMALL_SIZE_FRACTION = 0.05
 
 
-def _surface_moments(vertices: np.ndarray, faces: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+def surface_moments(vertices: np.ndarray, faces: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
     """Area, area centroid (3,) and covariance (3, 3) of a triangulated surface (exact).
 
     For a triangle (a, b, c) of area A: ∫x dA = A s/3 and ∫xxᵀ dA = A/12 (ssᵀ + aaᵀ + bbᵀ + ccᵀ),
@@ -44,7 +56,7 @@ def _surface_moments(vertices: np.ndarray, faces: np.ndarray) -> tuple[float, np
     return total, centroid + shift, cov
 
 
-def _canonical_sign(v: np.ndarray) -> np.ndarray:
+def canonical_sign(v: np.ndarray) -> np.ndarray:
     """v or -v, whichever has its largest-magnitude component positive."""
     return v if v[int(np.argmax(np.abs(v)))] >= 0.0 else -v
 
@@ -60,7 +72,7 @@ def _components(faces: np.ndarray, n_vertices: int) -> tuple[int, np.ndarray]:
     return len(used), face_label.reshape(-1)
 
 
-def _submesh(vertices: np.ndarray, faces: np.ndarray) -> Any:
+def submesh(vertices: np.ndarray, faces: np.ndarray) -> Any:
     """A trimesh.Trimesh of only the vertices these faces use."""
     import trimesh
 
@@ -69,7 +81,7 @@ def _submesh(vertices: np.ndarray, faces: np.ndarray) -> Any:
 
 
 @attrs.frozen
-class _Debris:
+class Debris:
     """Shells dropped as scan debris: how many, their fewest and most triangles, the largest share of the
     limb's area among them and the largest size across (in the scan's units)."""
 
@@ -142,14 +154,14 @@ def _debris(areas: np.ndarray, triangles: np.ndarray, sizes: np.ndarray, main: i
     return tiny
 
 
-def _choose_shell(
+def choose_shell(
     vertices: np.ndarray, faces: np.ndarray, label: str
-) -> tuple[np.ndarray, list[str], _Debris | None]:
+) -> tuple[np.ndarray, list[str], Debris | None]:
     """Faces of the limb's shell, notices, and the shells dropped as debris (None if none).
 
     See :meth:`Limb.from_scan` step 2: the limb is the largest shell by area; :func:`_debris` drops the
     tiny ones; any other must lie inside it (bones, ignored with a notice), else the scan is refused.
-    The debris notice is :meth:`_Debris.note`, given once the scan's units are known.
+    The debris notice is :meth:`Debris.note`, given once the scan's units are known.
     """
     count, face_label = _components(faces, len(vertices))
     if count == 1:
@@ -168,11 +180,11 @@ def _choose_shell(
     main_faces = faces[face_label == main]
     notes = []
     if others:
-        outer = _submesh(vertices, main_faces)
-        _, center, cov = _surface_moments(vertices, main_faces)
+        outer = submesh(vertices, main_faces)
+        _, center, cov = surface_moments(vertices, main_faces)
         d = np.linalg.eigh(cov)[1][:, 2]
-        slicer = _Slicer(outer, center, d)
-        f1 = _perpendicular(d)
+        slicer = Slicer(outer, center, d)
+        f1 = perpendicular(d)
         f2 = np.cross(f1, d)
         outside = 0
         for s in others:
@@ -194,7 +206,7 @@ def _choose_shell(
         )
     dropped = None
     if debris.any():
-        dropped = _Debris(
+        dropped = Debris(
             count=int(debris.sum()),
             triangles=(int(triangles[debris].min()), int(triangles[debris].max())),
             area_fraction=float(areas[debris].max() / areas[main]),
@@ -203,7 +215,7 @@ def _choose_shell(
     return main_faces, notes, dropped
 
 
-def _inside_section(slicer: _Slicer, f1: np.ndarray, f2: np.ndarray, p: np.ndarray) -> bool:
+def _inside_section(slicer: Slicer, f1: np.ndarray, f2: np.ndarray, p: np.ndarray) -> bool:
     """Whether point p lies inside the shell's cross-section through it (even–odd ray test)."""
     z = float((p - slicer.origin) @ slicer.d)
     if not slicer.hsorted[0] < z < slicer.hsorted[-1]:

@@ -11,10 +11,12 @@ from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
 from knitframe.errors import GeometryError
-from knitframe.garment.limb.sections import _UPSAMPLE, _trig_eval, _wavenumbers
+from knitframe.garment.limb.sections import UPSAMPLE, trig_eval, wavenumbers
+
+__all__ = ["Slicer", "closed_loops", "resample"]
 
 
-class _Slicer:
+class Slicer:
     """Cuts one triangulated shell by planes normal to a direction, with trimesh's mesh_plane."""
 
     def __init__(self, mesh: Any, origin: np.ndarray, direction: np.ndarray):
@@ -59,7 +61,7 @@ class _Slicer:
         return np.asarray(lines, dtype=np.float64).reshape(-1, 2, 3)
 
 
-def _closed_loops(seg: np.ndarray, tol: float) -> tuple[list[np.ndarray], int]:
+def closed_loops(seg: np.ndarray, tol: float) -> tuple[list[np.ndarray], int]:
     """Join 2D segments (k, 2, 2) into loops: (closed loops as ordered (K, 2) arrays, open pieces).
 
     Endpoints are merged on a grid of size ``tol`` and then, for endpoints left dangling (a
@@ -162,7 +164,7 @@ def _polygon_fourier(loop: np.ndarray, n: int) -> tuple[np.ndarray, float]:
     return coeffs, perimeter
 
 
-def _resample(loop: np.ndarray, n: int) -> tuple[np.ndarray, float]:
+def resample(loop: np.ndarray, n: int) -> tuple[np.ndarray, float]:
     """n points on a closed polygon's band-limited curve, counter-clockwise, point 0 on the +x ray.
 
     The polygon (K, 2) is oriented counter-clockwise and replaced by its Fourier series in arc
@@ -176,8 +178,8 @@ def _resample(loop: np.ndarray, n: int) -> tuple[np.ndarray, float]:
     if _polygon_area_centroid(loop)[0] < 0.0:
         loop = loop[::-1]
     coeffs, perimeter = _polygon_fourier(loop, n)
-    fine = _UPSAMPLE * n
-    w, dw = _trig_eval(coeffs, fine, 0), _trig_eval(coeffs, fine, 1)
+    fine = UPSAMPLE * n
+    w, dw = trig_eval(coeffs, fine, 0), trig_eval(coeffs, fine, 1)
     area = 0.5 * np.mean(np.imag(np.conj(w) * dw))
     cy = -np.mean(0.5 * w.imag**2 * dw.real) / area
     f = w.imag - cy
@@ -188,7 +190,7 @@ def _resample(loop: np.ndarray, n: int) -> tuple[np.ndarray, float]:
     xcross = w.real[change] + frac * (w.real[(change + 1) % fine] - w.real[change])
     best = int(np.argmax(xcross))
     theta = 2.0 * np.pi * (change[best] + frac[best]) / fine
-    k = _wavenumbers(n)
+    k = wavenumbers(n)
     for _ in range(8):
         phase = coeffs * np.exp(1j * k * theta)
         value, slope = np.sum(phase).imag - cy, np.sum(1j * k * phase).imag
