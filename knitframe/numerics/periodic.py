@@ -162,6 +162,8 @@ class PointMap:
     weights: np.ndarray = attrs.field(init=False)
     #: (m,) elements with a point at a non-zero image
     imaged: np.ndarray = attrs.field(init=False)
+    _pattern: tuple | None = attrs.field(init=False, default=None, repr=False)
+    _shift: np.ndarray | None = attrs.field(init=False, default=None, repr=False)
 
     def __attrs_post_init__(self) -> None:
         nodes = np.asarray(self.nodes, dtype=np.int64)
@@ -187,6 +189,7 @@ class PointMap:
         object.__setattr__(
             self, "imaged", np.any(images != 0, axis=(1, 2)) if periodic else np.zeros(m, bool)
         )
+        object.__setattr__(self, "_shift", self.lattice.reference_shift(images) if periodic else None)
 
     @property
     def n_dof(self) -> int:
@@ -195,55 +198,65 @@ class PointMap:
     def points(self, x: np.ndarray, h: np.ndarray | None = None) -> np.ndarray:
         """Current positions (m, k, 3) of the element points from node positions x (n, 3)."""
         p = x[self.nodes]
-        if self.lattice is not None and h is not None:
-            p = p + self.lattice.shift(self.images, h)
-        elif self.lattice is not None:
-            p = p + self.lattice.reference_shift(self.images)
-        return p
+        S = self._shift  # the reference image shifts S_k, fixed for the map; None when none is non-zero
+        if S is None:
+            return p
+        if h is None:
+            return p + S
+        return p + (S + S[..., :2] @ self.lattice.H(h).T)  # F̄·S_k (Lattice.shift)
 
     def gradient(self, g: np.ndarray) -> np.ndarray:
         """Global gradient (n_dof,) from element point gradients g (m, k, 3)."""
         vals = self.weights * g[..., None]
         return np.bincount(self.dofs.reshape(-1), vals.reshape(-1), minlength=self.n_dof)
 
-    def hessian_coo(self, H: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """COO triplets (rows, cols, vals) of Jᵀ·H·J for element Hessians H (m, k, 3, k, 3).
+    def hessian_pattern(self) -> tuple[np.ndarray, np.ndarray]:
+        """(rows, cols) of :meth:`hessian_values`, the same for every call: computed once per map."""
+        if self._pattern is None:
+            m, k = self.nodes.shape
+            n3 = 3 * k
+            nd = self.dofs[..., 0].reshape(m, n3)
+            rows = [np.broadcast_to(nd[:, :, None], (m, n3, n3)).reshape(-1)]
+            cols = [np.broadcast_to(nd[:, None, :], (m, n3, n3)).reshape(-1)]
+            if np.any(self.imaged):
+                macro = 3 * self.n_nodes + np.arange(N_MACRO)
+                nds = nd[self.imaged]
+                shape = (len(nds), n3, N_MACRO)
+                node = np.broadcast_to(nds[:, :, None], shape).reshape(-1)
+                mac = np.broadcast_to(macro[None, None, :], shape).reshape(-1)
+                rows += [node, mac, np.repeat(macro, N_MACRO)]
+                cols += [mac, node, np.tile(macro, N_MACRO)]
+            object.__setattr__(self, "_pattern", (np.concatenate(rows), np.concatenate(cols)))
+        return self._pattern
+
+    def hessian_values(self, H: np.ndarray) -> np.ndarray:
+        """Values of Jᵀ·H·J for element Hessians H (m, k, 3, k, 3), in the order of :meth:`hessian_pattern`.
 
         With J = [I | M] (node part, macro part M (3k, 6) of the image shifts), the blocks are
-        H (node–node), H·M and Mᵀ·H (node–macro) and Mᵀ·H·M (macro–macro); the macro blocks
-        are formed only for elements that have a point at a non-zero image.
+        H (node–node), H·M and Mᵀ·H (node–macro) and Σ Mᵀ·H·M (macro–macro);
+        the macro blocks are formed only for elements that have a point at a non-zero image.
         """
         m, k = self.nodes.shape
         n3 = 3 * k
         Hl = H.reshape(m, n3, n3)
-        nd = self.dofs[..., 0].reshape(m, n3)
-        rows = [np.broadcast_to(nd[:, :, None], Hl.shape).reshape(-1)]
-        cols = [np.broadcast_to(nd[:, None, :], Hl.shape).reshape(-1)]
-        vals = [Hl.reshape(-1)]
         sel = self.imaged
-        if np.any(sel):
-            Hs = Hl[sel]
-            S = self.weights[sel][..., 1:].reshape(len(Hs), n3, 2)
-            M = np.zeros((len(Hs), n3, N_MACRO))
-            for c in range(3):
-                M[:, c::3, 2 * c : 2 * c + 2] = S[:, c::3, :]
-            HM = Hs @ M
-            MHM = np.einsum("mai,mab->ib", M, HM)
-            macro = 3 * self.n_nodes + np.arange(N_MACRO)
-            nds = nd[sel]
-            shape = HM.shape
-            rows += [
-                np.broadcast_to(nds[:, :, None], shape).reshape(-1),
-                np.broadcast_to(macro[None, None, :], shape).reshape(-1),
-                np.repeat(macro, N_MACRO),
-            ]
-            cols += [
-                np.broadcast_to(macro[None, None, :], shape).reshape(-1),
-                np.broadcast_to(nds[:, :, None], shape).reshape(-1),
-                np.tile(macro, N_MACRO),
-            ]
-            vals += [HM.reshape(-1), np.einsum("mab,mbi->mai", Hs, M).reshape(-1), MHM.reshape(-1)]
-        return np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+        if not np.any(sel):
+            return Hl.reshape(-1)
+        Hs = Hl[sel]
+        S = self.weights[sel][..., 1:].reshape(len(Hs), n3, 2)
+        M = np.zeros((len(Hs), n3, N_MACRO))
+        for c in range(3):
+            M[:, c::3, 2 * c : 2 * c + 2] = S[:, c::3, :]
+        HM = Hs @ M
+        MHM = np.einsum("mai,mab->ib", M, HM)
+        return np.concatenate(
+            [Hl.reshape(-1), HM.reshape(-1), np.einsum("mab,mbi->mai", Hs, M).reshape(-1), MHM.reshape(-1)]
+        )
+
+    def hessian_coo(self, H: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """COO triplets (rows, cols, vals) of Jᵀ·H·J for element Hessians H (m, k, 3, k, 3)."""
+        rows, cols = self.hessian_pattern()
+        return rows, cols, self.hessian_values(H)
 
     def hessian(self, H: np.ndarray) -> sp.csr_matrix:
         """Global sparse Hessian (n_dof, n_dof) from element Hessians H (m, k, 3, k, 3)."""

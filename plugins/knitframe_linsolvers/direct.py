@@ -44,21 +44,9 @@ def _superlu(A: Any, b: np.ndarray) -> np.ndarray:
     return x
 
 
-_PARDISO: dict[int, Any] = {}
 #: PARDISO matrix types: real symmetric indefinite (Bunch-Kaufman LDLᵀ on the upper triangle) and real
 #: unsymmetric (LU)
 SYMMETRIC, UNSYMMETRIC = -2, 11
-
-
-def _pardiso_solver(mtype: int = UNSYMMETRIC) -> Any:
-    """One PARDISO handle per matrix type and process (creating one costs a fraction of a second)."""
-    if mtype not in _PARDISO:
-        import pypardiso
-
-        solver = pypardiso.PyPardisoSolver(mtype=mtype)
-        solver.set_iparm(8, 0)  # no internal refinement: done in _pardiso, where the residual is checked
-        _PARDISO[mtype] = solver
-    return _PARDISO[mtype]
 
 
 def is_symmetric(A: Any, rtol: float = 1e-12) -> bool:
@@ -149,12 +137,12 @@ def _refine(
 
 
 def _refined(solver: Any, M: Any, A: Any, b: np.ndarray, refine: int, rtol: float) -> np.ndarray | None:
-    """Solve with ``solver`` on the matrix M it factorises, refine against A (:func:`_refine`), free the
-    factors."""
+    """Solve with ``solver`` (from :func:`_pardiso_solver`) on the matrix M it factorises, refine against
+    A (:func:`_refine`), free the factors and make the handle idle again."""
     try:
         return _refine(lambda v: solver.solve(M, v), A, b, refine, rtol)
     finally:
-        solver.free_memory(everything=True)
+        _release(solver, solver.mtype, {"released": False})
 
 
 def _pardiso(A: Any, b: np.ndarray, refine: int = 4, rtol: float = 1e-10) -> np.ndarray:
@@ -188,18 +176,43 @@ def _pardiso(A: Any, b: np.ndarray, refine: int = 4, rtol: float = 1e-10) -> np.
     )
 
 
+#: PARDISO handles whose factors were freed, by matrix type, ready for the next factorisation: building
+#: a pypardiso.PyPardisoSolver searches the Python prefix for the MKL library (a recursive glob and
+#: ctypes.util.find_library, which starts subprocesses), about 0.5 s each, so each is built once
+_IDLE: dict[int, list[Any]] = {}
+
+
+def _pardiso_solver(mtype: int = UNSYMMETRIC) -> Any:
+    """An idle PARDISO handle of this matrix type, or a new one (the factors of an idle one are freed)."""
+    idle = _IDLE.setdefault(mtype, [])
+    if idle:
+        return idle.pop()
+    import pypardiso
+
+    solver = pypardiso.PyPardisoSolver(mtype=mtype)
+    solver.set_iparm(8, 0)  # no internal refinement: done by _refine, where the residual is checked
+    return solver
+
+
+def _release(solver: Any, mtype: int, state: dict[str, bool]) -> None:
+    """Free a handle's factors and make it idle again (once)."""
+    if not state["released"]:
+        state["released"] = True
+        solver.free_memory(everything=True)
+        _IDLE.setdefault(mtype, []).append(solver)
+
+
 class _KeptPardiso:
     """A PARDISO factorisation kept for several right-hand sides (``x = f(b)``), refined against A."""
 
     def __init__(self, A: Any, refine: int, rtol: float):
-        import pypardiso
-
         self.A = sp.csr_matrix(A)
         self.refine, self.rtol = refine, rtol
         symmetric = is_symmetric(self.A)
         self.M = upper(self.A) if symmetric else self.A.sorted_indices()
-        self.solver = pypardiso.PyPardisoSolver(mtype=SYMMETRIC if symmetric else UNSYMMETRIC)
-        self.solver.set_iparm(8, 0)
+        self.mtype = SYMMETRIC if symmetric else UNSYMMETRIC
+        self.solver = _pardiso_solver(self.mtype)
+        self.state = {"released": False}
         try:  # analysis and factorisation (phase 12); pypardiso's factorize() would also hash the matrix
             self.solver._check_A(self.M)
             self.solver.set_phase(12)
@@ -222,7 +235,7 @@ class _KeptPardiso:
         )
 
     def free(self) -> None:
-        self.solver.free_memory(everything=True)
+        _release(self.solver, self.mtype, self.state)
 
 
 def _factorize_pardiso(A: Any, refine: int = 4, rtol: float = 1e-10) -> Callable[[np.ndarray], np.ndarray]:
@@ -233,7 +246,7 @@ def _factorize_pardiso(A: Any, refine: int = 4, rtol: float = 1e-10) -> Callable
     releases the factors; they are also released when ``f`` is garbage-collected.
     """
     kept = _KeptPardiso(A, refine, rtol)
-    weakref.finalize(kept, kept.solver.free_memory, True)
+    weakref.finalize(kept, _release, kept.solver, kept.mtype, kept.state)
     return kept
 
 

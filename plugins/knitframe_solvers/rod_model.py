@@ -132,6 +132,7 @@ class RodEnergy:
             self._norm_stiffness = self.GA * m.l0 + self.EI / m.l0
         self._rules: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self._l_max = float(m.l0.max(initial=0.0))
+        self._pair_maps: dict[bytes, PointMap] = {}
 
     def stiffness(self) -> tuple[float, float | None]:
         """(k_contact, k_core) at the current contact distance, N/mm³ (see the class docstring)."""
@@ -170,10 +171,20 @@ class RodEnergy:
         )
 
     def _pair_map(self, i: np.ndarray, j: np.ndarray, k: np.ndarray) -> PointMap:
-        m = self.model
-        nodes = np.concatenate([m.edges[i], m.edges[j]], axis=1)
-        images = np.concatenate([m.edge_images[i], m.edge_images[j] + k[:, None, :]], axis=1)
-        return PointMap(m.n_points, nodes, images, m.lattice)
+        """The point map of these segment pairs; the same object while the same pairs come back (its
+        DOF map and Hessian positions are then reused)."""
+        # i, j (n,) and k (n, 2): the byte length gives n, so the key is unambiguous
+        key = b"".join(np.ascontiguousarray(a, dtype=np.int64).tobytes() for a in (i, j, k))
+        pm = self._pair_maps.get(key)
+        if pm is None:
+            m = self.model
+            nodes = np.concatenate([m.edges[i], m.edges[j]], axis=1)
+            images = np.concatenate([m.edge_images[i], m.edge_images[j] + k[:, None, :]], axis=1)
+            pm = PointMap(m.n_points, nodes, images, m.lattice)
+            self._pair_maps[key] = pm
+            while len(self._pair_maps) > 8:
+                del self._pair_maps[next(iter(self._pair_maps))]
+        return pm
 
     def _lengths(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
         return self.model.l0[i] * self.model.l0[j]
@@ -199,7 +210,8 @@ class RodEnergy:
         h = m.macro(q)
         E = 0.0
         g = np.zeros(m.n_dof) if order >= 1 else None
-        coo: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        parts: list[PointMap] = []
+        values: list[np.ndarray] = []
         info: dict[str, Any] = {"active_contacts": 0, "strands_in_contact": 0, "min_distance": np.inf}
 
         def add(pm: PointMap, e, ge, He):
@@ -208,7 +220,8 @@ class RodEnergy:
             if order >= 1:
                 g[:] += pm.gradient(ge)
             if order >= 2:
-                coo.append(pm.hessian_coo(He))
+                parts.append(pm)
+                values.append(pm.hessian_values(He))
 
         self.calls["stretch"] += 1
         add(self._stretch_map, *stretch(self._stretch_map.points(x, h), m.l0, self.EA, order))
@@ -266,8 +279,9 @@ class RodEnergy:
                 g -= self.external
         H = None
         if order >= 2:
-            r, c, v = (np.concatenate(a) for a in zip(*coo, strict=False))
-            H = sp.csr_matrix((v, (r, c)), shape=(m.n_dof, m.n_dof))
+            rows = np.concatenate([p.hessian_pattern()[0] for p in parts])
+            cols = np.concatenate([p.hessian_pattern()[1] for p in parts])
+            H = sp.csr_matrix((np.concatenate(values), (rows, cols)), shape=(m.n_dof, m.n_dof))
         if not np.isfinite(E):
             info["diagnostic"] = (
                 f"contact barrier crossed (closest centre distance {info['min_distance']:.4g} mm, "
