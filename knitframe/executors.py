@@ -29,7 +29,18 @@ import time
 from collections.abc import Callable, Mapping
 from typing import Any
 
-__all__ = ["executor_from_config", "Tally", "FAILURE_MODES", "check_failures", "start_map"]
+from knitframe.cache import JobFailure, default_cache_dir, failure_reason
+
+__all__ = [
+    "executor_from_config",
+    "Tally",
+    "FAILURE_MODES",
+    "check_failures",
+    "start_map",
+    "JobFailure",
+    "failure_reason",
+    "default_cache_dir",
+]
 
 FAILURE_MODES = ("raise", "keep")
 

@@ -32,7 +32,9 @@ The package holds one concept per module: :mod:`~knitframe.fitting.free_side` (t
 uniaxial test), :mod:`~knitframe.fitting.params` (params.json), :mod:`~knitframe.fitting.problem`
 (the objective and its gradient), :mod:`~knitframe.fitting.result` (the result record, the
 fitters' unit box and start design, :func:`finish`) and :mod:`~knitframe.fitting.outputs`
-(predicted curves, the fit figure and files).
+(predicted curves, the fit figure and files). A fitter plugin needs nothing else of the core but
+:func:`one_blas_thread` (:mod:`knitframe.numerics.parallel`), exported here: many small solves in
+one process run fastest on one BLAS thread.
 """
 
 from knitframe.fitting.free_side import (
@@ -48,6 +50,7 @@ from knitframe.fitting.outputs import plot_fit, predict, write_fit_outputs
 from knitframe.fitting.params import finite_json, params_from_json, params_to_json, within_model_bounds
 from knitframe.fitting.problem import RESIDUAL_CLIP, FitProblem
 from knitframe.fitting.result import AT_BOUND, FitResult, UnitBox, at_bound, finish, start_design
+from knitframe.numerics.parallel import one_blas_thread
 
 __all__ = [
     "FREE_MIN",
@@ -72,4 +75,5 @@ __all__ = [
     "finish",
     "finite_json",
     "free_side_zero_message",
+    "one_blas_thread",
 ]

@@ -15,5 +15,13 @@
   program writer, the knitout-interpreter checks and DAT, the stitch chart, the files).
 
 ``knitframe.design(...)`` (:mod:`~knitframe.garment.api`) runs it as the ``[design]`` stage does.
-The subpackages are not imported here, so that ``import knitframe`` stays light.
+The subpackages are not imported here, so that ``import knitframe`` stays light. What a design
+objective plugin builds on is exported here: :func:`laplace_mmhg` (:mod:`~knitframe.garment.laplace`,
+the pressure of a tension on a curved limb) and :func:`class_target`, :func:`graduation`
+(:mod:`~knitframe.garment.prescription`, the compression classes and graduations).
 """
+
+from knitframe.garment.laplace import laplace_mmhg
+from knitframe.garment.prescription import class_target, graduation
+
+__all__ = ["laplace_mmhg", "class_target", "graduation"]

@@ -25,6 +25,7 @@ CostModel``.
 
 from knitframe.ladder.api import LadderResult, ladder, ladder_config
 from knitframe.ladder.compare import loaded_directions, tension_errors, within_range
+from knitframe.ladder.convergence import convergence_table, mesh_convergence, richardson, write_convergence
 from knitframe.ladder.cost import (
     CostModel,
     Estimate,
@@ -69,4 +70,8 @@ __all__ = [
     "LadderResult",
     "ladder_config",
     "ladder",
+    "richardson",
+    "mesh_convergence",
+    "convergence_table",
+    "write_convergence",
 ]

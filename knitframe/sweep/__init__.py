@@ -13,6 +13,15 @@
 - :mod:`~knitframe.sweep.progress`: the progress line.
 """
 
+from knitframe.sweep.goals import (
+    MET,
+    NOT_MET,
+    UNDETERMINED,
+    GoalSettings,
+    goals_markdown,
+    held_fixed,
+    validation_goals,
+)
 from knitframe.sweep.job import cached_points, forget_partial, map_points, point_modules, run_point
 from knitframe.sweep.outputs import plot_params, write_csv, write_trends
 from knitframe.sweep.points import (
@@ -62,4 +71,11 @@ __all__ = [
     "write_csv",
     "write_trends",
     "plot_params",
+    "MET",
+    "NOT_MET",
+    "UNDETERMINED",
+    "GoalSettings",
+    "validation_goals",
+    "goals_markdown",
+    "held_fixed",
 ]

@@ -38,7 +38,7 @@ import numpy as np
 from knitframe import hookimpl
 from knitframe import validators as v
 from knitframe.interfaces import RodContactLaw
-from knitframe.numerics.contact.friction import friction_potential
+from knitframe.numerics.contact import friction_potential
 
 
 @attrs.frozen

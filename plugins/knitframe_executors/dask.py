@@ -29,9 +29,8 @@ import attrs
 
 from knitframe import hookimpl
 from knitframe import validators as v
-from knitframe.cache import JobFailure, failure_reason
 from knitframe.errors import ConfigError, FieldError, KnitframeWarning, PluginError
-from knitframe.executors import start_map
+from knitframe.executors import JobFailure, failure_reason, start_map
 
 #: the nanny's setting that slows assembly in workers (see the module docstring)
 TRIM_KEY = "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_"

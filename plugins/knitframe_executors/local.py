@@ -15,8 +15,7 @@ import attrs
 
 from knitframe import hookimpl
 from knitframe import validators as v
-from knitframe.cache import JobFailure, failure_reason
-from knitframe.executors import start_map
+from knitframe.executors import JobFailure, failure_reason, start_map
 
 
 @attrs.frozen

@@ -19,8 +19,7 @@ import numpy as np
 from knitframe import hookimpl
 from knitframe import validators as v
 from knitframe.errors import NumericalError
-from knitframe.fitting import FitProblem, FitResult, UnitBox, finish, start_design
-from knitframe.numerics.parallel import one_blas_thread
+from knitframe.fitting import FitProblem, FitResult, UnitBox, finish, one_blas_thread, start_design
 from knitframe.records import Response
 
 

@@ -48,7 +48,7 @@ class PressureProfile:
     tolerance: float = 0.2
 
     def __attrs_post_init__(self) -> None:
-        from knitframe.garment.prescription import class_target, graduation
+        from knitframe.garment import class_target, graduation
 
         if self.target_mmHg is None:
             object.__setattr__(self, "target_mmHg", class_target(self.compression_class or "II"))

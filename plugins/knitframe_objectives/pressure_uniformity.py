@@ -10,7 +10,7 @@ import numpy as np
 from knitframe import hookimpl
 from knitframe import validators as v
 from knitframe.errors import NumericalError
-from knitframe.garment.laplace import laplace_mmhg
+from knitframe.garment import laplace_mmhg
 from knitframe_objectives.stress_variance import level_cost, weighted_cv2
 
 

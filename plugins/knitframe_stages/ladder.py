@@ -57,15 +57,16 @@ from knitframe.ladder import (
     CostModel,
     LadderResult,
     TimingPoint,
+    convergence_table,
     plot_curves,
     plot_pareto,
     read_timings,
     rung,
     shipped_timings_path,
+    write_convergence,
     write_csv,
     write_table,
 )
-from knitframe.ladder.convergence import convergence_table, write_convergence
 from knitframe.ladder.runner import (
     compare,
     convergence_rows,
@@ -116,7 +117,7 @@ class LadderTable:
 def default_cache_dir() -> Path:
     """The executors' result cache (:func:`knitframe.cache.default_cache_dir`), which ``knitframe cache
     clear`` empties: a rung's key holds its inputs, the knitframe version and a hash of the code."""
-    from knitframe.cache import default_cache_dir as jobs_cache_dir
+    from knitframe.executors import default_cache_dir as jobs_cache_dir
 
     return jobs_cache_dir()
 

@@ -94,22 +94,26 @@ from knitframe.interfaces import Stage
 from knitframe.report import plot_validation
 from knitframe.schema import build, field_names, to_dict
 from knitframe.sweep import (
+    MET,
+    GoalSettings,
     Point,
     SweepFits,
     SweepProgress,
     cached_points,
     expand,
     forget_partial,
+    goals_markdown,
+    held_fixed,
     map_points,
     plot_params,
     point_job,
     resolve_point,
     validate_point,
+    validation_goals,
     validation_headline,
     write_csv,
     write_trends,
 )
-from knitframe.sweep.goals import MET, GoalSettings, goals_markdown, held_fixed, validation_goals
 
 #: failed points named one per line at the end of a run (the rest are in sweep.csv)
 SHOWN_FAILURES = 10

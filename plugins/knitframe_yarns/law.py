@@ -28,7 +28,7 @@ import numpy as np
 from knitframe import validators as v
 from knitframe.errors import NumericalError
 from knitframe.records import Yarn
-from knitframe.yarn.fit import line_contact_approach, line_contact_load, line_contact_stiffness
+from knitframe.yarn import line_contact_approach, line_contact_load, line_contact_stiffness
 
 __all__ = ["linear_stiffness", "constants", "invariant_law", "YarnModelBase"]
 
