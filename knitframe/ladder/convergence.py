@@ -125,7 +125,7 @@ def mesh_convergence(
     and load step after the first, with :data:`CONVERGENCE_COLUMNS`. Empty with fewer than three
     rungs that finished.
     """
-    from knitframe.ladder import loaded_directions
+    from knitframe.ladder.compare import loaded_directions
 
     names = sorted((n for n in rungs if n in curves), key=lambda n: rungs[n])[:3]
     if len(names) < 3:
