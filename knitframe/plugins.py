@@ -192,7 +192,9 @@ class Registry:
             key = name or getattr(impl, "name", None)
             if not isinstance(key, str) or not key:
                 raise PluginError(f"{kind} {impl!r} has no name; pass register(impl, name=...)")
-            aliases = getattr(impl, "aliases", ())
+            # a plugin's own aliases: a subclass of jersey (a variant) does not inherit "stockinette"
+            own = vars(impl) if isinstance(impl, type) else {"aliases": getattr(impl, "aliases", ())}
+            aliases = own.get("aliases", ())
             if not isinstance(aliases, tuple) or not all(isinstance(a, str) and a for a in aliases):
                 raise PluginError(f"{kind} '{key}': aliases must be a tuple of names, got {aliases!r}")
             entry = Entry(kind, key, impl, description or _describe(impl), plugin, dist, version, aliases)
