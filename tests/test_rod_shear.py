@@ -20,10 +20,16 @@ EFFECTS = ("large_deformation", "bending", "contact", "prestress")
 STEP = LoadPath(kind="equibiaxial", max_strain=0.05, steps=1)
 
 
-def run(yarn: str, sl: float, **options):
+#: past the stiff PET cell's multistable range: between 3 and 12 % its tensions depend on which of several
+#: near-equal equilibria round-off picks (one ulp on the Hessian moves T1 at 6 % between 0.19 and 0.37 N/mm,
+#: docs/notes/2026-11-28-solver-rebuilds.md); at 30 % every branch gives the same tensions to 0.5 %
+PAST_BRANCHES = LoadPath(kind="equibiaxial", max_strain=0.3, steps=3)
+
+
+def run(yarn: str, sl: float, load: LoadPath = STEP, **options):
     reg = get_registry()
     fabric = Fabric(pattern="jersey", yarn=reg["yarn"][yarn], stitch_length=sl)
-    return reg["solver"]["rod"](starts=1, **options).simulate(fabric, Scene(load=STEP, effects=EFFECTS))
+    return reg["solver"]["rod"](starts=1, **options).simulate(fabric, Scene(load=load, effects=EFFECTS))
 
 
 def test_a_yarn_stiff_in_shear_bends_alike_resolved_or_effective():
@@ -31,10 +37,11 @@ def test_a_yarn_stiff_in_shear_bends_alike_resolved_or_effective():
     resolved rod's relaxed lattice and tensions are those of the effective stiffness within 5 %.
 
     They are not equal: the effective stiffness is taken at one wave number, 2π/(yarn per stitch), the
-    resolved rod bends each wave at its own.
+    resolved rod bends each wave at its own. Compared at 30 %, past the strains where this cell is
+    multistable (:data:`PAST_BRANCHES`).
     """
-    eff = run("pet", 11)
-    res = run("pet", 11, shear="resolved")
+    eff = run("pet", 11, PAST_BRANCHES)
+    res = run("pet", 11, PAST_BRANCHES, shear="resolved")
     assert res.provenance.extra["shear_deformable"] and not eff.provenance.extra["shear_deformable"]
     assert res.provenance.extra["max_shear_angle_deg"] < 5.0
     assert "shear length" not in res.provenance.notes  # 0.08 mm: no warning

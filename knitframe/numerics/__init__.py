@@ -13,6 +13,7 @@ module                     what it holds
 ``settings``               a solver's ``[solver.newton]`` tuning table: presets and overrides
 ``stepfiles``              one VTU file per converged step and the ``.pvd`` that lists them
 ``periodic``               the periodic 2x2 cell's macro degrees of freedom and its tensions
+``pattern``                sparse assembly into a cached CSR pattern (no COO → CSR per call)
 ``contact_search``         broad-phase search between yarn segments, with periodic images
 ``contact``                solid contact: surfaces, gaps, pairing, P2 projection, penalty and
                            friction terms, assembly (one module per concern)

@@ -67,6 +67,10 @@ linear-solver plugin, with
   is halved when the midpoint's energy is lower: a node group flipping between two states across a
   kink of the energy (friction's stick-slip switch) passes the Armijo test on the rest of the
   step's decrease and would keep the step test from passing;
+* optionally (``xtol`` > 0), the round-off test: converged when the unshifted Newton step moves no
+  DOF by more than ``xtol``, tested before the line search. At the round-off floor of the gradient
+  the energy no longer orders trial steps (differences of order ε·|E|), so a line search would
+  only creep, and the order of the floating-point sums in the assembly decides whether it ends;
 * besides the absolute test max|g_f| ≤ atol, the force-flux test of implicit FE codes (ABAQUS's
   R_n, C_n): when the problem reports the average nodal force flux q̃ = ``info["flux"]``, an
   iterate with max|g_f| ≤ R_n·q̃ whose last correction c satisfies

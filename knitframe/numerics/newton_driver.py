@@ -297,6 +297,17 @@ class Minimiser:
                 continue
             if (
                 descent
+                and options.xtol > 0
+                and self.shift_rel == 0.0
+                and float(np.max(np.abs(dx_f), initial=0.0)) <= options.xtol
+            ):
+                # the unshifted Newton step moves no DOF more than xtol: x is the solution to round-off, where
+                # the energy no longer orders trial steps and the line search may only creep (taken whole, the
+                # step would pass the same test after it)
+                entry["xtol"] = True
+                return None
+            if (
+                descent
                 and options.step_tol > 0
                 and self.shift_rel == 0.0
                 and np.isfinite(size)

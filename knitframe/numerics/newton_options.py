@@ -39,7 +39,8 @@ class NewtonOptions:
     max_shift_increases: int = 12
     #: cap on step_norm(dx)
     max_step: float = math.inf
-    #: also converged when an unshifted full Newton step moves no DOF more than this (round-off floor)
+    #: also converged when the unshifted Newton step (before the line search) moves no DOF more than this
+    #: (the round-off floor, where energy differences no longer order trial steps)
     xtol: float = 0.0
     #: R_n: also converged when max|g_f| ≤ R_n·q̃, q̃ = info["flux"] (0: off)
     flux_rtol: float = 0.0

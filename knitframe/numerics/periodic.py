@@ -164,6 +164,7 @@ class PointMap:
     imaged: np.ndarray = attrs.field(init=False)
     _pattern: tuple | None = attrs.field(init=False, default=None, repr=False)
     _shift: np.ndarray | None = attrs.field(init=False, default=None, repr=False)
+    _macro: np.ndarray | None = attrs.field(init=False, default=None, repr=False)
 
     def __attrs_post_init__(self) -> None:
         nodes = np.asarray(self.nodes, dtype=np.int64)
@@ -233,8 +234,9 @@ class PointMap:
         """Values of Jᵀ·H·J for element Hessians H (m, k, 3, k, 3), in the order of :meth:`hessian_pattern`.
 
         With J = [I | M] (node part, macro part M (3k, 6) of the image shifts), the blocks are
-        H (node–node), H·M and Mᵀ·H (node–macro) and Σ Mᵀ·H·M (macro–macro);
-        the macro blocks are formed only for elements that have a point at a non-zero image.
+        H (node–node), H·M and Mᵀ·H = (H·M)ᵀ (node–macro; every element Hessian is symmetric) and
+        Σ Mᵀ·H·M (macro–macro); the macro blocks are formed only for elements that have a point at a
+        non-zero image.
         """
         m, k = self.nodes.shape
         n3 = 3 * k
@@ -243,15 +245,23 @@ class PointMap:
         if not np.any(sel):
             return Hl.reshape(-1)
         Hs = Hl[sel]
-        S = self.weights[sel][..., 1:].reshape(len(Hs), n3, 2)
-        M = np.zeros((len(Hs), n3, N_MACRO))
-        for c in range(3):
-            M[:, c::3, 2 * c : 2 * c + 2] = S[:, c::3, :]
-        HM = Hs @ M
-        MHM = np.einsum("mai,mab->ib", M, HM)
-        return np.concatenate(
-            [Hl.reshape(-1), HM.reshape(-1), np.einsum("mab,mbi->mai", Hs, M).reshape(-1), MHM.reshape(-1)]
-        )
+        M = self._macro_weights()
+        HM = Hs @ M  # (m_s, 3k, 6); Mᵀ·H = (H·M)ᵀ, H being symmetric
+        MHM = M.reshape(-1, N_MACRO).T @ HM.reshape(-1, N_MACRO)  # Σ_m M_mᵀ·H_m·M_m
+        return np.concatenate([Hl.reshape(-1), HM.reshape(-1), HM.reshape(-1), MHM.reshape(-1)])
+
+    def _macro_weights(self) -> np.ndarray:
+        """M (m_s, 3k, 6) of the imaged elements: ∂(point coordinates)/∂h, fixed for the map."""
+        if self._macro is None:
+            m, k = self.nodes.shape
+            n3 = 3 * k
+            sel = self.imaged
+            S = self.weights[sel][..., 1:].reshape(int(sel.sum()), n3, 2)
+            M = np.zeros((len(S), n3, N_MACRO))
+            for c in range(3):
+                M[:, c::3, 2 * c : 2 * c + 2] = S[:, c::3, :]
+            object.__setattr__(self, "_macro", M)
+        return self._macro
 
     def hessian_coo(self, H: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """COO triplets (rows, cols, vals) of Jᵀ·H·J for element Hessians H (m, k, 3, k, 3)."""

@@ -74,7 +74,7 @@ def quadrature_contact(
     """
     xa, xb, wq = rule
     w = pair_weights(xa, xb)  # (Q, 4)
-    c = np.einsum("qi,mic->mqc", w, p)
+    c = np.matmul(w, p)  # (m, Q, 3): c_mq = Σ_i w_qi p_mi
     r = np.linalg.norm(c, axis=2)
     mult = lengths[:, None] * wq[None, :]
     e, e1, e2 = law.normal(r, dk, k, k_core)
@@ -84,12 +84,15 @@ def quadrature_contact(
         return E, None, None, r_min
     rs = np.maximum(r, 1e-300)
     n = c / rs[..., None]
-    g = np.einsum("qi,mqc->mic", w, (mult * e1)[..., None] * n)
+    g = np.matmul(w.T, (mult * e1)[..., None] * n)  # (m, 4, 3): Σ_q w_qi f_mq
     if order == 1:
         return E, g, None, r_min
     nn = n[..., :, None] * n[..., None, :]
     A = (mult * e2)[..., None, None] * nn + (mult * e1 / rs)[..., None, None] * (_EYE - nn)
-    H = np.einsum("qi,qj,mqcd->micjd", w, w, A)
+    # H_micjd = Σ_q w_qi w_qj A_mqcd, as one matrix product (Q contracted): (16, Q) @ (m, Q, 9)
+    Q, m = len(w), len(p)
+    ww = (w[:, :, None] * w[:, None, :]).reshape(Q, 16)
+    H = np.matmul(ww.T, A.reshape(m, Q, 9)).reshape(m, 4, 4, 3, 3).transpose(0, 1, 3, 2, 4)
     return E, g, H, r_min
 
 
@@ -136,16 +139,16 @@ def friction_energy(
     is the lagged normal force of each point pair, N. Returns ``(D (m,), g (m, 4, 3), H (m, 4, 3, 4, 3))``.
     """
     w = pair_weights(s, t)
-    c = np.einsum("mi,mic->mc", w, p)
+    c = np.matmul(w[:, None, :], p)[:, 0]  # Σ_i w_mi p_mi
     P = _EYE[None] - normal[:, :, None] * normal[:, None, :]
-    u = np.einsum("mcd,md->mc", P, c - c_lag)
+    u = np.matmul(P, (c - c_lag)[..., None])[..., 0]
     D, gu, Hu = law.friction_potential(u, lam, dk)
     if order == 0:
         return D, None, None
-    gc = np.einsum("mcd,mc->md", P, gu)  # ∂D/∂c = P ∇u D
+    gc = np.matmul(gu[:, None, :], P)[:, 0]  # ∂D/∂c = Pᵀ ∇u D
     g = w[:, :, None] * gc[:, None, :]
     if order == 1:
         return D, g, None
-    Hc = np.einsum("mac,mcd,mdb->mab", P, Hu, P)
-    H = np.einsum("mi,mj,mcd->micjd", w, w, Hc)
+    Hc = np.matmul(np.matmul(P.transpose(0, 2, 1), Hu), P)  # Pᵀ Hu P
+    H = (w[:, :, None] * w[:, None, :])[:, :, None, :, None] * Hc[:, None, :, None, :]
     return D, g, H

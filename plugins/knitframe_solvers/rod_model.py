@@ -20,9 +20,9 @@ from typing import Any
 
 import attrs
 import numpy as np
-import scipy.sparse as sp
 
 from knitframe.numerics.contact_search import find_pairs
+from knitframe.numerics.pattern import PatternCache
 from knitframe.numerics.periodic import PointMap
 from knitframe_solvers.rod_contact import friction_energy, gauss_points, pair_weights, quadrature_contact
 from knitframe_solvers.rod_geometry import RodModel, from_cell, open_rods, with_directors, write_rod_vtu
@@ -133,6 +133,8 @@ class RodEnergy:
         self._rules: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self._l_max = float(m.l0.max(initial=0.0))
         self._pair_maps: dict[bytes, PointMap] = {}
+        # the Hessian's CSR structure per set of terms: rebuilt only when the contact pairs change
+        self._assembly = PatternCache(m.n_dof)
 
     def stiffness(self) -> tuple[float, float | None]:
         """(k_contact, k_core) at the current contact distance, N/mm³ (see the class docstring)."""
@@ -279,9 +281,7 @@ class RodEnergy:
                 g -= self.external
         H = None
         if order >= 2:
-            rows = np.concatenate([p.hessian_pattern()[0] for p in parts])
-            cols = np.concatenate([p.hessian_pattern()[1] for p in parts])
-            H = sp.csr_matrix((np.concatenate(values), (rows, cols)), shape=(m.n_dof, m.n_dof))
+            H = self._assembly.matrix(parts, values)
         if not np.isfinite(E):
             info["diagnostic"] = (
                 f"contact barrier crossed (closest centre distance {info['min_distance']:.4g} mm, "
