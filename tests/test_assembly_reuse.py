@@ -137,3 +137,32 @@ def test_pardiso_handles_are_built_once_and_solve_as_fresh_ones(monkeypatch):
         x2 = solve(A, b)  # the one-shot solve takes an idle handle too
         np.testing.assert_allclose(x2, y, rtol=1e-10, atol=1e-12)
     assert built.count(d.UNSYMMETRIC) == 1  # the counted builds (the fresh references are not counted)
+
+
+def test_friction_summed_per_segment_pair_is_the_per_point_pair_scatter():
+    """The friction term sums its point pairs' gradients and Hessians onto one map per segment pair: the same
+    global gradient and Hessian as scattering every point pair on its own, to round-off."""
+    from knitframe_solvers.rod_contact import friction_energy
+    from test_rod import cell_energy, wavy_cell
+
+    from knitframe.numerics.periodic import Lattice
+
+    model, en = cell_energy(wavy_cell(), segments=5, friction=True)
+    q = np.zeros(model.n_dof)
+    q[3 * model.n_nodes :] = Lattice.h_from_F(np.diag([1.03, 0.93, 1.0]))
+    en.update_lag(q)
+    q[: 3 * model.n_nodes] += 0.01 * np.random.default_rng(0).standard_normal(3 * model.n_nodes)
+    L = en.lag
+    assert len(L.pairs) < len(L.i)  # several point pairs per segment pair
+    x, h = model.positions(q), model.macro(q)
+    pm = en._pair_map(L.i, L.j, L.k)  # one element per point pair
+    D, g, H = friction_energy(pm.points(x, h), L.s, L.t, L.c, L.normal, L.lam, en.law, en.dk, 2)
+    en.friction = False
+    E0, g0, H0, _ = en(q)
+    en.friction = True
+    E1, g1, H1, _ = en(q)
+    assert E1 - E0 == pytest.approx(float(D.sum()), rel=1e-12)
+    # the differences of the totals carry the round-off of the other terms: judged against the totals
+    np.testing.assert_allclose(g1 - g0, pm.gradient(g), rtol=0, atol=1e-13 * np.abs(g1).max())
+    dH = (H1 - H0 - pm.hessian(H)).toarray()
+    assert np.abs(dH).max() <= 1e-13 * abs(H1).max()

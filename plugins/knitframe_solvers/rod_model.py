@@ -59,6 +59,18 @@ class FrictionLag:
     normal: np.ndarray
     #: (m,) normal force of the point pair, N
     lam: np.ndarray
+    #: (m,) the segment pair of each point pair, an index into ``pairs`` (non-decreasing)
+    group: np.ndarray | None = None
+    #: (n, 4): the distinct segment pairs (i, j, k1, k2) of the point pairs, in order
+    pairs: np.ndarray | None = None
+
+    def __attrs_post_init__(self) -> None:
+        if self.group is None:  # point pairs of one segment pair share its DOFs: grouped once per lag
+            key = np.column_stack([self.i, self.j, self.k]).astype(np.int64)
+            new = np.ones(len(key), dtype=bool)
+            new[1:] = np.any(key[1:] != key[:-1], axis=1)
+            self.group = np.cumsum(new) - 1
+            self.pairs = key[new]
 
 
 @attrs.define(eq=False, slots=False)
@@ -268,12 +280,17 @@ class RodEnergy:
             if self.friction and self.lag is not None and len(self.lag.i):
                 self.calls["friction"] += 1
                 L = self.lag
-                pm = self._pair_map(L.i, L.j, L.k)
+                # one map per segment pair; its point pairs' gradients and Hessians are summed onto it
+                pm = self._pair_map(L.pairs[:, 0], L.pairs[:, 1], L.pairs[:, 2:])
+                D, gq, Hq = friction_energy(
+                    pm.points(x, h)[L.group], L.s, L.t, L.c, L.normal, L.lam, self.law, self.dk, order
+                )
+                starts = np.flatnonzero(np.diff(L.group, prepend=-1))
                 add(
                     pm,
-                    *friction_energy(
-                        pm.points(x, h), L.s, L.t, L.c, L.normal, L.lam, self.law, self.dk, order
-                    ),
+                    D,
+                    None if gq is None else np.add.reduceat(gq, starts, axis=0),
+                    None if Hq is None else np.add.reduceat(Hq, starts, axis=0),
                 )
         if self.external is not None:
             E -= float(self.external @ q)
