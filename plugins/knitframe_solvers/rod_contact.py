@@ -131,12 +131,21 @@ def friction_energy(
     law,
     dk: float,
     order: int = 2,
+    group: np.ndarray | None = None,
 ):
     """Lagged friction pseudo-potential of point pairs on segment pairs p (m, 4, 3).
 
     The material points at parameters (s, t) have slipped by Δc = J x − c_lag since the lag;
     the tangential slip is u = (I − n nᵀ) Δc with the lagged unit normal n (m, 3). ``lam`` (m,)
     is the lagged normal force of each point pair, N. Returns ``(D (m,), g (m, 4, 3), H (m, 4, 3, 4, 3))``.
+
+    With ``group`` (m,), non-decreasing segment-pair numbers 0 … G − 1 of the point pairs (whose p then
+    repeat), g and H are summed per segment pair: (G, 4, 3) and (G, 4, 3, 4, 3), with
+
+        g_s = Σ_{q∈s} w_q ⊗ Pᵀ∇D_q,     H_s = Σ_{q∈s} (w_q w_qᵀ) ⊗ (Pᵀ ∇²D_q P),
+
+    the sums over each group's point pairs taken as one batched matrix product (zero-padded to the
+    largest group) instead of forming every point pair's (4, 3, 4, 3) block.
     """
     w = pair_weights(s, t)
     c = np.matmul(w[:, None, :], p)[:, 0]  # Σ_i w_mi p_mi
@@ -146,9 +155,34 @@ def friction_energy(
     if order == 0:
         return D, None, None
     gc = np.matmul(gu[:, None, :], P)[:, 0]  # ∂D/∂c = Pᵀ ∇u D
-    g = w[:, :, None] * gc[:, None, :]
+    pad = None if group is None else _padding(group)
+    if pad is None:
+        g = w[:, :, None] * gc[:, None, :]
+    else:
+        g = np.matmul(pad(w).transpose(0, 2, 1), pad(gc))  # (G, 4, 3)
     if order == 1:
         return D, g, None
     Hc = np.matmul(np.matmul(P.transpose(0, 2, 1), Hu), P)  # Pᵀ Hu P
-    H = (w[:, :, None] * w[:, None, :])[:, :, None, :, None] * Hc[:, None, :, None, :]
+    ww = (w[:, :, None] * w[:, None, :]).reshape(-1, 16)
+    if pad is None:
+        H = ww.reshape(-1, 4, 4)[:, :, None, :, None] * Hc[:, None, :, None, :]
+    else:
+        HH = np.matmul(pad(ww).transpose(0, 2, 1), pad(Hc.reshape(-1, 9)))  # (G, 16, 9)
+        H = HH.reshape(-1, 4, 4, 3, 3).transpose(0, 1, 3, 2, 4)
     return D, g, H
+
+
+def _padding(group: np.ndarray):
+    """``pad(a)``: rows a (m, …) of the groups laid out as (G, n_max, …), zero where a group is shorter."""
+    m = len(group)
+    starts = np.flatnonzero(np.diff(group, prepend=-1))
+    counts = np.diff(np.append(starts, m))
+    slot = np.arange(m) - np.repeat(starts, counts)
+    shape = (len(starts), int(counts.max(initial=1)))
+
+    def pad(a: np.ndarray) -> np.ndarray:
+        out = np.zeros(shape + a.shape[1:])
+        out[group, slot] = a
+        return out
+
+    return pad

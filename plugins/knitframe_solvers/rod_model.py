@@ -282,15 +282,9 @@ class RodEnergy:
                 L = self.lag
                 # one map per segment pair; its point pairs' gradients and Hessians are summed onto it
                 pm = self._pair_map(L.pairs[:, 0], L.pairs[:, 1], L.pairs[:, 2:])
-                D, gq, Hq = friction_energy(
-                    pm.points(x, h)[L.group], L.s, L.t, L.c, L.normal, L.lam, self.law, self.dk, order
-                )
-                starts = np.flatnonzero(np.diff(L.group, prepend=-1))
+                p = pm.points(x, h)[L.group]
                 add(
-                    pm,
-                    D,
-                    None if gq is None else np.add.reduceat(gq, starts, axis=0),
-                    None if Hq is None else np.add.reduceat(Hq, starts, axis=0),
+                    pm, *friction_energy(p, L.s, L.t, L.c, L.normal, L.lam, self.law, self.dk, order, L.group)
                 )
         if self.external is not None:
             E -= float(self.external @ q)
