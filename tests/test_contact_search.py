@@ -101,3 +101,32 @@ def test_pairs_are_not_double_counted():
     keys = {(a, b, tuple(k)) for a, b, k in zip(pr.i, pr.j, pr.k)}
     twins = {(b, a, (-k[0], -k[1])) for a, b, k in keys}
     assert len(keys) == len(pr) and not (keys & twins)
+
+
+def test_a_verlet_list_gives_the_pairs_of_a_fresh_search():
+    """Along a path of small random moves and a growing macro stretch, the search that keeps its broad-phase
+    candidates (a Verlet list) returns exactly the pairs, parameters and distances of a fresh search, reusing
+    its list most of the time and rebuilding it when something moved far."""
+    from knitframe.numerics.contact_search import VerletList
+
+    rng = np.random.default_rng(3)
+    lat = Lattice([4.0, 0, 0], [0, 3.0, 0])
+    n = 60
+    p0 = rng.uniform([0, 0, -0.3], [4.0, 3.0, 0.3], (n, 3))
+    d = rng.standard_normal((n, 3))
+    p1 = p0 + 0.4 * d / np.linalg.norm(d, axis=1)[:, None]
+    topo = SegmentTopology(
+        np.arange(n), np.zeros(n, np.int64), np.zeros(n), np.zeros(n, np.int64), np.ones(n)
+    )
+    verlet = VerletList()
+    h = np.zeros(6)
+    for step in range(40):
+        move = 0.01 * rng.standard_normal((n, 3)) if step != 25 else 0.5 * rng.standard_normal((n, 3))
+        p0, p1 = p0 + move, p1 + move
+        h[macro_index(0, 0)] += 0.002
+        fresh = find_pairs(p0, p1, 0.5, topology=topo, lattice=lat, h=h)
+        kept = find_pairs(p0, p1, 0.5, topology=topo, lattice=lat, h=h, verlet=verlet)
+        assert len(fresh) > 10
+        for a in ("i", "j", "k", "s", "t", "distance"):
+            np.testing.assert_array_equal(getattr(kept, a), getattr(fresh, a))
+    assert verlet.uses > 20 and 2 <= verlet.builds < 15

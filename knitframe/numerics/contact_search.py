@@ -3,7 +3,9 @@
 Shared by the unit-cell solvers. Segments are straight pieces of yarn centerlines. The broad
 phase puts segment midpoints in a :class:`scipy.spatial.cKDTree` and queries it against the
 midpoints of every periodic image k1 L1 + k2 L2 (k1, k2 ∈ {−1, 0, 1}) placed under the current
-macro deformation F̄; the narrow phase computes exact segment–segment closest points.
+macro deformation F̄; the narrow phase computes exact segment–segment closest points. A
+:class:`VerletList` keeps the broad phase's candidates between searches while nothing has moved far
+enough to bring a new pair within reach.
 
 Self-contact: two segments on the same strand (one infinite yarn of the fabric, see
 :func:`knitframe.geometry.strands`) are neighbours, not contacts, when they lie closer than an
@@ -19,7 +21,7 @@ from scipy.spatial import cKDTree
 
 from knitframe.numerics.periodic import Lattice
 
-__all__ = ["closest_points", "SegmentTopology", "Pairs", "find_pairs", "IMAGES"]
+__all__ = ["closest_points", "SegmentTopology", "Pairs", "find_pairs", "VerletList", "IMAGES"]
 
 #: periodic images searched: (0, 0) first, then the 8 neighbours
 IMAGES = np.array(
@@ -134,6 +136,53 @@ def _canonical(i: np.ndarray, j: np.ndarray, k: np.ndarray) -> np.ndarray:
     return (i < j) | ((i == j) & (kid > 0))
 
 
+@attrs.define(eq=False)
+class VerletList:
+    """Broad-phase candidates kept between contact searches (a Verlet list).
+
+    The broad phase keeps a segment pair (a, b at image k) when their midpoints are closer than
+    the reach R = cutoff + 2·max half-length; every pair closer than the cutoff is among them. A list
+    built with the reach grown by ``margin``·R, R_ref, at midpoints m_ref and image shifts S_ref, holds
+    every pair within the reach R of a later state as long as
+
+        R + 2δ ≤ R_ref,    δ = max_a |m_a − m_a,ref| + max_k |S_k − S_k,ref|,
+
+    since no midpoint distance changed by more than 2δ (the triangle inequality). Then the list
+    replaces the KD-tree search, and the exact narrow phase gives the pairs a fresh search gives, in the
+    same order (the candidates are sorted). ``builds`` and ``uses`` count the searches and reuses.
+    """
+
+    margin: float = 0.25
+    builds: int = 0
+    uses: int = 0
+    _ref: tuple | None = None
+
+    def candidates(self, mid: np.ndarray, shifts: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+        """(i, j_flat) of the broad phase at reach ``reach``: kept ones while they are valid, else new."""
+        ref = self._ref
+        if ref is not None and ref[0].shape == mid.shape and ref[1].shape == shifts.shape:
+            move = float(np.max(np.linalg.norm(mid - ref[0], axis=1), initial=0.0))
+            move += float(np.max(np.linalg.norm(shifts - ref[1], axis=1), initial=0.0))
+            if reach + 2.0 * move <= ref[2]:
+                self.uses += 1
+                return ref[3], ref[4]
+        grown = reach * (1.0 + self.margin)
+        i, jf = _broad_phase(mid, shifts, grown)
+        self._ref = (mid.copy(), shifts.copy(), grown, i, jf)
+        self.builds += 1
+        return i, jf
+
+
+def _broad_phase(mid: np.ndarray, shifts: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """Midpoint pairs closer than ``reach``: segment i (image 0) and j_flat = image row · n + j, sorted."""
+    img_mid = (mid[None, :, :] + shifts[:, None, :]).reshape(-1, 3)
+    found = cKDTree(mid).sparse_distance_matrix(cKDTree(img_mid), reach, output_type="ndarray")
+    i = found["i"].astype(np.int64)
+    jf = found["j"].astype(np.int64)
+    order = np.lexsort((jf, i))
+    return i[order], jf[order]
+
+
 def find_pairs(
     p0: np.ndarray,
     p1: np.ndarray,
@@ -144,6 +193,7 @@ def find_pairs(
     h: np.ndarray | None = None,
     self_contact: bool = False,
     exclusion: float = 0.0,
+    verlet: VerletList | None = None,
 ) -> Pairs:
     """Segment pairs whose closest distance is below ``cutoff``, with periodic images and exclusions.
 
@@ -164,6 +214,8 @@ def find_pairs(
         every pair on the same strand copy is dropped.
     exclusion : float
         Arc distance along a strand under which pairs are neighbours, mm.
+    verlet : VerletList, optional
+        Keeps the broad phase's candidates between calls (the result is the same).
     """
     n = len(p0)
     mid = 0.5 * (p0 + p1)
@@ -173,11 +225,9 @@ def find_pairs(
     shifts = (
         lattice.shift(images, np.zeros(6) if h is None else h) if lattice is not None else np.zeros((1, 3))
     )
-    img_mid = (mid[None, :, :] + shifts[:, None, :]).reshape(-1, 3)
-    found = cKDTree(mid).sparse_distance_matrix(cKDTree(img_mid), reach, output_type="ndarray")
-    i = found["i"].astype(np.int64)
-    j = found["j"].astype(np.int64) % n
-    k = images[found["j"].astype(np.int64) // n]
+    i, jf = _broad_phase(mid, shifts, reach) if verlet is None else verlet.candidates(mid, shifts, reach)
+    j = jf % n
+    k = images[jf // n]
     keep = _canonical(i, j, k)
     i, j, k = i[keep], j[keep], k[keep]
     # same strand copy: neighbours along the yarn (or all of it without self-contact)

@@ -21,7 +21,7 @@ from typing import Any
 import attrs
 import numpy as np
 
-from knitframe.numerics.contact_search import find_pairs
+from knitframe.numerics.contact_search import VerletList, find_pairs
 from knitframe.numerics.pattern import PatternCache
 from knitframe.numerics.periodic import PointMap
 from knitframe_solvers.rod_contact import friction_energy, gauss_points, pair_weights, quadrature_contact
@@ -145,6 +145,7 @@ class RodEnergy:
         self._rules: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         self._l_max = float(m.l0.max(initial=0.0))
         self._pair_maps: dict[bytes, PointMap] = {}
+        self._verlet = VerletList()  # the contact search's broad phase, kept while nothing moved far
         # the Hessian's CSR structure per set of terms: rebuilt only when the contact pairs change
         self._assembly = PatternCache(m.n_dof)
 
@@ -182,6 +183,7 @@ class RodEnergy:
             h=h,
             self_contact=self.self_contact,
             exclusion=self.exclusion,
+            verlet=self._verlet,
         )
 
     def _pair_map(self, i: np.ndarray, j: np.ndarray, k: np.ndarray) -> PointMap:
