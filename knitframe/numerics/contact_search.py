@@ -15,6 +15,8 @@ copies of a yarn along the wale) is always kept.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import attrs
 import numpy as np
 from scipy.spatial import cKDTree
@@ -157,20 +159,26 @@ class VerletList:
     uses: int = 0
     _ref: tuple | None = None
 
-    def candidates(self, mid: np.ndarray, shifts: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
-        """(i, j_flat) of the broad phase at reach ``reach``: kept ones while they are valid, else new."""
+    def candidates(
+        self, mid: np.ndarray, shifts: np.ndarray, reach: float, build: Callable[[float], tuple]
+    ) -> tuple:
+        """``build(R)``'s candidates at a reach grown from ``reach``: kept ones while valid, else new.
+
+        ``build`` may filter the broad phase by anything that does not depend on positions (the
+        twins, the neighbours along a yarn): a kept list filtered so is still a superset.
+        """
         ref = self._ref
         if ref is not None and ref[0].shape == mid.shape and ref[1].shape == shifts.shape:
             move = float(np.max(np.linalg.norm(mid - ref[0], axis=1), initial=0.0))
             move += float(np.max(np.linalg.norm(shifts - ref[1], axis=1), initial=0.0))
             if reach + 2.0 * move <= ref[2]:
                 self.uses += 1
-                return ref[3], ref[4]
+                return ref[3]
         grown = reach * (1.0 + self.margin)
-        i, jf = _broad_phase(mid, shifts, grown)
-        self._ref = (mid.copy(), shifts.copy(), grown, i, jf)
+        found = build(grown)
+        self._ref = (mid.copy(), shifts.copy(), grown, found)
         self.builds += 1
-        return i, jf
+        return found
 
 
 def _broad_phase(mid: np.ndarray, shifts: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
@@ -225,17 +233,22 @@ def find_pairs(
     shifts = (
         lattice.shift(images, np.zeros(6) if h is None else h) if lattice is not None else np.zeros((1, 3))
     )
-    i, jf = _broad_phase(mid, shifts, reach) if verlet is None else verlet.candidates(mid, shifts, reach)
-    j = jf % n
-    k = images[jf // n]
-    keep = _canonical(i, j, k)
-    i, j, k = i[keep], j[keep], k[keep]
-    # same strand copy: neighbours along the yarn (or all of it without self-contact)
-    base_i, arc_i = topology.unrolled(i, np.zeros(len(i), np.int64))
-    base_j, arc_j = topology.unrolled(j, k[:, 0])
-    same = (topology.strand[i] == topology.strand[j]) & (k[:, 1] == 0) & (base_i == base_j)
-    drop = same if not self_contact else same & (np.abs(arc_i - arc_j) < exclusion)
-    i, j, k = i[~drop], j[~drop], k[~drop]
+
+    def build(radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The broad phase at ``radius`` without twins and without neighbours along a yarn."""
+        i, jf = _broad_phase(mid, shifts, radius)
+        j = jf % n
+        k = images[jf // n]
+        keep = _canonical(i, j, k)
+        i, j, k = i[keep], j[keep], k[keep]
+        # same strand copy: neighbours along the yarn (or all of it without self-contact)
+        base_i, arc_i = topology.unrolled(i, np.zeros(len(i), np.int64))
+        base_j, arc_j = topology.unrolled(j, k[:, 0])
+        same = (topology.strand[i] == topology.strand[j]) & (k[:, 1] == 0) & (base_i == base_j)
+        drop = same if not self_contact else same & (np.abs(arc_i - arc_j) < exclusion)
+        return i[~drop], j[~drop], k[~drop]
+
+    i, j, k = build(reach) if verlet is None else verlet.candidates(mid, shifts, reach, build)
     sh = shifts[_image_row(k)] if lattice is not None else np.zeros((len(i), 3))
     q0, q1 = p0[j] + sh, p1[j] + sh
     s, t = closest_points(p0[i], p1[i], q0, q1)
