@@ -35,7 +35,35 @@ from knitframe.numerics.newton_steps import (
     step_ratio,
 )
 
-__all__ = ["Minimiser"]
+__all__ = ["Minimiser", "free_block"]
+
+
+def free_block(H: sp.spmatrix, free: np.ndarray, fmt: str = "csc") -> sp.spmatrix:
+    """The free–free block ``H[free][:, free]`` of a sparse Hessian, in the format ``fmt`` ("csr" or "csc").
+
+    Entry for entry (order of the stored entries included) what ``H[free][:, free].tocsc()`` and its
+    conversion back to CSR give, without the conversions a solver does not need: a CSR ``H`` with sorted
+    indices keeps them sorted under the row and column selection, so its CSR block is returned as
+    sliced; otherwise it goes through CSC as before.
+    """
+    free = np.asarray(free, bool)
+    Hf = sp.csr_matrix(H)[free][:, free]
+    if fmt == "csc":
+        return Hf.tocsc()
+    if fmt != "csr":
+        raise ValueError(f"free_block: format must be 'csr' or 'csc', got {fmt!r}")
+    if H.format == "csr" and H.has_sorted_indices:
+        Hf.has_sorted_indices = True
+        return Hf
+    return Hf.tocsc().tocsr()
+
+
+def solver_format(solve: Callable[..., Any], n: int) -> str:
+    """The sparse format a linear solver takes its n × n matrices in: its ``matrix_format(n)`` when it
+    offers one ("csr" or "csc"), else "csc"."""
+    fmt = getattr(solve, "matrix_format", None)
+    return fmt(n) if callable(fmt) else "csc"
+
 
 #: a converged state: x, E, g, the iteration count, the history and the last info
 Converged = tuple[np.ndarray, float, np.ndarray, int, tuple[dict, ...], dict]
@@ -231,8 +259,7 @@ class Minimiser:
 
     def _newton_step(self, it: int, res: float) -> Converged | None:
         """A Newton iteration: the converged result if the step test passes, else None after moving."""
-        free = self.free
-        Hff = self.H[free][:, free].tocsc()
+        Hff = self._free_block()
         base = (
             self.options.stabilisation if (self.stabilise is not None and self.stabilise(self.info)) else 0.0
         )
@@ -245,10 +272,15 @@ class Minimiser:
             return self._result(it)
         return self._advance(it, *step)
 
+    def _free_block(self) -> sp.spmatrix:
+        """The free–free block of the Hessian in the format the linear solver takes (:func:`free_block`)."""
+        n = int(np.count_nonzero(self.free))
+        return free_block(self.H, self.free, solver_format(self.solve, n))
+
     def _solve_shifted(self, Hff: sp.spmatrix, gf: np.ndarray, scale: float) -> np.ndarray | None:
         """dx_f = −(H_ff + shift·scale·I)⁻¹·g_f (the factorisation kept for chord steps), None on failure."""
         shift_rel = self.shift_rel
-        A = Hff + sp.identity(Hff.shape[0], format="csc") * (shift_rel * scale) if shift_rel > 0 else Hff
+        A = Hff + sp.identity(Hff.shape[0], format=Hff.format) * (shift_rel * scale) if shift_rel > 0 else Hff
         try:
             with np.errstate(all="ignore"):
                 if self.factorize is not None:  # kept for chord steps
@@ -292,7 +324,7 @@ class Minimiser:
                 self.projecting = True
                 entry["projected"] = True
                 self.H = self.fun(x, 2, projected=True)[2]
-                Hff = self.H[free][:, free].tocsc()
+                Hff = self._free_block()
                 scale = diag_scale(Hff)
                 continue
             if (

@@ -8,6 +8,7 @@ positive definite matrices only) is used when asked for.
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 import weakref
 from collections.abc import Callable
@@ -57,11 +58,23 @@ def is_symmetric(A: Any, rtol: float = 1e-12) -> bool:
     """
     if A.shape[0] != A.shape[1]:
         return False
-    rng = np.random.default_rng(12345)
-    x, y = rng.standard_normal(A.shape[0]), rng.standard_normal(A.shape[0])
-    Ax, Ay = A @ x, A @ y
+    x, y, xy = _probe_vectors(A.shape[0])
+    Axy = A @ xy  # one pass over A; each column summed in the order of a matrix-vector product
+    Ax, Ay = np.ascontiguousarray(Axy[:, 0]), np.ascontiguousarray(Axy[:, 1])  # strided norms are slow
     scale = float(np.linalg.norm(Ay) * np.linalg.norm(x) + np.linalg.norm(Ax) * np.linalg.norm(y))
     return abs(float(x @ Ay) - float(y @ Ax)) <= rtol * scale
+
+
+@functools.lru_cache(maxsize=4)
+def _probe_vectors(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The two fixed random vectors x, y (n,) of :func:`is_symmetric` and the (n, 2) array of them as
+    columns, all read-only."""
+    rng = np.random.default_rng(12345)
+    x, y = rng.standard_normal(n), rng.standard_normal(n)
+    xy = np.column_stack([x, y])
+    for a in (x, y, xy):
+        a.flags.writeable = False
+    return x, y, xy
 
 
 #: above this many unknowns a failed PARDISO solve is not handed to SuperLU, whose fill-in on a 3-D
@@ -306,7 +319,7 @@ def direct(backend: str = "auto") -> Callable[[Any, np.ndarray], np.ndarray]:
         raise ConfigError("backend", f"'{backend}' needs the {mod} package: {how}")
     if backend == "auto":
         if not available("pardiso"):
-            return _with_factorize(_superlu, _factorize_superlu)
+            return _with_factorize(_superlu, _factorize_superlu, "csc")
 
         def auto(A: Any, b: np.ndarray) -> np.ndarray:
             return (_pardiso if A.shape[0] >= AUTO_PARDISO_SIZE else _superlu)(A, b)
@@ -314,23 +327,28 @@ def direct(backend: str = "auto") -> Callable[[Any, np.ndarray], np.ndarray]:
         def auto_factorize(A: Any) -> Callable[[np.ndarray], np.ndarray]:
             return (_factorize_pardiso if A.shape[0] >= AUTO_PARDISO_SIZE else _factorize_superlu)(A)
 
-        return _with_factorize(auto, auto_factorize)
+        return _with_factorize(auto, auto_factorize, lambda n: "csr" if n >= AUTO_PARDISO_SIZE else "csc")
     return _with_factorize(
         *{
-            "superlu": (_superlu, _factorize_superlu),
-            "pardiso": (_pardiso, _factorize_pardiso),
-            "cholmod": (_cholmod, _factorize_cholmod),
+            "superlu": (_superlu, _factorize_superlu, "csc"),
+            "pardiso": (_pardiso, _factorize_pardiso, "csr"),
+            "cholmod": (_cholmod, _factorize_cholmod, "csc"),
         }[backend]
     )
 
 
-def _with_factorize(solve: Callable, factorize: Callable) -> Callable[[Any, np.ndarray], np.ndarray]:
-    """``solve(A, b)`` that also offers ``solve.factorize(A) -> f`` with ``x = f(b)`` (the factors kept)."""
+def _with_factorize(
+    solve: Callable, factorize: Callable, fmt: str | Callable[[int], str]
+) -> Callable[[Any, np.ndarray], np.ndarray]:
+    """``solve(A, b)`` that also offers ``solve.factorize(A) -> f`` with ``x = f(b)`` (the factors kept) and
+    ``solve.matrix_format(n)``: the sparse format ("csr" for PARDISO, "csc" for SuperLU and CHOLMOD) that an
+    n × n matrix is best handed over in, with no conversion inside the solver."""
 
     def wrapped(A: Any, b: np.ndarray) -> np.ndarray:
         return solve(A, b)
 
     wrapped.factorize = factorize
+    wrapped.matrix_format = fmt if callable(fmt) else (lambda n: fmt)
     return wrapped
 
 

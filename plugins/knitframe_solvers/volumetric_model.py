@@ -341,7 +341,11 @@ class VolumetricModel:
         if order == 2:
             H = self.pull_back(K)
             if Hc is not None and Hc.nnz:
-                H = H + self.QT @ Hc @ self.Q
+                Hq = self.QT @ Hc @ self.Q
+                # sorted rows: scipy then merges the two canonical matrices (the same sums) into a sorted H,
+                # which the Newton driver slices into the solver's CSR without a round trip through CSC
+                Hq.sort_indices()
+                H = H + Hq
             H = H.tocsr()
         self.timings["transform"] += time.perf_counter() - t0
         if not np.all(np.isfinite(g)):

@@ -134,6 +134,8 @@ class VolumetricRun:
             return wrapper
 
         solve = timed(backend, True)
+        # the format the backend takes its matrices in: the Newton driver hands it the Hessian's free block so
+        solve.matrix_format = getattr(backend, "matrix_format", None)
         if (
             self.solver.newton.chord
             and model.barrier
