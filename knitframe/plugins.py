@@ -239,8 +239,10 @@ def load_registry(
     dists: dict[str, tuple[str, str]] = {}
     failed: list[tuple[str, str]] = []
     for ep in md.entry_points(group=ENTRY_POINT_GROUP):
-        dist = ep.dist.name if ep.dist is not None else "unknown"
-        version = ep.dist.version if ep.dist is not None else "unknown"
+        # a distribution whose metadata has no name (a package half installed, or one being removed while
+        # this runs) counts as an external one called "unknown"
+        dist = (ep.dist.name if ep.dist is not None else None) or "unknown"
+        version = (ep.dist.version if ep.dist is not None else None) or "unknown"
         if dist.lower() != BUILTIN_DIST and not external:
             continue
         if pm.has_plugin(ep.name):

@@ -9,6 +9,11 @@ import numpy as np
 import pytest
 from conftest import DIST, DIST_VERSION, EXTERNAL
 
+#: these tests share the example plugin that conftest's installed_plugin pip-installs for a worker's session
+#: and uninstalls at its end: one worker runs them all (--dist loadgroup), so no other worker removes the
+#: package under them
+pytestmark = pytest.mark.xdist_group("installed_plugin")
+
 
 def test_installed_plugin_is_listed_with_its_package(installed_plugin, cli):
     """`knitframe plugins` lists the third-party reader with its own package name."""

@@ -15,6 +15,11 @@ from conftest import DIST, DIST_VERSION, EXTERNAL, PLUGIN_DIR, ROOT
 
 from knitframe import Fabric, GeometryError, get_registry
 
+#: these tests share the example plugin that conftest's installed_plugin pip-installs for a worker's session
+#: and uninstalls at its end: one worker runs them all (--dist loadgroup), so no other worker removes the
+#: package under them
+pytestmark = pytest.mark.xdist_group("installed_plugin")
+
 TUTORIAL = ROOT / "docs" / "tutorial-pattern-plugin.md"
 #: a fenced block that names its file: ```python title="knitframe_example/tuck.py"
 BLOCK = re.compile(r'^```(\w+) title="([^"]+)"\n(.*?)^```$', re.S | re.M)
