@@ -522,10 +522,10 @@ PINS: list[Pin] = [
         ),
     ),
     Pin(
-        r"\| (\d+)–(\d+) s \| equibiaxial",
+        r"\| ([\d.]+)–([\d.]+) s \| equibiaxial",
         lambda c: docnum(
             "performance.md",
-            r"one other run on the machine \(2026-11-27, `bench_rod.py --repeats 2`\) \| ([\d.]+)–([\d.]+) s",
+            r"10 load steps, quiet machine \(2026-11-28, `bench_rod.py --repeats 3`\) \| ([\d.]+)–([\d.]+) s",
         ),
     ),
     Pin(
