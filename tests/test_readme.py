@@ -583,6 +583,16 @@ PINS: list[Pin] = [
         r"\| 8 pearl-cotton curves: median ratio ([\d.]+); (\d+) of (\d+) within (\d+)×", lambda c: S()["p2"]
     ),
     Pin(r"is (\d+)–(\d+)× softer", lambda c: tight_cells_softer()),
+    Pin(
+        r"may differ by up to (\d+) % at 30 % strain and (\d+) % at 5 %",
+        lambda c: docnum(
+            "validation.md", r"a difference below about (\d+) % at 5 % strain and (\d+) % at 30 %"
+        )[::-1],
+    ),
+    Pin(
+        r"by up to (\d+) % \(\[docs/validation\.md\]",
+        lambda c: docnum("validation.md", r"differed by up to \d+ % in T1 and (\d+) % in T2"),
+    ),
 ]
 
 #: numbers the README gives in words: (value, tolerance)
