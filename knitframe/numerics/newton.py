@@ -46,12 +46,15 @@ linear-solver plugin, with
   dx = −H_k⁻¹·g(x), at the cost of a gradient and a back-substitution instead of a Hessian
   assembly and a factorisation. H_k is positive definite where the Newton step was a descent
   direction, so the chord step is one too; the same CCD bound and line search apply. Chord steps
-  go on while their energy decrease per second of wall time is at least the last Newton
-  iteration's, for at most ``max_chord`` in a row; then, or when a chord step fails, is within
-  ``step_tol`` or is over twice the size of that Newton step (the kept factorisation no longer
-  models the energy there), the Hessian is evaluated again. With ``chord_full`` they also follow full
-  steps (α = 1): where projected Newton converges only linearly (its Hessian too stiff along a slow
-  mode), a fresh Hessian buys little over the kept one, and the rate rule decides. A full step then
+  go on while their energy decrease per unit of work is at least the last Newton iteration's
+  (work: the evaluations, factorisations and solves counted and weighted by
+  :data:`knitframe.numerics.newton_driver.WORK_COST`, not wall seconds, so that the path does not
+  depend on the machine's load), for at most ``max_chord`` in a row; then, or when a chord step
+  fails, is within ``step_tol`` or is over twice the size of that Newton step (the kept
+  factorisation no longer models the energy there), the Hessian is evaluated again. With
+  ``chord_full`` they also follow full steps (α = 1): where projected Newton converges only linearly
+  (its Hessian too stiff along a slow mode), a fresh Hessian buys little over the kept one, and the
+  rate rule decides. A full step then
   counts as within reach of the step test when its size times its ratio to the last Newton step's
   (the observed rate) is within ``step_tol``, not at twice ``step_tol``. Where the first chord step after a
   Newton step is refused k times in a row, the next 2^k − 1 chances are skipped (stale factors
@@ -144,8 +147,8 @@ def minimise(
         collision detection of barrier contact); the line search starts from min(1, α_max).
     on_iteration : callable, optional
         ``on_iteration(entry)`` with each iteration's history entry as it is completed (after its
-        line search, or as the iterate converges or the iteration fails), ``wall_s`` included: a
-        trace of an increment that is killed or never converges.
+        line search, or as the iterate converges or the iteration fails), ``wall_s`` and ``work``
+        included: a trace of an increment that is killed or never converges.
 
     Returns
     -------

@@ -68,7 +68,7 @@ class NewtonOptions:
     #: fail)
     start_projected: bool = False
     #: after a Newton step the line search shortened (α < 1), reuse its factorisation for chord steps
-    #: −H_k⁻¹·g(x) while they lower E at least as fast per second as that Newton step (needs
+    #: −H_k⁻¹·g(x) while they lower E at least as fast per unit of counted work as that Newton step (needs
     #: ``solve.factorize``)
     chord: bool = False
     #: with ``chord``, chord steps also after a full Newton step (α = 1): where full steps converge only
@@ -97,6 +97,7 @@ class NewtonResult:
     #: per iteration: energy, residual, alpha, shift, step_energy (E at the accepted step, as the line search
     #: evaluated it), step (size of the Newton step / max_step, before the cap; the size itself without a
     #: cap), alpha0 (the line search's first α: 1 or the CCD bound), wall_s (the iteration's wall time: its
-    #: iterate's evaluation, factorisations, line search)
+    #: iterate's evaluation, factorisations, line search), work (the same counted and weighted by
+    #: ``newton_driver.WORK_COST``, in gradient evaluations: what the chord rule compares)
     history: tuple[dict, ...]
     info: dict

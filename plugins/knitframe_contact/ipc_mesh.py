@@ -10,7 +10,9 @@ self-contact. :func:`collision_mesh` caches one mesh per surface.
 
 from __future__ import annotations
 
+import contextlib
 import itertools
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -23,7 +25,7 @@ from knitframe.numerics.periodic import N_MACRO, macro_index
 #: excluded)
 EXCLUSION_BINNINGS = 4
 
-__all__ = ["PeriodicCollisionMesh", "collision_mesh", "ipctk_module", "EXCLUSION_BINNINGS"]
+__all__ = ["PeriodicCollisionMesh", "collision_mesh", "ipctk_module", "one_thread", "EXCLUSION_BINNINGS"]
 
 
 def ipctk_module():
@@ -33,6 +35,28 @@ def ipctk_module():
     except ImportError as e:  # the volumetric extra
         raise NumericalError("contact law 'ipc' needs ipctk: pip install \"knitframe[volumetric]\"") from e
     return ipctk
+
+
+@contextlib.contextmanager
+def one_thread() -> Iterator[Any]:
+    """ipctk (the module) held to one thread inside the block, its thread count restored after it.
+
+    On several threads ipctk's results depend on how the work fell to them: the broad phase lists its
+    candidates, and the collisions built from them, in an order that varies from run to run, and the
+    energy, gradient and Hessian are sums over thread-local parts; so the contact forces, and through the
+    Newton path a whole curve, differ between two runs in the last bits and then further. On one thread
+    they are the same bit for bit.
+    """
+    ipctk = ipctk_module()
+    threads = ipctk.get_num_threads()
+    if threads == 1:
+        yield ipctk
+        return
+    ipctk.set_num_threads(1)
+    try:
+        yield ipctk
+    finally:
+        ipctk.set_num_threads(threads)
 
 
 class PeriodicCollisionMesh:
