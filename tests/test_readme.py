@@ -584,14 +584,10 @@ PINS: list[Pin] = [
     ),
     Pin(r"is (\d+)–(\d+)× softer", lambda c: tight_cells_softer()),
     Pin(
-        r"may differ by up to (\d+) % at 30 % strain and (\d+) % at 5 %",
+        r"moves a rod curve with friction by up to (\d+) % at 30 % strain and (\d+) % at 5 %",
         lambda c: docnum(
             "validation.md", r"a difference below about (\d+) % at 5 % strain and (\d+) % at 30 %"
         )[::-1],
-    ),
-    Pin(
-        r"by up to (\d+) % \(\[docs/validation\.md\]",
-        lambda c: docnum("validation.md", r"differed by up to \d+ % in T1 and (\d+) % in T2"),
     ),
 ]
 
